@@ -1,0 +1,61 @@
+/* Sightline cameras: perspective and orthographic, 6 degrees of freedom, frustum planes.
+ *
+ * World: metres, right-handed, Z up. Orientation by yaw, pitch, roll in radians:
+ *   yaw   rotates about +Z, counter-clockwise seen from above; yaw 0 looks along +X, pi/2 along +Y;
+ *   pitch tilts the view up (positive) or down, in [-pi/2, pi/2];
+ *   roll  rotates about the viewing direction, positive is clockwise as seen by the viewer.
+ * forward = (cos(pitch)cos(yaw), cos(pitch)sin(yaw), sin(pitch)); up (roll 0) has a positive z.
+ * The view matrix maps to OpenGL eye space (camera looks down -Z_eye, Y_eye up); projection maps to
+ * clip space with OpenGL conventions (NDC z in [-1,1]); matrices are column-major (sl_mat4).
+ */
+#ifndef SIGHTLINE_CAMERA_H
+#define SIGHTLINE_CAMERA_H
+
+#include "core.h"
+#include "geom.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sl_projection { SL_PERSPECTIVE = 0, SL_ORTHOGRAPHIC = 1 } sl_projection;
+
+typedef struct sl_camera {
+    sl_vec3 position;
+    float yaw, pitch, roll;     /* radians */
+    sl_projection projection;
+    float fov_y;                /* perspective: vertical field of view, radians, in (0, pi) */
+    float ortho_height;         /* orthographic: height of the view volume in metres */
+    float near_plane, far_plane;/* > 0, far > near */
+    uint32_t width, height;     /* viewport in pixels (aspect = width/height) */
+} sl_camera;
+
+/* Frustum planes, inside where a*x+b*y+c*z+d >= 0; order: left, right, bottom, top, near, far. */
+typedef struct sl_frustum {
+    sl_plane planes[6];
+    sl_vec3 corners[8];         /* near (bl, br, tr, tl) then far (bl, br, tr, tl) */
+} sl_frustum;
+
+/* A default camera: at the origin, 1.7 m up, looking along +X, 60 degrees vertical fov,
+ * 1024x768, near 0.1 m, far 5000 m. */
+SL_API sl_camera sl_camera_default(void);
+/* Check a camera (finite values, ranges above); the message names the bad field. */
+SL_API sl_status sl_camera_validate(const sl_camera *cam, sl_error *err);
+/* Unit forward, right and up vectors. */
+SL_API void sl_camera_basis(const sl_camera *cam, sl_vec3 *forward, sl_vec3 *right, sl_vec3 *up);
+/* World-to-eye, eye-to-clip and world-to-clip matrices. */
+SL_API sl_mat4 sl_camera_view(const sl_camera *cam);
+SL_API sl_mat4 sl_camera_proj(const sl_camera *cam);
+SL_API sl_mat4 sl_camera_view_proj(const sl_camera *cam);
+/* Frustum planes (normalised) and corners in world space. */
+SL_API sl_frustum sl_camera_frustum(const sl_camera *cam);
+/* Point the camera at a target (sets yaw and pitch, keeps roll). */
+SL_API void sl_camera_look_at(sl_camera *cam, sl_vec3 target);
+
+/* Box-frustum classification: 0 outside, 1 intersecting, 2 fully inside. */
+SL_API int sl_frustum_test_aabb(const sl_frustum *f, const sl_aabb *box);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,245 @@
+/* Sightline scene model.
+ *
+ * A scene holds
+ *  - meshes: indexed triangle meshes (float positions, float normals), shared by instancing;
+ *  - objects: the unit of visibility (a building, a car, a tree, a group of BSP faces): a mesh,
+ *    an affine transform, a colour, a kind tag and a world-space AABB; object ids are dense
+ *    indices 0..object_count-1 in insertion order;
+ *  - occluders, kept apart from render geometry: 2.5D building footprints (simple CCW polygons
+ *    seen from +z with base and roof height; each edge is a façade quad) and general 3D occluder
+ *    meshes (a mesh plus a transform);
+ *  - an optional terrain height field, an optional street network (polygons of free space plus a
+ *    centre-line graph), optional BSP data from Quake III maps (nodes, leaves, clusters and the
+ *    map's own cluster PVS), and string metadata.
+ *
+ * Units are metres, Z up. A scene is built with the sl_scene_add_* calls, or loaded from a
+ * .slscene file (see slscene.h), where its bulk arrays may stay memory-mapped and read-only: the
+ * add calls then copy what they need first. Object transforms stay writable (dynamic objects).
+ *
+ * Thread safety: const accessors may run concurrently from any number of threads; mutating calls
+ * need exclusive access.
+ */
+#ifndef SIGHTLINE_SCENE_H
+#define SIGHTLINE_SCENE_H
+
+#include "core.h"
+#include "geom.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sl_scene_t *sl_scene;
+
+/* Kind tags. Values are stored in files: never renumber. */
+typedef enum sl_object_kind {
+    SL_KIND_OTHER = 0,
+    SL_KIND_BUILDING = 1,
+    SL_KIND_GROUND = 2,     /* streets, squares, parks, terrain patches */
+    SL_KIND_CAR = 3,
+    SL_KIND_TREE = 4,
+    SL_KIND_LAMP = 5,
+    SL_KIND_BSP_FACES = 6,  /* faces of a Quake III BSP leaf */
+    SL_KIND_WATER = 7,
+    SL_KIND_IMPORTED = 8,   /* a node of a file read through assimp */
+    SL_KIND_COUNT = 9
+} sl_object_kind;
+
+/* Short lowercase name of a kind ("building"), or "unknown". */
+SL_API const char *sl_object_kind_name(uint32_t kind);
+
+/* Object flags. */
+enum {
+    SL_OBJECT_DYNAMIC = 1u << 0,       /* may move between frames (cars) */
+    SL_OBJECT_CLOSED_CONVEX = 1u << 1, /* the mesh is a closed convex part (back-face rejection) */
+    SL_OBJECT_OCCLUDER = 1u << 2       /* solid: its own render mesh may serve as an occluder */
+};
+
+typedef struct sl_mesh_desc {
+    const float *positions;    /* 3 floats per vertex */
+    const float *normals;      /* 3 floats per vertex, or NULL: area-weighted normals are computed */
+    uint32_t vertex_count;
+    const uint32_t *indices;   /* 3 per triangle, each < vertex_count */
+    uint32_t triangle_count;
+} sl_mesh_desc;
+
+/* Read-only view of a mesh; pointers stay valid until the scene is changed or destroyed. */
+typedef struct sl_mesh_view {
+    const float *positions;
+    const float *normals;
+    uint32_t vertex_count;
+    const uint32_t *indices;
+    uint32_t triangle_count;
+    sl_aabb bounds;            /* in mesh (local) coordinates */
+} sl_mesh_view;
+
+typedef struct sl_object_desc {
+    uint32_t mesh;
+    const sl_affine *transform; /* NULL: identity */
+    uint32_t color;             /* 0xRRGGBBAA */
+    uint32_t kind;              /* sl_object_kind */
+    uint32_t flags;             /* SL_OBJECT_* */
+} sl_object_desc;
+
+typedef struct sl_object_view {
+    uint32_t mesh;
+    uint32_t color;
+    uint32_t kind;
+    uint32_t flags;
+    sl_affine transform;
+    bool identity;              /* transform is the identity */
+    sl_aabb bounds;             /* world space */
+    uint32_t triangle_count;
+} sl_object_view;
+
+typedef struct sl_footprint_desc {
+    const float *xy;            /* 2 floats per vertex, simple polygon, either orientation */
+    uint32_t vertex_count;      /* >= 3; a repeated closing vertex is dropped */
+    float base_z, roof_z;       /* roof_z > base_z */
+    uint32_t object;            /* the building object it stands for, or SL_NONE */
+} sl_footprint_desc;
+
+typedef struct sl_footprint_view {
+    const float *xy;            /* CCW seen from +z */
+    uint32_t vertex_count;
+    float base_z, roof_z;
+    uint32_t object;
+} sl_footprint_view;
+
+typedef struct sl_occluder_view {
+    uint32_t mesh;
+    sl_affine transform;
+    uint32_t object;            /* object it belongs to, or SL_NONE */
+} sl_occluder_view;
+
+typedef struct sl_terrain_desc {
+    uint32_t nx, ny;            /* samples along x and y, >= 2 each */
+    float origin_x, origin_y;   /* world position of sample (0,0) */
+    float cell;                 /* spacing between samples, > 0 */
+    const float *heights;       /* nx*ny, row-major: heights[j*nx+i] at (origin_x+i*cell, origin_y+j*cell) */
+} sl_terrain_desc;
+
+typedef sl_terrain_desc sl_terrain_view;
+
+/* Street network: polygons covering the free (walkable/drivable) space, and a centre-line graph. */
+typedef struct sl_street_node { float x, y; } sl_street_node;
+typedef struct sl_street_edge { uint32_t a, b; float width; uint32_t flags; } sl_street_edge;
+enum { SL_STREET_AVENUE = 1u << 0, SL_STREET_BRIDGE = 1u << 1, SL_STREET_SQUARE = 1u << 2 };
+
+typedef struct sl_polygon_view {
+    const float *xy;
+    uint32_t vertex_count;
+} sl_polygon_view;
+
+/* Quake III style BSP data. Child index c >= 0 is a node; c < 0 is leaf -(c+1). */
+typedef struct sl_bsp_node { uint32_t plane; int32_t children[2]; sl_aabb bounds; } sl_bsp_node;
+typedef struct sl_bsp_leaf {
+    int32_t cluster;            /* -1: outside the map / opaque */
+    int32_t area;
+    sl_aabb bounds;
+    uint32_t first_object;      /* range in the leaf-object list */
+    uint32_t object_count;
+} sl_bsp_leaf;
+
+typedef struct sl_bsp_desc {
+    const sl_plane *planes; uint32_t plane_count;   /* front side: a*x+b*y+c*z+d >= 0 */
+    const sl_bsp_node *nodes; uint32_t node_count;
+    const sl_bsp_leaf *leaves; uint32_t leaf_count;
+    const uint32_t *leaf_objects; uint32_t leaf_object_count;
+    uint32_t cluster_count;
+    uint32_t cluster_bytes;     /* bytes per cluster row of the PVS bit matrix */
+    const uint8_t *pvs;         /* cluster_count*cluster_bytes, or NULL when the map has no vis */
+} sl_bsp_desc;
+
+typedef sl_bsp_desc sl_bsp_view;
+
+/* Summary counts. */
+typedef struct sl_scene_stats {
+    uint32_t mesh_count, object_count, footprint_count, occluder_count;
+    uint64_t vertex_count, triangle_count;     /* stored (instanced meshes counted once) */
+    uint64_t instanced_triangle_count;         /* rendered (sum over objects) */
+    uint32_t street_polygon_count, street_node_count, street_edge_count;
+    uint32_t objects_per_kind[SL_KIND_COUNT];
+    uint64_t triangles_per_kind[SL_KIND_COUNT];
+    bool has_terrain, has_bsp;
+    uint32_t bsp_leaf_count, bsp_cluster_count;
+    size_t memory_bytes;                       /* bytes held by the scene (mapped bytes included) */
+    sl_aabb bounds;
+} sl_scene_stats;
+
+/* --- lifetime ------------------------------------------------------------------------------ */
+
+/* Create an empty scene. alloc may be NULL. */
+SL_API sl_status sl_scene_create(const sl_allocator *alloc, sl_scene *out, sl_error *err);
+/* Release a scene and everything it owns (including a file mapping). NULL is ignored. */
+SL_API void sl_scene_destroy(sl_scene scene);
+
+/* --- building -------------------------------------------------------------------------------- */
+
+/* Add a mesh (copied). Fails on out-of-range indices or non-finite coordinates. */
+SL_API sl_status sl_scene_add_mesh(sl_scene scene, const sl_mesh_desc *desc, uint32_t *out_mesh, sl_error *err);
+/* Add an object instancing a mesh. Its id is returned in out_object (may be NULL). */
+SL_API sl_status sl_scene_add_object(sl_scene scene, const sl_object_desc *desc, uint32_t *out_object, sl_error *err);
+/* Add a 2.5D footprint occluder. The polygon is validated (simple, finite, non-zero area) and
+ * stored counter-clockwise. */
+SL_API sl_status sl_scene_add_footprint(sl_scene scene, const sl_footprint_desc *desc, uint32_t *out_index, sl_error *err);
+/* Add a 3D occluder mesh (closed and solid is assumed by the methods that use it). */
+SL_API sl_status sl_scene_add_occluder(sl_scene scene, uint32_t mesh, const sl_affine *transform, uint32_t object, sl_error *err);
+/* Set (replace) the terrain height field (copied). */
+SL_API sl_status sl_scene_set_terrain(sl_scene scene, const sl_terrain_desc *desc, sl_error *err);
+/* Add a polygon of free street space. */
+SL_API sl_status sl_scene_add_street_polygon(sl_scene scene, const float *xy, uint32_t vertex_count, sl_error *err);
+/* Set (replace) the street centre-line graph (copied). */
+SL_API sl_status sl_scene_set_street_graph(sl_scene scene, const sl_street_node *nodes, uint32_t node_count,
+                                           const sl_street_edge *edges, uint32_t edge_count, sl_error *err);
+/* Set (replace) the BSP data (copied, validated). */
+SL_API sl_status sl_scene_set_bsp(sl_scene scene, const sl_bsp_desc *desc, sl_error *err);
+/* Set a metadata string (key and value copied; an existing key is replaced). */
+SL_API sl_status sl_scene_set_meta(sl_scene scene, const char *key, const char *value, sl_error *err);
+
+/* Move an object (dynamic objects): replaces its transform and recomputes its world bounds. */
+SL_API sl_status sl_scene_set_object_transform(sl_scene scene, uint32_t object, const sl_affine *transform, sl_error *err);
+
+/* --- reading ----------------------------------------------------------------------------------- */
+
+SL_API uint32_t sl_scene_mesh_count(sl_scene scene);
+SL_API uint32_t sl_scene_object_count(sl_scene scene);
+SL_API uint32_t sl_scene_footprint_count(sl_scene scene);
+SL_API uint32_t sl_scene_occluder_count(sl_scene scene);
+SL_API uint32_t sl_scene_street_polygon_count(sl_scene scene);
+
+SL_API sl_mesh_view sl_scene_mesh(sl_scene scene, uint32_t mesh);
+SL_API sl_object_view sl_scene_object(sl_scene scene, uint32_t object);
+/* World bounds of one object (cheaper than sl_scene_object). */
+SL_API sl_aabb sl_scene_object_bounds(sl_scene scene, uint32_t object);
+/* Contiguous array of all world bounds, object_count entries. */
+SL_API const sl_aabb *sl_scene_object_bounds_array(sl_scene scene);
+SL_API sl_footprint_view sl_scene_footprint(sl_scene scene, uint32_t index);
+/* The façade of edge `edge` of a footprint as a quad: base a, base b, roof b, roof a
+ * (outward normal by the right-hand rule, i.e. CCW seen from outside). */
+SL_API void sl_footprint_facade(const sl_footprint_view *fp, uint32_t edge, sl_vec3 quad[4]);
+SL_API sl_occluder_view sl_scene_occluder(sl_scene scene, uint32_t index);
+/* False when the scene has no terrain. */
+SL_API bool sl_scene_terrain(sl_scene scene, sl_terrain_view *out);
+/* Bilinear terrain height at (x,y), clamped at the border; 0 without terrain. */
+SL_API float sl_scene_ground_height(sl_scene scene, float x, float y);
+SL_API sl_polygon_view sl_scene_street_polygon(sl_scene scene, uint32_t index);
+SL_API void sl_scene_street_graph(sl_scene scene, const sl_street_node **nodes, uint32_t *node_count,
+                                  const sl_street_edge **edges, uint32_t *edge_count);
+/* False when the scene has no BSP data. */
+SL_API bool sl_scene_bsp(sl_scene scene, sl_bsp_view *out);
+/* Leaf index containing point p, or -1 without BSP data. */
+SL_API int32_t sl_scene_bsp_find_leaf(sl_scene scene, sl_vec3 p);
+/* Metadata lookup; NULL when absent. */
+SL_API const char *sl_scene_meta(sl_scene scene, const char *key);
+SL_API uint32_t sl_scene_meta_count(sl_scene scene);
+SL_API void sl_scene_meta_at(sl_scene scene, uint32_t i, const char **key, const char **value);
+
+/* World bounds of all objects. */
+SL_API sl_aabb sl_scene_bounds(sl_scene scene);
+SL_API void sl_scene_get_stats(sl_scene scene, sl_scene_stats *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

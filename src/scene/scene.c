@@ -1,0 +1,832 @@
+/* The scene model: meshes, objects, occluders, terrain, streets, BSP data, metadata.
+ * See include/sightline/scene.h for the contract. */
+#include "scene_internal.h"
+
+#include <math.h>
+
+#define ARR(s, name) (&(s)->name)
+#define A(s) (&(s)->alloc)
+
+const char *sl_object_kind_name(uint32_t kind)
+{
+    static const char *names[SL_KIND_COUNT] = {"other", "building", "ground", "car", "tree",
+                                               "lamp", "bsp-faces", "water", "imported"};
+    return kind < SL_KIND_COUNT ? names[kind] : "unknown";
+}
+
+sl_status sl_scene_create(const sl_allocator *alloc, sl_scene *out, sl_error *err)
+{
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_create: out is NULL");
+    alloc = sl_alloc_or_default(alloc);
+    struct sl_scene_t *s = sl_calloc(alloc, 1, sizeof *s);
+    if (!s)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_create: out of memory");
+    s->alloc = *alloc;
+    *out = s;
+    return SL_OK;
+}
+
+void sl_scene_destroy(sl_scene s)
+{
+    if (!s)
+        return;
+    sl_allocator alloc = s->alloc;
+    const sl_allocator *a = &alloc;
+    sl_array_free(a, &s->meshes, sizeof(sl_mesh_rec));
+    sl_array_free(a, &s->positions, sizeof(float));
+    sl_array_free(a, &s->normals, sizeof(float));
+    sl_array_free(a, &s->indices, sizeof(uint32_t));
+    sl_array_free(a, &s->objects, sizeof(sl_object_rec));
+    sl_array_free(a, &s->bounds, sizeof(sl_aabb));
+    sl_array_free(a, &s->transforms, sizeof(sl_affine));
+    sl_array_free(a, &s->footprints, sizeof(sl_footprint_rec));
+    sl_array_free(a, &s->footprint_xy, sizeof(float));
+    sl_array_free(a, &s->occluders, sizeof(sl_occluder_rec));
+    sl_array_free(a, &s->terrain_heights, sizeof(float));
+    sl_array_free(a, &s->street_polys, sizeof(sl_polygon_rec));
+    sl_array_free(a, &s->street_xy, sizeof(float));
+    sl_array_free(a, &s->street_nodes, sizeof(sl_street_node));
+    sl_array_free(a, &s->street_edges, sizeof(sl_street_edge));
+    sl_array_free(a, &s->bsp_planes, sizeof(sl_plane));
+    sl_array_free(a, &s->bsp_nodes, sizeof(sl_bsp_node));
+    sl_array_free(a, &s->bsp_leaves, sizeof(sl_bsp_leaf));
+    sl_array_free(a, &s->bsp_leaf_objects, sizeof(uint32_t));
+    sl_array_free(a, &s->bsp_pvs, 1);
+    for (size_t i = 0; i < s->meta.count; i++) {
+        sl_meta_rec *m = &SL_AT(s->meta, sl_meta_rec, i);
+        sl_strfree(a, m->key);
+        sl_strfree(a, m->value);
+    }
+    sl_array_free(a, &s->meta, sizeof(sl_meta_rec));
+    sl_file_unmap(&s->mapping);
+    sl_free(a, s, sizeof *s);
+}
+
+/* ---- building ---- */
+
+static void compute_normals(const float *p, const uint32_t *idx, uint32_t nv, uint32_t nt, float *n)
+{
+    memset(n, 0, (size_t)nv * 3 * sizeof(float));
+    /* area-weighted: the unnormalised cross product carries twice the triangle's area */
+    for (uint32_t t = 0; t < nt; t++) {
+        const float *a = p + 3 * idx[3 * t], *b = p + 3 * idx[3 * t + 1], *c = p + 3 * idx[3 * t + 2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float cr[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int k = 0; k < 3; k++)
+            for (int j = 0; j < 3; j++)
+                n[3 * idx[3 * t + k] + j] += cr[j];
+    }
+    for (uint32_t v = 0; v < nv; v++) {
+        float *q = n + 3 * v;
+        float l = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+        if (l > 0) {
+            q[0] /= l, q[1] /= l, q[2] /= l;
+        } else {
+            q[0] = 0, q[1] = 0, q[2] = 1;
+        }
+    }
+}
+
+sl_status sl_scene_add_mesh(sl_scene s, const sl_mesh_desc *d, uint32_t *out_mesh, sl_error *err)
+{
+    if (!s || !d || (d->vertex_count && !d->positions) || (d->triangle_count && !d->indices))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_mesh: NULL argument");
+    if (s->meshes.count >= SL_NONE - 1)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_scene_add_mesh: too many meshes");
+    sl_aabb box = sl_aabb_empty();
+    for (uint32_t v = 0; v < d->vertex_count; v++) {
+        const float *p = d->positions + 3 * (size_t)v;
+        if (!sl_finite3(p))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "mesh vertex %u: position is not finite", v);
+        if (d->normals && !sl_finite3(d->normals + 3 * (size_t)v))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "mesh vertex %u: normal is not finite", v);
+        sl_aabb_grow(&box, (sl_vec3){p[0], p[1], p[2]});
+    }
+    for (uint64_t i = 0; i < 3ull * d->triangle_count; i++)
+        if (d->indices[i] >= d->vertex_count)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "mesh triangle %llu: index %u out of range (%u vertices)",
+                           (unsigned long long)(i / 3), d->indices[i], d->vertex_count);
+    const sl_allocator *a = A(s);
+    size_t nv3 = 3 * (size_t)d->vertex_count;
+    sl_mesh_rec rec = {s->positions.count / 3, s->indices.count, d->vertex_count, d->triangle_count, box};
+    if (!sl_array_reserve(a, &s->positions, sizeof(float), nv3) || !sl_array_reserve(a, &s->normals, sizeof(float), nv3) ||
+        !sl_array_reserve(a, &s->indices, sizeof(uint32_t), 3 * (size_t)d->triangle_count) ||
+        !sl_array_reserve(a, &s->meshes, sizeof rec, 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_mesh: out of memory (%u vertices)", d->vertex_count);
+    float *np = sl_array_push(a, &s->normals, sizeof(float), d->normals, nv3);
+    sl_array_push(a, &s->positions, sizeof(float), d->positions, nv3);
+    sl_array_push(a, &s->indices, sizeof(uint32_t), d->indices, 3 * (size_t)d->triangle_count);
+    if (!d->normals)
+        compute_normals(d->positions, d->indices, d->vertex_count, d->triangle_count, np);
+    sl_array_push(a, &s->meshes, sizeof rec, &rec, 1);
+    if (out_mesh)
+        *out_mesh = (uint32_t)(s->meshes.count - 1);
+    return SL_OK;
+}
+
+static bool affine_finite(const sl_affine *t)
+{
+    for (int i = 0; i < 12; i++)
+        if (!isfinite(t->m[i]))
+            return false;
+    return true;
+}
+
+static bool affine_is_identity(const sl_affine *t)
+{
+    sl_affine id = sl_affine_identity();
+    return memcmp(t->m, id.m, sizeof id.m) == 0;
+}
+
+void sl_scene_update_object_bounds(struct sl_scene_t *s, uint32_t object)
+{
+    const sl_object_rec *o = &sl_scene_objects(s)[object];
+    const sl_aabb *mb = &sl_scene_meshes(s)[o->mesh].bounds;
+    sl_aabb *dst = &SL_AT(s->bounds, sl_aabb, object);
+    *dst = o->transform == SL_NONE ? *mb : sl_aabb_transform(mb, &sl_scene_transforms(s)[o->transform]);
+}
+
+sl_status sl_scene_add_object(sl_scene s, const sl_object_desc *d, uint32_t *out_object, sl_error *err)
+{
+    if (!s || !d)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_object: NULL argument");
+    if (d->mesh >= s->meshes.count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_object: mesh %u does not exist", d->mesh);
+    if (s->objects.count >= SL_NONE - 1)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_scene_add_object: too many objects");
+    if (d->transform && !affine_finite(d->transform))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_object: transform is not finite");
+    const sl_allocator *a = A(s);
+    sl_object_rec rec = {d->mesh, d->color, d->kind, d->flags, SL_NONE, 0};
+    if (!sl_array_reserve(a, &s->objects, sizeof rec, 1) || !sl_array_reserve(a, &s->bounds, sizeof(sl_aabb), 1) ||
+        !sl_array_reserve(a, &s->transforms, sizeof(sl_affine), 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_object: out of memory");
+    /* dynamic objects always get a transform slot so that they can move later */
+    if ((d->transform && !affine_is_identity(d->transform)) || (d->flags & SL_OBJECT_DYNAMIC)) {
+        sl_affine t = d->transform ? *d->transform : sl_affine_identity();
+        rec.transform = (uint32_t)s->transforms.count;
+        sl_array_push(a, &s->transforms, sizeof t, &t, 1);
+    }
+    sl_array_push(a, &s->objects, sizeof rec, &rec, 1);
+    sl_array_push(a, &s->bounds, sizeof(sl_aabb), NULL, 1);
+    uint32_t id = (uint32_t)(s->objects.count - 1);
+    sl_scene_update_object_bounds(s, id);
+    if (out_object)
+        *out_object = id;
+    return SL_OK;
+}
+
+sl_status sl_scene_set_object_transform(sl_scene s, uint32_t object, const sl_affine *t, sl_error *err)
+{
+    if (!s || !t || object >= s->objects.count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_set_object_transform: bad object %u", object);
+    if (!affine_finite(t))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "object %u: transform is not finite", object);
+    const sl_allocator *a = A(s);
+    if (!sl_array_own(a, &s->objects, sizeof(sl_object_rec)) || !sl_array_own(a, &s->transforms, sizeof(sl_affine)) ||
+        !sl_array_own(a, &s->bounds, sizeof(sl_aabb)))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_set_object_transform: out of memory");
+    sl_object_rec *o = &SL_AT(s->objects, sl_object_rec, object);
+    if (o->transform == SL_NONE) {
+        if (!sl_array_reserve(a, &s->transforms, sizeof(sl_affine), 1))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_set_object_transform: out of memory");
+        o->transform = (uint32_t)s->transforms.count;
+        sl_array_push(a, &s->transforms, sizeof(sl_affine), t, 1);
+    } else {
+        SL_AT(s->transforms, sl_affine, o->transform) = *t;
+    }
+    sl_scene_update_object_bounds(s, object);
+    return SL_OK;
+}
+
+/* Signed area of a polygon (positive when CCW). */
+static double polygon_area(const float *xy, uint32_t n)
+{
+    double a = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t j = (i + 1) % n;
+        a += (double)xy[2 * i] * xy[2 * j + 1] - (double)xy[2 * j] * xy[2 * i + 1];
+    }
+    return 0.5 * a;
+}
+
+static int orient(const float *a, const float *b, const float *c)
+{
+    double v = ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)b[1] - a[1]) * ((double)c[0] - a[0]);
+    return (v > 0) - (v < 0);
+}
+
+static bool on_segment(const float *a, const float *b, const float *p)
+{
+    return fminf(a[0], b[0]) <= p[0] && p[0] <= fmaxf(a[0], b[0]) && fminf(a[1], b[1]) <= p[1] && p[1] <= fmaxf(a[1], b[1]);
+}
+
+static bool segments_intersect(const float *a, const float *b, const float *c, const float *d)
+{
+    int o1 = orient(a, b, c), o2 = orient(a, b, d), o3 = orient(c, d, a), o4 = orient(c, d, b);
+    if (o1 != o2 && o3 != o4)
+        return true;
+    return (o1 == 0 && on_segment(a, b, c)) || (o2 == 0 && on_segment(a, b, d)) || (o3 == 0 && on_segment(c, d, a)) ||
+           (o4 == 0 && on_segment(c, d, b));
+}
+
+/* Simple-polygon check: no two non-adjacent edges touch. Quadratic, fine for footprints (tens of
+ * vertices); longer polygons use the same test but are rare. */
+static bool polygon_is_simple(const float *xy, uint32_t n, uint32_t *bad_i, uint32_t *bad_j)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t i2 = (i + 1) % n;
+        for (uint32_t j = i + 2; j < n; j++) {
+            uint32_t j2 = (j + 1) % n;
+            if (j2 == i)
+                continue;
+            if (segments_intersect(xy + 2 * i, xy + 2 * i2, xy + 2 * j, xy + 2 * j2)) {
+                *bad_i = i, *bad_j = j;
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+/* Validate a polygon and append it CCW to an xy array. */
+static sl_status push_polygon(struct sl_scene_t *s, sl_array *xy_arr, const float *xy, uint32_t n, const char *what,
+                              uint32_t *first, uint32_t *count, sl_error *err)
+{
+    if (!xy)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: NULL vertices", what);
+    if (n >= 2 && xy[0] == xy[2 * (n - 1)] && xy[1] == xy[2 * (n - 1) + 1])
+        n--; /* drop a repeated closing vertex */
+    if (n < 3)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: %u vertices, need at least 3", what, n);
+    for (uint32_t i = 0; i < n; i++)
+        if (!isfinite(xy[2 * i]) || !isfinite(xy[2 * i + 1]))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: vertex %u is not finite", what, i);
+    double area = polygon_area(xy, n);
+    if (!(fabs(area) > 1e-9))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: zero area", what);
+    uint32_t bi, bj;
+    if (!polygon_is_simple(xy, n, &bi, &bj))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: not simple (edges %u and %u intersect)", what, bi, bj);
+    const sl_allocator *a = A(s);
+    if (xy_arr->count / 2 + n > UINT32_MAX)
+        return sl_fail(err, SL_ERROR_LIMIT, "%s: too many polygon vertices", what);
+    float *dst = sl_array_push(a, xy_arr, sizeof(float), NULL, 2 * (size_t)n);
+    if (!dst)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", what);
+    *first = (uint32_t)(xy_arr->count / 2 - n);
+    *count = n;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t k = area > 0 ? i : n - 1 - i;
+        dst[2 * i] = xy[2 * k];
+        dst[2 * i + 1] = xy[2 * k + 1];
+    }
+    return SL_OK;
+}
+
+sl_status sl_scene_add_footprint(sl_scene s, const sl_footprint_desc *d, uint32_t *out_index, sl_error *err)
+{
+    if (!s || !d)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_footprint: NULL argument");
+    char what[64];
+    snprintf(what, sizeof what, "footprint %zu", s->footprints.count);
+    if (!isfinite(d->base_z) || !isfinite(d->roof_z) || !(d->roof_z > d->base_z))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: roof height %g must exceed base height %g", what, d->roof_z,
+                       d->base_z);
+    if (d->object != SL_NONE && d->object >= s->objects.count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: object %u does not exist", what, d->object);
+    if (!sl_array_reserve(A(s), &s->footprints, sizeof(sl_footprint_rec), 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", what);
+    sl_footprint_rec rec = {0, 0, d->base_z, d->roof_z, d->object, 0};
+    sl_status st = push_polygon(s, &s->footprint_xy, d->xy, d->vertex_count, what, &rec.first_vertex, &rec.vertex_count, err);
+    if (st != SL_OK)
+        return st;
+    sl_array_push(A(s), &s->footprints, sizeof rec, &rec, 1);
+    if (out_index)
+        *out_index = (uint32_t)(s->footprints.count - 1);
+    return SL_OK;
+}
+
+sl_status sl_scene_add_occluder(sl_scene s, uint32_t mesh, const sl_affine *t, uint32_t object, sl_error *err)
+{
+    if (!s)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: NULL scene");
+    if (mesh >= s->meshes.count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: mesh %u does not exist", mesh);
+    if (object != SL_NONE && object >= s->objects.count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: object %u does not exist", object);
+    if (t && !affine_finite(t))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: transform is not finite");
+    const sl_allocator *a = A(s);
+    if (!sl_array_reserve(a, &s->occluders, sizeof(sl_occluder_rec), 1) || !sl_array_reserve(a, &s->transforms, sizeof(sl_affine), 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_occluder: out of memory");
+    sl_occluder_rec rec = {mesh, SL_NONE, object, 0};
+    if (t && !affine_is_identity(t)) {
+        rec.transform = (uint32_t)s->transforms.count;
+        sl_array_push(a, &s->transforms, sizeof *t, t, 1);
+    }
+    sl_array_push(a, &s->occluders, sizeof rec, &rec, 1);
+    return SL_OK;
+}
+
+sl_status sl_scene_set_terrain(sl_scene s, const sl_terrain_desc *d, sl_error *err)
+{
+    if (!s || !d || !d->heights)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_set_terrain: NULL argument");
+    if (d->nx < 2 || d->ny < 2 || !(d->cell > 0) || !isfinite(d->cell) || !isfinite(d->origin_x) || !isfinite(d->origin_y))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "terrain: need nx, ny >= 2 and a positive cell (got %u x %u, %g)",
+                       d->nx, d->ny, d->cell);
+    size_t n;
+    if (!sl_mul_size(d->nx, d->ny, &n) || n > (1u << 30))
+        return sl_fail(err, SL_ERROR_LIMIT, "terrain: %u x %u samples is too many", d->nx, d->ny);
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(d->heights[i]))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "terrain: sample %zu is not finite", i);
+    sl_array_free(A(s), &s->terrain_heights, sizeof(float));
+    if (!sl_array_push(A(s), &s->terrain_heights, sizeof(float), d->heights, n))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "terrain: out of memory");
+    s->has_terrain = true;
+    s->terrain_nx = d->nx, s->terrain_ny = d->ny;
+    s->terrain_origin_x = d->origin_x, s->terrain_origin_y = d->origin_y, s->terrain_cell = d->cell;
+    return SL_OK;
+}
+
+sl_status sl_scene_add_street_polygon(sl_scene s, const float *xy, uint32_t n, sl_error *err)
+{
+    if (!s)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_street_polygon: NULL scene");
+    char what[64];
+    snprintf(what, sizeof what, "street polygon %zu", s->street_polys.count);
+    if (!sl_array_reserve(A(s), &s->street_polys, sizeof(sl_polygon_rec), 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", what);
+    sl_polygon_rec rec;
+    sl_status st = push_polygon(s, &s->street_xy, xy, n, what, &rec.first_vertex, &rec.vertex_count, err);
+    if (st != SL_OK)
+        return st;
+    sl_array_push(A(s), &s->street_polys, sizeof rec, &rec, 1);
+    return SL_OK;
+}
+
+sl_status sl_scene_set_street_graph(sl_scene s, const sl_street_node *nodes, uint32_t node_count, const sl_street_edge *edges,
+                                    uint32_t edge_count, sl_error *err)
+{
+    if (!s || (node_count && !nodes) || (edge_count && !edges))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_set_street_graph: NULL argument");
+    for (uint32_t i = 0; i < node_count; i++)
+        if (!isfinite(nodes[i].x) || !isfinite(nodes[i].y))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "street node %u is not finite", i);
+    for (uint32_t i = 0; i < edge_count; i++)
+        if (edges[i].a >= node_count || edges[i].b >= node_count || !(edges[i].width >= 0) || !isfinite(edges[i].width))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "street edge %u: bad node index or width", i);
+    const sl_allocator *a = A(s);
+    sl_array_free(a, &s->street_nodes, sizeof(sl_street_node));
+    sl_array_free(a, &s->street_edges, sizeof(sl_street_edge));
+    if ((node_count && !sl_array_push(a, &s->street_nodes, sizeof *nodes, nodes, node_count)) ||
+        (edge_count && !sl_array_push(a, &s->street_edges, sizeof *edges, edges, edge_count)))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "street graph: out of memory");
+    return SL_OK;
+}
+
+/* Shared BSP validation for sl_scene_set_bsp and the loaders. */
+static sl_status validate_bsp(const sl_bsp_desc *d, uint32_t object_count, sl_status code, sl_error *err)
+{
+    for (uint32_t i = 0; i < d->plane_count; i++) {
+        const sl_plane *p = &d->planes[i];
+        if (!isfinite(p->a) || !isfinite(p->b) || !isfinite(p->c) || !isfinite(p->d))
+            return sl_fail(err, code, "bsp plane %u is not finite", i);
+    }
+    for (uint32_t i = 0; i < d->node_count; i++) {
+        const sl_bsp_node *n = &d->nodes[i];
+        if (n->plane >= d->plane_count)
+            return sl_fail(err, code, "bsp node %u: plane %u out of range (%u planes)", i, n->plane, d->plane_count);
+        for (int c = 0; c < 2; c++) {
+            int32_t ch = n->children[c];
+            /* children must point forward so that traversal terminates */
+            if (ch >= 0 ? ((uint32_t)ch <= i || (uint32_t)ch >= d->node_count)
+                        : ((uint32_t)(-(int64_t)ch - 1) >= d->leaf_count))
+                return sl_fail(err, code, "bsp node %u: child %d out of range", i, ch);
+        }
+    }
+    for (uint32_t i = 0; i < d->leaf_count; i++) {
+        const sl_bsp_leaf *l = &d->leaves[i];
+        if (l->cluster < -1 || (l->cluster >= 0 && (uint32_t)l->cluster >= d->cluster_count))
+            return sl_fail(err, code, "bsp leaf %u: cluster %d out of range (%u clusters)", i, l->cluster,
+                           d->cluster_count);
+        if ((uint64_t)l->first_object + l->object_count > d->leaf_object_count)
+            return sl_fail(err, code, "bsp leaf %u: object range out of bounds", i);
+    }
+    for (uint32_t i = 0; i < d->leaf_object_count; i++)
+        if (d->leaf_objects[i] >= object_count)
+            return sl_fail(err, code, "bsp leaf-object %u: object %u does not exist", i, d->leaf_objects[i]);
+    if (d->pvs && (uint64_t)d->cluster_bytes * 8 < d->cluster_count)
+        return sl_fail(err, code, "bsp vis: %u bytes per cluster cannot hold %u clusters", d->cluster_bytes,
+                       d->cluster_count);
+    return SL_OK;
+}
+
+sl_status sl_scene_set_bsp(sl_scene s, const sl_bsp_desc *d, sl_error *err)
+{
+    if (!s || !d || (d->plane_count && !d->planes) || (d->node_count && !d->nodes) || (d->leaf_count && !d->leaves) ||
+        (d->leaf_object_count && !d->leaf_objects))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_set_bsp: NULL argument");
+    sl_status st = validate_bsp(d, (uint32_t)s->objects.count, SL_ERROR_INVALID_ARGUMENT, err);
+    if (st != SL_OK)
+        return st;
+    const sl_allocator *a = A(s);
+    sl_array_free(a, &s->bsp_planes, sizeof(sl_plane));
+    sl_array_free(a, &s->bsp_nodes, sizeof(sl_bsp_node));
+    sl_array_free(a, &s->bsp_leaves, sizeof(sl_bsp_leaf));
+    sl_array_free(a, &s->bsp_leaf_objects, sizeof(uint32_t));
+    sl_array_free(a, &s->bsp_pvs, 1);
+    size_t pvs_bytes = d->pvs ? (size_t)d->cluster_count * d->cluster_bytes : 0;
+    if ((d->plane_count && !sl_array_push(a, &s->bsp_planes, sizeof(sl_plane), d->planes, d->plane_count)) ||
+        (d->node_count && !sl_array_push(a, &s->bsp_nodes, sizeof(sl_bsp_node), d->nodes, d->node_count)) ||
+        (d->leaf_count && !sl_array_push(a, &s->bsp_leaves, sizeof(sl_bsp_leaf), d->leaves, d->leaf_count)) ||
+        (d->leaf_object_count && !sl_array_push(a, &s->bsp_leaf_objects, sizeof(uint32_t), d->leaf_objects, d->leaf_object_count)) ||
+        (pvs_bytes && !sl_array_push(a, &s->bsp_pvs, 1, d->pvs, pvs_bytes)))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "bsp: out of memory");
+    s->has_bsp = true;
+    s->bsp_cluster_count = d->cluster_count;
+    s->bsp_cluster_bytes = d->pvs ? d->cluster_bytes : 0;
+    return SL_OK;
+}
+
+sl_status sl_scene_set_meta(sl_scene s, const char *key, const char *value, sl_error *err)
+{
+    if (!s || !key || !value || !key[0])
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_set_meta: empty key or NULL value");
+    const sl_allocator *a = A(s);
+    char *v = sl_strdup(a, value);
+    if (!v)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_set_meta: out of memory");
+    for (size_t i = 0; i < s->meta.count; i++) {
+        sl_meta_rec *m = &SL_AT(s->meta, sl_meta_rec, i);
+        if (strcmp(m->key, key) == 0) {
+            sl_strfree(a, m->value);
+            m->value = v;
+            return SL_OK;
+        }
+    }
+    sl_meta_rec rec = {sl_strdup(a, key), v};
+    if (!rec.key || !sl_array_push(a, &s->meta, sizeof rec, &rec, 1)) {
+        sl_strfree(a, rec.key);
+        sl_strfree(a, v);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_set_meta: out of memory");
+    }
+    return SL_OK;
+}
+
+/* ---- reading ---- */
+
+uint32_t sl_scene_mesh_count(sl_scene s) { return (uint32_t)s->meshes.count; }
+uint32_t sl_scene_object_count(sl_scene s) { return (uint32_t)s->objects.count; }
+uint32_t sl_scene_footprint_count(sl_scene s) { return (uint32_t)s->footprints.count; }
+uint32_t sl_scene_occluder_count(sl_scene s) { return (uint32_t)s->occluders.count; }
+uint32_t sl_scene_street_polygon_count(sl_scene s) { return (uint32_t)s->street_polys.count; }
+
+sl_mesh_view sl_scene_mesh(sl_scene s, uint32_t mesh)
+{
+    sl_mesh_view v;
+    memset(&v, 0, sizeof v);
+    if (mesh >= s->meshes.count)
+        return v;
+    const sl_mesh_rec *m = &sl_scene_meshes(s)[mesh];
+    v.positions = sl_scene_positions(s) + 3 * m->first_vertex;
+    v.normals = (const float *)s->normals.data + 3 * m->first_vertex;
+    v.vertex_count = m->vertex_count;
+    v.indices = sl_scene_indices(s) + m->first_index;
+    v.triangle_count = m->triangle_count;
+    v.bounds = m->bounds;
+    return v;
+}
+
+sl_object_view sl_scene_object(sl_scene s, uint32_t object)
+{
+    sl_object_view v;
+    memset(&v, 0, sizeof v);
+    if (object >= s->objects.count)
+        return v;
+    const sl_object_rec *o = &sl_scene_objects(s)[object];
+    v.mesh = o->mesh;
+    v.color = o->color;
+    v.kind = o->kind;
+    v.flags = o->flags;
+    v.identity = o->transform == SL_NONE;
+    v.transform = v.identity ? sl_affine_identity() : sl_scene_transforms(s)[o->transform];
+    v.bounds = SL_AT(s->bounds, sl_aabb, object);
+    v.triangle_count = sl_scene_meshes(s)[o->mesh].triangle_count;
+    return v;
+}
+
+sl_aabb sl_scene_object_bounds(sl_scene s, uint32_t object)
+{
+    return object < s->objects.count ? SL_AT(s->bounds, sl_aabb, object) : sl_aabb_empty();
+}
+
+const sl_aabb *sl_scene_object_bounds_array(sl_scene s) { return (const sl_aabb *)s->bounds.data; }
+
+sl_footprint_view sl_scene_footprint(sl_scene s, uint32_t index)
+{
+    sl_footprint_view v;
+    memset(&v, 0, sizeof v);
+    if (index >= s->footprints.count)
+        return v;
+    const sl_footprint_rec *f = &SL_AT(s->footprints, sl_footprint_rec, index);
+    v.xy = (const float *)s->footprint_xy.data + 2 * (size_t)f->first_vertex;
+    v.vertex_count = f->vertex_count;
+    v.base_z = f->base_z;
+    v.roof_z = f->roof_z;
+    v.object = f->object;
+    return v;
+}
+
+void sl_footprint_facade(const sl_footprint_view *fp, uint32_t edge, sl_vec3 quad[4])
+{
+    uint32_t i = edge % fp->vertex_count, j = (i + 1) % fp->vertex_count;
+    float ax = fp->xy[2 * i], ay = fp->xy[2 * i + 1], bx = fp->xy[2 * j], by = fp->xy[2 * j + 1];
+    quad[0] = (sl_vec3){ax, ay, fp->base_z};
+    quad[1] = (sl_vec3){bx, by, fp->base_z};
+    quad[2] = (sl_vec3){bx, by, fp->roof_z};
+    quad[3] = (sl_vec3){ax, ay, fp->roof_z};
+}
+
+sl_occluder_view sl_scene_occluder(sl_scene s, uint32_t index)
+{
+    sl_occluder_view v;
+    memset(&v, 0, sizeof v);
+    if (index >= s->occluders.count)
+        return v;
+    const sl_occluder_rec *o = &SL_AT(s->occluders, sl_occluder_rec, index);
+    v.mesh = o->mesh;
+    v.object = o->object;
+    v.transform = o->transform == SL_NONE ? sl_affine_identity() : sl_scene_transforms(s)[o->transform];
+    return v;
+}
+
+bool sl_scene_terrain(sl_scene s, sl_terrain_view *out)
+{
+    if (!s->has_terrain)
+        return false;
+    if (out) {
+        out->nx = s->terrain_nx;
+        out->ny = s->terrain_ny;
+        out->origin_x = s->terrain_origin_x;
+        out->origin_y = s->terrain_origin_y;
+        out->cell = s->terrain_cell;
+        out->heights = (const float *)s->terrain_heights.data;
+    }
+    return true;
+}
+
+float sl_scene_ground_height(sl_scene s, float x, float y)
+{
+    if (!s->has_terrain)
+        return 0.0f;
+    const float *h = (const float *)s->terrain_heights.data;
+    float fx = (x - s->terrain_origin_x) / s->terrain_cell, fy = (y - s->terrain_origin_y) / s->terrain_cell;
+    fx = SL_CLAMP(fx, 0.0f, (float)(s->terrain_nx - 1));
+    fy = SL_CLAMP(fy, 0.0f, (float)(s->terrain_ny - 1));
+    uint32_t i = (uint32_t)fx, j = (uint32_t)fy;
+    if (i >= s->terrain_nx - 1)
+        i = s->terrain_nx - 2;
+    if (j >= s->terrain_ny - 1)
+        j = s->terrain_ny - 2;
+    float u = fx - (float)i, v = fy - (float)j;
+    size_t nx = s->terrain_nx;
+    float h00 = h[j * nx + i], h10 = h[j * nx + i + 1], h01 = h[(j + 1) * nx + i], h11 = h[(j + 1) * nx + i + 1];
+    return (h00 * (1 - u) + h10 * u) * (1 - v) + (h01 * (1 - u) + h11 * u) * v;
+}
+
+sl_polygon_view sl_scene_street_polygon(sl_scene s, uint32_t index)
+{
+    sl_polygon_view v = {NULL, 0};
+    if (index >= s->street_polys.count)
+        return v;
+    const sl_polygon_rec *p = &SL_AT(s->street_polys, sl_polygon_rec, index);
+    v.xy = (const float *)s->street_xy.data + 2 * (size_t)p->first_vertex;
+    v.vertex_count = p->vertex_count;
+    return v;
+}
+
+void sl_scene_street_graph(sl_scene s, const sl_street_node **nodes, uint32_t *node_count, const sl_street_edge **edges,
+                           uint32_t *edge_count)
+{
+    if (nodes)
+        *nodes = (const sl_street_node *)s->street_nodes.data;
+    if (node_count)
+        *node_count = (uint32_t)s->street_nodes.count;
+    if (edges)
+        *edges = (const sl_street_edge *)s->street_edges.data;
+    if (edge_count)
+        *edge_count = (uint32_t)s->street_edges.count;
+}
+
+bool sl_scene_bsp(sl_scene s, sl_bsp_view *out)
+{
+    if (!s->has_bsp)
+        return false;
+    if (out) {
+        out->planes = (const sl_plane *)s->bsp_planes.data;
+        out->plane_count = (uint32_t)s->bsp_planes.count;
+        out->nodes = (const sl_bsp_node *)s->bsp_nodes.data;
+        out->node_count = (uint32_t)s->bsp_nodes.count;
+        out->leaves = (const sl_bsp_leaf *)s->bsp_leaves.data;
+        out->leaf_count = (uint32_t)s->bsp_leaves.count;
+        out->leaf_objects = (const uint32_t *)s->bsp_leaf_objects.data;
+        out->leaf_object_count = (uint32_t)s->bsp_leaf_objects.count;
+        out->cluster_count = s->bsp_cluster_count;
+        out->cluster_bytes = s->bsp_cluster_bytes;
+        out->pvs = s->bsp_pvs.count ? (const uint8_t *)s->bsp_pvs.data : NULL;
+    }
+    return true;
+}
+
+int32_t sl_scene_bsp_find_leaf(sl_scene s, sl_vec3 p)
+{
+    if (!s->has_bsp)
+        return -1;
+    if (s->bsp_nodes.count == 0)
+        return s->bsp_leaves.count ? 0 : -1;
+    const sl_bsp_node *nodes = (const sl_bsp_node *)s->bsp_nodes.data;
+    const sl_plane *planes = (const sl_plane *)s->bsp_planes.data;
+    int32_t n = 0;
+    /* validated: children point strictly forward, so this terminates */
+    while (n >= 0) {
+        const sl_plane *pl = &planes[nodes[n].plane];
+        float d = pl->a * p.x + pl->b * p.y + pl->c * p.z + pl->d;
+        n = nodes[n].children[d >= 0 ? 0 : 1];
+    }
+    return -(n + 1);
+}
+
+const char *sl_scene_meta(sl_scene s, const char *key)
+{
+    for (size_t i = 0; i < s->meta.count; i++) {
+        const sl_meta_rec *m = &SL_AT(s->meta, sl_meta_rec, i);
+        if (strcmp(m->key, key) == 0)
+            return m->value;
+    }
+    return NULL;
+}
+
+uint32_t sl_scene_meta_count(sl_scene s) { return (uint32_t)s->meta.count; }
+
+void sl_scene_meta_at(sl_scene s, uint32_t i, const char **key, const char **value)
+{
+    const sl_meta_rec *m = i < s->meta.count ? &SL_AT(s->meta, sl_meta_rec, i) : NULL;
+    if (key)
+        *key = m ? m->key : NULL;
+    if (value)
+        *value = m ? m->value : NULL;
+}
+
+sl_aabb sl_scene_bounds(sl_scene s)
+{
+    sl_aabb b = sl_aabb_empty();
+    const sl_aabb *ob = (const sl_aabb *)s->bounds.data;
+    for (size_t i = 0; i < s->objects.count; i++)
+        sl_aabb_merge(&b, &ob[i]);
+    return b;
+}
+
+static size_t arr_bytes(const sl_array *a, size_t elem) { return (a->cap ? a->cap : 0) * elem; }
+
+void sl_scene_get_stats(sl_scene s, sl_scene_stats *st)
+{
+    memset(st, 0, sizeof *st);
+    st->mesh_count = (uint32_t)s->meshes.count;
+    st->object_count = (uint32_t)s->objects.count;
+    st->footprint_count = (uint32_t)s->footprints.count;
+    st->occluder_count = (uint32_t)s->occluders.count;
+    st->vertex_count = s->positions.count / 3;
+    st->triangle_count = s->indices.count / 3;
+    st->street_polygon_count = (uint32_t)s->street_polys.count;
+    st->street_node_count = (uint32_t)s->street_nodes.count;
+    st->street_edge_count = (uint32_t)s->street_edges.count;
+    st->has_terrain = s->has_terrain;
+    st->has_bsp = s->has_bsp;
+    st->bsp_leaf_count = (uint32_t)s->bsp_leaves.count;
+    st->bsp_cluster_count = s->bsp_cluster_count;
+    const sl_object_rec *o = sl_scene_objects(s);
+    const sl_mesh_rec *m = sl_scene_meshes(s);
+    for (size_t i = 0; i < s->objects.count; i++) {
+        uint64_t t = m[o[i].mesh].triangle_count;
+        st->instanced_triangle_count += t;
+        uint32_t k = o[i].kind < SL_KIND_COUNT ? o[i].kind : SL_KIND_OTHER;
+        st->objects_per_kind[k]++;
+        st->triangles_per_kind[k] += t;
+    }
+    st->memory_bytes = sizeof *s + s->mapping.size + arr_bytes(&s->meshes, sizeof(sl_mesh_rec)) +
+                       arr_bytes(&s->positions, 4) + arr_bytes(&s->normals, 4) + arr_bytes(&s->indices, 4) +
+                       arr_bytes(&s->objects, sizeof(sl_object_rec)) + arr_bytes(&s->bounds, sizeof(sl_aabb)) +
+                       arr_bytes(&s->transforms, sizeof(sl_affine)) + arr_bytes(&s->footprints, sizeof(sl_footprint_rec)) +
+                       arr_bytes(&s->footprint_xy, 4) + arr_bytes(&s->occluders, sizeof(sl_occluder_rec)) +
+                       arr_bytes(&s->terrain_heights, 4) + arr_bytes(&s->street_polys, sizeof(sl_polygon_rec)) +
+                       arr_bytes(&s->street_xy, 4) + arr_bytes(&s->street_nodes, sizeof(sl_street_node)) +
+                       arr_bytes(&s->street_edges, sizeof(sl_street_edge)) + arr_bytes(&s->bsp_planes, sizeof(sl_plane)) +
+                       arr_bytes(&s->bsp_nodes, sizeof(sl_bsp_node)) + arr_bytes(&s->bsp_leaves, sizeof(sl_bsp_leaf)) +
+                       arr_bytes(&s->bsp_leaf_objects, 4) + arr_bytes(&s->bsp_pvs, 1);
+    st->bounds = sl_scene_bounds(s);
+}
+
+/* ---- validation of directly filled scenes (.slscene loader) ---- */
+
+void sl_scene_recompute_bounds(struct sl_scene_t *s)
+{
+    for (size_t i = 0; i < s->objects.count; i++)
+        sl_scene_update_object_bounds(s, (uint32_t)i);
+}
+
+sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
+{
+    if (s->positions.count % 3 || s->normals.count != s->positions.count || s->indices.count % 3)
+        return sl_fail(err, SL_ERROR_FORMAT, "vertex/normal/index array sizes are inconsistent");
+    uint64_t nv = s->positions.count / 3, ni = s->indices.count;
+    const float *pos = sl_scene_positions(s), *nrm = (const float *)s->normals.data;
+    for (uint64_t i = 0; i < 3 * nv; i++)
+        if (!isfinite(pos[i]) || !isfinite(nrm[i]))
+            return sl_fail(err, SL_ERROR_FORMAT, "vertex %llu: not finite", (unsigned long long)(i / 3));
+    const sl_mesh_rec *m = sl_scene_meshes(s);
+    const uint32_t *idx = sl_scene_indices(s);
+    for (size_t i = 0; i < s->meshes.count; i++) {
+        if (m[i].first_vertex > nv || m[i].vertex_count > nv - m[i].first_vertex || m[i].first_index % 3 ||
+            m[i].first_index > ni || 3ull * m[i].triangle_count > ni - m[i].first_index)
+            return sl_fail(err, SL_ERROR_FORMAT, "mesh %zu: vertex or index range out of bounds", i);
+        const uint32_t *mi = idx + m[i].first_index;
+        for (uint64_t k = 0; k < 3ull * m[i].triangle_count; k++)
+            if (mi[k] >= m[i].vertex_count)
+                return sl_fail(err, SL_ERROR_FORMAT, "mesh %zu: triangle %llu has index %u >= %u vertices", i,
+                               (unsigned long long)(k / 3), mi[k], m[i].vertex_count);
+    }
+    const sl_affine *tr = sl_scene_transforms(s);
+    for (size_t i = 0; i < s->transforms.count; i++)
+        if (!affine_finite(&tr[i]))
+            return sl_fail(err, SL_ERROR_FORMAT, "transform %zu: not finite", i);
+    const sl_object_rec *o = sl_scene_objects(s);
+    if (s->bounds.count != s->objects.count)
+        return sl_fail(err, SL_ERROR_FORMAT, "object bounds count differs from object count");
+    for (size_t i = 0; i < s->objects.count; i++) {
+        if (o[i].mesh >= s->meshes.count)
+            return sl_fail(err, SL_ERROR_FORMAT, "object %zu: mesh %u out of range", i, o[i].mesh);
+        if (o[i].transform != SL_NONE && o[i].transform >= s->transforms.count)
+            return sl_fail(err, SL_ERROR_FORMAT, "object %zu: transform %u out of range", i, o[i].transform);
+    }
+    const float *fxy = (const float *)s->footprint_xy.data;
+    for (size_t i = 0; i < s->footprints.count; i++) {
+        const sl_footprint_rec *f = &SL_AT(s->footprints, sl_footprint_rec, i);
+        if (f->vertex_count < 3 || (uint64_t)f->first_vertex + f->vertex_count > s->footprint_xy.count / 2)
+            return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: vertex range out of bounds", i);
+        if (!isfinite(f->base_z) || !isfinite(f->roof_z) || !(f->roof_z > f->base_z))
+            return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: bad heights", i);
+        if (f->object != SL_NONE && f->object >= s->objects.count)
+            return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: object %u out of range", i, f->object);
+        for (uint32_t k = 0; k < 2 * f->vertex_count; k++)
+            if (!isfinite(fxy[2 * (size_t)f->first_vertex + k]))
+                return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: vertex not finite", i);
+    }
+    for (size_t i = 0; i < s->occluders.count; i++) {
+        const sl_occluder_rec *r = &SL_AT(s->occluders, sl_occluder_rec, i);
+        if (r->mesh >= s->meshes.count || (r->transform != SL_NONE && r->transform >= s->transforms.count) ||
+            (r->object != SL_NONE && r->object >= s->objects.count))
+            return sl_fail(err, SL_ERROR_FORMAT, "occluder %zu: reference out of range", i);
+    }
+    if (s->has_terrain) {
+        size_t n;
+        if (s->terrain_nx < 2 || s->terrain_ny < 2 || !sl_mul_size(s->terrain_nx, s->terrain_ny, &n) ||
+            n != s->terrain_heights.count || !(s->terrain_cell > 0) || !isfinite(s->terrain_cell) ||
+            !isfinite(s->terrain_origin_x) || !isfinite(s->terrain_origin_y))
+            return sl_fail(err, SL_ERROR_FORMAT, "terrain: bad dimensions");
+        const float *h = (const float *)s->terrain_heights.data;
+        for (size_t i = 0; i < n; i++)
+            if (!isfinite(h[i]))
+                return sl_fail(err, SL_ERROR_FORMAT, "terrain: sample %zu not finite", i);
+    }
+    const float *sxy = (const float *)s->street_xy.data;
+    for (size_t i = 0; i < s->street_xy.count; i++)
+        if (!isfinite(sxy[i]))
+            return sl_fail(err, SL_ERROR_FORMAT, "street polygon vertex %zu not finite", i / 2);
+    for (size_t i = 0; i < s->street_polys.count; i++) {
+        const sl_polygon_rec *p = &SL_AT(s->street_polys, sl_polygon_rec, i);
+        if (p->vertex_count < 3 || (uint64_t)p->first_vertex + p->vertex_count > s->street_xy.count / 2)
+            return sl_fail(err, SL_ERROR_FORMAT, "street polygon %zu: vertex range out of bounds", i);
+    }
+    const sl_street_node *sn = (const sl_street_node *)s->street_nodes.data;
+    for (size_t i = 0; i < s->street_nodes.count; i++)
+        if (!isfinite(sn[i].x) || !isfinite(sn[i].y))
+            return sl_fail(err, SL_ERROR_FORMAT, "street node %zu not finite", i);
+    const sl_street_edge *se = (const sl_street_edge *)s->street_edges.data;
+    for (size_t i = 0; i < s->street_edges.count; i++)
+        if (se[i].a >= s->street_nodes.count || se[i].b >= s->street_nodes.count || !isfinite(se[i].width))
+            return sl_fail(err, SL_ERROR_FORMAT, "street edge %zu: node out of range", i);
+    if (s->has_bsp) {
+        sl_bsp_view v;
+        sl_scene_bsp((sl_scene)s, &v);
+        if (v.pvs && s->bsp_pvs.count != (size_t)v.cluster_count * v.cluster_bytes)
+            return sl_fail(err, SL_ERROR_FORMAT, "bsp vis: size mismatch");
+        sl_status st = validate_bsp(&v, (uint32_t)s->objects.count, SL_ERROR_FORMAT, err);
+        if (st != SL_OK)
+            return st;
+    }
+    return SL_OK;
+}

@@ -1,0 +1,116 @@
+/* Internal layout of sl_scene, shared by the scene layer (model, .slscene reader/writer,
+ * importers, generators) and readable by higher layers that need raw arrays for speed.
+ *
+ * All bulk data lives in flat sl_arrays so that a .slscene section maps onto each array without
+ * a copy: a loaded scene's arrays are borrowed from the file mapping (cap == 0) until changed. */
+#ifndef SL_SCENE_INTERNAL_H
+#define SL_SCENE_INTERNAL_H
+
+#include "sightline/scene.h"
+#include "../core/sl_core.h"
+
+/* One mesh: a range of the shared vertex array and a range of the shared index array. Indices
+ * are local to the mesh (0..vertex_count-1). */
+typedef struct sl_mesh_rec {
+    uint64_t first_vertex;
+    uint64_t first_index;       /* in uint32 indices, a multiple of 3 */
+    uint32_t vertex_count;
+    uint32_t triangle_count;
+    sl_aabb bounds;
+} sl_mesh_rec;
+
+/* One object. transform == SL_NONE means identity. */
+typedef struct sl_object_rec {
+    uint32_t mesh;
+    uint32_t color;
+    uint32_t kind;
+    uint32_t flags;
+    uint32_t transform;         /* index into transforms, or SL_NONE */
+    uint32_t reserved;
+} sl_object_rec;
+
+typedef struct sl_footprint_rec {
+    uint32_t first_vertex;      /* into footprint_xy (pairs) */
+    uint32_t vertex_count;
+    float base_z, roof_z;
+    uint32_t object;
+    uint32_t reserved;
+} sl_footprint_rec;
+
+typedef struct sl_occluder_rec {
+    uint32_t mesh;
+    uint32_t transform;         /* index into transforms, or SL_NONE */
+    uint32_t object;
+    uint32_t reserved;
+} sl_occluder_rec;
+
+typedef struct sl_polygon_rec {
+    uint32_t first_vertex;
+    uint32_t vertex_count;
+} sl_polygon_rec;
+
+typedef struct sl_meta_rec {
+    char *key;
+    char *value;
+} sl_meta_rec;
+
+struct sl_scene_t {
+    sl_allocator alloc;
+
+    sl_array meshes;            /* sl_mesh_rec */
+    sl_array positions;         /* float, 3 per vertex */
+    sl_array normals;           /* float, 3 per vertex */
+    sl_array indices;           /* uint32 */
+
+    sl_array objects;           /* sl_object_rec */
+    sl_array bounds;            /* sl_aabb per object, world space */
+    sl_array transforms;        /* sl_affine */
+
+    sl_array footprints;        /* sl_footprint_rec */
+    sl_array footprint_xy;      /* float pairs */
+    sl_array occluders;         /* sl_occluder_rec */
+
+    bool has_terrain;
+    uint32_t terrain_nx, terrain_ny;
+    float terrain_origin_x, terrain_origin_y, terrain_cell;
+    sl_array terrain_heights;   /* float */
+
+    sl_array street_polys;      /* sl_polygon_rec */
+    sl_array street_xy;         /* float pairs */
+    sl_array street_nodes;      /* sl_street_node */
+    sl_array street_edges;      /* sl_street_edge */
+
+    bool has_bsp;
+    uint32_t bsp_cluster_count, bsp_cluster_bytes;
+    sl_array bsp_planes;        /* sl_plane */
+    sl_array bsp_nodes;         /* sl_bsp_node */
+    sl_array bsp_leaves;        /* sl_bsp_leaf */
+    sl_array bsp_leaf_objects;  /* uint32 */
+    sl_array bsp_pvs;           /* uint8 */
+
+    sl_array meta;              /* sl_meta_rec (strings always owned) */
+
+    /* backing file mapping of a loaded .slscene (NULL when built in memory) */
+    sl_mapping mapping;
+};
+
+/* Shorthand accessors for hot loops. */
+static inline const sl_mesh_rec *sl_scene_meshes(const struct sl_scene_t *s) { return (const sl_mesh_rec *)s->meshes.data; }
+static inline const sl_object_rec *sl_scene_objects(const struct sl_scene_t *s) { return (const sl_object_rec *)s->objects.data; }
+static inline const float *sl_scene_positions(const struct sl_scene_t *s) { return (const float *)s->positions.data; }
+static inline const uint32_t *sl_scene_indices(const struct sl_scene_t *s) { return (const uint32_t *)s->indices.data; }
+static inline const sl_affine *sl_scene_transforms(const struct sl_scene_t *s) { return (const sl_affine *)s->transforms.data; }
+
+/* Recompute the world bounds of one object from its mesh bounds and transform. */
+void sl_scene_update_object_bounds(struct sl_scene_t *s, uint32_t object);
+
+/* Validate every cross-reference of a scene whose arrays were filled directly (by the .slscene
+ * reader): mesh ranges inside the vertex/index arrays, indices < vertex counts, finite floats,
+ * object/footprint/occluder references, BSP child/leaf/cluster indices. Names the offending
+ * element in err. */
+sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err);
+
+/* Recompute all mesh bounds and object bounds (after a load). */
+void sl_scene_recompute_bounds(struct sl_scene_t *s);
+
+#endif

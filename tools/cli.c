@@ -1,0 +1,322 @@
+/* Shared command-line helpers: errors, option parsing, progress bar, JSON writer. */
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+void cli_error(const char *cmd, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "sightline %s: ", cmd);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+int cli_fail(const char *cmd, const sl_error *err)
+{
+    cli_error(cmd, "%s (%s)", err->message[0] ? err->message : "failed", sl_status_string(err->status));
+    return 1;
+}
+
+void cli_args_init(cli_args *a, int argc, char **argv)
+{
+    a->argc = argc;
+    a->argv = argv;
+    a->i = 1;
+    a->cmd = argv[0];
+    a->error = false;
+}
+
+bool cli_next(cli_args *a, const char **name, const char **inline_value)
+{
+    if (a->error || a->i >= a->argc)
+        return false;
+    char *arg = a->argv[a->i++];
+    *inline_value = NULL;
+    if (arg[0] == '-' && arg[1] == '-' && arg[2]) {
+        char *buf = a->namebuf;
+        const char *eq = strchr(arg + 2, '=');
+        if (eq) {
+            size_t n = (size_t)(eq - (arg + 2));
+            if (n >= sizeof a->namebuf)
+                n = sizeof a->namebuf - 1;
+            memcpy(buf, arg + 2, n);
+            buf[n] = 0;
+            *name = buf;
+            *inline_value = eq + 1;
+        } else {
+            *name = arg + 2;
+        }
+        return true;
+    }
+    if (arg[0] == '-' && arg[1] == 'h' && !arg[2]) {
+        *name = "help";
+        return true;
+    }
+    *name = NULL;
+    *inline_value = arg;
+    return true;
+}
+
+const char *cli_value(cli_args *a, const char *name, const char *inline_value)
+{
+    if (inline_value)
+        return inline_value;
+    if (a->i >= a->argc) {
+        cli_error(a->cmd, "option --%s needs a value", name);
+        a->error = true;
+        return NULL;
+    }
+    return a->argv[a->i++];
+}
+
+bool cli_parse_u64(cli_args *a, const char *name, const char *text, uint64_t *out)
+{
+    if (!text)
+        return false;
+    char *end;
+    errno = 0;
+    unsigned long long v = strtoull(text, &end, 10);
+    if (!text[0] || *end || errno || text[0] == '-') {
+        cli_error(a->cmd, "--%s: '%s' is not a non-negative integer", name, text);
+        a->error = true;
+        return false;
+    }
+    *out = v;
+    return true;
+}
+
+bool cli_parse_u32(cli_args *a, const char *name, const char *text, uint32_t *out)
+{
+    uint64_t v;
+    if (!cli_parse_u64(a, name, text, &v))
+        return false;
+    if (v > UINT32_MAX) {
+        cli_error(a->cmd, "--%s: %s is too large", name, text);
+        a->error = true;
+        return false;
+    }
+    *out = (uint32_t)v;
+    return true;
+}
+
+bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out)
+{
+    if (!text)
+        return false;
+    char *end;
+    errno = 0;
+    float v = strtof(text, &end);
+    if (!text[0] || *end || errno || !isfinite(v)) {
+        cli_error(a->cmd, "--%s: '%s' is not a finite number", name, text);
+        a->error = true;
+        return false;
+    }
+    *out = v;
+    return true;
+}
+
+void cli_unknown(cli_args *a, const char *name)
+{
+    if (name)
+        cli_error(a->cmd, "unknown option --%s (see sightline %s --help)", name, a->cmd);
+    else
+        cli_error(a->cmd, "unexpected argument (see sightline %s --help)", a->cmd);
+    a->error = true;
+}
+
+/* ---- progress ---- */
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+static bool progress_cb(void *user, const char *stage, uint64_t done, uint64_t total)
+{
+    cli_progress_state *st = user;
+    if (!st->enabled)
+        return true;
+    double t = now_s();
+    bool new_stage = strncmp(st->stage, stage, sizeof st->stage - 1) != 0;
+    if (!new_stage && t - st->last_draw < 0.1 && done != total)
+        return true;
+    if (new_stage)
+        snprintf(st->stage, sizeof st->stage, "%s", stage);
+    st->last_draw = t;
+    if (total) {
+        int width = 30, fill = (int)((double)done / (double)total * width);
+        if (fill > width)
+            fill = width;
+        fprintf(stderr, "\r\033[K%-24.24s [%.*s%*s] %5.1f%%", stage, fill, "##############################", width - fill,
+                "", 100.0 * (double)done / (double)total);
+    } else {
+        fprintf(stderr, "\r\033[K%-24.24s %llu", stage, (unsigned long long)done);
+    }
+    fflush(stderr);
+    return true;
+}
+
+sl_progress cli_progress(cli_progress_state *st, bool quiet)
+{
+    memset(st, 0, sizeof *st);
+    const char *ci = getenv("CI");
+    st->enabled = !quiet && isatty(STDERR_FILENO) && !(ci && ci[0]);
+    sl_progress p = {progress_cb, st};
+    return p;
+}
+
+void cli_progress_done(cli_progress_state *st)
+{
+    if (st->enabled && st->stage[0]) {
+        fprintf(stderr, "\r\033[K");
+        fflush(stderr);
+    }
+    st->stage[0] = 0;
+}
+
+/* ---- JSON ---- */
+
+static void json_sep(cli_json *j)
+{
+    if (j->need_comma[j->depth])
+        fputc(',', j->out);
+    j->need_comma[j->depth] = true;
+}
+
+static void json_str(FILE *out, const char *s)
+{
+    fputc('"', out);
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(out, "\\%c", *p);
+        else if (*p < 0x20)
+            fprintf(out, "\\u%04x", *p);
+        else
+            fputc(*p, out);
+    }
+    fputc('"', out);
+}
+
+void cli_json_key(cli_json *j, const char *key)
+{
+    json_sep(j);
+    if (key) {
+        json_str(j->out, key);
+        fputc(':', j->out);
+    }
+}
+
+void cli_json_begin(cli_json *j, FILE *out)
+{
+    memset(j, 0, sizeof *j);
+    j->out = out;
+    fputc('{', out);
+    j->depth = 1;
+}
+
+void cli_json_end(cli_json *j)
+{
+    fputs("}\n", j->out);
+    j->depth = 0;
+}
+
+void cli_json_object_begin(cli_json *j, const char *key)
+{
+    cli_json_key(j, key);
+    fputc('{', j->out);
+    if (j->depth < 31)
+        j->depth++;
+    j->need_comma[j->depth] = false;
+}
+
+void cli_json_object_end(cli_json *j)
+{
+    fputc('}', j->out);
+    j->depth--;
+}
+
+void cli_json_array_begin(cli_json *j, const char *key)
+{
+    cli_json_key(j, key);
+    fputc('[', j->out);
+    if (j->depth < 31)
+        j->depth++;
+    j->need_comma[j->depth] = false;
+}
+
+void cli_json_array_end(cli_json *j)
+{
+    fputc(']', j->out);
+    j->depth--;
+}
+
+void cli_json_string(cli_json *j, const char *key, const char *value)
+{
+    cli_json_key(j, key);
+    if (value)
+        json_str(j->out, value);
+    else
+        fputs("null", j->out);
+}
+
+void cli_json_int(cli_json *j, const char *key, int64_t v)
+{
+    cli_json_key(j, key);
+    fprintf(j->out, "%lld", (long long)v);
+}
+
+void cli_json_uint(cli_json *j, const char *key, uint64_t v)
+{
+    cli_json_key(j, key);
+    fprintf(j->out, "%llu", (unsigned long long)v);
+}
+
+void cli_json_double(cli_json *j, const char *key, double v)
+{
+    cli_json_key(j, key);
+    if (isfinite(v))
+        fprintf(j->out, "%.9g", v);
+    else
+        fputs("null", j->out);
+}
+
+void cli_json_bool(cli_json *j, const char *key, bool v)
+{
+    cli_json_key(j, key);
+    fputs(v ? "true" : "false", j->out);
+}
+
+const char *cli_bytes(uint64_t bytes, char *buf, size_t size)
+{
+    const char *units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+    double v = (double)bytes;
+    int u = 0;
+    while (v >= 1024 && u < 4)
+        v /= 1024, u++;
+    snprintf(buf, size, u ? "%.2f %s" : "%.0f %s", v, units[u]);
+    return buf;
+}
+
+uint64_t cli_peak_rss(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f)
+        return 0;
+    char line[256];
+    uint64_t kb = 0;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "VmHWM:", 6))
+            kb = strtoull(line + 6, NULL, 10);
+    fclose(f);
+    return kb * 1024;
+}

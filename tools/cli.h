@@ -1,0 +1,98 @@
+/* Shared pieces of the `sightline` command: the subcommand table, option parsing, progress bars,
+ * JSON output and error reporting. Every subcommand lives in tools/cmd_<name>.c and follows the
+ * same shape: parse options (unknown ones are errors), do the work, print a human summary or
+ * --json, return an exit status (0 ok, 1 failure, 2 usage error). */
+#ifndef SL_TOOLS_CLI_H
+#define SL_TOOLS_CLI_H
+
+#include "sightline/core.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+typedef int (*sl_cmd_fn)(int argc, char **argv);
+
+typedef struct sl_command {
+    const char *name;
+    sl_cmd_fn run;
+    const char *summary;
+} sl_command;
+
+/* Subcommands (each in tools/cmd_<name>.c). argv[0] is the subcommand name. */
+int sl_cmd_gen(int argc, char **argv);
+int sl_cmd_import(int argc, char **argv);
+int sl_cmd_info(int argc, char **argv);
+int sl_cmd_path(int argc, char **argv);
+int sl_cmd_export(int argc, char **argv);
+int sl_cmd_demo(int argc, char **argv);
+
+/* ---- errors ---- */
+/* Print "sightline <cmd>: message" to stderr. */
+void cli_error(const char *cmd, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Print an sl_error and return exit status 1. */
+int cli_fail(const char *cmd, const sl_error *err);
+
+/* ---- option parsing ----
+ * A small long-option parser: "--name value", "--name=value" and flags "--name". */
+typedef struct cli_args {
+    int argc;
+    char **argv;
+    int i;             /* next argument */
+    const char *cmd;   /* subcommand, for messages */
+    bool error;        /* a parse error was reported */
+    char namebuf[128]; /* option name split off "--name=value" */
+} cli_args;
+
+void cli_args_init(cli_args *a, int argc, char **argv);
+/* True while options remain; *name receives the option name without dashes, *inline_value the
+ * text after '=' (or NULL). Positional arguments are returned with *name == NULL and the text in
+ * *inline_value. */
+bool cli_next(cli_args *a, const char **name, const char **inline_value);
+/* Value of the current option (inline or the next argument); NULL and an error if missing. */
+const char *cli_value(cli_args *a, const char *name, const char *inline_value);
+/* Parse numbers with full validation; report an error and return false on bad text. */
+bool cli_parse_u32(cli_args *a, const char *name, const char *text, uint32_t *out);
+bool cli_parse_u64(cli_args *a, const char *name, const char *text, uint64_t *out);
+bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out);
+/* Report an unknown option and mark the parse failed. */
+void cli_unknown(cli_args *a, const char *name);
+
+/* ---- progress ----
+ * A progress bar on stderr when stderr is a terminal, CI is unset and --quiet/--json were not
+ * given; silent otherwise. Pass &cli_progress(...) as the library's sl_progress. */
+typedef struct cli_progress_state {
+    bool enabled;
+    double last_draw;
+    char stage[64];
+} cli_progress_state;
+sl_progress cli_progress(cli_progress_state *st, bool quiet);
+/* End a progress line (clears the bar). */
+void cli_progress_done(cli_progress_state *st);
+
+/* ---- JSON output ---- */
+typedef struct cli_json {
+    FILE *out;
+    int depth;
+    bool need_comma[32];
+} cli_json;
+void cli_json_begin(cli_json *j, FILE *out);  /* opens the top-level object */
+void cli_json_end(cli_json *j);               /* closes it and prints a newline */
+void cli_json_key(cli_json *j, const char *key);
+void cli_json_object_begin(cli_json *j, const char *key); /* key may be NULL inside arrays */
+void cli_json_object_end(cli_json *j);
+void cli_json_array_begin(cli_json *j, const char *key);
+void cli_json_array_end(cli_json *j);
+void cli_json_string(cli_json *j, const char *key, const char *value);
+void cli_json_int(cli_json *j, const char *key, int64_t value);
+void cli_json_uint(cli_json *j, const char *key, uint64_t value);
+void cli_json_double(cli_json *j, const char *key, double value);
+void cli_json_bool(cli_json *j, const char *key, bool value);
+
+/* ---- misc ---- */
+/* Human-readable byte count ("1.23 GiB") into buf. */
+const char *cli_bytes(uint64_t bytes, char *buf, size_t size);
+/* Peak resident memory of this process in bytes (from /proc/self/status VmHWM). */
+uint64_t cli_peak_rss(void);
+
+#endif

@@ -1,0 +1,45 @@
+/* `sightline`: the command-line front end of the library. One subcommand per file. */
+#include "cli.h"
+
+#include <stdio.h>
+#include <string.h>
+
+static const sl_command commands[] = {
+    {"gen", sl_cmd_gen, "generate a procedural scene (gen city --preset tiny|small|vienna)"},
+    {"import", sl_cmd_import, "import OBJ/glTF/PLY/FBX/... (assimp) or Quake III .bsp/.pk3 into .slscene"},
+    {"info", sl_cmd_info, "counts, bounds, memory and per-kind statistics of a scene"},
+    {"path", sl_cmd_path, "generate, inspect or validate a camera path"},
+    {"export", sl_cmd_export, "export a scene to OBJ, glTF 2.0 or another assimp format"},
+    {"demo", sl_cmd_demo, "generate the default city, run the walkthrough and write a report"},
+};
+
+static void usage(FILE *out)
+{
+    fprintf(out, "usage: sightline <command> [options]   (sightline <command> --help for details)\n\n"
+                 "Sightline %s: visibility culling for large 3D scenes.\n\ncommands:\n",
+            sl_version_string());
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+        usage(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("sightline %s\n", sl_version_string());
+        return 0;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (!strcmp(argv[1], commands[i].name))
+            return commands[i].run(argc - 1, argv + 1);
+    fprintf(stderr, "sightline: unknown command '%s'\n", argv[1]);
+    usage(stderr);
+    return 2;
+}
