@@ -1,0 +1,36 @@
+/* sl_scene_open: one entry point for every scene source, dispatched by file extension, so that
+ * the CLI, the viewer and the benchmarks accept .slscene, Quake III maps and assimp formats alike.
+ * The extension decides (not the content): a file named .obj that holds something else fails in
+ * assimp with assimp's message, which names the real problem better than a guess would. */
+#include "scene_internal.h"
+#include "sightline/import.h"
+#include "sightline/slscene.h"
+
+#include <strings.h>
+
+/* The extension of the last path component including its dot (".slscene"), or "" when none. */
+static const char *path_extension(const char *path)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.');
+    return dot && dot != base ? dot : "";
+}
+
+sl_status sl_scene_open(const char *path, const char *map, const sl_allocator *alloc, sl_scene *out, sl_error *err)
+{
+    if (!path || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_open: NULL argument");
+    *out = NULL;
+    const char *ext = path_extension(path);
+    if (strcasecmp(ext, ".pk3") == 0)
+        return sl_import_q3bsp(path, map, NULL, alloc, out, err);
+    if (strcasecmp(ext, ".bsp") == 0) /* the map name only selects an entry inside a .pk3 */
+        return sl_import_q3bsp(path, NULL, NULL, alloc, out, err);
+    /* a map name with any other file is a caller mistake worth reporting, not ignoring */
+    if (map)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: a map name (\"%s\") only applies to .pk3 archives", path, map);
+    if (strcasecmp(ext, ".slscene") == 0)
+        return sl_scene_load(path, NULL, alloc, out, err);
+    return sl_import_assimp(path, NULL, alloc, out, err);
+}
