@@ -1,0 +1,104 @@
+/* Sightline online culling: one interface for every method, and the registry that names them.
+ *
+ * A culler is created for a scene by method name with options given as "key=value" pairs
+ * separated by commas or white space ("coherence=false, plane_masks=1"). Unknown keys, repeated
+ * keys, empty or malformed values and values out of range are rejected with a message naming the
+ * key and listing the valid ones. Each frame, sl_culler_cull turns a camera into the ascending
+ * list of object ids the method could not rule out; sl_culler_stats then tells what it cost.
+ *
+ * A method is conservative (it never drops an object that owns a pixel in the exact image: the
+ * tests hold it to the oracle of truth.h with zero tolerance) or aggressive (it may drop some; its
+ * missed pixels are measured). The guarantee may depend on the options.
+ *
+ * Contract: the scene must outlive the culler and keep its objects (their number fixed); objects
+ * may move (sl_scene_set_object_transform), after which sl_culler_scene_changed lets the method
+ * refit. sl_culler_cull allocates nothing in steady state. One culler is used by one thread at a
+ * time; distinct cullers on one scene may run in parallel while the scene does not change.
+ * docs/culler-contract.md describes how to add a method (a file and one line in the registry).
+ */
+#ifndef SIGHTLINE_CULL_H
+#define SIGHTLINE_CULL_H
+
+#include "core.h"
+#include "geom.h"
+#include "scene.h"
+#include "camera.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sl_culler_t *sl_culler;
+
+typedef enum sl_cull_guarantee {
+    SL_CONSERVATIVE = 0, /* never drops a visible object */
+    SL_AGGRESSIVE = 1    /* may drop visible objects; reports missed pixels against the oracle */
+} sl_cull_guarantee;
+
+/* "conservative" or "aggressive". */
+SL_API const char *sl_cull_guarantee_name(sl_cull_guarantee g);
+
+/* Most named phases a method reports per frame. */
+#define SL_CULL_MAX_PHASES 4
+
+/* Per-frame statistics of the last sl_culler_cull. Counters a method has no use for stay 0. */
+typedef struct sl_cull_stats {
+    uint64_t objects_tested;    /* object boxes tested (frustum, occlusion, back-face ...) */
+    uint64_t nodes_visited;     /* hierarchy nodes entered (BVH, grid cells, cull-map cells ...) */
+    uint64_t objects_visible;   /* objects reported (filled by the interface) */
+    uint64_t triangles_visible; /* their triangles: what a renderer would draw (filled by the interface) */
+    uint64_t occlusion_tests;   /* boxes or nodes tested against occluders */
+    uint64_t queries;           /* occlusion queries issued (hardware-style methods) */
+    uint64_t pixels_rasterized; /* occluder pixels written into a depth/occlusion buffer */
+    uint64_t pixel_queries;     /* buffer pixels read by occlusion tests */
+    uint32_t phase_count;       /* named phases below, at most SL_CULL_MAX_PHASES */
+    const char *phase_names[SL_CULL_MAX_PHASES]; /* static strings ("traverse", "rasterize" ...) */
+    double phase_ms[SL_CULL_MAX_PHASES];
+    double total_ms;            /* wall time of the whole sl_culler_cull call (filled by the interface) */
+} sl_cull_stats;
+
+/* A registered method. Strings are static. */
+typedef struct sl_cull_method_desc {
+    const char *name;           /* what sl_culler_create takes: "vfc" */
+    const char *summary;        /* one line: what it does, and the paper it follows */
+    const char *options_help;   /* one line per option: "key=TYPE (default D): meaning" */
+    sl_cull_guarantee guarantee;/* with the default options */
+} sl_cull_method_desc;
+
+/* Number of registered methods. */
+SL_API uint32_t sl_cull_method_count(void);
+/* Description of method `index` (0..count-1); SL_ERROR_NOT_FOUND beyond. */
+SL_API sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error *err);
+/* Index of the method called `name`; SL_ERROR_NOT_FOUND (listing the methods) when there is none. */
+SL_API sl_status sl_cull_method_find(const char *name, uint32_t *index, sl_error *err);
+/* Check an options string for a method without a scene (what sl_culler_create would reject). */
+SL_API sl_status sl_cull_method_check_options(const char *method, const char *options, sl_error *err);
+
+/* Create a culler of method `method` for a scene. options may be NULL or "" (defaults); alloc may
+ * be NULL. Fails with SL_ERROR_NOT_FOUND for an unknown method and SL_ERROR_INVALID_ARGUMENT for
+ * bad options. */
+SL_API sl_status sl_culler_create(const char *method, sl_scene scene, const char *options, const sl_allocator *alloc,
+                                  sl_culler *out, sl_error *err);
+/* Release a culler. NULL is ignored. */
+SL_API void sl_culler_destroy(sl_culler culler);
+
+/* Cull one frame: write the ids of the objects that may be visible from cam, strictly ascending,
+ * to out_ids and their number to *out_count. capacity must be at least the scene's object count. */
+SL_API sl_status sl_culler_cull(sl_culler culler, const sl_camera *cam, uint32_t *out_ids, uint32_t capacity,
+                                uint32_t *out_count, sl_error *err);
+/* Statistics of the last cull (all zero before the first). */
+SL_API void sl_culler_stats(sl_culler culler, sl_cull_stats *out);
+/* Tell the culler that objects moved since the last frame, so that it refits what depends on
+ * their boxes. */
+SL_API sl_status sl_culler_scene_changed(sl_culler culler, sl_error *err);
+/* The guarantee of this culler with its options. */
+SL_API sl_cull_guarantee sl_culler_guarantee(sl_culler culler);
+/* Name of the culler's method. */
+SL_API const char *sl_culler_method(sl_culler culler);
+/* The effective options, defaults included, as "key=value,key=value" (for reports). */
+SL_API const char *sl_culler_options(sl_culler culler);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

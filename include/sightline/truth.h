@@ -1,0 +1,153 @@
+/* Sightline ground truth: the exact point oracle and the metrics that judge every culler.
+ *
+ * The point oracle rasterizes every triangle of every object whose box meets the view frustum into
+ * a 32-bit object-id buffer and a 32-bit float depth buffer, in software, and reports which objects
+ * own at least one pixel and how many. The answer is exact at the chosen resolution: an object is
+ * visible when some pixel centre sees it first. Rules (docs/oracle.md has the detail):
+ *  - coverage: a pixel belongs to a triangle when its centre lies inside the triangle snapped to
+ *    1/256 pixel, with the top-left rule deciding centres exactly on an edge, so triangles that
+ *    share an edge never leave a gap and never cover a pixel twice;
+ *  - clipping: homogeneous clipping against the near and far planes (and a far-away guard band);
+ *  - depth: reversed depth (1 - z_ndc)/2, 1 at the near plane and 0 at the far plane, interpolated
+ *    in screen space (exact for both projections); the nearest fragment wins and an exact tie goes
+ *    to the lower object id, so the image does not depend on the order of drawing;
+ *  - faces: both sides of every triangle are drawn, except for objects flagged
+ *    SL_OBJECT_CLOSED_CONVEX, whose back faces are skipped (option below);
+ *  - threads: objects are dealt to threads by a fixed rule, each thread draws into its own buffer
+ *    and the buffers are merged with the depth rule, so the result is identical bit for bit
+ *    whatever the thread count.
+ * Cube maps render six 90-degree square faces from a point with exact axis-aligned matrices, so
+ * every direction falls into exactly one pixel of exactly one face.
+ *
+ * An oracle reads the scene at each render (transforms may change between renders) and must not
+ * outlive it. One oracle is used by one thread at a time; it starts its own helper threads.
+ */
+#ifndef SIGHTLINE_TRUTH_H
+#define SIGHTLINE_TRUTH_H
+
+#include "core.h"
+#include "geom.h"
+#include "scene.h"
+#include "camera.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sl_oracle_t *sl_oracle;
+
+/* Largest width or height of an oracle view, and largest pixel count of one view. */
+#define SL_ORACLE_MAX_SIZE 16384u
+#define SL_ORACLE_MAX_PIXELS (1u << 26)
+/* Largest number of rendering threads. */
+#define SL_ORACLE_MAX_THREADS 64u
+
+typedef struct sl_oracle_options {
+    uint32_t width, height;   /* resolution of a camera render; 0 and 0: the camera's own width/height */
+    uint32_t threads;         /* rendering threads, 1..SL_ORACLE_MAX_THREADS (default 2) */
+    bool draw_closed_backfaces; /* false (default): skip back faces of SL_OBJECT_CLOSED_CONVEX objects */
+    bool count_overdraw;      /* keep a per-pixel count of covered fragments (depth complexity) */
+} sl_oracle_options;
+
+/* The defaults: camera resolution, 2 threads, closed back faces skipped, no overdraw counts. */
+SL_API sl_oracle_options sl_oracle_default_options(void);
+
+/* What one render found. Arrays belong to the oracle and stay valid until its next render. */
+typedef struct sl_oracle_frame {
+    uint32_t view_count;          /* 1 for a camera render, 6 for a cube map */
+    uint32_t width, height;       /* size of each view */
+    uint32_t visible_count;       /* objects owning at least one pixel */
+    const uint32_t *visible;      /* their ids, ascending */
+    const uint32_t *pixels;       /* pixels[i]: pixels owned by visible[i] (summed over the views) */
+    uint64_t covered_pixels;      /* pixels that show some object (summed over the views) */
+    uint32_t objects_in_frustum;  /* objects drawn: their box meets the frustum and may cover a
+                                     pixel centre (counted once per view) */
+    uint64_t triangles_in_frustum;/* their triangles, all drawn (counted once per view) */
+    double ms;                    /* wall time of the render */
+} sl_oracle_frame;
+
+/* The buffers of one view of the last render. Row 0 is the top of the image; pixel (x, y) is at
+ * index y*width + x. ids hold SL_NONE where nothing was drawn; depth holds reversed depth in
+ * [0, 1] (0 where nothing was drawn); overdraw is NULL unless count_overdraw was set. */
+typedef struct sl_oracle_view {
+    uint32_t width, height;
+    const uint32_t *ids;
+    const float *depth;
+    const uint32_t *overdraw;
+    sl_mat4 view_proj;            /* the world-to-clip matrix the view was drawn with */
+} sl_oracle_view;
+
+/* Create an oracle for a scene. options and alloc may be NULL (defaults). */
+SL_API sl_status sl_oracle_create(sl_scene scene, const sl_oracle_options *options, const sl_allocator *alloc,
+                                  sl_oracle *out, sl_error *err);
+/* Release an oracle, its buffers and results. NULL is ignored. */
+SL_API void sl_oracle_destroy(sl_oracle oracle);
+
+/* Render the scene from a camera (perspective or orthographic) and report the exact visible set. */
+SL_API sl_status sl_oracle_render(sl_oracle oracle, const sl_camera *cam, sl_oracle_frame *out, sl_error *err);
+
+/* Cube-map faces, in this order. Each face is a 90-degree square view from the eye:
+ *   face  forward  right  up        face  forward  right  up
+ *   +X    +X       -Y     +Z        -X    -X       +Y     +Z
+ *   +Y    +Y       +X     +Z        -Y    -Y       -X     +Z
+ *   +Z    +Z       -Y     -X        -Z    -Z       -Y     +X
+ * i.e. the horizontal faces are the sl_camera views with yaw 0, 90, 180, 270 degrees and the
+ * vertical ones pitch +90 and -90 degrees at yaw 0. */
+typedef enum sl_cube_face {
+    SL_CUBE_POS_X = 0, SL_CUBE_NEG_X = 1, SL_CUBE_POS_Y = 2,
+    SL_CUBE_NEG_Y = 3, SL_CUBE_POS_Z = 4, SL_CUBE_NEG_Z = 5
+} sl_cube_face;
+
+/* Render the six faces of a cube map of face_size x face_size pixels around eye, with the given
+ * near and far distances (0 < near < far). The frame's set is the union over the faces and its
+ * pixel counts the sums; sl_oracle_get_view(oracle, face, ...) gives each face's buffers. */
+SL_API sl_status sl_oracle_render_cube(sl_oracle oracle, sl_vec3 eye, uint32_t face_size, float near_plane,
+                                       float far_plane, sl_oracle_frame *out, sl_error *err);
+
+/* A camera that shows (up to float rounding) what cube face `face` shows; for display and export. */
+SL_API sl_camera sl_cube_face_camera(sl_vec3 eye, sl_cube_face face, uint32_t face_size, float near_plane,
+                                     float far_plane);
+
+/* Buffers of view `index` (0 for a camera render, the face for a cube map) of the last render.
+ * Fails with SL_ERROR_INVALID_ARGUMENT when there is no such view. */
+SL_API sl_status sl_oracle_get_view(sl_oracle oracle, uint32_t index, sl_oracle_view *out, sl_error *err);
+
+/* ---- metrics -------------------------------------------------------------------------------- */
+
+/* A culling result judged against the oracle's visible set of the same view. */
+typedef struct sl_cull_metrics {
+    uint32_t visible_count;       /* |V|: objects the oracle sees */
+    uint32_t result_count;        /* |R|: objects the culler kept */
+    uint32_t missed_count;        /* |V \ R|: visible objects the culler dropped (conservative: 0) */
+    uint64_t missed_pixels;       /* pixels owned by the missed objects */
+    uint32_t extra_count;         /* |R \ V|: kept objects that are hidden or outside */
+    double overestimation;        /* |R| / max(|V|, 1) */
+    uint64_t triangles_rendered;  /* triangles of the objects in R (what a renderer would draw) */
+    uint64_t triangles_visible;   /* triangles of the objects in V (what an exact method would draw) */
+} sl_cull_metrics;
+
+/* Compare a culling result (object ids, strictly ascending, each < the scene's object count) with
+ * an oracle frame. The first missed_capacity missed objects are written to missed_ids and their
+ * pixel counts to missed_pixels (both may be NULL when missed_capacity is 0); out->missed_count
+ * counts all of them. Fails with SL_ERROR_INVALID_ARGUMENT on an unsorted or out-of-range result. */
+SL_API sl_status sl_metrics_compare(sl_scene scene, const sl_oracle_frame *truth, const uint32_t *result,
+                                    uint32_t result_count, sl_cull_metrics *out, uint32_t *missed_ids,
+                                    uint32_t *missed_pixels, uint32_t missed_capacity, sl_error *err);
+
+/* Summary of a series of measurements (cull times in ms, counts...). */
+typedef struct sl_series_summary {
+    size_t count;
+    double min, max, mean;
+    double median;                /* middle value; mean of the two middle values for an even count */
+    double p95;                   /* nearest-rank 95th percentile: the ceil(0.95*count)-th smallest */
+} sl_series_summary;
+
+/* Summarise n values (n may be 0: all fields 0). Values must be finite. alloc may be NULL; a
+ * sorted copy is made, the input is not changed. */
+SL_API sl_status sl_series_summarize(const double *values, size_t n, const sl_allocator *alloc,
+                                     sl_series_summary *out, sl_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,465 @@
+/* The public culler interface: method lookup, option parsing, and the checks and bookkeeping
+ * every method gets for free (see culler_internal.h). */
+#include "culler_internal.h"
+
+#include "scene/scene_internal.h"
+
+#include <ctype.h>
+#include <strings.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+
+struct sl_culler_t {
+    sl_allocator alloc;
+    const sl_cull_method *method;
+    sl_scene scene;
+    uint32_t object_count;        /* at creation: the scene must keep it */
+    void *state;
+    sl_cull_guarantee guarantee;
+    sl_cull_stats stats;
+    char options[SL_OPTS_MAX_CHARS + 1];
+};
+
+const char *sl_cull_guarantee_name(sl_cull_guarantee g)
+{
+    switch (g) {
+    case SL_CONSERVATIVE: return "conservative";
+    case SL_AGGRESSIVE: return "aggressive";
+    }
+    return "unknown";
+}
+
+/* ---- options ---- */
+
+static bool key_char(char c) { return isalnum((unsigned char)c) || c == '_' || c == '.' || c == '-'; }
+static bool separator(char c) { return c == ',' || isspace((unsigned char)c); }
+
+sl_status sl_opts_parse(sl_opts *o, const char *method, const char *options, sl_error *err)
+{
+    memset(o, 0, sizeof *o);
+    o->method = method ? method : "culler";
+    if (!options)
+        return SL_OK;
+    size_t len = strlen(options);
+    if (len > SL_OPTS_MAX_CHARS)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: the options string is %zu characters long (at most %u)",
+                       o->method, len, SL_OPTS_MAX_CHARS);
+    memcpy(o->text, options, len + 1);
+    char *p = o->text;
+    while (*p) {
+        if (separator(*p)) {
+            *p++ = 0;
+            continue;
+        }
+        char *item = p;
+        while (*p && !separator(*p))
+            p++;
+        if (*p)
+            *p++ = 0;
+        char *eq = strchr(item, '=');
+        if (!eq)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                           "%s: option '%s' is not key=value (items are separated by commas or spaces, with no "
+                           "space around '=')", o->method, item);
+        *eq = 0;
+        const char *key = item, *value = eq + 1;
+        if (!*key)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option '=%s' has no key", o->method, value);
+        for (const char *k = key; *k; k++)
+            if (!key_char(*k))
+                return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                               "%s: option key '%s' has the character '%c' (keys use letters, digits, '_', '.', '-')",
+                               o->method, key, *k);
+        if (!*value)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option '%s' has an empty value", o->method, key);
+        for (uint32_t i = 0; i < o->count; i++)
+            if (strcmp(o->keys[i], key) == 0)
+                return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option '%s' is given twice ('%s' and '%s')",
+                               o->method, key, o->values[i], value);
+        if (o->count == SL_OPTS_MAX_ENTRIES)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: more than %u options", o->method, SL_OPTS_MAX_ENTRIES);
+        o->keys[o->count] = key;
+        o->values[o->count] = value;
+        o->count++;
+    }
+    return SL_OK;
+}
+
+/* Note that `key` is valid, append its effective value, and return the given value or NULL. */
+static const char *lookup(sl_opts *o, const char *key)
+{
+    bool known = false;
+    for (uint32_t i = 0; i < o->known_count; i++)
+        known |= strcmp(o->known[i], key) == 0;
+    if (!known && o->known_count < SL_OPTS_MAX_ENTRIES)
+        o->known[o->known_count++] = key;
+    for (uint32_t i = 0; i < o->count; i++)
+        if (strcmp(o->keys[i], key) == 0) {
+            o->used[i] = true;
+            return o->values[i];
+        }
+    return NULL;
+}
+
+static void record(sl_opts *o, const char *key, const char *fmt, ...) SL_PRINTF(3, 4);
+static void record(sl_opts *o, const char *key, const char *fmt, ...)
+{
+    size_t n = strlen(o->effective);
+    char value[128];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(value, sizeof value, fmt, ap);
+    va_end(ap);
+    /* a report string: silently truncated at the (generous) limit */
+    snprintf(o->effective + n, sizeof o->effective - n, "%s%s=%s", n ? "," : "", key, value);
+}
+
+sl_status sl_opts_u32(sl_opts *o, const char *key, uint32_t def, uint32_t min, uint32_t max, uint32_t *out, sl_error *err)
+{
+    const char *v = lookup(o, key);
+    uint32_t x = def;
+    if (v) {
+        bool digits = true;
+        for (const char *c = v; *c; c++)
+            digits &= *c >= '0' && *c <= '9';
+        errno = 0;
+        unsigned long long u = digits ? strtoull(v, NULL, 10) : 0;
+        if (!digits || errno == ERANGE || u > UINT32_MAX)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option %s=%s: expected a whole number in [%u, %u]",
+                           o->method, key, v, min, max);
+        x = (uint32_t)u;
+        if (x < min || x > max)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option %s=%s is outside [%u, %u]", o->method, key, v,
+                           min, max);
+    }
+    *out = x;
+    record(o, key, "%u", x);
+    return SL_OK;
+}
+
+sl_status sl_opts_float(sl_opts *o, const char *key, float def, float min, float max, float *out, sl_error *err)
+{
+    const char *v = lookup(o, key);
+    float x = def;
+    if (v) {
+        char *end = NULL;
+        errno = 0;
+        double d = strtod(v, &end);
+        if (end == v || *end || !isfinite(d) || isspace((unsigned char)*v))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option %s=%s: expected a finite number in [%g, %g]",
+                           o->method, key, v, (double)min, (double)max);
+        if (!(d >= min && d <= max))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option %s=%s is outside [%g, %g]", o->method, key, v,
+                           (double)min, (double)max);
+        x = (float)d;
+    }
+    *out = x;
+    record(o, key, "%g", (double)x);
+    return SL_OK;
+}
+
+sl_status sl_opts_bool(sl_opts *o, const char *key, bool def, bool *out, sl_error *err)
+{
+    static const char *const yes[] = {"true", "1", "yes", "on"}, *const no[] = {"false", "0", "no", "off"};
+    const char *v = lookup(o, key);
+    bool x = def;
+    if (v) {
+        int found = -1;
+        for (size_t i = 0; i < SL_COUNTOF(yes); i++) {
+            if (strcasecmp(v, yes[i]) == 0)
+                found = 1;
+            if (strcasecmp(v, no[i]) == 0)
+                found = 0;
+        }
+        if (found < 0)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                           "%s: option %s=%s: expected true/false (also 1/0, yes/no, on/off)", o->method, key, v);
+        x = found == 1;
+    }
+    *out = x;
+    record(o, key, "%s", x ? "true" : "false");
+    return SL_OK;
+}
+
+sl_status sl_opts_enum(sl_opts *o, const char *key, const char *const *names, uint32_t count, uint32_t def,
+                       uint32_t *out, sl_error *err)
+{
+    const char *v = lookup(o, key);
+    uint32_t x = def;
+    if (v) {
+        x = count;
+        for (uint32_t i = 0; i < count; i++)
+            if (strcmp(v, names[i]) == 0)
+                x = i;
+        if (x == count) {
+            char list[256] = "";
+            for (uint32_t i = 0; i < count; i++) {
+                size_t n = strlen(list);
+                snprintf(list + n, sizeof list - n, "%s%s", i ? ", " : "", names[i]);
+            }
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option %s=%s: expected one of %s", o->method, key, v,
+                           list);
+        }
+    }
+    *out = x;
+    record(o, key, "%s", x < count ? names[x] : "?");
+    return SL_OK;
+}
+
+sl_status sl_opts_check_unused(const sl_opts *o, sl_error *err)
+{
+    for (uint32_t i = 0; i < o->count; i++) {
+        if (o->used[i])
+            continue;
+        if (o->known_count == 0)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: unknown option '%s' (%s takes no options)", o->method,
+                           o->keys[i], o->method);
+        char list[384] = "";
+        for (uint32_t k = 0; k < o->known_count; k++) {
+            size_t n = strlen(list);
+            snprintf(list + n, sizeof list - n, "%s%s", k ? ", " : "", o->known[k]);
+        }
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: unknown option '%s' (valid options: %s)", o->method,
+                       o->keys[i], list);
+    }
+    return SL_OK;
+}
+
+/* ---- sorting ---- */
+
+void sl_cull_sort_ids(uint32_t *ids, uint32_t n, uint32_t *scratch)
+{
+    if (n < 64) {
+        for (uint32_t i = 1; i < n; i++) {
+            uint32_t v = ids[i], j = i;
+            for (; j > 0 && ids[j - 1] > v; j--)
+                ids[j] = ids[j - 1];
+            ids[j] = v;
+        }
+        return;
+    }
+    uint32_t maxv = 0;
+    for (uint32_t i = 0; i < n; i++)
+        maxv = SL_MAX(maxv, ids[i]);
+    /* LSD radix sort on 11-bit digits, only as many passes as the largest id needs; an odd number
+     * of passes leaves the result in scratch, copied back at the end */
+    uint32_t *src = ids, *dst = scratch;
+    for (uint32_t shift = 0; shift < 32 && (maxv >> shift) != 0; shift += 11) {
+        uint32_t count[2048] = {0};
+        for (uint32_t i = 0; i < n; i++)
+            count[(src[i] >> shift) & 2047]++;
+        uint32_t sum = 0;
+        for (uint32_t d = 0; d < 2048; d++) {
+            uint32_t c = count[d];
+            count[d] = sum;
+            sum += c;
+        }
+        for (uint32_t i = 0; i < n; i++)
+            dst[count[(src[i] >> shift) & 2047]++] = src[i];
+        uint32_t *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != ids)
+        memcpy(ids, src, (size_t)n * sizeof *ids);
+}
+
+/* ---- registry ---- */
+
+uint32_t sl_cull_method_count(void) { return sl_cull_registry_count(); }
+
+sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error *err)
+{
+    const sl_cull_method *m = sl_cull_registry_get(index);
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_cull_method_info: out is NULL");
+    if (!m)
+        return sl_fail(err, SL_ERROR_NOT_FOUND, "sl_cull_method_info: no method %u (there are %u)", index,
+                       sl_cull_registry_count());
+    out->name = m->name;
+    out->summary = m->summary;
+    out->options_help = m->options_help;
+    out->guarantee = m->guarantee;
+    return SL_OK;
+}
+
+sl_status sl_cull_method_find(const char *name, uint32_t *index, sl_error *err)
+{
+    uint32_t n = sl_cull_registry_count();
+    for (uint32_t i = 0; name && i < n; i++)
+        if (strcmp(sl_cull_registry_get(i)->name, name) == 0) {
+            if (index)
+                *index = i;
+            return SL_OK;
+        }
+    char list[512] = "";
+    for (uint32_t i = 0; i < n; i++) {
+        size_t k = strlen(list);
+        snprintf(list + k, sizeof list - k, "%s%s", i ? ", " : "", sl_cull_registry_get(i)->name);
+    }
+    return sl_fail(err, SL_ERROR_NOT_FOUND, "unknown culling method '%s' (methods: %s)", name ? name : "(null)", list);
+}
+
+/* Parse and configure: the part of creation that needs no scene. config must hold config_size bytes. */
+static sl_status configure(const sl_cull_method *m, const char *options, void *config, sl_opts *opts,
+                           sl_cull_guarantee *guarantee, sl_error *err)
+{
+    sl_status st = sl_opts_parse(opts, m->name, options, err);
+    if (st != SL_OK)
+        return st;
+    *guarantee = m->guarantee;
+    if (m->config_size)
+        memset(config, 0, m->config_size);
+    if (m->configure && (st = m->configure(opts, config, guarantee, err)) != SL_OK)
+        return st;
+    return sl_opts_check_unused(opts, err);
+}
+
+sl_status sl_cull_method_check_options(const char *method, const char *options, sl_error *err)
+{
+    uint32_t index;
+    sl_status st = sl_cull_method_find(method, &index, err);
+    if (st != SL_OK)
+        return st;
+    const sl_cull_method *m = sl_cull_registry_get(index);
+    sl_opts *opts = sl_alloc(NULL, sizeof *opts);
+    void *config = m->config_size ? sl_alloc(NULL, m->config_size) : NULL;
+    if (!opts || (m->config_size && !config))
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", m->name);
+    sl_cull_guarantee g;
+    if (st == SL_OK)
+        st = configure(m, options, config, opts, &g, err);
+    sl_free(NULL, config, m->config_size);
+    sl_free(NULL, opts, sizeof *opts);
+    return st;
+}
+
+/* ---- the culler ---- */
+
+sl_status sl_culler_create(const char *method, sl_scene scene, const char *options, const sl_allocator *alloc,
+                           sl_culler *out, sl_error *err)
+{
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: out is NULL");
+    *out = NULL;
+    if (!scene)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: scene is NULL");
+    uint32_t index;
+    sl_status st = sl_cull_method_find(method, &index, err);
+    if (st != SL_OK)
+        return st;
+    const sl_cull_method *m = sl_cull_registry_get(index);
+    alloc = sl_alloc_or_default(alloc);
+    struct sl_culler_t *c = sl_calloc(alloc, 1, sizeof *c);
+    sl_opts *opts = sl_alloc(alloc, sizeof *opts);
+    void *config = m->config_size ? sl_alloc(alloc, m->config_size) : NULL;
+    if (!c || !opts || (m->config_size && !config)) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", m->name);
+        goto done;
+    }
+    c->alloc = *alloc;
+    c->method = m;
+    c->scene = scene;
+    c->object_count = sl_scene_object_count(scene);
+    st = configure(m, options, config, opts, &c->guarantee, err);
+    if (st != SL_OK)
+        goto done;
+    memcpy(c->options, opts->effective, sizeof c->options);
+    st = m->create(scene, config, &c->alloc, &c->state, err);
+done:
+    sl_free(alloc, config, m->config_size);
+    sl_free(alloc, opts, sizeof *opts);
+    if (st != SL_OK) {
+        sl_free(alloc, c, sizeof *c);
+        return st;
+    }
+    *out = c;
+    return SL_OK;
+}
+
+void sl_culler_destroy(sl_culler c)
+{
+    if (!c)
+        return;
+    if (c->state)
+        c->method->destroy(c->state);
+    sl_allocator a = c->alloc;
+    sl_free(&a, c, sizeof *c);
+}
+
+sl_status sl_culler_cull(sl_culler c, const sl_camera *cam, uint32_t *out_ids, uint32_t capacity, uint32_t *out_count,
+                         sl_error *err)
+{
+    if (out_count)
+        *out_count = 0;
+    if (!c || !cam || !out_ids || !out_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_cull: culler, camera, out_ids and out_count must not be NULL");
+    memset(&c->stats, 0, sizeof c->stats);
+    sl_status st = sl_camera_validate(cam, err);
+    if (st != SL_OK)
+        return st;
+    uint32_t n = sl_scene_object_count(c->scene);
+    if (n != c->object_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "%s: the scene has %u objects but had %u when the culler was created: create a new culler",
+                       c->method->name, n, c->object_count);
+    if (capacity < n)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: capacity %u is below the scene's object count %u",
+                       c->method->name, capacity, n);
+    double t0 = sl_now();
+    uint32_t count = 0;
+    st = c->method->cull(c->state, cam, out_ids, capacity, &count, &c->stats, err);
+    double t1 = sl_now();
+    if (st != SL_OK) {
+        memset(&c->stats, 0, sizeof c->stats);
+        return st;
+    }
+    /* the contract every consumer relies on, checked here once for every method */
+    if (count > n)
+        return sl_fail(err, SL_ERROR_INTERNAL, "%s: reported %u objects of %u", c->method->name, count, n);
+    const struct sl_scene_t *s = c->scene;
+    const sl_object_rec *objects = sl_scene_objects(s);
+    const sl_mesh_rec *meshes = sl_scene_meshes(s);
+    uint64_t triangles = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        if (out_ids[i] >= n || (i > 0 && out_ids[i] <= out_ids[i - 1]))
+            return sl_fail(err, SL_ERROR_INTERNAL, "%s: output entry %u (object %u) is out of range or out of order",
+                           c->method->name, i, out_ids[i]);
+        triangles += meshes[objects[out_ids[i]].mesh].triangle_count;
+    }
+    c->stats.objects_visible = count;
+    c->stats.triangles_visible = triangles;
+    c->stats.total_ms = sl_cull_ms(t0, t1);
+    *out_count = count;
+    return SL_OK;
+}
+
+void sl_culler_stats(sl_culler c, sl_cull_stats *out)
+{
+    if (!out)
+        return;
+    if (!c) {
+        memset(out, 0, sizeof *out);
+        return;
+    }
+    *out = c->stats;
+}
+
+sl_status sl_culler_scene_changed(sl_culler c, sl_error *err)
+{
+    if (!c)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_scene_changed: culler is NULL");
+    uint32_t n = sl_scene_object_count(c->scene);
+    if (n != c->object_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "%s: the scene has %u objects but had %u when the culler was created: create a new culler",
+                       c->method->name, n, c->object_count);
+    return c->method->scene_changed ? c->method->scene_changed(c->state, err) : SL_OK;
+}
+
+sl_cull_guarantee sl_culler_guarantee(sl_culler c) { return c ? c->guarantee : SL_AGGRESSIVE; }
+
+const char *sl_culler_method(sl_culler c) { return c ? c->method->name : ""; }
+
+const char *sl_culler_options(sl_culler c) { return c ? c->options : ""; }

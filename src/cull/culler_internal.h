@@ -1,0 +1,105 @@
+/* The inside of the culler interface: the table every method fills in, and the option reader
+ * every method uses.
+ *
+ * Adding a method: write src/cull/<name>.c defining `const sl_cull_method sl_cull_method_<name>`
+ * and add one line X(<name>) to SL_CULL_METHODS in src/cull/registry.c. The wrapper (culler.c)
+ * does the rest: it parses the options, calls configure, rejects keys configure did not read,
+ * validates cameras and capacities, times each frame, fills the visible counts, checks that the
+ * output is strictly ascending and in range, and keeps the effective option string.
+ *
+ * Life of a culler: configure(opts) -> create(scene, config) -> { cull(camera) | scene_changed() }*
+ * -> destroy(state). configure must read every option it understands (an option it does not read
+ * is an error) and may not touch the scene; create does the heavy work (BVH, buffers) and
+ * allocates everything cull will need, through the allocator it is given.
+ */
+#ifndef SL_CULL_INTERNAL_H
+#define SL_CULL_INTERNAL_H
+
+#include "sightline/cull.h"
+#include "core/sl_core.h"
+
+/* ---- options ---- */
+
+#define SL_OPTS_MAX_ENTRIES 32
+#define SL_OPTS_MAX_CHARS 1024
+
+/* Parsed "key=value" options. Keys and values point into `text`. Every getter records the key it
+ * asked for (so an unknown key can be answered with the list of valid ones) and the value it
+ * settled on (so the culler can report its effective options). */
+typedef struct sl_opts {
+    const char *method;                     /* for messages */
+    char text[SL_OPTS_MAX_CHARS + 1];
+    uint32_t count;
+    const char *keys[SL_OPTS_MAX_ENTRIES];
+    const char *values[SL_OPTS_MAX_ENTRIES];
+    bool used[SL_OPTS_MAX_ENTRIES];
+    uint32_t known_count;
+    const char *known[SL_OPTS_MAX_ENTRIES]; /* keys asked for, in order (static strings) */
+    char effective[SL_OPTS_MAX_CHARS + 1];  /* "key=value,..." of every key asked for */
+} sl_opts;
+
+/* Parse an options string (NULL or empty: none). Separators are commas and white space; each
+ * item is key=value with a non-empty key of [A-Za-z0-9_.-] and a non-empty value; a key may not
+ * repeat. */
+sl_status sl_opts_parse(sl_opts *o, const char *method, const char *options, sl_error *err);
+
+/* Typed getters: *out receives the value given for `key`, or `def` when the key is absent. A
+ * malformed or out-of-range value fails with SL_ERROR_INVALID_ARGUMENT naming the key. */
+sl_status sl_opts_u32(sl_opts *o, const char *key, uint32_t def, uint32_t min, uint32_t max, uint32_t *out, sl_error *err);
+sl_status sl_opts_float(sl_opts *o, const char *key, float def, float min, float max, float *out, sl_error *err);
+/* true/false, 1/0, yes/no, on/off (any case). */
+sl_status sl_opts_bool(sl_opts *o, const char *key, bool def, bool *out, sl_error *err);
+/* One of names[0..count-1] (exact match); *out is its index. */
+sl_status sl_opts_enum(sl_opts *o, const char *key, const char *const *names, uint32_t count, uint32_t def,
+                       uint32_t *out, sl_error *err);
+
+/* After configure: fail naming the first key no getter asked for, with the valid keys. */
+sl_status sl_opts_check_unused(const sl_opts *o, sl_error *err);
+
+/* ---- methods ---- */
+
+typedef struct sl_cull_method {
+    const char *name;
+    const char *summary;
+    const char *options_help;
+    sl_cull_guarantee guarantee;  /* with the default options */
+    size_t config_size;           /* bytes of the method's parsed-options struct (may be 0) */
+
+    /* Read the options into config (config_size zeroed bytes); may change *guarantee when an
+     * option makes the method aggressive. Must not allocate. */
+    sl_status (*configure)(sl_opts *opts, void *config, sl_cull_guarantee *guarantee, sl_error *err);
+    /* Build the method's state for a scene. alloc is never NULL. */
+    sl_status (*create)(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err);
+    /* Cull one frame: write ids strictly ascending to out (capacity >= object count) and fill the
+     * counters and phases of stats (zeroed by the caller). Must not allocate. */
+    sl_status (*cull)(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+                      sl_cull_stats *stats, sl_error *err);
+    /* Objects moved: refit. NULL when the method keeps nothing that depends on object boxes. */
+    sl_status (*scene_changed)(void *state, sl_error *err);
+    void (*destroy)(void *state);
+} sl_cull_method;
+
+/* The registry (registry.c). */
+uint32_t sl_cull_registry_count(void);
+const sl_cull_method *sl_cull_registry_get(uint32_t index);
+
+/* ---- helpers for methods ---- */
+
+/* Milliseconds between two sl_now() readings. */
+static inline double sl_cull_ms(double t0, double t1) { return (t1 - t0) * 1000.0; }
+
+/* Record a named phase in stats (ignored beyond SL_CULL_MAX_PHASES). */
+static inline void sl_cull_phase(sl_cull_stats *s, const char *name, double ms)
+{
+    if (s->phase_count < SL_CULL_MAX_PHASES) {
+        s->phase_names[s->phase_count] = name;
+        s->phase_ms[s->phase_count] = ms;
+        s->phase_count++;
+    }
+}
+
+/* Sort a list of object ids ascending in place (radix sort with a caller-provided scratch buffer
+ * of n entries; allocation-free). */
+void sl_cull_sort_ids(uint32_t *ids, uint32_t n, uint32_t *scratch);
+
+#endif

@@ -1,0 +1,530 @@
+/* The exact point oracle: which objects does a viewpoint see, and with how many pixels?
+ *
+ * Every object whose world box meets the view frustum is drawn triangle by triangle with the
+ * reference rasterizer (raster_ref.c) into an id + reversed-depth buffer; the objects owning at
+ * least one pixel form the visible set. The object boxes are only a shortcut: a box decides
+ * nothing a triangle would decide differently, since each triangle is clipped and tested itself.
+ *
+ * Threads: the objects in the frustum are dealt to threads by a fixed rule (each to the thread
+ * with the fewest triangles so far, in id order); each thread draws its objects into its own
+ * full-size buffer, and the buffers are merged pixel by pixel. The depth rule (nearest wins, ties
+ * to the lower id) makes the kept fragment independent of drawing order and of the split, so the
+ * merged buffer is bit for bit what one thread drawing everything produces. Threads share nothing
+ * writable; no atomics. Every thread transforms only its own objects' vertices, so the whole
+ * pipeline (not only pixel filling) is divided.
+ */
+#include "sightline/truth.h"
+
+#include "raster_ref.h"
+#include "scene/scene_internal.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+
+/* An object that may cover pixels of the current view, and the thread that draws it. */
+typedef struct frustum_entry {
+    uint32_t object;
+    uint32_t thread;
+} frustum_entry;
+
+struct sl_oracle_t {
+    sl_allocator alloc;
+    sl_scene scene;
+    sl_oracle_options opt;
+
+    /* buffers of the last render: view_count views of width*height pixels each */
+    uint32_t view_count, width, height;
+    uint32_t *ids;
+    float *depth;
+    uint32_t *overdraw;
+    size_t pixel_cap;
+    sl_mat4 view_proj[6];
+
+    sl_refrast_scratch *scratch; /* one per thread */
+    /* private buffers of helper threads 1..threads-1, helper_cap pixels each */
+    uint32_t *helper_ids;
+    float *helper_depth;
+    uint32_t *helper_overdraw;
+    size_t helper_cap;
+
+    sl_array frustum;           /* frustum_entry, ascending object ids */
+    uint32_t *counts;           /* pixels per object id while counting; all zero between renders */
+    size_t counts_cap;
+    sl_array visible;           /* uint32 */
+    sl_array visible_pixels;    /* uint32 */
+};
+
+sl_oracle_options sl_oracle_default_options(void)
+{
+    sl_oracle_options o;
+    memset(&o, 0, sizeof o);
+    o.threads = 2;
+    return o;
+}
+
+sl_status sl_oracle_create(sl_scene scene, const sl_oracle_options *options, const sl_allocator *alloc,
+                           sl_oracle *out, sl_error *err)
+{
+    if (!scene || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_create: scene and out must not be NULL");
+    *out = NULL;
+    sl_oracle_options opt = options ? *options : sl_oracle_default_options();
+    if (opt.threads < 1 || opt.threads > SL_ORACLE_MAX_THREADS)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_create: threads = %u is outside 1..%u",
+                       opt.threads, SL_ORACLE_MAX_THREADS);
+    if ((opt.width == 0) != (opt.height == 0))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "sl_oracle_create: width = %u and height = %u: give both or neither (0: camera's size)",
+                       opt.width, opt.height);
+    if (opt.width > SL_ORACLE_MAX_SIZE || opt.height > SL_ORACLE_MAX_SIZE ||
+        (uint64_t)opt.width * opt.height > SL_ORACLE_MAX_PIXELS)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_oracle_create: resolution %ux%u exceeds the limit (%u per side, %u pixels)",
+                       opt.width, opt.height, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
+    alloc = sl_alloc_or_default(alloc);
+    struct sl_oracle_t *o = sl_calloc(alloc, 1, sizeof *o);
+    if (!o)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_oracle_create: out of memory");
+    o->alloc = *alloc;
+    o->scene = scene;
+    o->opt = opt;
+    o->scratch = sl_calloc(alloc, opt.threads, sizeof *o->scratch);
+    if (!o->scratch) {
+        sl_free(alloc, o, sizeof *o);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_oracle_create: out of memory");
+    }
+    *out = o;
+    return SL_OK;
+}
+
+static void free_pixels(struct sl_oracle_t *o)
+{
+    const sl_allocator *a = &o->alloc;
+    size_t helpers = o->helper_cap * (o->opt.threads - 1);
+    sl_free(a, o->ids, o->pixel_cap * sizeof(uint32_t));
+    sl_free(a, o->depth, o->pixel_cap * sizeof(float));
+    sl_free(a, o->overdraw, o->pixel_cap * sizeof(uint32_t));
+    sl_free(a, o->helper_ids, helpers * sizeof(uint32_t));
+    sl_free(a, o->helper_depth, helpers * sizeof(float));
+    sl_free(a, o->helper_overdraw, helpers * sizeof(uint32_t));
+    o->ids = NULL;
+    o->depth = NULL;
+    o->overdraw = NULL;
+    o->helper_ids = NULL;
+    o->helper_depth = NULL;
+    o->helper_overdraw = NULL;
+    o->pixel_cap = 0;
+    o->helper_cap = 0;
+}
+
+void sl_oracle_destroy(sl_oracle o)
+{
+    if (!o)
+        return;
+    const sl_allocator *a = &o->alloc;
+    free_pixels(o);
+    for (uint32_t t = 0; t < o->opt.threads; t++)
+        sl_refrast_scratch_free(a, &o->scratch[t]);
+    sl_free(a, o->scratch, o->opt.threads * sizeof *o->scratch);
+    sl_array_free(a, &o->frustum, sizeof(frustum_entry));
+    sl_free(a, o->counts, o->counts_cap * sizeof(uint32_t));
+    sl_array_free(a, &o->visible, sizeof(uint32_t));
+    sl_array_free(a, &o->visible_pixels, sizeof(uint32_t));
+    sl_free(a, o, sizeof *o);
+}
+
+/* Make room for `views` views of w*h pixels, plus one view per helper thread (previous contents
+ * are not kept). */
+static sl_status reserve_pixels(struct sl_oracle_t *o, uint32_t views, uint32_t w, uint32_t h, sl_error *err)
+{
+    size_t px = (size_t)w * h, need = (size_t)views * px, helpers = (size_t)(o->opt.threads - 1) * px;
+    bool need_overdraw = o->opt.count_overdraw;
+    if (need <= o->pixel_cap && px <= o->helper_cap)
+        return SL_OK;
+    free_pixels(o);
+    const sl_allocator *a = &o->alloc;
+    o->ids = sl_alloc(a, need * sizeof(uint32_t));
+    o->depth = sl_alloc(a, need * sizeof(float));
+    o->overdraw = need_overdraw ? sl_alloc(a, need * sizeof(uint32_t)) : NULL;
+    o->pixel_cap = need;
+    o->helper_ids = helpers ? sl_alloc(a, helpers * sizeof(uint32_t)) : NULL;
+    o->helper_depth = helpers ? sl_alloc(a, helpers * sizeof(float)) : NULL;
+    o->helper_overdraw = helpers && need_overdraw ? sl_alloc(a, helpers * sizeof(uint32_t)) : NULL;
+    o->helper_cap = px;
+    if (!o->ids || !o->depth || (need_overdraw && !o->overdraw) ||
+        (helpers && (!o->helper_ids || !o->helper_depth || (need_overdraw && !o->helper_overdraw)))) {
+        free_pixels(o);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for %u view(s) of %ux%u pixels", views, w, h);
+    }
+    return SL_OK;
+}
+
+/* ---- one view ---- */
+
+typedef struct view_job {
+    struct sl_oracle_t *o;
+    const double *vp;
+    sl_refrast_target targets[SL_ORACLE_MAX_THREADS];
+} view_job;
+
+typedef struct thread_arg {
+    const view_job *job;
+    uint32_t thread;
+    pthread_t handle;
+    bool started;
+} thread_arg;
+
+/* Object-to-clip matrix: the view-projection (column-major) times the object's 3x4 affine. */
+static void compose(const double vp[16], const sl_affine *t, double m[16])
+{
+    for (int col = 0; col < 4; col++)
+        for (int row = 0; row < 4; row++) {
+            double s = col == 3 ? vp[12 + row] : 0.0;
+            for (int k = 0; k < 3; k++)
+                s += vp[k * 4 + row] * (double)t->m[k * 4 + col];
+            m[col * 4 + row] = s;
+        }
+}
+
+static double affine_det(const sl_affine *t)
+{
+    const float *m = t->m;
+    return (double)m[0] * ((double)m[5] * m[10] - (double)m[6] * m[9]) -
+           (double)m[1] * ((double)m[4] * m[10] - (double)m[6] * m[8]) +
+           (double)m[2] * ((double)m[4] * m[9] - (double)m[5] * m[8]);
+}
+
+/* One thread: clear its buffer and draw the objects dealt to it. */
+static void *run_thread(void *p)
+{
+    thread_arg *arg = p;
+    const view_job *job = arg->job;
+    struct sl_oracle_t *o = job->o;
+    const struct sl_scene_t *s = o->scene;
+    const sl_refrast_target *t = &job->targets[arg->thread];
+    sl_refrast_scratch *scratch = &o->scratch[arg->thread];
+    sl_refrast_clear(t);
+
+    const sl_mesh_rec *meshes = sl_scene_meshes(s);
+    const sl_object_rec *objects = sl_scene_objects(s);
+    const sl_affine *transforms = sl_scene_transforms(s);
+    const float *positions = sl_scene_positions(s);
+    const uint32_t *indices = sl_scene_indices(s);
+    const frustum_entry *list = o->frustum.data;
+    const sl_affine identity = sl_affine_identity();
+    for (size_t i = 0; i < o->frustum.count; i++) {
+        if (list[i].thread != arg->thread)
+            continue;
+        const sl_object_rec *obj = &objects[list[i].object];
+        const sl_mesh_rec *mesh = &meshes[obj->mesh];
+        const sl_affine *xf = obj->transform == SL_NONE ? &identity : &transforms[obj->transform];
+        double m[16];
+        compose(job->vp, xf, m);
+        sl_refrast_cull cull = SL_REFRAST_CULL_NONE;
+        if ((obj->flags & SL_OBJECT_CLOSED_CONVEX) && !o->opt.draw_closed_backfaces)
+            /* a mirroring transform turns the mesh's front faces into back faces */
+            cull = affine_det(xf) < 0 ? SL_REFRAST_CULL_FRONT : SL_REFRAST_CULL_BACK;
+        sl_refrast_mesh(t, scratch, m, positions + 3 * mesh->first_vertex, mesh->vertex_count,
+                        indices + mesh->first_index, mesh->triangle_count, list[i].object, cull);
+    }
+    return NULL;
+}
+
+/* Draw view `v` of the current render with the world-to-clip matrix vp (column-major floats). */
+static sl_status render_view(struct sl_oracle_t *o, uint32_t v, const sl_mat4 *vpf, sl_oracle_frame *frame,
+                             sl_error *err)
+{
+    const struct sl_scene_t *s = o->scene;
+    const uint32_t T = o->opt.threads;
+    double vp[16];
+    for (int i = 0; i < 16; i++)
+        vp[i] = vpf->m[i];
+    o->view_proj[v] = *vpf;
+
+    /* objects that may cover a pixel, each dealt to the thread with the fewest triangles so far
+     * (a fixed rule: the split depends on the scene and the view only) */
+    const sl_object_rec *objects = sl_scene_objects(s);
+    const sl_mesh_rec *meshes = sl_scene_meshes(s);
+    const sl_aabb *bounds = sl_scene_object_bounds_array(o->scene);
+    uint32_t n = sl_scene_object_count(o->scene);
+    uint32_t max_vertices[SL_ORACLE_MAX_THREADS] = {0};
+    uint64_t load[SL_ORACLE_MAX_THREADS] = {0};
+    o->frustum.count = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        const sl_mesh_rec *mesh = &meshes[objects[i].mesh];
+        if (mesh->triangle_count == 0 || !sl_refrast_box_visible(vp, &bounds[i], o->width, o->height))
+            continue;
+        frustum_entry e = {i, 0};
+        for (uint32_t t = 1; t < T; t++)
+            if (load[t] < load[e.thread])
+                e.thread = t;
+        /* a vertex costs about as much as a triangle */
+        load[e.thread] += (uint64_t)mesh->triangle_count + mesh->vertex_count;
+        max_vertices[e.thread] = SL_MAX(max_vertices[e.thread], mesh->vertex_count);
+        if (!sl_array_push(&o->alloc, &o->frustum, sizeof e, &e, 1))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the frustum list");
+        frame->objects_in_frustum++;
+        frame->triangles_in_frustum += mesh->triangle_count;
+    }
+    for (uint32_t t = 0; t < T; t++)
+        if (!sl_refrast_scratch_reserve(&o->alloc, &o->scratch[t], max_vertices[t]))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for %u transformed vertices",
+                           max_vertices[t]);
+
+    size_t px = (size_t)o->width * o->height;
+    view_job job;
+    memset(&job, 0, sizeof job);
+    job.o = o;
+    job.vp = vp;
+    for (uint32_t t = 0; t < T; t++) {
+        sl_refrast_target *g = &job.targets[t];
+        g->width = o->width;
+        g->height = o->height;
+        g->guard_x = 2.0 * SL_REFRAST_GUARD_PX / o->width;
+        g->guard_y = 2.0 * SL_REFRAST_GUARD_PX / o->height;
+        if (t == 0) {
+            g->ids = o->ids + (size_t)v * px;
+            g->depth = o->depth + (size_t)v * px;
+            g->overdraw = o->overdraw ? o->overdraw + (size_t)v * px : NULL;
+        } else {
+            g->ids = o->helper_ids + (size_t)(t - 1) * px;
+            g->depth = o->helper_depth + (size_t)(t - 1) * px;
+            g->overdraw = o->helper_overdraw ? o->helper_overdraw + (size_t)(t - 1) * px : NULL;
+        }
+    }
+
+    thread_arg args[SL_ORACLE_MAX_THREADS];
+    for (uint32_t t = 0; t < T; t++) {
+        args[t].job = &job;
+        args[t].thread = t;
+        args[t].started = false;
+    }
+    for (uint32_t t = 1; t < T; t++)
+        args[t].started = pthread_create(&args[t].handle, NULL, run_thread, &args[t]) == 0;
+    run_thread(&args[0]);
+    /* a thread that could not be started has its objects drawn here: same buffer, same result */
+    for (uint32_t t = 1; t < T; t++) {
+        if (args[t].started)
+            pthread_join(args[t].handle, NULL);
+        else
+            run_thread(&args[t]);
+    }
+    for (uint32_t t = 1; t < T; t++)
+        sl_refrast_merge(&job.targets[0], &job.targets[t], 0, o->height);
+    return SL_OK;
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Count pixels per object over all views of the render and fill the frame's visible set. */
+static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_error *err)
+{
+    uint32_t n = sl_scene_object_count(o->scene);
+    if (o->counts_cap < n) {
+        uint32_t *c = sl_calloc(&o->alloc, n, sizeof(uint32_t));
+        if (!c)
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for %u object counters", n);
+        sl_free(&o->alloc, o->counts, o->counts_cap * sizeof(uint32_t));
+        o->counts = c;
+        o->counts_cap = n;
+    }
+    o->visible.count = 0;
+    o->visible_pixels.count = 0;
+    size_t total = (size_t)o->view_count * o->width * o->height;
+    uint64_t covered = 0;
+    sl_status st = SL_OK;
+    for (size_t i = 0; i < total; i++) {
+        uint32_t id = o->ids[i];
+        if (id == SL_NONE)
+            continue;
+        covered++;
+        if (o->counts[id]++ == 0 && st == SL_OK && !sl_array_push(&o->alloc, &o->visible, sizeof id, &id, 1))
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the visible set");
+    }
+    uint32_t *vis = o->visible.data;
+    if (st == SL_OK) {
+        if (o->visible.count > 1)
+            qsort(vis, o->visible.count, sizeof(uint32_t), cmp_u32);
+        if (!sl_array_reserve(&o->alloc, &o->visible_pixels, sizeof(uint32_t), o->visible.count))
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the visible set");
+    }
+    /* put every counter back to zero, whatever happened */
+    if (st == SL_OK) {
+        uint32_t *pix = o->visible_pixels.data;
+        for (size_t i = 0; i < o->visible.count; i++) {
+            pix[i] = o->counts[vis[i]];
+            o->counts[vis[i]] = 0;
+        }
+        o->visible_pixels.count = o->visible.count;
+    } else {
+        memset(o->counts, 0, o->counts_cap * sizeof(uint32_t));
+        o->visible.count = 0;
+        return st;
+    }
+    frame->visible_count = (uint32_t)o->visible.count;
+    frame->visible = o->visible.data;
+    frame->pixels = o->visible_pixels.data;
+    frame->covered_pixels = covered;
+    return SL_OK;
+}
+
+/* Common front: size the buffers and clear the frame. */
+static sl_status begin(struct sl_oracle_t *o, uint32_t views, uint32_t w, uint32_t h, sl_oracle_frame *frame,
+                       sl_error *err)
+{
+    memset(frame, 0, sizeof *frame);
+    o->view_count = 0;
+    sl_status st = reserve_pixels(o, views, w, h, err);
+    if (st != SL_OK)
+        return st;
+    o->view_count = views;
+    o->width = w;
+    o->height = h;
+    frame->view_count = views;
+    frame->width = w;
+    frame->height = h;
+    return SL_OK;
+}
+
+sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *out, sl_error *err)
+{
+    if (!o || !cam || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_render: oracle, camera and out must not be NULL");
+    sl_status st = sl_camera_validate(cam, err);
+    if (st != SL_OK)
+        return st;
+    double t0 = sl_now();
+    uint32_t w = o->opt.width ? o->opt.width : cam->width, h = o->opt.height ? o->opt.height : cam->height;
+    if (w > SL_ORACLE_MAX_SIZE || h > SL_ORACLE_MAX_SIZE || (uint64_t)w * h > SL_ORACLE_MAX_PIXELS)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_oracle_render: resolution %ux%u exceeds the limit (%u per side, %u pixels)",
+                       w, h, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
+    st = begin(o, 1, w, h, out, err);
+    if (st != SL_OK)
+        return st;
+    sl_mat4 vp = sl_camera_view_proj(cam);
+    st = render_view(o, 0, &vp, out, err);
+    if (st == SL_OK)
+        st = count_pixels(o, out, err);
+    if (st != SL_OK) {
+        o->view_count = 0;
+        memset(out, 0, sizeof *out);
+        return st;
+    }
+    out->ms = (sl_now() - t0) * 1000.0;
+    return SL_OK;
+}
+
+/* forward, right, up of each cube face (see truth.h) */
+static const int8_t g_cube_axes[6][3][3] = {
+    {{1, 0, 0}, {0, -1, 0}, {0, 0, 1}},  /* +X */
+    {{-1, 0, 0}, {0, 1, 0}, {0, 0, 1}},  /* -X */
+    {{0, 1, 0}, {1, 0, 0}, {0, 0, 1}},   /* +Y */
+    {{0, -1, 0}, {-1, 0, 0}, {0, 0, 1}}, /* -Y */
+    {{0, 0, 1}, {0, -1, 0}, {-1, 0, 0}}, /* +Z */
+    {{0, 0, -1}, {0, -1, 0}, {1, 0, 0}}, /* -Z */
+};
+
+/* World-to-clip matrix of a cube face: a 90-degree square frustum whose side planes are exactly
+ * the planes x = +-w, y = +-w of signed axis permutations, so neighbouring faces share them bit
+ * for bit. Column-major, OpenGL clip space. */
+static sl_mat4 cube_view_proj(sl_vec3 eye, uint32_t face, float n, float f)
+{
+    const int8_t(*ax)[3] = g_cube_axes[face];
+    const float e[3] = {eye.x, eye.y, eye.z};
+    /* eye space rows: right, up, -forward; translation -R e */
+    float R[3][3], T[3];
+    for (int k = 0; k < 3; k++) {
+        R[0][k] = ax[1][k];
+        R[1][k] = ax[2][k];
+        R[2][k] = -ax[0][k];
+    }
+    for (int r = 0; r < 3; r++)
+        T[r] = -(R[r][0] * e[0] + R[r][1] * e[1] + R[r][2] * e[2]);
+    float a = (f + n) / (n - f), b = 2.0f * f * n / (n - f);
+    sl_mat4 m;
+    memset(&m, 0, sizeof m);
+    for (int col = 0; col < 3; col++) {
+        m.m[col * 4 + 0] = R[0][col];
+        m.m[col * 4 + 1] = R[1][col];
+        m.m[col * 4 + 2] = a * R[2][col];
+        m.m[col * 4 + 3] = -R[2][col];
+    }
+    m.m[12] = T[0];
+    m.m[13] = T[1];
+    m.m[14] = a * T[2] + b;
+    m.m[15] = -T[2];
+    return m;
+}
+
+sl_camera sl_cube_face_camera(sl_vec3 eye, sl_cube_face face, uint32_t face_size, float near_plane, float far_plane)
+{
+    static const float yaw_deg[6] = {0, 180, 90, 270, 0, 0}, pitch_deg[6] = {0, 0, 0, 0, 90, -90};
+    const float deg = 3.14159265358979323846f / 180.0f;
+    uint32_t f = (uint32_t)face < 6 ? (uint32_t)face : 0;
+    sl_camera c;
+    memset(&c, 0, sizeof c);
+    c.position = eye;
+    c.yaw = yaw_deg[f] * deg;
+    c.pitch = pitch_deg[f] * deg;
+    c.roll = 0;
+    c.projection = SL_PERSPECTIVE;
+    c.fov_y = 90.0f * deg;
+    c.ortho_height = 1.0f;
+    c.near_plane = near_plane;
+    c.far_plane = far_plane;
+    c.width = c.height = face_size;
+    return c;
+}
+
+sl_status sl_oracle_render_cube(sl_oracle o, sl_vec3 eye, uint32_t face_size, float near_plane, float far_plane,
+                                sl_oracle_frame *out, sl_error *err)
+{
+    if (!o || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_render_cube: oracle and out must not be NULL");
+    if (!sl_finite3(&eye.x))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_render_cube: eye (%g, %g, %g) is not finite",
+                       (double)eye.x, (double)eye.y, (double)eye.z);
+    if (!(near_plane > 0) || !(far_plane > near_plane) || !isfinite(far_plane))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "sl_oracle_render_cube: near %g and far %g must satisfy 0 < near < far < inf", (double)near_plane,
+                       (double)far_plane);
+    if (face_size == 0 || face_size > SL_ORACLE_MAX_SIZE || (uint64_t)face_size * face_size > SL_ORACLE_MAX_PIXELS)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_oracle_render_cube: face size %u is outside 1..%u (and %u pixels)",
+                       face_size, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
+    double t0 = sl_now();
+    sl_status st = begin(o, 6, face_size, face_size, out, err);
+    for (uint32_t f = 0; f < 6 && st == SL_OK; f++) {
+        sl_mat4 vp = cube_view_proj(eye, f, near_plane, far_plane);
+        st = render_view(o, f, &vp, out, err);
+    }
+    if (st == SL_OK)
+        st = count_pixels(o, out, err);
+    if (st != SL_OK) {
+        o->view_count = 0;
+        memset(out, 0, sizeof *out);
+        return st;
+    }
+    out->ms = (sl_now() - t0) * 1000.0;
+    return SL_OK;
+}
+
+sl_status sl_oracle_get_view(sl_oracle o, uint32_t index, sl_oracle_view *out, sl_error *err)
+{
+    if (!o || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_get_view: oracle and out must not be NULL");
+    if (index >= o->view_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_get_view: view %u does not exist (the last render has %u)",
+                       index, o->view_count);
+    size_t px = (size_t)o->width * o->height;
+    out->width = o->width;
+    out->height = o->height;
+    out->ids = o->ids + index * px;
+    out->depth = o->depth + index * px;
+    out->overdraw = o->overdraw ? o->overdraw + index * px : NULL;
+    out->view_proj = o->view_proj[index];
+    return SL_OK;
+}
