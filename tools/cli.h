@@ -26,6 +26,10 @@ int sl_cmd_info(int argc, char **argv);
 int sl_cmd_path(int argc, char **argv);
 int sl_cmd_export(int argc, char **argv);
 int sl_cmd_demo(int argc, char **argv);
+int sl_cmd_bench(int argc, char **argv);
+int sl_cmd_render(int argc, char **argv);
+int sl_cmd_radar(int argc, char **argv);
+int sl_cmd_methods(int argc, char **argv);
 
 /* ---- errors ---- */
 /* Print "sightline <cmd>: message" to stderr. */

@@ -10,6 +10,10 @@ static const sl_command commands[] = {
     {"info", sl_cmd_info, "counts, bounds, memory and per-kind statistics of a scene"},
     {"path", sl_cmd_path, "generate, inspect or validate a camera path"},
     {"export", sl_cmd_export, "export a scene to OBJ, glTF 2.0 or another assimp format"},
+    {"methods", sl_cmd_methods, "list the culling methods, their guarantee and options"},
+    {"bench", sl_cmd_bench, "run culling methods over scenes and paths against the oracle; CSV, JSON, plots"},
+    {"render", sl_cmd_render, "write id, depth, overdraw (and cull map) images for a camera or a path"},
+    {"radar", sl_cmd_radar, "radar echo image of a terrain from a transmitter (occlusion horizon sweep)"},
     {"demo", sl_cmd_demo, "generate the default city, run the walkthrough and write a report"},
 };
 
