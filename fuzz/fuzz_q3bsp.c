@@ -1,0 +1,26 @@
+/* libFuzzer target: the Quake III map reader on arbitrary bytes. The triangle budget is kept
+ * small (sl_q3bsp_import_memory_limited is what sl_import_q3bsp_memory calls with the default
+ * budget) so that a tiny input cannot ask for gigabytes of tessellated patches. */
+#include "scene/pk3.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    sl_scene scene;
+    sl_error err;
+    if (sl_q3bsp_import_memory_limited(data, size, "fuzz.bsp", NULL, (uint64_t)1 << 20, NULL, &scene, &err) != SL_OK)
+        return 0;
+    /* walk the tree from a few points and read every object back */
+    sl_aabb box = sl_scene_bounds(scene);
+    sl_vec3 points[3] = {box.min, box.max, {0, 0, 0}};
+    for (int i = 0; i < 3; i++)
+        (void)sl_scene_bsp_find_leaf(scene, points[i]);
+    for (uint32_t o = 0; o < sl_scene_object_count(scene); o++)
+        (void)sl_scene_object(scene, o);
+    sl_scene_destroy(scene);
+    return 0;
+}

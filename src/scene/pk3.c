@@ -1,0 +1,239 @@
+/* Quake III .pk3 archives: plain zip files read through libzip. The archive is memory-mapped and
+ * opened from the mapped bytes, so files and in-memory archives (tests, fuzzing) share one path.
+ * Every entry's declared uncompressed size is checked against a limit before anything is
+ * allocated, and the bytes read must match it exactly (libzip checks the CRC at the end). */
+#include "pk3.h"
+
+#include "../core/sl_core.h"
+
+#include <strings.h>
+#include <zip.h>
+
+bool sl_pk3_is_zip(const void *head, size_t size)
+{
+    const unsigned char *h = head;
+    return size >= 4 && h[0] == 'P' && h[1] == 'K' && ((h[2] == 3 && h[3] == 4) || (h[2] == 5 && h[3] == 6));
+}
+
+static bool ends_with_nocase(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), k = strlen(suffix);
+    return n >= k && strcasecmp(s + n - k, suffix) == 0;
+}
+
+bool sl_pk3_entry_name(const char *map, char *out, size_t cap)
+{
+    if (!map || !map[0] || cap == 0)
+        return false;
+    const char *base = map;
+    if (strncasecmp(base, "maps/", 5) == 0)
+        base += 5;
+    int n;
+    if (strchr(base, '/')) {
+        /* some other folder: only a full entry path ending in .bsp makes sense */
+        if (!ends_with_nocase(map, ".bsp"))
+            return false;
+        n = snprintf(out, cap, "%s", map);
+    } else {
+        size_t len = strlen(base);
+        if (ends_with_nocase(base, ".bsp"))
+            len -= 4;
+        if (len == 0)
+            return false;
+        n = snprintf(out, cap, "maps/%.*s.bsp", (int)SL_MIN(len, (size_t)INT32_MAX), base);
+    }
+    return n > 0 && (size_t)n < cap;
+}
+
+/* Open an archive held in memory; the bytes must outlive the returned handle. */
+static sl_status pk3_open(const void *data, size_t size, const char *archive, zip_t **out, sl_error *err)
+{
+    *out = NULL;
+    if (!sl_pk3_is_zip(data, size))
+        return sl_fail(err, SL_ERROR_FORMAT, "%s: offset 0: not a zip archive (no \"PK\" signature)", archive);
+    zip_error_t ze;
+    zip_error_init(&ze);
+    zip_source_t *src = zip_source_buffer_create(data, size, 0, &ze);
+    if (!src) {
+        sl_status st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: libzip: %s", archive, zip_error_strerror(&ze));
+        zip_error_fini(&ze);
+        return st;
+    }
+    zip_t *z = zip_open_from_source(src, ZIP_RDONLY | ZIP_CHECKCONS, &ze);
+    if (!z) {
+        int code = zip_error_code_zip(&ze);
+        sl_status st = sl_fail(err, code == ZIP_ER_MEMORY ? SL_ERROR_OUT_OF_MEMORY : SL_ERROR_FORMAT,
+                               "%s: not a readable zip archive: %s", archive, zip_error_strerror(&ze));
+        zip_error_fini(&ze);
+        zip_source_free(src);
+        return st;
+    }
+    zip_error_fini(&ze);
+    *out = z;
+    return SL_OK;
+}
+
+/* Index and name of each .bsp entry in archive order; fn may be NULL (just counting). */
+static uint32_t pk3_each_map(zip_t *z, void (*fn)(void *user, const char *entry), void *user, zip_int64_t *first)
+{
+    zip_int64_t n = zip_get_num_entries(z, 0);
+    uint32_t count = 0;
+    if (first)
+        *first = -1;
+    for (zip_int64_t i = 0; i < n; i++) {
+        const char *name = zip_get_name(z, (zip_uint64_t)i, 0);
+        if (!name || !name[0] || name[strlen(name) - 1] == '/' || !ends_with_nocase(name, ".bsp"))
+            continue;
+        if (first && *first < 0)
+            *first = i;
+        count++;
+        if (fn)
+            fn(user, name);
+    }
+    return count;
+}
+
+sl_status sl_pk3_list_maps_memory(const void *data, size_t size, const char *archive_name,
+                                  void (*fn)(void *user, const char *entry), void *user, sl_error *err)
+{
+    if (!data || !fn)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pk3_list_maps: NULL argument");
+    const char *archive = archive_name ? archive_name : "<memory>";
+    zip_t *z;
+    sl_status st = pk3_open(data, size, archive, &z, err);
+    if (st != SL_OK)
+        return st;
+    pk3_each_map(z, fn, user, NULL);
+    zip_discard(z);
+    return SL_OK;
+}
+
+/* Read entry idx whole into memory from `a`, refusing entries larger than max_bytes. */
+static sl_status pk3_read_entry(zip_t *z, zip_int64_t idx, const char *archive, const char *entry, size_t max_bytes,
+                                const sl_allocator *a, uint8_t **out, size_t *out_size, sl_error *err)
+{
+    *out = NULL;
+    *out_size = 0;
+    zip_stat_t zs;
+    zip_stat_init(&zs);
+    if (zip_stat_index(z, (zip_uint64_t)idx, 0, &zs) != 0 || !(zs.valid & ZIP_STAT_SIZE))
+        return sl_fail(err, SL_ERROR_FORMAT, "%s: entry %s: cannot read its size: %s", archive, entry, zip_strerror(z));
+    if (zs.size > max_bytes)
+        return sl_fail(err, SL_ERROR_LIMIT, "%s: entry %s: uncompressed size %llu exceeds the limit of %zu bytes",
+                       archive, entry, (unsigned long long)zs.size, max_bytes);
+    size_t n = (size_t)zs.size;
+    uint8_t *buf = sl_alloc(a, n ? n : 1);
+    if (!buf)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: entry %s: cannot allocate %zu bytes", archive, entry, n);
+    zip_file_t *f = zip_fopen_index(z, (zip_uint64_t)idx, 0);
+    if (!f) {
+        sl_free(a, buf, n ? n : 1);
+        return sl_fail(err, SL_ERROR_FORMAT, "%s: entry %s: cannot open: %s", archive, entry, zip_strerror(z));
+    }
+    size_t got = 0;
+    sl_status st = SL_OK;
+    while (got < n) {
+        zip_int64_t r = zip_fread(f, buf + got, n - got);
+        if (r < 0) {
+            st = sl_fail(err, SL_ERROR_FORMAT, "%s: entry %s: offset %zu: %s", archive, entry, got, zip_file_strerror(f));
+            break;
+        }
+        if (r == 0) {
+            st = sl_fail(err, SL_ERROR_FORMAT, "%s: entry %s: data ends after %zu of its %zu bytes", archive, entry, got, n);
+            break;
+        }
+        got += (size_t)r;
+    }
+    if (st == SL_OK) {
+        /* one more read reaches the end of the stream, where libzip verifies the CRC */
+        uint8_t extra;
+        zip_int64_t r = zip_fread(f, &extra, 1);
+        if (r < 0)
+            st = sl_fail(err, SL_ERROR_FORMAT, "%s: entry %s: %s", archive, entry, zip_file_strerror(f));
+        else if (r > 0)
+            st = sl_fail(err, SL_ERROR_FORMAT, "%s: entry %s: data is longer than its declared %zu bytes", archive, entry, n);
+    }
+    zip_fclose(f);
+    if (st != SL_OK) {
+        sl_free(a, buf, n ? n : 1);
+        return st;
+    }
+    *out = buf;
+    *out_size = n;
+    return SL_OK;
+}
+
+sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archive_name, const char *map,
+                               size_t max_entry_bytes, uint64_t max_triangles, const sl_import_options *opt,
+                               const sl_allocator *alloc, sl_scene *out, sl_error *err)
+{
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_import_q3bsp: out is NULL");
+    *out = NULL;
+    if (!data)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_import_q3bsp: data is NULL");
+    const sl_allocator *a = sl_alloc_or_default(alloc);
+    const char *archive = archive_name ? archive_name : "<memory>";
+    zip_t *z;
+    sl_status st = pk3_open(data, size, archive, &z, err);
+    if (st != SL_OK)
+        return st;
+
+    zip_int64_t idx;
+    char wanted[1024] = "";
+    if (!map || !map[0]) {
+        uint32_t count = pk3_each_map(z, NULL, NULL, &idx);
+        if (count != 1) {
+            zip_discard(z);
+            return sl_fail(err, count ? SL_ERROR_INVALID_ARGUMENT : SL_ERROR_NOT_FOUND,
+                           "%s: the archive holds %u maps; name the one to import", archive, count);
+        }
+    } else {
+        if (!sl_pk3_entry_name(map, wanted, sizeof wanted)) {
+            zip_discard(z);
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: \"%.200s\" is not a map name (NAME or maps/NAME.bsp)",
+                           archive, map);
+        }
+        idx = zip_name_locate(z, wanted, ZIP_FL_NOCASE);
+        if (idx < 0) {
+            zip_discard(z);
+            return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: entry %s not found", archive, wanted);
+        }
+    }
+    const char *entry = zip_get_name(z, (zip_uint64_t)idx, 0);
+    if (!entry)
+        entry = wanted;
+
+    /* messages from the map reader name "archive:entry" */
+    size_t name_len = strlen(archive) + strlen(entry) + 2;
+    char *name = sl_alloc(a, name_len);
+    if (!name) {
+        zip_discard(z);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", archive);
+    }
+    snprintf(name, name_len, "%s:%s", archive, entry);
+
+    uint8_t *bytes;
+    size_t nbytes;
+    st = pk3_read_entry(z, idx, archive, entry, max_entry_bytes, a, &bytes, &nbytes, err);
+    zip_discard(z);
+    if (st == SL_OK) {
+        st = sl_q3bsp_import_memory_limited(bytes, nbytes, name, opt, max_triangles, alloc, out, err);
+        sl_free(a, bytes, nbytes ? nbytes : 1);
+    }
+    sl_free(a, name, name_len);
+    return st;
+}
+
+sl_status sl_pk3_list_maps(const char *pk3_path, void (*fn)(void *user, const char *entry), void *user, sl_error *err)
+{
+    if (!pk3_path || !fn)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pk3_list_maps: NULL argument");
+    sl_mapping m;
+    sl_status st = sl_file_map(pk3_path, &m, err);
+    if (st != SL_OK)
+        return st;
+    st = sl_pk3_list_maps_memory(m.data, m.size, pk3_path, fn, user, err);
+    sl_file_unmap(&m);
+    return st;
+}
