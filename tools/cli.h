@@ -30,6 +30,7 @@ int sl_cmd_bench(int argc, char **argv);
 int sl_cmd_render(int argc, char **argv);
 int sl_cmd_radar(int argc, char **argv);
 int sl_cmd_methods(int argc, char **argv);
+int sl_cmd_pvs(int argc, char **argv);
 
 /* ---- errors ---- */
 /* Print "sightline <cmd>: message" to stderr. */

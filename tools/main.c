@@ -14,6 +14,7 @@ static const sl_command commands[] = {
     {"bench", sl_cmd_bench, "run culling methods over scenes and paths against the oracle; CSV, JSON, plots"},
     {"render", sl_cmd_render, "write id, depth, overdraw (and cull map) images for a camera or a path"},
     {"radar", sl_cmd_radar, "radar echo image of a terrain from a transmitter (occlusion horizon sweep)"},
+    {"pvs", sl_cmd_pvs, "from-region visibility: pvs build | info | query | verify"},
     {"demo", sl_cmd_demo, "generate the default city, run the walkthrough and write a report"},
 };
 
