@@ -3,8 +3,11 @@
  * World: metres, right-handed, Z up. Orientation by yaw, pitch, roll in radians:
  *   yaw   rotates about +Z, counter-clockwise seen from above; yaw 0 looks along +X, pi/2 along +Y;
  *   pitch tilts the view up (positive) or down, in [-pi/2, pi/2];
- *   roll  rotates about the viewing direction, positive is clockwise as seen by the viewer.
- * forward = (cos(pitch)cos(yaw), cos(pitch)sin(yaw), sin(pitch)); up (roll 0) has a positive z.
+ *   roll  rotates about the viewing direction, positive is clockwise as seen by the viewer: the
+ *         camera's up vector turns toward its right vector, so the image content turns
+ *         counter-clockwise on screen.
+ * forward = (cos(pitch)cos(yaw), cos(pitch)sin(yaw), sin(pitch)); up (roll 0) has a positive z
+ * (for |pitch| < pi/2; at +-pi/2 yaw alone orients the image).
  * The view matrix maps to OpenGL eye space (camera looks down -Z_eye, Y_eye up); projection maps to
  * clip space with OpenGL conventions (NDC z in [-1,1]); matrices are column-major (sl_mat4).
  */
@@ -37,7 +40,7 @@ typedef struct sl_frustum {
 } sl_frustum;
 
 /* A default camera: at the origin, 1.7 m up, looking along +X, 60 degrees vertical fov,
- * 1024x768, near 0.1 m, far 5000 m. */
+ * 1024x768, near 0.1 m, far 5000 m (ortho_height 100 m, used when switched to orthographic). */
 SL_API sl_camera sl_camera_default(void);
 /* Check a camera (finite values, ranges above); the message names the bad field. */
 SL_API sl_status sl_camera_validate(const sl_camera *cam, sl_error *err);
@@ -52,7 +55,9 @@ SL_API sl_frustum sl_camera_frustum(const sl_camera *cam);
 /* Point the camera at a target (sets yaw and pitch, keeps roll). */
 SL_API void sl_camera_look_at(sl_camera *cam, sl_vec3 target);
 
-/* Box-frustum classification: 0 outside, 1 intersecting, 2 fully inside. */
+/* Box-frustum classification: 0 outside, 1 intersecting, 2 fully inside (p-vertex/n-vertex test
+ * against each plane). Conservative: a box outside the frustum near an edge or corner may be
+ * reported as intersecting, never the reverse. An empty box is outside. */
 SL_API int sl_frustum_test_aabb(const sl_frustum *f, const sl_aabb *box);
 
 #ifdef __cplusplus

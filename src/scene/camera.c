@@ -1,0 +1,225 @@
+/* Cameras: basis vectors from yaw/pitch/roll, OpenGL view and projection matrices, frustum planes
+ * and corners, and the box-frustum test every culler starts from. See include/sightline/camera.h
+ * for the conventions.
+ *
+ * Everything is computed in double and rounded once to float at the end: the near plane of a
+ * 0.1 m / 5000 m camera is badly conditioned in float, and the planes are built geometrically
+ * from the basis (not extracted from the view-projection matrix) for the same reason. */
+#include "sightline/camera.h"
+#include "../core/sl_core.h"
+
+#include <math.h>
+
+typedef struct dvec3 { double x, y, z; } dvec3;
+
+static dvec3 d3(double x, double y, double z) { return (dvec3){x, y, z}; }
+static dvec3 d3_add(dvec3 a, dvec3 b) { return d3(a.x + b.x, a.y + b.y, a.z + b.z); }
+static dvec3 d3_scale(dvec3 a, double s) { return d3(a.x * s, a.y * s, a.z * s); }
+static double d3_dot(dvec3 a, dvec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static dvec3 d3_of(sl_vec3 v) { return d3(v.x, v.y, v.z); }
+static sl_vec3 v3_of(dvec3 v) { return (sl_vec3){(float)v.x, (float)v.y, (float)v.z}; }
+
+/* Orthonormal camera basis in double. Roll turns up toward right about forward (right-hand rule
+ * about +forward): the camera rolls clockwise as the viewer sees it, the image turns the other way. */
+static void basis_d(const sl_camera *cam, dvec3 *f, dvec3 *r, dvec3 *u)
+{
+    double cy = cos(cam->yaw), sy = sin(cam->yaw), cp = cos(cam->pitch), sp = sin(cam->pitch);
+    double cr = cos(cam->roll), sr = sin(cam->roll);
+    dvec3 fw = d3(cp * cy, cp * sy, sp);
+    dvec3 r0 = d3(sy, -cy, 0);            /* forward x Z, normalised: well defined even at pitch +-90 */
+    dvec3 u0 = d3(-sp * cy, -sp * sy, cp); /* r0 x forward */
+    *f = fw;
+    *r = d3_add(d3_scale(r0, cr), d3_scale(u0, -sr));
+    *u = d3_add(d3_scale(u0, cr), d3_scale(r0, sr));
+}
+
+sl_camera sl_camera_default(void)
+{
+    sl_camera c;
+    memset(&c, 0, sizeof c);
+    c.position = (sl_vec3){0.0f, 0.0f, 1.7f};
+    c.projection = SL_PERSPECTIVE;
+    c.fov_y = (float)(60.0 * M_PI / 180.0);
+    c.ortho_height = 100.0f;
+    c.near_plane = 0.1f;
+    c.far_plane = 5000.0f;
+    c.width = 1024;
+    c.height = 768;
+    return c;
+}
+
+sl_status sl_camera_validate(const sl_camera *c, sl_error *err)
+{
+    if (!c)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: NULL");
+    if (!isfinite(c->position.x) || !isfinite(c->position.y) || !isfinite(c->position.z))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: position (%g, %g, %g) is not finite", c->position.x,
+                       c->position.y, c->position.z);
+    if (!isfinite(c->yaw))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: yaw %g is not finite", c->yaw);
+    if (!isfinite(c->roll))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: roll %g is not finite", c->roll);
+    /* compared in float: (float)(pi/2) is slightly above pi/2 and must be accepted */
+    if (!(c->pitch >= -(float)M_PI_2 && c->pitch <= (float)M_PI_2))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: pitch %g is outside [-pi/2, pi/2]", c->pitch);
+    if (c->projection != SL_PERSPECTIVE && c->projection != SL_ORTHOGRAPHIC)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: projection %d is neither perspective nor orthographic",
+                       (int)c->projection);
+    if (!isfinite(c->fov_y) || (c->projection == SL_PERSPECTIVE && !(c->fov_y > 0 && c->fov_y < (float)M_PI)))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: fov_y %g is outside (0, pi)", c->fov_y);
+    if (!isfinite(c->ortho_height) || (c->projection == SL_ORTHOGRAPHIC && !(c->ortho_height > 0)))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: ortho_height %g must be positive and finite",
+                       c->ortho_height);
+    if (!(c->near_plane > 0) || !isfinite(c->near_plane))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: near plane %g must be positive and finite", c->near_plane);
+    if (!(c->far_plane > c->near_plane) || !isfinite(c->far_plane))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: far plane %g must be finite and beyond the near plane %g",
+                       c->far_plane, c->near_plane);
+    if (c->width == 0 || c->height == 0)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: viewport %ux%u is empty", c->width, c->height);
+    return SL_OK;
+}
+
+void sl_camera_basis(const sl_camera *cam, sl_vec3 *forward, sl_vec3 *right, sl_vec3 *up)
+{
+    dvec3 f, r, u;
+    basis_d(cam, &f, &r, &u);
+    if (forward)
+        *forward = v3_of(f);
+    if (right)
+        *right = v3_of(r);
+    if (up)
+        *up = v3_of(u);
+}
+
+sl_mat4 sl_camera_view(const sl_camera *cam)
+{
+    dvec3 f, r, u, p = d3_of(cam->position);
+    basis_d(cam, &f, &r, &u);
+    sl_mat4 m;
+    memset(&m, 0, sizeof m);
+    /* rows of the rotation are right, up, -forward (the eye looks down -Z); column-major storage */
+    m.m[0] = (float)r.x, m.m[4] = (float)r.y, m.m[8] = (float)r.z, m.m[12] = (float)-d3_dot(r, p);
+    m.m[1] = (float)u.x, m.m[5] = (float)u.y, m.m[9] = (float)u.z, m.m[13] = (float)-d3_dot(u, p);
+    m.m[2] = (float)-f.x, m.m[6] = (float)-f.y, m.m[10] = (float)-f.z, m.m[14] = (float)d3_dot(f, p);
+    m.m[15] = 1.0f;
+    return m;
+}
+
+static double aspect_of(const sl_camera *cam)
+{
+    return cam->height ? (double)cam->width / (double)cam->height : 1.0;
+}
+
+sl_mat4 sl_camera_proj(const sl_camera *cam)
+{
+    sl_mat4 m;
+    memset(&m, 0, sizeof m);
+    double n = cam->near_plane, fa = cam->far_plane, aspect = aspect_of(cam);
+    if (cam->projection == SL_ORTHOGRAPHIC) {
+        double h = 0.5 * cam->ortho_height, w = h * aspect;
+        m.m[0] = (float)(1.0 / w);
+        m.m[5] = (float)(1.0 / h);
+        m.m[10] = (float)(-2.0 / (fa - n));
+        m.m[14] = (float)(-(fa + n) / (fa - n));
+        m.m[15] = 1.0f;
+    } else {
+        double t = 1.0 / tan(0.5 * cam->fov_y);
+        m.m[0] = (float)(t / aspect);
+        m.m[5] = (float)t;
+        m.m[10] = (float)((fa + n) / (n - fa));
+        m.m[11] = -1.0f;
+        m.m[14] = (float)(2.0 * fa * n / (n - fa));
+    }
+    return m;
+}
+
+sl_mat4 sl_camera_view_proj(const sl_camera *cam)
+{
+    sl_mat4 v = sl_camera_view(cam), p = sl_camera_proj(cam), r;
+    /* r = p * v, accumulated in double */
+    for (int c = 0; c < 4; c++)
+        for (int row = 0; row < 4; row++) {
+            double s = 0;
+            for (int k = 0; k < 4; k++)
+                s += (double)p.m[k * 4 + row] * (double)v.m[c * 4 + k];
+            r.m[c * 4 + row] = (float)s;
+        }
+    return r;
+}
+
+/* Plane with inward normal n through point q, normalised. */
+static sl_plane plane_through(dvec3 n, dvec3 q)
+{
+    double len = sqrt(d3_dot(n, n));
+    n = d3_scale(n, 1.0 / len);
+    return (sl_plane){(float)n.x, (float)n.y, (float)n.z, (float)-d3_dot(n, q)};
+}
+
+sl_frustum sl_camera_frustum(const sl_camera *cam)
+{
+    dvec3 f, r, u, p = d3_of(cam->position);
+    basis_d(cam, &f, &r, &u);
+    double n = cam->near_plane, fa = cam->far_plane, aspect = aspect_of(cam);
+    sl_frustum out;
+    dvec3 nc = d3_add(p, d3_scale(f, n)), fc = d3_add(p, d3_scale(f, fa));
+    double nh, nw, fh, fw; /* half extents of the near and far rectangles */
+    if (cam->projection == SL_ORTHOGRAPHIC) {
+        double h = 0.5 * cam->ortho_height, w = h * aspect;
+        nh = fh = h, nw = fw = w;
+        /* side planes are parallel to forward: inward normals are +-right and +-up */
+        out.planes[0] = plane_through(r, d3_add(p, d3_scale(r, -w)));
+        out.planes[1] = plane_through(d3_scale(r, -1), d3_add(p, d3_scale(r, w)));
+        out.planes[2] = plane_through(u, d3_add(p, d3_scale(u, -h)));
+        out.planes[3] = plane_through(d3_scale(u, -1), d3_add(p, d3_scale(u, h)));
+    } else {
+        double ty = tan(0.5 * cam->fov_y), tx = ty * aspect;
+        nh = n * ty, nw = n * tx, fh = fa * ty, fw = fa * tx;
+        /* each side plane passes through the eye; its inward normal is orthogonal to the edge
+         * direction forward -+ t*axis, e.g. left: (right + tx*forward) . (forward - tx*right) = 0 */
+        out.planes[0] = plane_through(d3_add(r, d3_scale(f, tx)), p);
+        out.planes[1] = plane_through(d3_add(d3_scale(r, -1), d3_scale(f, tx)), p);
+        out.planes[2] = plane_through(d3_add(u, d3_scale(f, ty)), p);
+        out.planes[3] = plane_through(d3_add(d3_scale(u, -1), d3_scale(f, ty)), p);
+    }
+    out.planes[4] = plane_through(f, nc);
+    out.planes[5] = plane_through(d3_scale(f, -1), fc);
+    const double sx[4] = {-1, 1, 1, -1}, sy[4] = {-1, -1, 1, 1}; /* bl, br, tr, tl */
+    for (int i = 0; i < 4; i++) {
+        out.corners[i] = v3_of(d3_add(nc, d3_add(d3_scale(r, sx[i] * nw), d3_scale(u, sy[i] * nh))));
+        out.corners[4 + i] = v3_of(d3_add(fc, d3_add(d3_scale(r, sx[i] * fw), d3_scale(u, sy[i] * fh))));
+    }
+    return out;
+}
+
+void sl_camera_look_at(sl_camera *cam, sl_vec3 target)
+{
+    double dx = (double)target.x - cam->position.x, dy = (double)target.y - cam->position.y,
+           dz = (double)target.z - cam->position.z;
+    double h = hypot(dx, dy);
+    if (!(h > 0) && !(dz != 0))
+        return; /* target at the eye (or not finite): no direction to look along */
+    if (h > 0)
+        cam->yaw = (float)atan2(dy, dx); /* straight up or down keeps the current yaw */
+    float pitch = (float)atan2(dz, h);
+    cam->pitch = SL_CLAMP(pitch, -(float)M_PI_2, (float)M_PI_2);
+}
+
+int sl_frustum_test_aabb(const sl_frustum *f, const sl_aabb *b)
+{
+    if (sl_aabb_is_empty(b))
+        return 0;
+    int result = 2;
+    for (int i = 0; i < 6; i++) {
+        const sl_plane *p = &f->planes[i];
+        /* p-vertex: the corner farthest along the normal; n-vertex: the nearest one */
+        float px = p->a >= 0 ? b->max.x : b->min.x, nx = p->a >= 0 ? b->min.x : b->max.x;
+        float py = p->b >= 0 ? b->max.y : b->min.y, ny = p->b >= 0 ? b->min.y : b->max.y;
+        float pz = p->c >= 0 ? b->max.z : b->min.z, nz = p->c >= 0 ? b->min.z : b->max.z;
+        if (p->a * px + p->b * py + p->c * pz + p->d < 0)
+            return 0;
+        if (p->a * nx + p->b * ny + p->c * nz + p->d < 0)
+            result = 1;
+    }
+    return result;
+}
