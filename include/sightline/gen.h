@@ -1,0 +1,111 @@
+/* Procedural scene generators. One exists: the city.
+ *
+ * The city is the test bed every visibility method is measured on, shaped after the procedurally
+ * generated Vienna of Wonka's thesis: an irregular street lattice (jittered nodes, streets of
+ * varied width, straight avenues, a few dropped segments), perimeter blocks split into lots with
+ * one building per lot (convex, L- and U-shaped footprints around courtyards), some towers,
+ * parks and squares, and a river with wide open banks and a few bridges so that long views exist
+ * beside the mostly occluded street views. Optional smooth terrain relief.
+ *
+ * What goes into the scene (see docs/city-generator.md):
+ *  - one BUILDING object (flag OCCLUDER) per building, its mesh in world coordinates, and its
+ *    2.5D footprint (sl_scene_add_footprint, linked to the object; roof_z is the eave height so
+ *    that the prism lies inside the building, and walls with window recesses are moved inward
+ *    by the recess depth);
+ *  - GROUND objects: street surfaces merged per 100 m tile, one per block/park/square/bank and
+ *    per bridge; WATER objects, one per river cell;
+ *  - instanced props: TREE, LAMP and CAR (flag DYNAMIC) objects sharing a few meshes;
+ *  - the street network: free-space polygons (street segments, intersections, squares, parks,
+ *    river banks) and the centre-line graph (avenue, bridge and square edges flagged);
+ *  - the terrain height field when relief is on; metadata (generator, preset, seed, extent,
+ *    counts).
+ * Same options, same bytes: the output depends only on the options, never on timing or memory
+ * addresses. */
+#ifndef SIGHTLINE_GEN_H
+#define SIGHTLINE_GEN_H
+
+#include "core.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sl_city_preset {
+    SL_CITY_TINY = 0,   /* 300 x 260 m, a dozen blocks, about 18k triangles: unit tests */
+    SL_CITY_SMALL = 1,  /* 800 x 750 m, about 130 blocks, about 0.6M triangles */
+    SL_CITY_VIENNA = 2  /* 3000 x 2700 m, about 2,000 blocks, about 8.5M triangles (the thesis' model) */
+} sl_city_preset;
+
+/* Generator options. Start from sl_city_defaults(preset) and override fields; every field is
+ * checked by sl_city_options_validate. Lengths are metres. */
+typedef struct sl_city_options {
+    sl_city_preset preset;          /* recorded in the metadata */
+    uint64_t seed;
+
+    /* layout: the city covers [-extent_x/2, extent_x/2] x [-extent_y/2, extent_y/2] */
+    float extent_x, extent_y;       /* 100 .. 20000 */
+    float block_size_min;           /* street centre-line spacing of the lattice, 30 .. 500 */
+    float block_size_max;           /* >= block_size_min */
+    float jitter;                   /* node displacement as a fraction of the block size, 0 .. 0.25 */
+    float street_width_min;         /* ordinary streets, sidewalk edge to sidewalk edge, 4 .. 60 */
+    float street_width_max;
+    float avenue_width;             /* avenues and river quays, >= street_width_min */
+    float avenue_spacing;           /* distance between straight avenues; 0: none */
+    float street_removal;           /* probability of dropping a minor street segment, 0 .. 0.5 */
+    float park_fraction;            /* share of lattice cells that are parks (trees), 0 .. 1 */
+    float square_fraction;          /* share that are paved squares, 0 .. 1 */
+    float tower_fraction;           /* share that hold one tower, 0 .. 1 (sum of the three <= 1) */
+
+    /* river: one lattice row becomes water between two quays, with open banks */
+    bool river;
+    float river_width;              /* water surface, 10 .. 1000 */
+    float bank_width;               /* open bank on each side, 0 .. 200 */
+    float bridge_spacing;           /* distance between bridges; 0: no bridges (graph splits in two) */
+
+    /* buildings */
+    float height_min, height_max;   /* ordinary buildings, eave height above the base, 4 .. 300 */
+    float tower_height_min, tower_height_max;
+    uint32_t detail;                /* façade and roof detail, 0 .. 4 (measured triangles per
+                                     * building, averaged over the vienna preset):
+                                     * 0: prism with a flat roof (11; 10 for a box);
+                                     * 1: + cornice, mansard/hip/gable roofs (40);
+                                     * 2: + a ledge at every floor (120);
+                                     * 3: + recessed windows and doors on street façades (710);
+                                     * 4: + window sills, windows on courtyard façades too
+                                     *    (1,260; several thousand for big corner buildings) */
+
+    /* props */
+    float cars_per_km;              /* expected cars per km of street, 0 .. 400 */
+    float trees_per_ha;             /* in parks and courtyards, 0 .. 400 */
+    float street_tree_spacing;      /* along avenues and river banks; 0: none */
+    float lamp_spacing;             /* along every street, alternating sides; 0: none */
+
+    /* terrain: a smooth height field rising from the river (or everywhere without one) */
+    bool terrain;
+    float relief;                   /* highest ground above the river level, 0 .. 500 */
+
+    sl_progress progress;           /* optional; returning false cancels */
+} sl_city_options;
+
+/* Default options of a preset (seed 1). An unknown preset yields the tiny defaults. */
+SL_API sl_city_options sl_city_defaults(sl_city_preset preset);
+
+/* Preset by name: "tiny", "small" or "vienna". SL_ERROR_NOT_FOUND for anything else. */
+SL_API sl_status sl_city_preset_from_name(const char *name, sl_city_preset *out, sl_error *err);
+
+/* Lowercase name of a preset, or "unknown". */
+SL_API const char *sl_city_preset_name(sl_city_preset preset);
+
+/* Check every option and their combinations (e.g. streets too wide for the blocks, a river that
+ * does not fit); SL_ERROR_INVALID_ARGUMENT with the option's name and the allowed range. */
+SL_API sl_status sl_city_options_validate(const sl_city_options *opt, sl_error *err);
+
+/* Generate a city into a new scene (*out, created with alloc, which may be NULL). On failure
+ * *out is left NULL and nothing leaks. */
+SL_API sl_status sl_gen_city(const sl_city_options *opt, const sl_allocator *alloc, sl_scene *out, sl_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
