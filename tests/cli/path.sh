@@ -2,10 +2,6 @@
 # CLI test of `sightline path`: help texts, usage errors, check/info on hand-written files (good,
 # CRLF, malformed), gen on a scene without streets (an OBJ box), and gen/random on a generated
 # city. $1 is the sightline binary.
-#
-# TEMPORARY: while `sightline gen` still answers "not implemented yet", the city part is skipped
-# (exit 0 with a SKIP line); any other gen failure fails the test. Remove the fallback once gen
-# exists.
 set -u
 SL="$1"
 tmp=$(mktemp -d)
@@ -142,10 +138,6 @@ expect 1 "$SL" path gen "$tmp/missing.obj" --kind flyover -o "$tmp/f1.txt"
 
 # ---- a generated city ----
 if ! "$SL" gen city --preset tiny -o "$tmp/city.slscene" >"$tmp/out" 2>"$tmp/err"; then
-    if grep -q "not implemented yet" "$tmp/err"; then
-        echo "SKIP: city part (sightline gen is not implemented yet)"
-        exit 0
-    fi
     fail "sightline gen city --preset tiny failed"
 fi
 city="$tmp/city.slscene"
