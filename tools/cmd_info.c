@@ -169,7 +169,7 @@ int sl_cmd_info(int argc, char **argv)
         cli_json_object_end(&j);
         cli_json_end(&j);
     } else {
-        printf("%s\n", input);
+        printf("%s%s%s\n", input, map ? " map " : "", map ? map : "");
         printf("  objects        %u (meshes %u)\n", st.object_count, st.mesh_count);
         printf("  triangles      %llu stored, %llu instanced (vertices %llu)\n", (unsigned long long)st.triangle_count,
                (unsigned long long)st.instanced_triangle_count, (unsigned long long)st.vertex_count);
