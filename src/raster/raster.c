@@ -1,0 +1,615 @@
+/* The occlusion rasterizer's context and public API: options, buffer, instruction-set dispatch,
+ * direct and pooled rendering, caller-driven bins, queries and debugging reads.
+ * Design notes: docs/rasterizer.md; the buffer and the kernels' contract: raster_internal.h. */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+#pragma GCC optimize("fp-contract=off")
+#endif
+
+#include "raster/raster_internal.h"
+
+#include <math.h>
+
+/* Batches smaller than this are rendered on the calling thread even with a pool: waking workers
+ * costs more than it saves, and the result is the same either way. */
+#define POOL_MIN_TRIANGLES 512
+/* The pool bins and renders a large batch this many triangles at a time, which bounds the queue
+ * storage (64 bytes per triangle and bin) whatever the batch size. */
+#define POOL_CHUNK 16384
+#define MAX_THREADS 256
+
+struct sl_raster {
+    const sl_allocator *alloc;
+    sl_raster_options opt;
+    sl_rt_view view;
+    sl_rt_target target;
+    const sl_rt_kernels *k;
+    int mode; /* SL_RT_CENTER or SL_RT_INNER */
+    size_t mask_bytes, depth_bytes;
+    uint32_t slots;            /* front-end slots = threads */
+    sl_rt_counters cnt;        /* direct rendering */
+    sl_rt_counters *slot_cnt;  /* binning, per slot */
+    sl_rt_bins *bins;
+    bool pending;              /* triangles binned and maybe not rendered */
+    sl_rt_pool *pool;          /* NULL when single-threaded */
+};
+
+sl_raster_options sl_raster_default_options(uint32_t width, uint32_t height)
+{
+    sl_raster_options o;
+    memset(&o, 0, sizeof o);
+    o.width = width;
+    o.height = height;
+    o.threads = 1;
+    o.isa = SL_RASTER_ISA_AUTO;
+    o.depth = SL_RASTER_DEPTH_INV_W;
+    o.coverage = SL_RASTER_COVERAGE_CENTER;
+    o.near_w = 1e-5f;
+    return o;
+}
+
+bool sl_raster_isa_available(sl_raster_isa isa)
+{
+    switch (isa) {
+    case SL_RASTER_ISA_AUTO:
+    case SL_RASTER_ISA_SCALAR: return true;
+#if defined(SL_RT_X86)
+    case SL_RASTER_ISA_SSE41: return __builtin_cpu_supports("sse4.1");
+    case SL_RASTER_ISA_AVX2: return __builtin_cpu_supports("avx2");
+    case SL_RASTER_ISA_AVX512:
+        return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f") &&
+               __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") &&
+               __builtin_cpu_supports("avx512dq");
+#else
+    case SL_RASTER_ISA_SSE41:
+    case SL_RASTER_ISA_AVX2:
+    case SL_RASTER_ISA_AVX512: return false;
+#endif
+    }
+    return false;
+}
+
+const char *sl_raster_isa_name(sl_raster_isa isa)
+{
+    switch (isa) {
+    case SL_RASTER_ISA_AUTO: return "auto";
+    case SL_RASTER_ISA_SCALAR: return "scalar";
+    case SL_RASTER_ISA_SSE41: return "sse41";
+    case SL_RASTER_ISA_AVX2: return "avx2";
+    case SL_RASTER_ISA_AVX512: return "avx512";
+    }
+    return "unknown";
+}
+
+static const sl_rt_kernels *kernels_for(sl_raster_isa isa)
+{
+    if (isa == SL_RASTER_ISA_AUTO) {
+        static const sl_raster_isa order[] = {SL_RASTER_ISA_AVX512, SL_RASTER_ISA_AVX2, SL_RASTER_ISA_SSE41};
+        for (size_t i = 0; i < SL_COUNTOF(order); i++)
+            if (sl_raster_isa_available(order[i]))
+                return kernels_for(order[i]);
+        return &sl_rt_kernels_scalar;
+    }
+    switch (isa) {
+#if defined(SL_RT_X86)
+    case SL_RASTER_ISA_SSE41: return &sl_rt_kernels_sse41;
+    case SL_RASTER_ISA_AVX2: return &sl_rt_kernels_avx2;
+    case SL_RASTER_ISA_AVX512: return &sl_rt_kernels_avx512;
+#endif
+    default: return &sl_rt_kernels_scalar;
+    }
+}
+
+sl_status sl_raster_create(const sl_raster_options *options, const sl_allocator *alloc, sl_raster **out,
+                           sl_error *err)
+{
+    if (!options || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: options and out must not be NULL");
+    *out = NULL;
+    sl_raster_options o = *options;
+    if (o.width < 1 || o.width > SL_RT_MAX_DIM || o.height < 1 || o.height > SL_RT_MAX_DIM)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: size %ux%u outside 1..%d", o.width, o.height,
+                       SL_RT_MAX_DIM);
+    if (o.threads > MAX_THREADS)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %u threads, at most %d", o.threads, MAX_THREADS);
+    if ((unsigned)o.isa > SL_RASTER_ISA_AVX512)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: unknown isa %d", (int)o.isa);
+    if (!sl_raster_isa_available(o.isa))
+        return sl_fail(err, SL_ERROR_UNSUPPORTED, "raster: this CPU or build has no %s path",
+                       sl_raster_isa_name(o.isa));
+    if ((unsigned)o.depth > SL_RASTER_DEPTH_LINEAR_Z)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: unknown depth mode %d", (int)o.depth);
+    if ((unsigned)o.coverage > SL_RASTER_COVERAGE_INNER)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: unknown coverage rule %d", (int)o.coverage);
+    if (!(o.near_w > 0.0f) || !isfinite(o.near_w))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: near_w %g must be finite and > 0", (double)o.near_w);
+    uint32_t tiles_x = (o.width + SL_RT_TILE_W - 1) / SL_RT_TILE_W;
+    uint32_t tiles_y = (o.height + SL_RT_TILE_H - 1) / SL_RT_TILE_H;
+    if (o.bins_x > tiles_x || o.bins_y > tiles_y)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %ux%u bins for %ux%u tiles", o.bins_x, o.bins_y,
+                       tiles_x, tiles_y);
+    /* default bins: full-width strips, so that no tile row's spans are computed in two bins */
+    if (o.bins_x == 0)
+        o.bins_x = 1;
+    if (o.bins_y == 0)
+        o.bins_y = SL_MIN(16u, tiles_y);
+    if (o.threads == 0)
+        o.threads = 1;
+
+    alloc = sl_alloc_or_default(alloc);
+    sl_raster *ctx = sl_calloc(alloc, 1, sizeof *ctx);
+    if (!ctx)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "raster: out of memory for the context");
+    ctx->alloc = alloc;
+    ctx->opt = o;
+    ctx->k = kernels_for(o.isa);
+    ctx->opt.isa = ctx->k->isa;
+    ctx->mode = o.coverage == SL_RASTER_COVERAGE_INNER ? SL_RT_INNER : SL_RT_CENTER;
+    sl_rt_view_init(&ctx->view, o.width, o.height, o.near_w, o.depth);
+    size_t tiles = (size_t)tiles_x * tiles_y;
+    ctx->mask_bytes = tiles * SL_RT_SUBTILES * sizeof(uint32_t);
+    ctx->depth_bytes = tiles * sizeof(sl_rt_tile_depth);
+    ctx->target.mask = sl_alloc_aligned(alloc, ctx->mask_bytes, 64);
+    ctx->target.depth = sl_alloc_aligned(alloc, ctx->depth_bytes, 64);
+    ctx->target.tiles_x = (int32_t)tiles_x;
+    ctx->target.tiles_y = (int32_t)tiles_y;
+    ctx->target.width = (int32_t)o.width;
+    ctx->target.height = (int32_t)o.height;
+    ctx->slots = o.threads;
+    ctx->slot_cnt = sl_calloc(alloc, ctx->slots, sizeof(sl_rt_counters));
+    sl_status st = SL_OK;
+    if (!ctx->target.mask || !ctx->target.depth || !ctx->slot_cnt)
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "raster: out of memory for a %ux%u buffer", o.width, o.height);
+    if (st == SL_OK)
+        st = sl_rt_bins_create(alloc, (int32_t)tiles_x, (int32_t)tiles_y, o.bins_x, o.bins_y, ctx->slots,
+                               &ctx->bins, err);
+    if (st == SL_OK && o.threads > 1)
+        st = sl_rt_pool_create(alloc, o.threads - 1, &ctx->pool, err);
+    if (st != SL_OK) {
+        sl_raster_destroy(ctx);
+        return st;
+    }
+    sl_raster_clear(ctx);
+    *out = ctx;
+    return SL_OK;
+}
+
+void sl_raster_destroy(sl_raster *ctx)
+{
+    if (!ctx)
+        return;
+    const sl_allocator *a = ctx->alloc;
+    if (ctx->pool)
+        sl_rt_pool_destroy_n(ctx->pool, ctx->opt.threads - 1);
+    sl_rt_bins_destroy(ctx->bins);
+    sl_free(a, ctx->target.mask, ctx->mask_bytes);
+    sl_free(a, ctx->target.depth, ctx->depth_bytes);
+    sl_free(a, ctx->slot_cnt, ctx->slots * sizeof(sl_rt_counters));
+    sl_free(a, ctx, sizeof *ctx);
+}
+
+const sl_rt_target *sl_rt_target_of(const sl_raster *ctx) { return &ctx->target; }
+const sl_rt_view *sl_rt_view_of(const sl_raster *ctx) { return &ctx->view; }
+
+sl_raster_isa sl_raster_get_isa(const sl_raster *ctx) { return ctx ? ctx->opt.isa : SL_RASTER_ISA_AUTO; }
+
+void sl_raster_get_size(const sl_raster *ctx, uint32_t *width, uint32_t *height, uint32_t *tiles_x,
+                        uint32_t *tiles_y)
+{
+    if (width)
+        *width = ctx->opt.width;
+    if (height)
+        *height = ctx->opt.height;
+    if (tiles_x)
+        *tiles_x = (uint32_t)ctx->target.tiles_x;
+    if (tiles_y)
+        *tiles_y = (uint32_t)ctx->target.tiles_y;
+}
+
+size_t sl_raster_memory(const sl_raster *ctx)
+{
+    if (!ctx)
+        return 0;
+    size_t pool = ctx->pool ? (ctx->opt.threads - 1) * sizeof(void *) * 2 + 256 : 0;
+    return sizeof *ctx + ctx->mask_bytes + ctx->depth_bytes + ctx->slots * sizeof(sl_rt_counters) +
+           sl_rt_bins_memory(ctx->bins) + pool;
+}
+
+void sl_raster_reset_stats(sl_raster *ctx)
+{
+    memset(&ctx->cnt, 0, sizeof ctx->cnt);
+    memset(ctx->slot_cnt, 0, ctx->slots * sizeof(sl_rt_counters));
+}
+
+void sl_raster_clear(sl_raster *ctx)
+{
+    if (!ctx)
+        return;
+    /* depth 0.0f and an empty mask are all-zero bits */
+    memset(ctx->target.mask, 0, ctx->mask_bytes);
+    memset(ctx->target.depth, 0, ctx->depth_bytes);
+    sl_rt_bins_reset(ctx->bins);
+    ctx->pending = false;
+    sl_raster_reset_stats(ctx);
+}
+
+sl_status sl_raster_begin_frame(sl_raster *ctx, sl_raster_depth depth, sl_error *err)
+{
+    if (!ctx)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: context must not be NULL");
+    if ((unsigned)depth > SL_RASTER_DEPTH_LINEAR_Z)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: unknown depth mode %d", (int)depth);
+    ctx->opt.depth = depth;
+    ctx->view.depth = depth;
+    sl_raster_clear(ctx);
+    return SL_OK;
+}
+
+/* ---- rendering ---- */
+
+static sl_status check_batch(const char *what, const float *vertices, const uint32_t *indices,
+                             uint32_t triangle_count, uint32_t stride, const float *m, sl_raster_backface bf,
+                             sl_error *err)
+{
+    if (triangle_count > 0 && (!vertices || !indices))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %s: vertices and indices must not be NULL", what);
+    if (stride < 12 || stride % 4 != 0)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %s: vertex stride %u must be >= 12 and a multiple of 4",
+                       what, stride);
+    if (((uintptr_t)vertices & 3u) != 0)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %s: vertices must be 4-byte aligned", what);
+    if (!m)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %s: matrix must not be NULL", what);
+    for (int i = 0; i < 16; i++)
+        if (!isfinite(m[i]))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %s: matrix element %d is not finite", what, i);
+    if ((unsigned)bf > SL_RASTER_CULL_CCW)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %s: unknown backface mode %d", what, (int)bf);
+    return SL_OK;
+}
+
+static bool emit_direct(void *user, const sl_rt_prim *p)
+{
+    const sl_raster *ctx = user;
+    sl_rt_tri t;
+    if (sl_rt_setup(p, ctx->mode, false, &t)) {
+        int32_t tx0 = t.col0 / SL_RT_TILE_W, tx1 = (t.col1 - 1) / SL_RT_TILE_W + 1;
+        int32_t ty0 = t.row0 / SL_RT_TILE_H, ty1 = (t.row1 - 1) / SL_RT_TILE_H + 1;
+        ctx->k->raster(&ctx->target, &t, tx0, tx1, ty0, ty1);
+    }
+    return true;
+}
+
+typedef struct bin_emit {
+    sl_rt_bins *bins;
+    uint32_t slot;
+    sl_rt_counters *cnt;
+} bin_emit;
+
+static bool emit_bin(void *user, const sl_rt_prim *p)
+{
+    bin_emit *e = user;
+    return sl_rt_bins_add(e->bins, e->slot, p, &e->cnt->bin_refs);
+}
+
+typedef struct pool_job {
+    sl_raster *ctx;
+    const sl_rt_batch *batch;
+    uint32_t first, last; /* the chunk of the batch being binned */
+    _Atomic uint32_t next_bin;
+    _Atomic bool failed;
+} pool_job;
+
+static void front_end_job(void *arg, uint32_t w)
+{
+    pool_job *j = arg;
+    sl_raster *ctx = j->ctx;
+    uint64_t n = j->last - j->first, parts = ctx->slots;
+    uint32_t first = j->first + (uint32_t)(n * w / parts), last = j->first + (uint32_t)(n * (w + 1) / parts);
+    bin_emit e = {ctx->bins, w, &ctx->slot_cnt[w]};
+    if (!sl_rt_front_end(&ctx->view, ctx->mode, j->batch, first, last, &ctx->slot_cnt[w], emit_bin, &e))
+        atomic_store(&j->failed, true);
+}
+
+static void render_job(void *arg, uint32_t w)
+{
+    (void)w;
+    pool_job *j = arg;
+    sl_raster *ctx = j->ctx;
+    uint32_t count = sl_rt_bins_count(ctx->bins);
+    for (uint32_t b; (b = atomic_fetch_add(&j->next_bin, 1)) < count;)
+        sl_rt_bins_render(ctx->bins, ctx->k, &ctx->target, ctx->mode, b);
+}
+
+void sl_raster_flush(sl_raster *ctx)
+{
+    if (!ctx || !ctx->pending)
+        return;
+    if (ctx->pool) {
+        pool_job j = {.ctx = ctx};
+        atomic_init(&j.next_bin, 0);
+        atomic_init(&j.failed, false);
+        sl_rt_pool_run(ctx->pool, render_job, &j);
+    } else {
+        uint32_t count = sl_rt_bins_count(ctx->bins);
+        for (uint32_t b = 0; b < count; b++)
+            sl_rt_bins_render(ctx->bins, ctx->k, &ctx->target, ctx->mode, b);
+    }
+    sl_rt_bins_reset(ctx->bins);
+    ctx->pending = false;
+}
+
+sl_status sl_raster_render_triangles(sl_raster *ctx, const float *vertices, uint32_t vertex_count,
+                                     const uint32_t *indices, uint32_t triangle_count, uint32_t vertex_stride_bytes,
+                                     const float model_to_clip[16], sl_raster_backface backface, sl_error *err)
+{
+    if (!ctx)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: render: context must not be NULL");
+    sl_status st = check_batch("render", vertices, indices, triangle_count, vertex_stride_bytes, model_to_clip,
+                               backface, err);
+    if (st != SL_OK)
+        return st;
+    sl_rt_batch b = {vertices, vertex_count, indices, triangle_count, vertex_stride_bytes, model_to_clip, backface};
+    /* triangles binned earlier come first */
+    sl_raster_flush(ctx);
+    if (!ctx->pool || triangle_count < POOL_MIN_TRIANGLES) {
+        sl_rt_front_end(&ctx->view, ctx->mode, &b, 0, triangle_count, &ctx->cnt, emit_direct, ctx);
+        return SL_OK;
+    }
+    pool_job j = {.ctx = ctx, .batch = &b};
+    atomic_init(&j.failed, false);
+    for (uint32_t first = 0; first < triangle_count; first += POOL_CHUNK) {
+        j.first = first;
+        j.last = triangle_count - first > POOL_CHUNK ? first + POOL_CHUNK : triangle_count;
+        atomic_init(&j.next_bin, 0);
+        ctx->pending = true;
+        sl_rt_pool_run(ctx->pool, front_end_job, &j);
+        sl_rt_pool_run(ctx->pool, render_job, &j);
+        sl_rt_bins_reset(ctx->bins);
+        ctx->pending = false;
+    }
+    if (atomic_load(&j.failed))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY,
+                       "raster: render: out of memory while binning %u triangles (some occluders were dropped)",
+                       triangle_count);
+    return SL_OK;
+}
+
+uint32_t sl_raster_bin_count(const sl_raster *ctx) { return ctx ? sl_rt_bins_count(ctx->bins) : 0; }
+
+sl_status sl_raster_bin_triangles(sl_raster *ctx, const float *vertices, uint32_t vertex_count,
+                                  const uint32_t *indices, uint32_t triangle_count, uint32_t vertex_stride_bytes,
+                                  const float model_to_clip[16], sl_raster_backface backface, sl_error *err)
+{
+    if (!ctx)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: bin: context must not be NULL");
+    sl_status st = check_batch("bin", vertices, indices, triangle_count, vertex_stride_bytes, model_to_clip,
+                               backface, err);
+    if (st != SL_OK)
+        return st;
+    sl_rt_batch b = {vertices, vertex_count, indices, triangle_count, vertex_stride_bytes, model_to_clip, backface};
+    ctx->pending = true;
+    bin_emit e = {ctx->bins, 0, &ctx->slot_cnt[0]};
+    if (!sl_rt_front_end(&ctx->view, ctx->mode, &b, 0, triangle_count, &ctx->slot_cnt[0], emit_bin, &e))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "raster: bin: out of memory for the bin queues");
+    return SL_OK;
+}
+
+uint32_t sl_raster_render_bin(sl_raster *ctx, uint32_t bin)
+{
+    if (!ctx)
+        return 0;
+    return sl_rt_bins_render(ctx->bins, ctx->k, &ctx->target, ctx->mode, bin);
+}
+
+/* ---- queries ---- */
+
+sl_raster_result sl_raster_test_rect(const sl_raster *ctx, int32_t xmin, int32_t ymin, int32_t xmax, int32_t ymax,
+                                     float nearest_depth)
+{
+    if (!ctx)
+        return SL_RASTER_VISIBLE;
+    int32_t x0 = sl_rt_maxi(xmin, 0), y0 = sl_rt_maxi(ymin, 0);
+    int32_t x1 = sl_rt_mini(xmax, ctx->target.width), y1 = sl_rt_mini(ymax, ctx->target.height);
+    if (x0 >= x1 || y0 >= y1)
+        return SL_RASTER_OUTSIDE;
+    if (isnan(nearest_depth))
+        return SL_RASTER_VISIBLE;
+    if (nearest_depth < 0.0f)
+        return SL_RASTER_OUTSIDE;
+    return ctx->k->rect_occluded(&ctx->target, x0, y0, x1, y1, nearest_depth) ? SL_RASTER_OCCLUDED
+                                                                              : SL_RASTER_VISIBLE;
+}
+
+bool sl_raster_project(const sl_raster *ctx, const float clip[4], float *x, float *y, float *depth)
+{
+    if (!ctx || !clip)
+        return false;
+    const sl_rt_view *v = &ctx->view;
+    if (!(clip[3] >= v->near_w))
+        return false;
+    float inv = 1.0f / clip[3];
+    float sx = (clip[0] * inv) * v->half_w + v->half_w;
+    float sy = v->half_h - (clip[1] * inv) * v->half_h;
+    float d = sl_rt_depth_of(v, clip);
+    if (!isfinite(sx) || !isfinite(sy) || !isfinite(d))
+        return false;
+    if (x)
+        *x = sx;
+    if (y)
+        *y = sy;
+    if (depth)
+        *depth = d;
+    return true;
+}
+
+/* Pixel index range [*lo, *hi) whose closed pixels touch [a, b], clamped to [0, n]. */
+static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
+{
+    const float eps = 1.0f / 64.0f; /* rounding of the projection */
+    float fa = floorf(a - eps), fb = floorf(b + eps) + 1.0f;
+    fa = fa < 0.0f ? 0.0f : (fa > (float)n ? (float)n : fa);
+    fb = fb < 0.0f ? 0.0f : (fb > (float)n ? (float)n : fb);
+    *lo = (int32_t)fa;
+    *hi = (int32_t)fb;
+}
+
+sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                     const float world_to_clip[16])
+{
+    if (!ctx || !box_min || !box_max || !world_to_clip)
+        return SL_RASTER_VISIBLE;
+    for (int i = 0; i < 3; i++) {
+        if (!isfinite(box_min[i]) || !isfinite(box_max[i]))
+            return SL_RASTER_VISIBLE;
+        if (box_min[i] > box_max[i])
+            return SL_RASTER_OUTSIDE; /* an empty box */
+    }
+    const sl_rt_view *v = &ctx->view;
+    unsigned all = 63, near_cross = 0;
+    float c[8][4];
+    for (int i = 0; i < 8; i++) {
+        float p[3] = {(i & 1) ? box_max[0] : box_min[0], (i & 2) ? box_max[1] : box_min[1],
+                      (i & 4) ? box_max[2] : box_min[2]};
+        sl_rt_transform(world_to_clip, p, c[i]);
+        float x = c[i][0], y = c[i][1], z = c[i][2], w = c[i][3];
+        if (!isfinite(x) || !isfinite(y) || !isfinite(z) || !isfinite(w))
+            return SL_RASTER_VISIBLE;
+        unsigned o = (x < -w ? 1u : 0u) | (x > w ? 2u : 0u) | (y < -w ? 4u : 0u) | (y > w ? 8u : 0u) |
+                     (z < -w ? 16u : 0u) | (z > w ? 32u : 0u);
+        all &= o;
+        near_cross |= (z < -w || w < v->near_w) ? 1u : 0u;
+    }
+    if (all)
+        return SL_RASTER_OUTSIDE;
+    if (near_cross)
+        return SL_RASTER_VISIBLE;
+    float minx = INFINITY, maxx = -INFINITY, miny = INFINITY, maxy = -INFINITY, dn = -INFINITY;
+    for (int i = 0; i < 8; i++) {
+        float inv = 1.0f / c[i][3];
+        float sx = (c[i][0] * inv) * v->half_w + v->half_w;
+        float sy = v->half_h - (c[i][1] * inv) * v->half_h;
+        float d = sl_rt_depth_of(v, c[i]);
+        if (!isfinite(sx) || !isfinite(sy) || !isfinite(d))
+            return SL_RASTER_VISIBLE;
+        minx = sl_rt_minf(minx, sx), maxx = sl_rt_maxf(maxx, sx);
+        miny = sl_rt_minf(miny, sy), maxy = sl_rt_maxf(maxy, sy);
+        dn = sl_rt_maxf(dn, d);
+    }
+    int32_t x0, x1, y0, y1;
+    touched(minx, maxx, v->width, &x0, &x1);
+    touched(miny, maxy, v->height, &y0, &y1);
+    return sl_raster_test_rect(ctx, x0, y0, x1, y1, dn);
+}
+
+sl_raster_result sl_raster_test_triangles(const sl_raster *ctx, const float *vertices, uint32_t vertex_count,
+                                          const uint32_t *indices, uint32_t triangle_count,
+                                          uint32_t vertex_stride_bytes, const float model_to_clip[16],
+                                          sl_raster_backface backface)
+{
+    if (!ctx || check_batch("query", vertices, indices, triangle_count, vertex_stride_bytes, model_to_clip,
+                            backface, NULL) != SL_OK)
+        return SL_RASTER_VISIBLE;
+    sl_rt_batch b = {vertices, vertex_count, indices, triangle_count, vertex_stride_bytes, model_to_clip, backface};
+    return sl_rt_query_batch(&ctx->view, ctx->k, &ctx->target, &b);
+}
+
+/* ---- debugging reads ---- */
+
+static inline float pixel_depth(const sl_rt_target *t, int32_t x, int32_t y)
+{
+    size_t tile = (size_t)(y / SL_RT_TILE_H) * (size_t)t->tiles_x + (size_t)(x / SL_RT_TILE_W);
+    int k = ((y % SL_RT_TILE_H) / SL_RT_SUB_H) * 4 + (x % SL_RT_TILE_W) / SL_RT_SUB_W;
+    int bit = (y % SL_RT_SUB_H) * 8 + x % SL_RT_SUB_W;
+    uint32_t m = t->mask[tile * SL_RT_SUBTILES + (size_t)k];
+    return (m >> bit) & 1u ? t->depth[tile].zm[k] : t->depth[tile].za[k];
+}
+
+sl_status sl_raster_read_depth(const sl_raster *ctx, float *out, size_t count, sl_error *err)
+{
+    if (!ctx || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: read_depth: NULL argument");
+    size_t need = (size_t)ctx->opt.width * ctx->opt.height;
+    if (count < need)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: read_depth: %zu floats given, %zu needed", count, need);
+    for (int32_t y = 0; y < ctx->target.height; y++)
+        for (int32_t x = 0; x < ctx->target.width; x++)
+            out[(size_t)y * ctx->opt.width + (size_t)x] = pixel_depth(&ctx->target, x, y);
+    return SL_OK;
+}
+
+sl_status sl_raster_read_subtile_depth(const sl_raster *ctx, float *out, size_t count, sl_error *err)
+{
+    if (!ctx || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: read_subtile_depth: NULL argument");
+    size_t sw = (size_t)ctx->target.tiles_x * 4, sh = (size_t)ctx->target.tiles_y * 2;
+    if (count < sw * sh)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: read_subtile_depth: %zu floats given, %zu needed",
+                       count, sw * sh);
+    for (size_t sy = 0; sy < sh; sy++)
+        for (size_t sx = 0; sx < sw; sx++) {
+            size_t tile = (sy / 2) * (size_t)ctx->target.tiles_x + sx / 4;
+            size_t k = (sy % 2) * 4 + sx % 4;
+            uint32_t m = ctx->target.mask[tile * SL_RT_SUBTILES + k];
+            const sl_rt_tile_depth *d = &ctx->target.depth[tile];
+            /* the farthest pixel: za unless every pixel is in the mask (zm >= za) */
+            out[sy * sw + sx] = m == ~0u ? d->zm[k] : d->za[k];
+        }
+    return SL_OK;
+}
+
+sl_status sl_raster_get_tile_info(const sl_raster *ctx, uint32_t tile_x, uint32_t tile_y, sl_raster_tile_info *out,
+                                  sl_error *err)
+{
+    if (!ctx || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: tile_info: NULL argument");
+    if (tile_x >= (uint32_t)ctx->target.tiles_x || tile_y >= (uint32_t)ctx->target.tiles_y)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: tile_info: tile (%u, %u) outside %dx%d", tile_x,
+                       tile_y, ctx->target.tiles_x, ctx->target.tiles_y);
+    memset(out, 0, sizeof *out);
+    size_t tile = (size_t)tile_y * (size_t)ctx->target.tiles_x + tile_x;
+    const uint32_t *m = ctx->target.mask + tile * SL_RT_SUBTILES;
+    const sl_rt_tile_depth *d = &ctx->target.depth[tile];
+    for (int k = 0; k < SL_RT_SUBTILES; k++) {
+        out->full_subtiles += d->za[k] > 0.0f;
+        out->partial_subtiles += m[k] != 0;
+    }
+    out->min_depth = INFINITY;
+    out->max_depth = -INFINITY;
+    int32_t x0 = (int32_t)tile_x * SL_RT_TILE_W, y0 = (int32_t)tile_y * SL_RT_TILE_H;
+    int32_t x1 = sl_rt_mini(x0 + SL_RT_TILE_W, ctx->target.width), y1 = sl_rt_mini(y0 + SL_RT_TILE_H, ctx->target.height);
+    for (int32_t y = y0; y < y1; y++)
+        for (int32_t x = x0; x < x1; x++) {
+            float z = pixel_depth(&ctx->target, x, y);
+            out->covered_pixels += z > 0.0f;
+            out->min_depth = sl_rt_minf(out->min_depth, z);
+            out->max_depth = sl_rt_maxf(out->max_depth, z);
+        }
+    return SL_OK;
+}
+
+static void add_counters(sl_raster_stats *s, const sl_rt_counters *c)
+{
+    s->triangles_submitted += c->submitted;
+    s->rejected_index += c->rejected_index;
+    s->rejected_nonfinite += c->rejected_nonfinite;
+    s->culled_outside += c->culled_outside;
+    s->culled_backface += c->culled_backface;
+    s->degenerate += c->degenerate;
+    s->clipped += c->clipped;
+    s->triangles_rasterized += c->rasterized;
+    s->bin_references += c->bin_refs;
+}
+
+void sl_raster_get_stats(const sl_raster *ctx, sl_raster_stats *out)
+{
+    if (!out)
+        return;
+    memset(out, 0, sizeof *out);
+    if (!ctx)
+        return;
+    add_counters(out, &ctx->cnt);
+    for (uint32_t s = 0; s < ctx->slots; s++)
+        add_counters(out, &ctx->slot_cnt[s]);
+}

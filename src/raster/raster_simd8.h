@@ -1,0 +1,298 @@
+/* 8-lane (256-bit) building blocks of the AVX2 and AVX-512 kernels of the occlusion rasterizer:
+ * exact row spans (by division, or stepped for tall triangles), tile ranges, row masks, the
+ * subtile merge and the query tests. Included by raster_avx2.c and raster_avx512.c after
+ * defining SL_RT_T (the target attribute of every function) and SL_RT_NAME(n) (a suffix for the
+ * query kernels), so that each file compiles its own copy for its own instruction set. Nothing
+ * here may differ from raster_scalar.c in its results. */
+#ifndef SL_RT_T
+#error "define SL_RT_T and SL_RT_NAME before including raster_simd8.h"
+#endif
+
+#include <immintrin.h>
+#include <math.h>
+
+/* Byte shuffle turning rows (lane r, byte c) into subtiles (lane c, byte r) within each half. */
+SL_RT_T static inline __m256i transpose_ctl(void)
+{
+    return _mm256_setr_epi8(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15, 0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10,
+                            14, 3, 7, 11, 15);
+}
+
+/* Thresholds of edge e for rows j0..j0+7: ceil(num/den) clamped to [col0, col1] (exact). */
+SL_RT_T static inline __m256i edge_thresholds(const sl_rt_tri *t, int e, int32_t j0, __m256d c0, __m256d c1)
+{
+    const __m256d rlo = _mm256_setr_pd(0, 1, 2, 3), rhi = _mm256_setr_pd(4, 5, 6, 7);
+    __m256d step = _mm256_set1_pd(t->nstep[e]), den = _mm256_set1_pd(t->den[e]);
+    __m256d base = _mm256_set1_pd(t->num0[e] + (double)j0 * t->nstep[e]);
+    __m256d qlo = _mm256_ceil_pd(_mm256_div_pd(_mm256_add_pd(base, _mm256_mul_pd(rlo, step)), den));
+    __m256d qhi = _mm256_ceil_pd(_mm256_div_pd(_mm256_add_pd(base, _mm256_mul_pd(rhi, step)), den));
+    qlo = _mm256_min_pd(_mm256_max_pd(qlo, c0), c1);
+    qhi = _mm256_min_pd(_mm256_max_pd(qhi, c0), c1);
+    return _mm256_set_m128i(_mm256_cvttpd_epi32(qhi), _mm256_cvttpd_epi32(qlo));
+}
+
+/* Exact incremental thresholds for tall triangles, without a division per tile row. With
+ * N = num(j0) = t0*D - e0 (t0 = ceil(N/D), 0 <= e0 < D) and r*S = Q_r*D + E_r (0 <= E_r < D):
+ *     ceil((N + r*S) / D) = t0 + Q_r + (E_r > e0 ? 1 : 0)
+ * and the same step with r = 8 moves (t0, e0) to the next tile row. All integers: same results
+ * as the division. */
+typedef struct edge_dda {
+    __m256i q, e;     /* Q_r and E_r of rows r = 0..7 */
+    int64_t t0, e0;   /* at the current tile row's first row */
+    int64_t q8, e8, den;
+} edge_dda;
+
+SL_RT_T static void dda_init(edge_dda *d, const sl_rt_tri *t, int e, int32_t j0)
+{
+    double S = t->nstep[e], D = t->den[e], N = t->num0[e] + (double)j0 * S;
+    double t0 = ceil(N / D);
+    d->t0 = (int64_t)t0;
+    d->e0 = (int64_t)(t0 * D - N); /* |t0*D| < 2^49: exact */
+    double q1 = floor(S / D), e1 = S - q1 * D;
+    const __m256d rlo = _mm256_setr_pd(0, 1, 2, 3), rhi = _mm256_setr_pd(4, 5, 6, 7);
+    __m256d dv = _mm256_set1_pd(D), q1v = _mm256_set1_pd(q1), e1v = _mm256_set1_pd(e1);
+    __m256d relo = _mm256_mul_pd(rlo, e1v), rehi = _mm256_mul_pd(rhi, e1v); /* < 2^34: exact */
+    __m256d klo = _mm256_floor_pd(_mm256_div_pd(relo, dv)), khi = _mm256_floor_pd(_mm256_div_pd(rehi, dv));
+    __m256d qlo = _mm256_add_pd(_mm256_mul_pd(rlo, q1v), klo), qhi = _mm256_add_pd(_mm256_mul_pd(rhi, q1v), khi);
+    __m256d elo = _mm256_sub_pd(relo, _mm256_mul_pd(klo, dv)), ehi = _mm256_sub_pd(rehi, _mm256_mul_pd(khi, dv));
+    d->q = _mm256_set_m128i(_mm256_cvttpd_epi32(qhi), _mm256_cvttpd_epi32(qlo));
+    d->e = _mm256_set_m128i(_mm256_cvttpd_epi32(ehi), _mm256_cvttpd_epi32(elo));
+    double k8 = floor(8.0 * e1 / D);
+    d->q8 = (int64_t)(8.0 * q1 + k8);
+    d->e8 = (int64_t)(8.0 * e1 - k8 * D);
+    d->den = (int64_t)D;
+}
+
+/* Thresholds of the current tile row, clamped to [col0, col1]. */
+SL_RT_T static inline __m256i dda_thresholds(const edge_dda *d, __m256i c0, __m256i c1)
+{
+    int64_t t0 = d->t0 < -SL_RT_BIG ? -SL_RT_BIG : (d->t0 > SL_RT_BIG ? SL_RT_BIG : d->t0);
+    __m256i carry = _mm256_cmpgt_epi32(d->e, _mm256_set1_epi32((int32_t)d->e0));
+    __m256i v = _mm256_sub_epi32(_mm256_add_epi32(_mm256_set1_epi32((int32_t)t0), d->q), carry);
+    return _mm256_min_epi32(_mm256_max_epi32(v, c0), c1);
+}
+
+SL_RT_T static inline void dda_next(edge_dda *d)
+{
+    d->t0 += d->q8;
+    d->e0 -= d->e8;
+    if (d->e0 < 0) {
+        d->e0 += d->den;
+        d->t0 += 1;
+    }
+}
+
+/* Turn per-edge thresholds into the spans [xl, xr) of rows j0..j0+7 (invalid rows emptied). */
+SL_RT_T static inline void combine_spans(const sl_rt_tri *t, int32_t j0, __m256i ta, __m256i tb, const __m256i *tc,
+                                      __m256i *pxl, __m256i *pxr)
+{
+    __m256i xl = ta, xr = tb;
+    if (tc) {
+        __m256i cap = _mm256_set1_epi32(t->cap);
+        xl = _mm256_max_epi32(ta, _mm256_min_epi32(*tc, cap));
+        xr = _mm256_min_epi32(tb, _mm256_max_epi32(*tc, cap));
+    }
+    if (j0 < t->row0 || j0 + SL_RT_TILE_H > t->row1) {
+        __m256i j = _mm256_add_epi32(_mm256_set1_epi32(j0), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+        __m256i valid = _mm256_and_si256(_mm256_cmpgt_epi32(j, _mm256_set1_epi32(t->row0 - 1)),
+                                         _mm256_cmpgt_epi32(_mm256_set1_epi32(t->row1), j));
+        xr = _mm256_blendv_epi8(xl, xr, valid);
+    }
+    *pxl = xl;
+    *pxr = xr;
+}
+
+static inline bool edge_active(const sl_rt_tri *t, int e, int32_t j0)
+{
+    return t->ja[e] <= j0 + SL_RT_TILE_H - 1 && t->jb[e] >= j0;
+}
+
+/* Spans of rows j0..j0+7 from the incremental thresholds; advances them to the next tile row. */
+SL_RT_T static inline void row_spans_dda(const sl_rt_tri *t, edge_dda dda[3], int32_t j0, __m256i *pxl, __m256i *pxr)
+{
+    const __m256i c0 = _mm256_set1_epi32(t->col0), c1 = _mm256_set1_epi32(t->col1);
+    __m256i ta = edge_active(t, 0, j0) ? dda_thresholds(&dda[0], c0, c1) : c0;
+    __m256i tb = edge_active(t, 1, j0) ? dda_thresholds(&dda[1], c0, c1) : c1;
+    __m256i tc;
+    bool use_c = edge_active(t, 2, j0);
+    if (use_c)
+        tc = dda_thresholds(&dda[2], c0, c1);
+    for (int e = 0; e < 3; e++)
+        dda_next(&dda[e]);
+    combine_spans(t, j0, ta, tb, use_c ? &tc : NULL, pxl, pxr);
+}
+
+/* Column spans [xl, xr) of the 8 rows j0..j0+7, equal (as coverage) to raster_scalar.c's
+ * row_spans. Edges whose rows miss this tile row are skipped (raster_internal.h, ja/jb). */
+SL_RT_T static inline void row_spans(const sl_rt_tri *t, int32_t j0, __m256i *pxl, __m256i *pxr)
+{
+    const __m256d c0 = _mm256_set1_pd((double)t->col0), c1 = _mm256_set1_pd((double)t->col1);
+    __m256i ta = edge_active(t, 0, j0) ? edge_thresholds(t, 0, j0, c0, c1) : _mm256_set1_epi32(t->col0);
+    __m256i tb = edge_active(t, 1, j0) ? edge_thresholds(t, 1, j0, c0, c1) : _mm256_set1_epi32(t->col1);
+    __m256i tc;
+    bool use_c = edge_active(t, 2, j0);
+    if (use_c)
+        tc = edge_thresholds(t, 2, j0, c0, c1);
+    combine_spans(t, j0, ta, tb, use_c ? &tc : NULL, pxl, pxr);
+}
+
+
+SL_RT_T static inline int32_t hmin(__m256i v)
+{
+    __m128i m = _mm_min_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1));
+    return _mm_cvtsi128_si32(m);
+}
+
+SL_RT_T static inline int32_t hmax(__m256i v)
+{
+    __m128i m = _mm_max_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+    m = _mm_max_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    m = _mm_max_epi32(m, _mm_shuffle_epi32(m, 0xB1));
+    return _mm_cvtsi128_si32(m);
+}
+
+/* Tile columns [*ta, *tb) of the non-empty spans within [tx0, tx1), and [*ia, *ib) of the tiles
+ * every row covers completely (empty when a row is empty); false if no span. */
+SL_RT_T static inline bool span_tiles(__m256i xl, __m256i xr, int32_t tx0, int32_t tx1, int32_t *ta, int32_t *tb,
+                                   int32_t *ia, int32_t *ib)
+{
+    __m256i ne = _mm256_cmpgt_epi32(xr, xl);
+    int nm = _mm256_movemask_ps(_mm256_castsi256_ps(ne));
+    if (nm == 0)
+        return false;
+    *ia = *ib = 0;
+    if (tx1 - tx0 <= 2) {
+        /* narrow: visiting an empty tile costs less than finding out */
+        *ta = tx0, *tb = tx1;
+        return true;
+    }
+    int32_t lo = hmin(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MAX), xl, ne));
+    int32_t hi = hmax(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MIN), xr, ne));
+    *ta = sl_rt_maxi(tx0, lo / SL_RT_TILE_W);
+    *tb = sl_rt_mini(tx1, (hi - 1) / SL_RT_TILE_W + 1);
+    if (nm == 0xFF) {
+        int32_t l = hmax(xl), r = hmin(xr);
+        *ia = sl_rt_maxi(*ta, (l + SL_RT_TILE_W - 1) / SL_RT_TILE_W);
+        *ib = sl_rt_mini(*tb, r / SL_RT_TILE_W);
+    }
+    return *ta < *tb;
+}
+
+/* Row masks of the tile at column x: bits [xl - x, xr - x) of each row (vpsllvd gives 0 past 31). */
+SL_RT_T static inline __m256i row_masks(__m256i xl, __m256i xr, int32_t x)
+{
+    const __m256i ones = _mm256_set1_epi32(-1), zero = _mm256_setzero_si256();
+    __m256i xo = _mm256_set1_epi32(x);
+    __m256i lo = _mm256_max_epi32(_mm256_sub_epi32(xl, xo), zero);
+    __m256i hi = _mm256_max_epi32(_mm256_sub_epi32(xr, xo), zero);
+    return _mm256_andnot_si256(_mm256_sllv_epi32(ones, hi), _mm256_sllv_epi32(ones, lo));
+}
+
+/* sl_rt_merge of coverage c at depth z into one tile. */
+SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    const __m256i zero = _mm256_setzero_si256(), ones = _mm256_set1_epi32(-1);
+    __m256 za = _mm256_load_ps(dp->za);
+    __m256i act = _mm256_andnot_si256(_mm256_cmpeq_epi32(c, zero), _mm256_castps_si256(_mm256_cmp_ps(z, za, _CMP_GT_OQ)));
+    /* no early exit: partial tiles are where branches mispredict; inactive lanes store back */
+    __m256i m = _mm256_load_si256((const __m256i *)mp);
+    __m256 zm = _mm256_load_ps(dp->zm);
+    __m256 nearer = _mm256_and_ps(_mm256_cmp_ps(z, zm, _CMP_GT_OQ),
+                                  _mm256_cmp_ps(_mm256_sub_ps(z, zm), _mm256_sub_ps(zm, za), _CMP_GT_OQ));
+    __m256i repl = _mm256_or_si256(_mm256_cmpeq_epi32(m, zero), _mm256_castps_si256(nearer));
+    __m256i nm = _mm256_blendv_epi8(_mm256_or_si256(m, c), c, repl);
+    __m256 nz = _mm256_blendv_ps(_mm256_min_ps(zm, z), z, _mm256_castsi256_ps(repl));
+    __m256i full = _mm256_cmpeq_epi32(nm, ones);
+    za = _mm256_blendv_ps(za, nz, _mm256_castsi256_ps(_mm256_and_si256(full, act)));
+    m = _mm256_blendv_epi8(m, _mm256_andnot_si256(full, nm), act);
+    zm = _mm256_blendv_ps(zm, nz, _mm256_castsi256_ps(act));
+    _mm256_store_si256((__m256i *)mp, m);
+    _mm256_store_ps(dp->za, za);
+    _mm256_store_ps(dp->zm, zm);
+}
+
+/* merge_tile with c = ~0 in every lane: the union is always full. */
+SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    __m256 za = _mm256_load_ps(dp->za);
+    __m256 act = _mm256_cmp_ps(z, za, _CMP_GT_OQ);
+    if (_mm256_testz_ps(act, act))
+        return;
+    __m256i m = _mm256_load_si256((const __m256i *)mp);
+    __m256 zm = _mm256_load_ps(dp->zm);
+    __m256 nearer = _mm256_and_ps(_mm256_cmp_ps(z, zm, _CMP_GT_OQ),
+                                  _mm256_cmp_ps(_mm256_sub_ps(z, zm), _mm256_sub_ps(zm, za), _CMP_GT_OQ));
+    __m256 repl = _mm256_or_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(m, _mm256_setzero_si256())), nearer);
+    __m256 nz = _mm256_blendv_ps(_mm256_min_ps(zm, z), z, repl);
+    _mm256_store_si256((__m256i *)mp, _mm256_andnot_si256(_mm256_castps_si256(act), m));
+    _mm256_store_ps(dp->za, _mm256_blendv_ps(za, nz, act));
+    _mm256_store_ps(dp->zm, _mm256_blendv_ps(zm, nz, act));
+}
+
+/* Lanes where the subtile hides depth z under coverage c (sl_rt_subtile_hides). */
+SL_RT_T static inline int hides_mask(__m256i c, __m256 z, const uint32_t *mp, const sl_rt_tile_depth *dp)
+{
+    const __m256i zero = _mm256_setzero_si256();
+    __m256 za = _mm256_load_ps(dp->za), zm = _mm256_load_ps(dp->zm);
+    __m256i m = _mm256_load_si256((const __m256i *)mp);
+    __m256i uncovered = _mm256_cmpeq_epi32(_mm256_andnot_si256(m, c), zero);
+    __m256i ok = _mm256_or_si256(_mm256_cmpeq_epi32(c, zero), _mm256_castps_si256(_mm256_cmp_ps(za, z, _CMP_GT_OQ)));
+    ok = _mm256_or_si256(ok, _mm256_and_si256(_mm256_castps_si256(_mm256_cmp_ps(zm, z, _CMP_GT_OQ)), uncovered));
+    return _mm256_movemask_ps(_mm256_castsi256_ps(ok));
+}
+
+SL_RT_T static bool SL_RT_NAME(query)(const sl_rt_target *tg, const sl_rt_tri *t)
+{
+    const __m256i ctl = transpose_ctl();
+    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
+    int32_t ty0 = t->row0 / SL_RT_TILE_H, ty1 = (t->row1 - 1) / SL_RT_TILE_H + 1;
+    int32_t tx0 = t->col0 / SL_RT_TILE_W, tx1 = (t->col1 - 1) / SL_RT_TILE_W + 1;
+    for (int32_t ty = ty0; ty < ty1; ty++) {
+        int32_t j0 = ty * SL_RT_TILE_H, ta, tb, ia, ib;
+        __m256i xl, xr;
+        row_spans(t, j0, &xl, &xr);
+        if (!span_tiles(xl, xr, tx0, tx1, &ta, &tb, &ia, &ib))
+            continue;
+        float zrow = t->zdy * (float)(j0 - t->y_ref);
+        size_t ti = (size_t)ty * (size_t)tg->tiles_x + (size_t)ta;
+        for (int32_t tx = ta; tx < tb; tx++, ti++) {
+            int32_t x = tx * SL_RT_TILE_W;
+            __m256i c = _mm256_shuffle_epi8(row_masks(xl, xr, x), ctl);
+            float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
+            __m256 z = _mm256_min_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
+            if (hides_mask(c, z, tg->mask + ti * SL_RT_SUBTILES, &tg->depth[ti]) != 0xFF)
+                return true;
+        }
+    }
+    return false;
+}
+
+SL_RT_T static bool SL_RT_NAME(rect)(const sl_rt_target *tg, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float dz)
+{
+    const __m256i ctl = transpose_ctl();
+    const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256 z = _mm256_set1_ps(dz);
+    int32_t txa = x0 / SL_RT_TILE_W, txb = (x1 - 1) / SL_RT_TILE_W;
+    for (int32_t ty = y0 / SL_RT_TILE_H; ty <= (y1 - 1) / SL_RT_TILE_H; ty++) {
+        __m256i j = _mm256_add_epi32(_mm256_set1_epi32(ty * SL_RT_TILE_H), lanes);
+        __m256i valid = _mm256_and_si256(_mm256_cmpgt_epi32(j, _mm256_set1_epi32(y0 - 1)),
+                                         _mm256_cmpgt_epi32(_mm256_set1_epi32(y1), j));
+        size_t ti = (size_t)ty * (size_t)tg->tiles_x + (size_t)txa;
+        for (int32_t tx = txa; tx <= txb; tx++, ti++) {
+            const sl_rt_tile_depth *dp = &tg->depth[ti];
+            /* the common case: the whole-subtile depths alone hide z */
+            if (_mm256_movemask_ps(_mm256_cmp_ps(_mm256_load_ps(dp->za), z, _CMP_GT_OQ)) == 0xFF)
+                continue;
+            int32_t x = tx * SL_RT_TILE_W;
+            __m256i cols = _mm256_set1_epi32((int32_t)(sl_rt_ones_from(sl_rt_maxi(x0 - x, 0)) &
+                                                       ~sl_rt_ones_from(sl_rt_maxi(x1 - x, 0))));
+            __m256i c = _mm256_shuffle_epi8(_mm256_and_si256(cols, valid), ctl);
+            if (hides_mask(c, z, tg->mask + ti * SL_RT_SUBTILES, dp) != 0xFF)
+                return false;
+        }
+    }
+    return true;
+}
+

@@ -1,0 +1,276 @@
+/* SSE4.1 kernels of the occlusion rasterizer: raster_avx2.c's algorithm on 128-bit registers, one
+ * register per half tile (pixel rows 0-3 / 4-7, subtiles 0-3 / 4-7). SSE has no per-lane shift,
+ * so the masks ~0 << n come from 2^n built in a float's exponent. Bit-identical to the scalar
+ * reference; run only when __builtin_cpu_supports("sse4.1"). */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+#pragma GCC optimize("fp-contract=off")
+#endif
+
+#include "raster/raster_internal.h"
+
+#if defined(SL_RT_X86)
+#include <immintrin.h>
+
+#define SSE41 __attribute__((target("sse4.1")))
+
+SSE41 static inline __m128i transpose_ctl(void)
+{
+    return _mm_setr_epi8(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15);
+}
+
+/* ~0 << n per lane for n >= 0, 0 when n >= 32: 2^n is the float with exponent n; converting 2^31
+ * overflows to 0x80000000, which happens to be 1 << 31. */
+SSE41 static inline __m128i ones_from(__m128i n)
+{
+    const __m128i k32 = _mm_set1_epi32(32);
+    __m128i nc = _mm_min_epi32(n, k32);
+    __m128i p = _mm_cvttps_epi32(_mm_castsi128_ps(_mm_slli_epi32(_mm_add_epi32(nc, _mm_set1_epi32(127)), 23)));
+    return _mm_andnot_si128(_mm_cmpeq_epi32(nc, k32), _mm_sub_epi32(_mm_setzero_si128(), p));
+}
+
+/* Thresholds of one edge for rows j0+4h .. j0+4h+3. */
+SSE41 static inline __m128i edge4(const sl_rt_tri *t, int e, double base, int h, __m128d c0, __m128d c1)
+{
+    __m128d step = _mm_set1_pd(t->nstep[e]), den = _mm_set1_pd(t->den[e]), b = _mm_set1_pd(base);
+    double r = 4.0 * h;
+    __m128d ra = _mm_setr_pd(r, r + 1), rb = _mm_setr_pd(r + 2, r + 3);
+    __m128d qa = _mm_ceil_pd(_mm_div_pd(_mm_add_pd(b, _mm_mul_pd(ra, step)), den));
+    __m128d qb = _mm_ceil_pd(_mm_div_pd(_mm_add_pd(b, _mm_mul_pd(rb, step)), den));
+    qa = _mm_min_pd(_mm_max_pd(qa, c0), c1);
+    qb = _mm_min_pd(_mm_max_pd(qb, c0), c1);
+    return _mm_unpacklo_epi64(_mm_cvttpd_epi32(qa), _mm_cvttpd_epi32(qb));
+}
+
+/* Spans [xl[h], xr[h]) of rows j0+4h..j0+4h+3, h = 0, 1; edges whose rows miss this tile row
+ * are skipped as in raster_avx2.c. */
+SSE41 static inline void row_spans(const sl_rt_tri *t, int32_t j0, __m128i xl[2], __m128i xr[2])
+{
+    const __m128d c0 = _mm_set1_pd((double)t->col0), c1 = _mm_set1_pd((double)t->col1);
+    const __m128i cap = _mm_set1_epi32(t->cap);
+    int32_t j1 = j0 + SL_RT_TILE_H - 1;
+    bool act[3];
+    double base[3];
+    for (int e = 0; e < 3; e++) {
+        act[e] = t->ja[e] <= j1 && t->jb[e] >= j0;
+        base[e] = t->num0[e] + (double)j0 * t->nstep[e];
+    }
+    bool partial = j0 < t->row0 || j1 >= t->row1;
+    for (int h = 0; h < 2; h++) {
+        __m128i l = act[0] ? edge4(t, 0, base[0], h, c0, c1) : _mm_set1_epi32(t->col0);
+        __m128i r = act[1] ? edge4(t, 1, base[1], h, c0, c1) : _mm_set1_epi32(t->col1);
+        if (act[2]) {
+            __m128i c = edge4(t, 2, base[2], h, c0, c1);
+            l = _mm_max_epi32(l, _mm_min_epi32(c, cap));
+            r = _mm_min_epi32(r, _mm_max_epi32(c, cap));
+        }
+        if (partial) {
+            __m128i j = _mm_add_epi32(_mm_set1_epi32(j0 + 4 * h), _mm_setr_epi32(0, 1, 2, 3));
+            __m128i valid = _mm_and_si128(_mm_cmpgt_epi32(j, _mm_set1_epi32(t->row0 - 1)),
+                                          _mm_cmpgt_epi32(_mm_set1_epi32(t->row1), j));
+            r = _mm_blendv_epi8(l, r, valid);
+        }
+        xl[h] = l;
+        xr[h] = r;
+    }
+}
+
+SSE41 static inline int32_t hmin4(__m128i m)
+{
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    return _mm_cvtsi128_si32(_mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1)));
+}
+
+SSE41 static inline int32_t hmax4(__m128i m)
+{
+    m = _mm_max_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    return _mm_cvtsi128_si32(_mm_max_epi32(m, _mm_shuffle_epi32(m, 0xB1)));
+}
+
+/* As raster_avx2.c's span_tiles. */
+SSE41 static inline bool span_tiles(const __m128i xl[2], const __m128i xr[2], int32_t tx0, int32_t tx1, int32_t *ta,
+                                    int32_t *tb, int32_t *ia, int32_t *ib)
+{
+    __m128i n0 = _mm_cmpgt_epi32(xr[0], xl[0]), n1 = _mm_cmpgt_epi32(xr[1], xl[1]);
+    int nm = _mm_movemask_ps(_mm_castsi128_ps(n0)) | _mm_movemask_ps(_mm_castsi128_ps(n1)) << 4;
+    if (nm == 0)
+        return false;
+    *ia = *ib = 0;
+    if (tx1 - tx0 <= 2) {
+        *ta = tx0, *tb = tx1;
+        return true;
+    }
+    const __m128i big = _mm_set1_epi32(INT32_MAX), small = _mm_set1_epi32(INT32_MIN);
+    int32_t lo = hmin4(_mm_min_epi32(_mm_blendv_epi8(big, xl[0], n0), _mm_blendv_epi8(big, xl[1], n1)));
+    int32_t hi = hmax4(_mm_max_epi32(_mm_blendv_epi8(small, xr[0], n0), _mm_blendv_epi8(small, xr[1], n1)));
+    *ta = sl_rt_maxi(tx0, lo / SL_RT_TILE_W);
+    *tb = sl_rt_mini(tx1, (hi - 1) / SL_RT_TILE_W + 1);
+    if (nm == 0xFF) {
+        int32_t l = hmax4(_mm_max_epi32(xl[0], xl[1])), r = hmin4(_mm_min_epi32(xr[0], xr[1]));
+        *ia = sl_rt_maxi(*ta, (l + SL_RT_TILE_W - 1) / SL_RT_TILE_W);
+        *ib = sl_rt_mini(*tb, r / SL_RT_TILE_W);
+    }
+    return *ta < *tb;
+}
+
+SSE41 static inline __m128i row_masks(__m128i xl, __m128i xr, __m128i xo)
+{
+    const __m128i zero = _mm_setzero_si128();
+    __m128i lo = _mm_max_epi32(_mm_sub_epi32(xl, xo), zero);
+    __m128i hi = _mm_max_epi32(_mm_sub_epi32(xr, xo), zero);
+    return _mm_andnot_si128(ones_from(hi), ones_from(lo));
+}
+
+/* sl_rt_merge on 4 subtiles. */
+SSE41 static inline void merge4(__m128i c, __m128 z, uint32_t *mp, float *zap, float *zmp)
+{
+    const __m128i zero = _mm_setzero_si128(), ones = _mm_set1_epi32(-1);
+    __m128 za = _mm_load_ps(zap);
+    __m128i act = _mm_andnot_si128(_mm_cmpeq_epi32(c, zero), _mm_castps_si128(_mm_cmpgt_ps(z, za)));
+    if (_mm_testz_si128(act, act))
+        return;
+    __m128i m = _mm_load_si128((const __m128i *)mp);
+    __m128 zm = _mm_load_ps(zmp);
+    __m128 nearer = _mm_and_ps(_mm_cmpgt_ps(z, zm), _mm_cmpgt_ps(_mm_sub_ps(z, zm), _mm_sub_ps(zm, za)));
+    __m128i repl = _mm_or_si128(_mm_cmpeq_epi32(m, zero), _mm_castps_si128(nearer));
+    __m128i nm = _mm_blendv_epi8(_mm_or_si128(m, c), c, repl);
+    __m128 nz = _mm_blendv_ps(_mm_min_ps(zm, z), z, _mm_castsi128_ps(repl));
+    __m128i full = _mm_cmpeq_epi32(nm, ones);
+    za = _mm_blendv_ps(za, nz, _mm_castsi128_ps(_mm_and_si128(full, act)));
+    m = _mm_blendv_epi8(m, _mm_andnot_si128(full, nm), act);
+    zm = _mm_blendv_ps(zm, nz, _mm_castsi128_ps(act));
+    _mm_store_si128((__m128i *)mp, m);
+    _mm_store_ps(zap, za);
+    _mm_store_ps(zmp, zm);
+}
+
+/* merge4 with full coverage. */
+SSE41 static inline void merge4_full(__m128 z, uint32_t *mp, float *zap, float *zmp)
+{
+    __m128 za = _mm_load_ps(zap);
+    __m128 act = _mm_cmpgt_ps(z, za);
+    if (_mm_movemask_ps(act) == 0)
+        return;
+    __m128i m = _mm_load_si128((const __m128i *)mp);
+    __m128 zm = _mm_load_ps(zmp);
+    __m128 nearer = _mm_and_ps(_mm_cmpgt_ps(z, zm), _mm_cmpgt_ps(_mm_sub_ps(z, zm), _mm_sub_ps(zm, za)));
+    __m128 repl = _mm_or_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(m, _mm_setzero_si128())), nearer);
+    __m128 nz = _mm_blendv_ps(_mm_min_ps(zm, z), z, repl);
+    _mm_store_si128((__m128i *)mp, _mm_andnot_si128(_mm_castps_si128(act), m));
+    _mm_store_ps(zap, _mm_blendv_ps(za, nz, act));
+    _mm_store_ps(zmp, _mm_blendv_ps(zm, nz, act));
+}
+
+SSE41 static void raster_sse41(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0, int32_t tx1, int32_t ty0,
+                               int32_t ty1)
+{
+    const __m128i ctl = transpose_ctl();
+    const __m128 off0 = _mm_loadu_ps(t->off), off1 = _mm_loadu_ps(t->off + 4), zclamp = _mm_set1_ps(t->zclamp);
+    for (int32_t ty = ty0; ty < ty1; ty++) {
+        int32_t j0 = ty * SL_RT_TILE_H, ta, tb, ia, ib;
+        __m128i xl[2], xr[2];
+        row_spans(t, j0, xl, xr);
+        if (!span_tiles(xl, xr, tx0, tx1, &ta, &tb, &ia, &ib))
+            continue;
+        float zrow = t->zdy * (float)(j0 - t->y_ref);
+        size_t row = (size_t)ty * (size_t)tg->tiles_x;
+        for (int32_t tx = ta; tx < tb; tx++) {
+            int32_t x = tx * SL_RT_TILE_W;
+            size_t ti = row + (size_t)tx;
+            float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
+            __m128 zt4 = _mm_set1_ps(zt);
+            __m128 z0 = _mm_max_ps(_mm_add_ps(zt4, off0), zclamp), z1 = _mm_max_ps(_mm_add_ps(zt4, off1), zclamp);
+            uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
+            sl_rt_tile_depth *dp = &tg->depth[ti];
+            if (tx >= ia && tx < ib) {
+                merge4_full(z0, mp, dp->za, dp->zm);
+                merge4_full(z1, mp + 4, dp->za + 4, dp->zm + 4);
+                continue;
+            }
+            __m128i xo = _mm_set1_epi32(x);
+            __m128i r0 = row_masks(xl[0], xr[0], xo), r1 = row_masks(xl[1], xr[1], xo);
+            __m128i any = _mm_or_si128(r0, r1);
+            if (_mm_testz_si128(any, any))
+                continue;
+            merge4(_mm_shuffle_epi8(r0, ctl), z0, mp, dp->za, dp->zm);
+            merge4(_mm_shuffle_epi8(r1, ctl), z1, mp + 4, dp->za + 4, dp->zm + 4);
+        }
+    }
+}
+
+/* Lanes of 4 subtiles hiding z under coverage c. */
+SSE41 static inline int hides4(__m128i c, __m128 z, const uint32_t *mp, const float *zap, const float *zmp)
+{
+    const __m128i zero = _mm_setzero_si128();
+    __m128 za = _mm_load_ps(zap), zm = _mm_load_ps(zmp);
+    __m128i m = _mm_load_si128((const __m128i *)mp);
+    __m128i uncovered = _mm_cmpeq_epi32(_mm_andnot_si128(m, c), zero);
+    __m128i ok = _mm_or_si128(_mm_cmpeq_epi32(c, zero), _mm_castps_si128(_mm_cmpgt_ps(za, z)));
+    ok = _mm_or_si128(ok, _mm_and_si128(_mm_castps_si128(_mm_cmpgt_ps(zm, z)), uncovered));
+    return _mm_movemask_ps(_mm_castsi128_ps(ok));
+}
+
+SSE41 static bool query_sse41(const sl_rt_target *tg, const sl_rt_tri *t)
+{
+    const __m128i ctl = transpose_ctl();
+    const __m128 off0 = _mm_loadu_ps(t->off), off1 = _mm_loadu_ps(t->off + 4), zclamp = _mm_set1_ps(t->zclamp);
+    int32_t ty0 = t->row0 / SL_RT_TILE_H, ty1 = (t->row1 - 1) / SL_RT_TILE_H + 1;
+    int32_t tx0 = t->col0 / SL_RT_TILE_W, tx1 = (t->col1 - 1) / SL_RT_TILE_W + 1;
+    for (int32_t ty = ty0; ty < ty1; ty++) {
+        int32_t j0 = ty * SL_RT_TILE_H, ta, tb, ia, ib;
+        __m128i xl[2], xr[2];
+        row_spans(t, j0, xl, xr);
+        if (!span_tiles(xl, xr, tx0, tx1, &ta, &tb, &ia, &ib))
+            continue;
+        float zrow = t->zdy * (float)(j0 - t->y_ref);
+        size_t ti = (size_t)ty * (size_t)tg->tiles_x + (size_t)ta;
+        for (int32_t tx = ta; tx < tb; tx++, ti++) {
+            int32_t x = tx * SL_RT_TILE_W;
+            __m128i xo = _mm_set1_epi32(x);
+            __m128i c0 = _mm_shuffle_epi8(row_masks(xl[0], xr[0], xo), ctl);
+            __m128i c1 = _mm_shuffle_epi8(row_masks(xl[1], xr[1], xo), ctl);
+            float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
+            __m128 zt4 = _mm_set1_ps(zt);
+            const uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
+            const sl_rt_tile_depth *dp = &tg->depth[ti];
+            if (hides4(c0, _mm_min_ps(_mm_add_ps(zt4, off0), zclamp), mp, dp->za, dp->zm) != 0xF ||
+                hides4(c1, _mm_min_ps(_mm_add_ps(zt4, off1), zclamp), mp + 4, dp->za + 4, dp->zm + 4) != 0xF)
+                return true;
+        }
+    }
+    return false;
+}
+
+SSE41 static bool rect_sse41(const sl_rt_target *tg, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float dz)
+{
+    const __m128i ctl = transpose_ctl(), lanes = _mm_setr_epi32(0, 1, 2, 3);
+    const __m128 z = _mm_set1_ps(dz);
+    int32_t txa = x0 / SL_RT_TILE_W, txb = (x1 - 1) / SL_RT_TILE_W;
+    for (int32_t ty = y0 / SL_RT_TILE_H; ty <= (y1 - 1) / SL_RT_TILE_H; ty++) {
+        __m128i valid[2];
+        for (int h = 0; h < 2; h++) {
+            __m128i j = _mm_add_epi32(_mm_set1_epi32(ty * SL_RT_TILE_H + 4 * h), lanes);
+            valid[h] = _mm_and_si128(_mm_cmpgt_epi32(j, _mm_set1_epi32(y0 - 1)), _mm_cmpgt_epi32(_mm_set1_epi32(y1), j));
+        }
+        size_t ti = (size_t)ty * (size_t)tg->tiles_x + (size_t)txa;
+        for (int32_t tx = txa; tx <= txb; tx++, ti++) {
+            const sl_rt_tile_depth *dp = &tg->depth[ti];
+            __m128 a = _mm_and_ps(_mm_cmpgt_ps(_mm_load_ps(dp->za), z), _mm_cmpgt_ps(_mm_load_ps(dp->za + 4), z));
+            if (_mm_movemask_ps(a) == 0xF)
+                continue;
+            int32_t x = tx * SL_RT_TILE_W;
+            __m128i cols = _mm_set1_epi32(
+                (int32_t)(sl_rt_ones_from(sl_rt_maxi(x0 - x, 0)) & ~sl_rt_ones_from(sl_rt_maxi(x1 - x, 0))));
+            const uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
+            if (hides4(_mm_shuffle_epi8(_mm_and_si128(cols, valid[0]), ctl), z, mp, dp->za, dp->zm) != 0xF ||
+                hides4(_mm_shuffle_epi8(_mm_and_si128(cols, valid[1]), ctl), z, mp + 4, dp->za + 4, dp->zm + 4) != 0xF)
+                return false;
+        }
+    }
+    return true;
+}
+
+const sl_rt_kernels sl_rt_kernels_sse41 = {SL_RASTER_ISA_SSE41, raster_sse41, query_sse41, rect_sse41};
+
+#endif

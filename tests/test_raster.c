@@ -1,0 +1,1048 @@
+/* Software occlusion rasterizer: fill rule against an exact reference, conservative depth,
+ * watertight shared edges, slivers, huge and near-plane-crossing triangles, bad input, queries,
+ * orthographic projection, SIMD paths bit-equal to the scalar reference, thread counts equal. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+
+#include "core/sl_core.h"
+#include "raster/raster_internal.h"
+#include "sightline/raster.h"
+#include "support/counting_alloc.h"
+
+static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
+
+static const float IDENTITY[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+
+/* OpenGL perspective (column-major), aspect = width/height. */
+static void perspective(float m[16], double fovy, double aspect, double n, double f)
+{
+    memset(m, 0, sizeof(float) * 16);
+    double t = 1.0 / tan(0.5 * fovy);
+    m[0] = (float)(t / aspect);
+    m[5] = (float)t;
+    m[10] = (float)((f + n) / (n - f));
+    m[11] = -1.0f;
+    m[14] = (float)(2.0 * f * n / (n - f));
+}
+
+/* OpenGL orthographic box [-hw,hw] x [-hh,hh] x [-n,-f] in eye space. */
+static void orthographic(float m[16], double hw, double hh, double n, double f)
+{
+    memset(m, 0, sizeof(float) * 16);
+    m[0] = (float)(1.0 / hw);
+    m[5] = (float)(1.0 / hh);
+    m[10] = (float)(-2.0 / (f - n));
+    m[14] = (float)(-(f + n) / (f - n));
+    m[15] = 1.0f;
+}
+
+static sl_raster *make(uint32_t w, uint32_t h, sl_raster_isa isa, sl_raster_depth depth, uint32_t threads)
+{
+    sl_raster_options o = sl_raster_default_options(w, h);
+    o.isa = isa;
+    o.depth = depth;
+    o.threads = threads;
+    sl_raster *r = NULL;
+    sl_error err;
+    assert_int_equal(sl_raster_create(&o, NULL, &r, &err), SL_OK);
+    return r;
+}
+
+static void render(sl_raster *r, const float *v, uint32_t nv, const uint32_t *ix, uint32_t nt, const float *m,
+                   sl_raster_backface bf)
+{
+    sl_error err;
+    assert_int_equal(sl_raster_render_triangles(r, v, nv, ix, nt, 12, m, bf, &err), SL_OK);
+}
+
+static float *depth_image(const sl_raster *r)
+{
+    uint32_t w, h;
+    sl_raster_get_size(r, &w, &h, NULL, NULL);
+    float *img = malloc(sizeof(float) * w * h);
+    assert_non_null(img);
+    assert_int_equal(sl_raster_read_depth(r, img, (size_t)w * h, NULL), SL_OK);
+    return img;
+}
+
+/* Raw buffers of two contexts are identical (mask words and both depths, bit for bit). */
+static void assert_same_buffer(const sl_raster *a, const sl_raster *b)
+{
+    const sl_rt_target *ta = sl_rt_target_of(a), *tb = sl_rt_target_of(b);
+    size_t tiles = (size_t)ta->tiles_x * (size_t)ta->tiles_y;
+    assert_int_equal(tiles, (size_t)tb->tiles_x * (size_t)tb->tiles_y);
+    assert_memory_equal(ta->mask, tb->mask, tiles * SL_RT_SUBTILES * sizeof(uint32_t));
+    assert_memory_equal(ta->depth, tb->depth, tiles * sizeof(sl_rt_tile_depth));
+}
+
+/* ---- the exact reference ---- */
+
+/* Snapped triangle as the rasterizer sees it (w = 1 vertices: no clipping involved). */
+typedef struct ref_tri {
+    int32_t X[3], Y[3];
+    float d[3];
+} ref_tri;
+
+static bool ref_setup(const sl_raster *r, const float *m, const float p[9], ref_tri *t)
+{
+    const sl_rt_view *v = sl_rt_view_of(r);
+    for (int i = 0; i < 3; i++) {
+        float c[4];
+        sl_rt_transform(m, p + 3 * i, c);
+        if (!sl_rt_snap(v, c, &t->X[i], &t->Y[i], &t->d[i]))
+            return false;
+    }
+    return true;
+}
+
+/* Centre of pixel (i, j) inside the snapped triangle by the top-left rule, in exact integers. */
+static bool ref_covers(const ref_tri *t, int i, int j)
+{
+    int64_t X[3] = {t->X[0], t->X[1], t->X[2]}, Y[3] = {t->Y[0], t->Y[1], t->Y[2]};
+    int64_t area = (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0]);
+    if (area == 0)
+        return false;
+    if (area < 0) {
+        int64_t tx = X[1], ty = Y[1];
+        X[1] = X[2], Y[1] = Y[2], X[2] = tx, Y[2] = ty;
+    }
+    int64_t px = 256 * (int64_t)i + 128, py = 256 * (int64_t)j + 128;
+    for (int e = 0; e < 3; e++) {
+        int a = e, b = (e + 1) % 3;
+        int64_t dX = X[b] - X[a], dY = Y[b] - Y[a];
+        int64_t E = dX * (py - Y[a]) - dY * (px - X[a]);
+        bool top_left = dY < 0 || (dY == 0 && dX > 0);
+        if (E < 0 || (E == 0 && !top_left))
+            return false;
+    }
+    return true;
+}
+
+/* Depth of the plane through the snapped vertices at the centre of pixel (i, j). */
+static double ref_depth(const ref_tri *t, int i, int j)
+{
+    double x[3], y[3];
+    for (int k = 0; k < 3; k++)
+        x[k] = t->X[k] / 256.0, y[k] = t->Y[k] / 256.0;
+    double ex1 = x[1] - x[0], ey1 = y[1] - y[0], ex2 = x[2] - x[0], ey2 = y[2] - y[0];
+    double dd1 = (double)t->d[1] - t->d[0], dd2 = (double)t->d[2] - t->d[0];
+    double det = ex1 * ey2 - ex2 * ey1;
+    double a = (dd1 * ey2 - dd2 * ey1) / det, b = (ex1 * dd2 - ex2 * dd1) / det;
+    return t->d[0] + a * (i + 0.5 - x[0]) + b * (j + 0.5 - y[0]);
+}
+
+/* A random triangle in NDC [-1.4, 1.4]^2 (w = 1, z in [-0.9, 0.9]); kind picks grid-aligned
+ * vertices (edges through pixel centres), slivers or free positions. */
+static void random_tri(sl_rng *rng, int W, int H, int kind, float p[9])
+{
+    for (int i = 0; i < 3; i++) {
+        float px, py;
+        if (kind == 0) {
+            /* multiples of half a pixel: exact in NDC, hits the tie rule */
+            px = (float)((int)sl_rng_below(rng, (uint32_t)(3 * W)) - W) * 0.5f + (float)W / 4;
+            py = (float)((int)sl_rng_below(rng, (uint32_t)(3 * H)) - H) * 0.5f + (float)H / 4;
+        } else {
+            px = sl_rng_range(rng, -0.2f * W, 1.2f * W);
+            py = sl_rng_range(rng, -0.2f * H, 1.2f * H);
+        }
+        p[3 * i + 0] = px / (0.5f * W) - 1.0f;
+        p[3 * i + 1] = 1.0f - py / (0.5f * H);
+        p[3 * i + 2] = sl_rng_range(rng, -0.9f, 0.9f);
+    }
+    if (kind == 2) {
+        /* a sliver: the third vertex almost on the line of the first two */
+        float t = sl_rng_range(rng, -0.5f, 1.5f), eps = sl_rng_range(rng, -0.004f, 0.004f);
+        p[6] = p[0] + t * (p[3] - p[0]) + eps;
+        p[7] = p[1] + t * (p[4] - p[1]) - eps;
+    }
+}
+
+static sl_raster_isa isa_list[4];
+static int isa_count;
+
+static void collect_isas(void)
+{
+    isa_count = 0;
+    const sl_raster_isa all[] = {SL_RASTER_ISA_SCALAR, SL_RASTER_ISA_SSE41, SL_RASTER_ISA_AVX2, SL_RASTER_ISA_AVX512};
+    for (size_t i = 0; i < SL_COUNTOF(all); i++)
+        if (sl_raster_isa_available(all[i]))
+            isa_list[isa_count++] = all[i];
+}
+
+/* ---- tests ---- */
+
+/* One triangle at a time on a cleared buffer: covered pixels are exactly the reference's, and
+ * the depth is never nearer than the true depth at the pixel centre. */
+static void test_fill_rule_exact(void **state)
+{
+    (void)state;
+    const int W = 96, H = 64;
+    int rounds = sanitized() ? 60 : 400;
+    sl_rng rng;
+    sl_rng_seed(&rng, 1, 2);
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, 1);
+        for (int n = 0; n < rounds; n++) {
+            float p[9];
+            random_tri(&rng, W, H, n % 3, p);
+            uint32_t ix[3] = {0, 1, 2};
+            ref_tri t;
+            assert_true(ref_setup(r, IDENTITY, p, &t));
+            sl_raster_clear(r);
+            render(r, p, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+            float *img = depth_image(r);
+            for (int j = 0; j < H; j++)
+                for (int i = 0; i < W; i++) {
+                    bool cov = ref_covers(&t, i, j);
+                    float b = img[j * W + i];
+                    if (cov != (b > 0.0f))
+                        fail_msg("isa %s triangle %d pixel (%d,%d): reference %d, buffer %g",
+                                 sl_raster_isa_name(isa_list[ii]), n, i, j, cov, (double)b);
+                    /* the reference's own double rounding: 1e-12 */
+                    if (cov && (double)b > ref_depth(&t, i, j) + 1e-12)
+                        fail_msg("pixel (%d,%d): depth %.17g nearer than true %.17g (d %g %g %g)", i, j, (double)b,
+                                 ref_depth(&t, i, j), t.d[0], t.d[1], t.d[2]);
+                }
+            free(img);
+        }
+        sl_raster_destroy(r);
+    }
+}
+
+/* Many triangles: no pixel claims coverage no triangle has, and no depth is nearer than the
+ * nearest triangle covering the pixel. */
+static void test_soup_conservative(void **state)
+{
+    (void)state;
+    const int W = 128, H = 72;
+    int count = sanitized() ? 150 : 1500;
+    sl_rng rng;
+    sl_rng_seed(&rng, 7, 3);
+    float *v = malloc(sizeof(float) * 9 * (size_t)count);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (size_t)count);
+    double *truth = malloc(sizeof(double) * W * H);
+    assert_true(v && ix && truth);
+    for (int n = 0; n < count; n++) {
+        random_tri(&rng, W, H, n % 3, v + 9 * n);
+        for (int k = 0; k < 3; k++)
+            ix[3 * n + k] = (uint32_t)(3 * n + k);
+    }
+    sl_raster *r = make(W, H, SL_RASTER_ISA_AUTO, SL_RASTER_DEPTH_LINEAR_Z, 1);
+    for (int i = 0; i < W * H; i++)
+        truth[i] = 0.0;
+    for (int n = 0; n < count; n++) {
+        ref_tri t;
+        assert_true(ref_setup(r, IDENTITY, v + 9 * n, &t));
+        for (int j = 0; j < H; j++)
+            for (int i = 0; i < W; i++)
+                if (ref_covers(&t, i, j))
+                    truth[j * W + i] = fmax(truth[j * W + i], ref_depth(&t, i, j));
+    }
+    render(r, v, (uint32_t)(3 * count), ix, (uint32_t)count, IDENTITY, SL_RASTER_CULL_NONE);
+    float *img = depth_image(r);
+    size_t covered = 0, truly = 0;
+    for (int i = 0; i < W * H; i++) {
+        assert_true((double)img[i] <= truth[i] + 1e-12);
+        covered += img[i] > 0.0f;
+        truly += truth[i] > 0.0;
+    }
+    /* and it is not trivially conservative: most covered pixels hold a depth */
+    assert_true(covered >= truly * 9 / 10);
+    free(img);
+    free(truth);
+    free(v);
+    free(ix);
+    sl_raster_destroy(r);
+}
+
+/* A quad of two triangles sharing a diagonal through pixel centres covers its region without a
+ * crack: a box behind it is occluded, one in front is visible. */
+static void test_shared_edge_watertight(void **state)
+{
+    (void)state;
+    const int W = 128, H = 64;
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, 1);
+        /* pixel corners (8.5, 4.5) .. (100.5, 60.5): every diagonal crossing is at a centre */
+        float x0 = 8.5f / 64 - 1, x1 = 100.5f / 64 - 1, y0 = 1 - 4.5f / 32, y1 = 1 - 60.5f / 32;
+        float quad[12] = {x0, y0, 0.2f, x1, y0, 0.2f, x1, y1, 0.2f, x0, y1, 0.2f};
+        uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+        render(r, quad, 4, ix, 2, IDENTITY, SL_RASTER_CULL_NONE);
+        float *img = depth_image(r);
+        /* centres on the left/top edges (column 8, row 4) belong to the quad, those on the
+         * right/bottom edges (column 100, row 60) do not; the diagonal leaves no crack */
+        for (int j = 0; j < H; j++)
+            for (int i = 0; i < W; i++) {
+                bool inside = i >= 8 && i <= 99 && j >= 4 && j <= 59;
+                if (inside != (img[j * W + i] > 0.0f))
+                    fail_msg("%s: pixel (%d,%d) expected %d", sl_raster_isa_name(isa_list[ii]), i, j, inside);
+            }
+        free(img);
+        float dq = 0.5f - 0.5f * 0.2f; /* the quad's depth */
+        assert_int_equal(sl_raster_test_rect(r, 8, 4, 100, 60, dq - 0.01f), SL_RASTER_OCCLUDED);
+        assert_int_equal(sl_raster_test_rect(r, 8, 4, 100, 60, dq + 0.01f), SL_RASTER_VISIBLE);
+        assert_int_equal(sl_raster_test_rect(r, 8, 4, 101, 60, dq - 0.01f), SL_RASTER_VISIBLE);
+        assert_int_equal(sl_raster_test_rect(r, 7, 4, 100, 60, dq - 0.01f), SL_RASTER_VISIBLE);
+        /* a box behind the quad, projected to the same pixels, is hidden */
+        float bmin[3] = {x0, y1, 0.5f}, bmax[3] = {x1, y0, 0.6f};
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, IDENTITY), SL_RASTER_VISIBLE); /* touches col 100 */
+        float imin[3] = {x0 + 0.02f, y1 + 0.04f, 0.5f}, imax[3] = {x1 - 0.04f, y0 - 0.04f, 0.6f};
+        assert_int_equal(sl_raster_test_aabb(r, imin, imax, IDENTITY), SL_RASTER_OCCLUDED);
+        sl_raster_destroy(r);
+    }
+}
+
+/* Adjacent triangles of a fan meeting at one vertex: each pixel covered exactly once. */
+static void test_no_double_coverage(void **state)
+{
+    (void)state;
+    const int W = 64, H = 64;
+    sl_raster *r = make(W, H, SL_RASTER_ISA_SCALAR, SL_RASTER_DEPTH_LINEAR_Z, 1);
+    sl_rng rng;
+    sl_rng_seed(&rng, 11, 1);
+    for (int round = 0; round < 20; round++) {
+        /* a fan around a centre (grid-aligned to hit ties) */
+        int n = 3 + (int)sl_rng_below(&rng, 8);
+        float pts[3 * 12];
+        float cx = 32.0f + (float)sl_rng_below(&rng, 8) * 0.5f, cy = 32.0f - (float)sl_rng_below(&rng, 8) * 0.5f;
+        for (int k = 0; k < n; k++) {
+            double ang = 2 * M_PI * k / n + 0.1 * round;
+            float px = roundf((float)(cx + 40 * cos(ang)) * 2) / 2, py = roundf((float)(cy + 40 * sin(ang)) * 2) / 2;
+            pts[3 * k] = px / 32 - 1, pts[3 * k + 1] = 1 - py / 32, pts[3 * k + 2] = 0;
+        }
+        float c[3] = {cx / 32 - 1, 1 - cy / 32, 0};
+        int cover[64 * 64] = {0};
+        for (int k = 0; k < n; k++) {
+            float tri[9] = {c[0], c[1], c[2]};
+            memcpy(tri + 3, pts + 3 * k, sizeof(float) * 3);
+            memcpy(tri + 6, pts + 3 * ((k + 1) % n), sizeof(float) * 3);
+            uint32_t ix[3] = {0, 1, 2};
+            sl_raster_clear(r);
+            render(r, tri, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+            float *img = depth_image(r);
+            for (int i = 0; i < W * H; i++)
+                cover[i] += img[i] > 0.0f;
+            free(img);
+        }
+        for (int i = 0; i < W * H; i++)
+            assert_true(cover[i] <= 1);
+        /* pixels well inside the fan's hull are covered once */
+        for (int j = 28; j < 36; j++)
+            for (int i = 28; i < 36; i++)
+                assert_int_equal(cover[j * W + i], 1);
+    }
+    sl_raster_destroy(r);
+}
+
+/* Triangles far bigger than the screen (guard-band clipping) cover everything, conservatively. */
+static void test_huge_triangles(void **state)
+{
+    (void)state;
+    const int W = 160, H = 90;
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, 1);
+        float tri[9] = {-1e4f, -1e4f, 0.5f, 3e4f, -1e4f, 0.5f, -1e4f, 3e4f, 0.5f};
+        uint32_t ix[3] = {0, 1, 2};
+        render(r, tri, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+        sl_raster_stats st;
+        sl_raster_get_stats(r, &st);
+        assert_int_equal(st.clipped, 1);
+        float *img = depth_image(r);
+        for (int i = 0; i < W * H; i++) {
+            assert_true(img[i] > 0.0f);
+            assert_true(img[i] <= 0.25f); /* the true depth is 0.5 - 0.5*0.5 = 0.25 */
+            assert_true(img[i] > 0.2499f);
+        }
+        free(img);
+        assert_int_equal(sl_raster_test_rect(r, 0, 0, W, H, 0.2f), SL_RASTER_OCCLUDED);
+        /* a huge tilted triangle: depth still never nearer than the plane */
+        sl_raster_clear(r);
+        float tilt[9] = {-5e3f, -5e3f, -0.9f, 5e3f, -5e3f, 0.9f, 0.0f, 5e3f, 0.0f};
+        render(r, tilt, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+        img = depth_image(r);
+        /* z(x, y) of the plane through the three points, in NDC */
+        double ax = (0.9 - -0.9) / 1e4, ay = (0.0 - 0.0 - ax * 5e3) / 1e4;
+        for (int j = 0; j < H; j++)
+            for (int i = 0; i < W; i++) {
+                double nx = (i + 0.5) / (W / 2.0) - 1, ny = 1 - (j + 0.5) / (H / 2.0);
+                double z = -0.9 + ax * (nx + 5e3) + ay * (ny + 5e3);
+                double d = 0.5 - 0.5 * z;
+                assert_true(img[j * W + i] > 0.0f);
+                assert_true((double)img[j * W + i] <= d + 1e-6);
+            }
+        free(img);
+        sl_raster_destroy(r);
+    }
+}
+
+/* Perspective triangles crossing the near plane: clipped, every covered pixel is really covered
+ * by the part in front of the near plane, at a depth no nearer than the true one. */
+static void test_near_plane_crossing(void **state)
+{
+    (void)state;
+    const int W = 128, H = 96;
+    const double N = 0.5, F = 100, fovy = 1.2, aspect = (double)W / H;
+    float P[16];
+    perspective(P, fovy, aspect, N, F);
+    sl_rng rng;
+    sl_rng_seed(&rng, 5, 5);
+    int rounds = sanitized() ? 20 : 120;
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_INV_W, 1);
+        int clipped = 0, covered_total = 0;
+        for (int n = 0; n < rounds; n++) {
+            /* eye space: one vertex behind the camera or between it and the near plane */
+            double p[3][3];
+            for (int k = 0; k < 3; k++) {
+                double z = k == 0 ? sl_rng_range(&rng, -0.4f, 3.0f) : sl_rng_range(&rng, -20.0f, -1.0f);
+                p[k][0] = sl_rng_range(&rng, -1, 1) * fabs(z) + sl_rng_range(&rng, -1, 1);
+                p[k][1] = sl_rng_range(&rng, -1, 1) * fabs(z) + sl_rng_range(&rng, -1, 1);
+                p[k][2] = z;
+            }
+            float v[9];
+            for (int k = 0; k < 9; k++)
+                v[k] = (float)p[k / 3][k % 3];
+            uint32_t ix[3] = {0, 1, 2};
+            sl_raster_clear(r);
+            render(r, v, 3, ix, 1, P, SL_RASTER_CULL_NONE);
+            sl_raster_stats st;
+            sl_raster_get_stats(r, &st);
+            clipped += (int)st.clipped;
+            float *img = depth_image(r);
+            double e1[3], e2[3], nrm[3];
+            for (int k = 0; k < 3; k++)
+                e1[k] = p[1][k] - p[0][k], e2[k] = p[2][k] - p[0][k];
+            nrm[0] = e1[1] * e2[2] - e1[2] * e2[1];
+            nrm[1] = e1[2] * e2[0] - e1[0] * e2[2];
+            nrm[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            double tx = tan(0.5 * fovy) * aspect, ty = tan(0.5 * fovy);
+            /* the part beyond the near plane (z <= -N), projected to the screen, in double */
+            double poly[8][2];
+            int np = 0;
+            for (int k = 0; k < 3; k++) {
+                const double *a = p[k], *bb = p[(k + 1) % 3];
+                double da = -N - a[2], db = -N - bb[2];
+                double q[3];
+                if (da >= 0) {
+                    poly[np][0] = (a[0] / -a[2] / tx + 1) * W / 2, poly[np][1] = (1 - a[1] / -a[2] / ty) * H / 2;
+                    np++;
+                }
+                if ((da >= 0) != (db >= 0)) {
+                    double s = da / (da - db);
+                    for (int c = 0; c < 3; c++)
+                        q[c] = a[c] + s * (bb[c] - a[c]);
+                    poly[np][0] = (q[0] / N / tx + 1) * W / 2, poly[np][1] = (1 - q[1] / N / ty) * H / 2;
+                    np++;
+                }
+            }
+            double area = 0;
+            for (int k = 0; k < np; k++)
+                area += poly[k][0] * poly[(k + 1) % np][1] - poly[(k + 1) % np][0] * poly[k][1];
+            for (int j = 0; j < H; j++)
+                for (int i = 0; i < W; i++) {
+                    float b = img[j * W + i];
+                    if (!(b > 0.0f))
+                        continue;
+                    /* inside the projected polygon, up to the 1/256-pixel snap (checked at 1/50) */
+                    double cx = i + 0.5, cy = j + 0.5;
+                    for (int k = 0; k < np; k++) {
+                        const double *a = poly[k], *bb = poly[(k + 1) % np];
+                        double ex = bb[0] - a[0], ey = bb[1] - a[1];
+                        double side = (ex * (cy - a[1]) - ey * (cx - a[0])) * (area > 0 ? 1 : -1);
+                        if (side / sqrt(ex * ex + ey * ey) < -0.02)
+                            fail_msg("%s round %d: pixel (%d,%d) covered, %g px outside the visible triangle",
+                                     sl_raster_isa_name(isa_list[ii]), n, i, j, side / sqrt(ex * ex + ey * ey));
+                    }
+                    /* depth: 1/w where the pixel's ray meets the triangle's plane */
+                    double dir[3] = {(cx / (W / 2.0) - 1) * tx, (1 - cy / (H / 2.0)) * ty, -1};
+                    double den = nrm[0] * dir[0] + nrm[1] * dir[1] + nrm[2] * dir[2];
+                    double s = (nrm[0] * p[0][0] + nrm[1] * p[0][1] + nrm[2] * p[0][2]) / den;
+                    double true_d = 1.0 / s;
+                    if ((double)b > true_d * (1 + 1e-5))
+                        fail_msg("pixel (%d,%d): depth %g nearer than true %g", i, j, (double)b, true_d);
+                    covered_total++;
+                }
+            free(img);
+        }
+        assert_true(clipped > rounds / 2);
+        assert_true(covered_total > 20 * rounds);
+        sl_raster_destroy(r);
+    }
+}
+
+/* NaN/Inf vertices, bad indices and zero-area triangles are skipped and counted; bad arguments
+ * fail without touching the buffer. */
+static void test_bad_input(void **state)
+{
+    (void)state;
+    sl_raster *r = make(64, 64, SL_RASTER_ISA_AUTO, SL_RASTER_DEPTH_LINEAR_Z, 1);
+    float v[] = {-0.5f, -0.5f, 0, 0.5f, -0.5f, 0, 0, 0.5f, 0, NAN, 0, 0, INFINITY, 1, 0, 0.1f, 0.1f, 0, 0.2f, 0.2f, 0};
+    uint32_t ix[] = {0, 1, 3, 0, 4, 2, 0, 1, 9, 0, 5, 6, 0, 0, 1, 3, 3, 3};
+    render(r, v, 7, ix, 6, IDENTITY, SL_RASTER_CULL_NONE);
+    sl_raster_stats st;
+    sl_raster_get_stats(r, &st);
+    assert_int_equal(st.triangles_submitted, 6);
+    assert_int_equal(st.rejected_nonfinite, 3);
+    assert_int_equal(st.rejected_index, 1);
+    assert_int_equal(st.degenerate, 2);
+    assert_int_equal(st.triangles_rasterized, 0);
+    float *img = depth_image(r);
+    for (int i = 0; i < 64 * 64; i++)
+        assert_true(img[i] == 0.0f);
+    free(img);
+    sl_error err;
+    float badm[16];
+    memcpy(badm, IDENTITY, sizeof badm);
+    badm[5] = NAN;
+    assert_int_equal(sl_raster_render_triangles(r, v, 7, ix, 1, 12, badm, SL_RASTER_CULL_NONE, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "matrix element 5"));
+    assert_int_equal(sl_raster_render_triangles(r, v, 7, ix, 1, 8, IDENTITY, SL_RASTER_CULL_NONE, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_raster_render_triangles(r, v, 7, ix, 1, 14, IDENTITY, SL_RASTER_CULL_NONE, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_raster_render_triangles(r, NULL, 7, ix, 1, 12, IDENTITY, SL_RASTER_CULL_NONE, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_raster_render_triangles(r, v, 7, ix, 1, 12, IDENTITY, (sl_raster_backface)7, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_raster_render_triangles(r, NULL, 0, NULL, 0, 12, IDENTITY, SL_RASTER_CULL_NONE, &err), SL_OK);
+    img = depth_image(r);
+    for (int i = 0; i < 64 * 64; i++)
+        assert_true(img[i] == 0.0f);
+    free(img);
+    /* coordinates near the float limit: clipping must not blow up (rejected or clipped) */
+    float big[] = {3e38f, 3e38f, 0, -3e38f, 3e38f, 0, 0, -3e38f, 0};
+    uint32_t ix3[] = {0, 1, 2};
+    render(r, big, 3, ix3, 1, IDENTITY, SL_RASTER_CULL_NONE);
+    sl_raster_get_stats(r, &st);
+    assert_int_equal(st.triangles_submitted, 7);
+    img = depth_image(r);
+    for (int i = 0; i < 64 * 64; i++)
+        assert_true(img[i] == 0.0f || img[i] <= 0.5f);
+    free(img);
+    /* bad options */
+    sl_raster_options o = sl_raster_default_options(0, 10);
+    sl_raster *x = NULL;
+    assert_int_equal(sl_raster_create(&o, NULL, &x, &err), SL_ERROR_INVALID_ARGUMENT);
+    o = sl_raster_default_options(10000, 10);
+    assert_int_equal(sl_raster_create(&o, NULL, &x, &err), SL_ERROR_INVALID_ARGUMENT);
+    o = sl_raster_default_options(64, 64);
+    o.near_w = -1;
+    assert_int_equal(sl_raster_create(&o, NULL, &x, &err), SL_ERROR_INVALID_ARGUMENT);
+    o = sl_raster_default_options(64, 64);
+    o.bins_x = 3; /* 64 pixels are 2 tiles wide */
+    assert_int_equal(sl_raster_create(&o, NULL, &x, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_null(x);
+    sl_raster_destroy(r);
+}
+
+/* Back-face modes follow OpenGL's winding in NDC. */
+static void test_backface(void **state)
+{
+    (void)state;
+    sl_raster *r = make(64, 64, SL_RASTER_ISA_AUTO, SL_RASTER_DEPTH_LINEAR_Z, 1);
+    float ccw[9] = {-0.5f, -0.5f, 0, 0.5f, -0.5f, 0, 0, 0.5f, 0}; /* counter-clockwise in NDC */
+    uint32_t ix[3] = {0, 1, 2}, rev[3] = {0, 2, 1};
+    render(r, ccw, 3, ix, 1, IDENTITY, SL_RASTER_CULL_CCW);
+    assert_int_equal(sl_raster_test_rect(r, 30, 30, 34, 34, 0.4f), SL_RASTER_VISIBLE);
+    render(r, ccw, 3, ix, 1, IDENTITY, SL_RASTER_CULL_CW);
+    assert_int_equal(sl_raster_test_rect(r, 30, 30, 34, 34, 0.4f), SL_RASTER_OCCLUDED);
+    sl_raster_clear(r);
+    render(r, ccw, 3, rev, 1, IDENTITY, SL_RASTER_CULL_CW);
+    assert_int_equal(sl_raster_test_rect(r, 30, 30, 34, 34, 0.4f), SL_RASTER_VISIBLE);
+    render(r, ccw, 3, rev, 1, IDENTITY, SL_RASTER_CULL_NONE);
+    assert_int_equal(sl_raster_test_rect(r, 30, 30, 34, 34, 0.4f), SL_RASTER_OCCLUDED);
+    sl_raster_stats st;
+    sl_raster_get_stats(r, &st);
+    assert_int_equal(st.culled_backface, 1);
+    sl_raster_destroy(r);
+}
+
+/* A wall in a perspective view and boxes around it. */
+static void test_queries_perspective(void **state)
+{
+    (void)state;
+    const int W = 320, H = 180;
+    float P[16];
+    perspective(P, 1.0, (double)W / H, 0.1, 1000);
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_INV_W, 1);
+        /* wall: x in [-10, 10], y in [-6, 6] at z = -10 (covers the middle of the view) */
+        float wall[12] = {-5, -3, -10, 5, -3, -10, 5, 3, -10, -5, 3, -10};
+        uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+        render(r, wall, 4, ix, 2, P, SL_RASTER_CULL_NONE);
+        float bmin[3], bmax[3];
+#define BOX(a, b, c, d, e, f) (bmin[0] = a, bmin[1] = b, bmin[2] = c, bmax[0] = d, bmax[1] = e, bmax[2] = f)
+        BOX(-1, -1, -30, 1, 1, -20); /* behind the wall */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_OCCLUDED);
+        BOX(-1, -1, -9, 1, 1, -8); /* in front */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_VISIBLE);
+        BOX(-1, -1, -10.5f, 1, 1, -9.5f); /* through the wall */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_VISIBLE);
+        BOX(4, -1, -30, 14, 1, -20); /* partly behind, partly beside */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_VISIBLE);
+        BOX(-1, -1, 2, 1, 1, 4); /* behind the camera */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_OUTSIDE);
+        BOX(-1, -1, -1, 1, 1, 1); /* around the camera */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_VISIBLE);
+        BOX(-1, -1, -2000, 1, 1, -1500); /* beyond the far plane */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_OUTSIDE);
+        BOX(500, -1, -30, 510, 1, -20); /* beside the frustum */
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_OUTSIDE);
+        BOX(NAN, -1, -30, 1, 1, -20);
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_VISIBLE);
+        /* meshes: a small quad behind the wall, the same in front, one beside */
+        float q[12] = {-1, -1, -20, 1, -1, -20, 1, 1, -20, -1, 1, -20};
+        assert_int_equal(sl_raster_test_triangles(r, q, 4, ix, 2, 12, P, SL_RASTER_CULL_NONE), SL_RASTER_OCCLUDED);
+        for (int k = 0; k < 4; k++)
+            q[3 * k + 2] = -5;
+        assert_int_equal(sl_raster_test_triangles(r, q, 4, ix, 2, 12, P, SL_RASTER_CULL_NONE), SL_RASTER_VISIBLE);
+        float side[12] = {100, -1, -20, 102, -1, -20, 102, 1, -20, 100, 1, -20};
+        assert_int_equal(sl_raster_test_triangles(r, side, 4, ix, 2, 12, P, SL_RASTER_CULL_NONE), SL_RASTER_OUTSIDE);
+        /* a mesh crossing the near plane: the part beyond it, in front of the wall, is visible */
+        float cross[9] = {-1, -1, 1, 1, -1, -5, 0, 1, -5};
+        uint32_t i3[3] = {0, 1, 2};
+        assert_int_equal(sl_raster_test_triangles(r, cross, 3, i3, 1, 12, P, SL_RASTER_CULL_NONE), SL_RASTER_VISIBLE);
+        /* a sliver mesh behind the wall (degenerate after snapping) is still tested */
+        float sliver[9] = {0, 0, -20, 0.0001f, 0, -20, 0, 0.00001f, -20};
+        assert_int_equal(sl_raster_test_triangles(r, sliver, 3, i3, 1, 12, P, SL_RASTER_CULL_NONE),
+                         SL_RASTER_OCCLUDED);
+        sliver[2] = sliver[5] = sliver[8] = -2;
+        assert_int_equal(sl_raster_test_triangles(r, sliver, 3, i3, 1, 12, P, SL_RASTER_CULL_NONE),
+                         SL_RASTER_VISIBLE);
+        uint32_t badix[3] = {0, 1, 7};
+        assert_int_equal(sl_raster_test_triangles(r, q, 4, badix, 1, 12, P, SL_RASTER_CULL_NONE), SL_RASTER_VISIBLE);
+        /* rectangles */
+        assert_int_equal(sl_raster_test_rect(r, -10, -10, -1, -1, 0.01f), SL_RASTER_OUTSIDE);
+        assert_int_equal(sl_raster_test_rect(r, 150, 80, 160, 90, NAN), SL_RASTER_VISIBLE);
+        assert_int_equal(sl_raster_test_rect(r, 150, 80, 160, 90, -1.0f), SL_RASTER_OUTSIDE);
+        assert_int_equal(sl_raster_test_rect(r, 150, 80, 160, 90, 0.05f), SL_RASTER_OCCLUDED);
+        assert_int_equal(sl_raster_test_rect(r, 150, 80, 160, 90, 0.2f), SL_RASTER_VISIBLE);
+        assert_int_equal(sl_raster_test_rect(r, 0, 0, 5, 5, 0.0001f), SL_RASTER_VISIBLE); /* empty corner */
+        sl_raster_destroy(r);
+    }
+}
+
+/* A full-screen occluder hides everything behind it (tightness). */
+static void test_full_screen_tight(void **state)
+{
+    (void)state;
+    const int W = 1920 / 4, H = 1080 / 4;
+    float P[16];
+    perspective(P, 1.0, (double)W / H, 0.1, 1000);
+    sl_raster *r = make(W, H, SL_RASTER_ISA_AUTO, SL_RASTER_DEPTH_INV_W, 1);
+    float wall[12] = {-100, -60, -10, 100, -60, -10, 100, 60, -10, -100, 60, -10};
+    uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+    render(r, wall, 4, ix, 2, P, SL_RASTER_CULL_NONE);
+    assert_int_equal(sl_raster_test_rect(r, 0, 0, W, H, 1.0f / 10.01f), SL_RASTER_OCCLUDED);
+    sl_rng rng;
+    sl_rng_seed(&rng, 3, 3);
+    for (int n = 0; n < 200; n++) {
+        float bmin[3] = {sl_rng_range(&rng, -8, 8), sl_rng_range(&rng, -4, 4), sl_rng_range(&rng, -200, -10.05f)};
+        float bmax[3] = {bmin[0] + sl_rng_range(&rng, 0, 3), bmin[1] + sl_rng_range(&rng, 0, 3), -10.02f};
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, P), SL_RASTER_OCCLUDED);
+    }
+    sl_raster_tile_info ti;
+    assert_int_equal(sl_raster_get_tile_info(r, 3, 3, &ti, NULL), SL_OK);
+    assert_int_equal(ti.covered_pixels, 256);
+    assert_int_equal(ti.full_subtiles, 8);
+    uint32_t tx, ty;
+    sl_raster_get_size(r, NULL, NULL, &tx, &ty);
+    float *sub = malloc(sizeof(float) * tx * 4 * ty * 2);
+    assert_non_null(sub);
+    assert_int_equal(sl_raster_read_subtile_depth(r, sub, (size_t)tx * 4 * ty * 2, NULL), SL_OK);
+    for (size_t i = 0; i < (size_t)tx * 4 * ty * 2; i++)
+        assert_true(sub[i] > 0.0999f && sub[i] <= 0.1f);
+    free(sub);
+    sl_raster_destroy(r);
+}
+
+/* Orthographic projection (LINEAR_Z depth): walls and boxes; geometry behind the camera is
+ * clipped by the near plane and occludes nothing. */
+static void test_orthographic(void **state)
+{
+    (void)state;
+    const int W = 200, H = 100;
+    float O[16];
+    orthographic(O, 20, 10, 1, 101);
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, 1);
+        float wall[12] = {-5, -5, -50, 5, -5, -50, 5, 5, -50, -5, 5, -50};
+        uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+        render(r, wall, 4, ix, 2, O, SL_RASTER_CULL_NONE);
+        float bmin[3] = {-2, -2, -80}, bmax[3] = {2, 2, -60};
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, O), SL_RASTER_OCCLUDED);
+        bmin[2] = -40, bmax[2] = -30;
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, O), SL_RASTER_VISIBLE);
+        bmin[0] = 4, bmax[0] = 8, bmin[2] = -80, bmax[2] = -60;
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, O), SL_RASTER_VISIBLE);
+        /* orthographic depth is linear: the wall sits at d = 1 - (50 - 1)/100 */
+        float *img = depth_image(r);
+        float d = img[50 * W + 100];
+        assert_true(d <= 0.51f && d > 0.5099f);
+        free(img);
+        /* a wall behind the camera and one crossing the near plane */
+        sl_raster_clear(r);
+        float behind[12] = {-15, -8, 5, 15, -8, 5, 15, 8, 5, -15, 8, 5};
+        render(r, behind, 4, ix, 2, O, SL_RASTER_CULL_NONE);
+        float crossing[12] = {-15, -8, 5, 15, -8, 5, 15, 8, -20, -15, 8, -20};
+        render(r, crossing, 4, ix, 2, O, SL_RASTER_CULL_NONE);
+        /* the crossing wall occludes only what lies behind its part beyond the near plane */
+        bmin[0] = -2, bmax[0] = 2, bmin[1] = -2, bmax[1] = 2, bmin[2] = -90, bmax[2] = -80;
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, O), SL_RASTER_OCCLUDED);
+        bmin[1] = -9.5f, bmax[1] = -9, bmin[2] = -3, bmax[2] = -2;
+        assert_int_equal(sl_raster_test_aabb(r, bmin, bmax, O), SL_RASTER_VISIBLE);
+        sl_raster_stats st;
+        sl_raster_get_stats(r, &st);
+        assert_int_equal(st.culled_outside, 2);
+        assert_int_equal(st.clipped, 2);
+        sl_raster_destroy(r);
+    }
+}
+
+/* A random scene with clipping, huge, sliver and tie cases in a perspective view. */
+static void random_scene(sl_rng *rng, int count, float **pv, uint32_t **pix, uint32_t *nv)
+{
+    float *v = malloc(sizeof(float) * 9 * (size_t)count);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (size_t)count);
+    assert_true(v && ix);
+    for (int n = 0; n < count; n++) {
+        int kind = (int)sl_rng_below(rng, 10);
+        /* back to front on average, so that merges of every kind happen */
+        float zc = -60.0f + 55.0f * (float)n / (float)count + sl_rng_range(rng, -5, 5);
+        float size = kind < 6 ? sl_rng_range(rng, 0.05f, 3) : (kind < 8 ? sl_rng_range(rng, 5, 80) : 400);
+        float cx = sl_rng_range(rng, -1, 1) * -zc * 0.8f, cy = sl_rng_range(rng, -1, 1) * -zc * 0.5f;
+        for (int k = 0; k < 3; k++) {
+            v[9 * n + 3 * k + 0] = cx + sl_rng_range(rng, -size, size);
+            v[9 * n + 3 * k + 1] = cy + sl_rng_range(rng, -size, size);
+            v[9 * n + 3 * k + 2] = kind == 9 && k == 0 ? sl_rng_range(rng, -1, 5) : zc + sl_rng_range(rng, -2, 2);
+        }
+        if (kind == 5) { /* sliver */
+            float t = sl_rng_range(rng, 0, 1);
+            for (int c = 0; c < 3; c++)
+                v[9 * n + 6 + c] = v[9 * n + c] + t * (v[9 * n + 3 + c] - v[9 * n + c]) + sl_rng_range(rng, -1e-3f, 1e-3f);
+        }
+        for (int k = 0; k < 3; k++)
+            ix[3 * n + k] = (uint32_t)(3 * n + k);
+    }
+    *pv = v, *pix = ix, *nv = (uint32_t)(3 * count);
+}
+
+/* Every instruction-set path leaves the same bits in the buffer and answers queries the same. */
+static void test_isa_bit_identical(void **state)
+{
+    (void)state;
+    const int W = 256, H = 144;
+    int count = sanitized() ? 400 : 4000;
+    float P[16];
+    perspective(P, 1.1, (double)W / H, 0.3, 500);
+    sl_rng rng;
+    sl_rng_seed(&rng, 42, 9);
+    float *v;
+    uint32_t *ix, nv;
+    random_scene(&rng, count, &v, &ix, &nv);
+    for (int cov = 0; cov < 2; cov++) {
+        sl_raster *ref = NULL;
+        for (int ii = 0; ii < isa_count; ii++) {
+            sl_raster_options o = sl_raster_default_options(W, H);
+            o.isa = isa_list[ii];
+            o.coverage = cov ? SL_RASTER_COVERAGE_INNER : SL_RASTER_COVERAGE_CENTER;
+            sl_raster *r;
+            assert_int_equal(sl_raster_create(&o, NULL, &r, NULL), SL_OK);
+            assert_int_equal(sl_raster_get_isa(r), isa_list[ii]);
+            for (int part = 0; part < 4; part++)
+                render(r, v + 9 * (count / 4) * part, nv - 9 * (uint32_t)(count / 4) * (uint32_t)part / 3, ix,
+                       (uint32_t)(count / 4), P, SL_RASTER_CULL_NONE);
+            if (!ref) {
+                ref = r;
+                continue;
+            }
+            assert_same_buffer(ref, r);
+            /* queries: random rectangles, boxes and small meshes */
+            sl_rng q;
+            sl_rng_seed(&q, 77, 1);
+            for (int n = 0; n < 300; n++) {
+                int32_t x0 = (int32_t)sl_rng_below(&q, W + 20) - 10, y0 = (int32_t)sl_rng_below(&q, H + 20) - 10;
+                int32_t x1 = x0 + (int32_t)sl_rng_below(&q, 120), y1 = y0 + (int32_t)sl_rng_below(&q, 60);
+                float d = sl_rng_range(&q, 0, 0.2f);
+                assert_int_equal(sl_raster_test_rect(ref, x0, y0, x1, y1, d), sl_raster_test_rect(r, x0, y0, x1, y1, d));
+                float bmin[3] = {sl_rng_range(&q, -30, 30), sl_rng_range(&q, -20, 20), sl_rng_range(&q, -80, -1)};
+                float bmax[3] = {bmin[0] + sl_rng_range(&q, 0, 5), bmin[1] + sl_rng_range(&q, 0, 5),
+                                 bmin[2] + sl_rng_range(&q, 0, 5)};
+                assert_int_equal(sl_raster_test_aabb(ref, bmin, bmax, P), sl_raster_test_aabb(r, bmin, bmax, P));
+                const float *tri = v + 9 * sl_rng_below(&q, (uint32_t)count);
+                float moved[9];
+                for (int k = 0; k < 9; k++)
+                    moved[k] = tri[k] * (k % 3 == 2 ? 1.3f : 1.0f);
+                uint32_t i3[3] = {0, 1, 2};
+                assert_int_equal(sl_raster_test_triangles(ref, moved, 3, i3, 1, 12, P, SL_RASTER_CULL_NONE),
+                                 sl_raster_test_triangles(r, moved, 3, i3, 1, 12, P, SL_RASTER_CULL_NONE));
+            }
+            sl_raster_destroy(r);
+        }
+        sl_raster_destroy(ref);
+    }
+    free(v);
+    free(ix);
+}
+
+/* Hostile geometry: magnitudes from 1e-30 to 1e30, w near zero or negative, random matrices.
+ * Nothing may crash, every path must agree, and every depth stays finite and non-negative. */
+static void test_extreme_inputs(void **state)
+{
+    (void)state;
+    const int W = 96, H = 64;
+    int count = sanitized() ? 300 : 3000;
+    sl_rng rng;
+    sl_rng_seed(&rng, 666, 6);
+    float *v = malloc(sizeof(float) * 9 * (size_t)count);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (size_t)count);
+    assert_true(v && ix);
+    for (int n = 0; n < 9 * count; n++) {
+        float mag = powf(10.0f, sl_rng_range(&rng, -30, 30));
+        v[n] = sl_rng_below(&rng, 4) == 0 ? sl_rng_range(&rng, -2, 2) : mag * sl_rng_range(&rng, -1, 1);
+    }
+    for (int n = 0; n < 3 * count; n++)
+        ix[n] = (uint32_t)n;
+    float m[4][16];
+    for (int k = 0; k < 4; k++)
+        for (int e = 0; e < 16; e++)
+            m[k][e] = sl_rng_range(&rng, -2, 2) * (sl_rng_below(&rng, 3) == 0 ? 1e-6f : 1.0f);
+    sl_raster *ref = NULL;
+    for (int ii = 0; ii < isa_count; ii++) {
+        for (int depth = 0; depth < 2; depth++) {
+            sl_raster *r = make(W, H, isa_list[ii], (sl_raster_depth)depth, 1);
+            for (int k = 0; k < 4; k++)
+                render(r, v, (uint32_t)(3 * count), ix, (uint32_t)count, m[k], SL_RASTER_CULL_NONE);
+            float *img = depth_image(r);
+            for (int i = 0; i < W * H; i++)
+                assert_true(isfinite(img[i]) && img[i] >= 0.0f);
+            free(img);
+            sl_raster_stats st;
+            sl_raster_get_stats(r, &st);
+            /* the input reaches every branch: rendered, clipped, rejected, outside */
+            assert_true(st.triangles_rasterized > 0 && st.clipped > 0 && st.culled_outside > 0);
+            if (depth == 1) {
+                sl_raster_destroy(r);
+                continue;
+            }
+            if (!ref)
+                ref = r;
+            else {
+                assert_same_buffer(ref, r);
+                sl_raster_destroy(r);
+            }
+        }
+    }
+    sl_raster_destroy(ref);
+    free(v);
+    free(ix);
+}
+
+/* INNER coverage: every covered pixel square lies inside the unsnapped triangle. */
+static void test_inner_coverage(void **state)
+{
+    (void)state;
+    const int W = 96, H = 64;
+    sl_raster_options o = sl_raster_default_options(W, H);
+    o.coverage = SL_RASTER_COVERAGE_INNER;
+    o.depth = SL_RASTER_DEPTH_LINEAR_Z;
+    sl_raster *r;
+    assert_int_equal(sl_raster_create(&o, NULL, &r, NULL), SL_OK);
+    sl_rng rng;
+    sl_rng_seed(&rng, 9, 9);
+    int rounds = sanitized() ? 50 : 300, any = 0;
+    for (int n = 0; n < rounds; n++) {
+        float p[9];
+        random_tri(&rng, W, H, 1, p);
+        uint32_t ix[3] = {0, 1, 2};
+        sl_raster_clear(r);
+        render(r, p, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+        double sx[3], sy[3];
+        for (int k = 0; k < 3; k++)
+            sx[k] = ((double)p[3 * k] + 1) * W / 2, sy[k] = (1 - (double)p[3 * k + 1]) * H / 2;
+        double area = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]);
+        float *img = depth_image(r);
+        for (int j = 0; j < H; j++)
+            for (int i = 0; i < W; i++) {
+                if (!(img[j * W + i] > 0.0f))
+                    continue;
+                any++;
+                for (int cnr = 0; cnr < 4; cnr++) {
+                    double px = i + (cnr & 1), py = j + (cnr >> 1);
+                    for (int e = 0; e < 3; e++) {
+                        int a = e, b = (e + 1) % 3;
+                        double E = (sx[b] - sx[a]) * (py - sy[a]) - (sy[b] - sy[a]) * (px - sx[a]);
+                        assert_true(E * area >= 0);
+                    }
+                }
+            }
+        free(img);
+    }
+    assert_true(any > 1000);
+    sl_raster_destroy(r);
+}
+
+/* Multi-threaded rendering (pool and caller-driven bins) equals single-threaded, bit for bit. */
+typedef struct bin_worker {
+    sl_raster *r;
+    uint32_t first, step;
+    _Atomic int *done;
+} bin_worker;
+
+static void *bin_worker_main(void *p)
+{
+    bin_worker *w = p;
+    uint32_t n = sl_raster_bin_count(w->r);
+    /* render whatever is published until the front end says it is done, then a final pass */
+    while (!atomic_load(w->done))
+        for (uint32_t b = w->first; b < n; b += w->step)
+            sl_raster_render_bin(w->r, b);
+    for (uint32_t b = w->first; b < n; b += w->step)
+        sl_raster_render_bin(w->r, b);
+    return NULL;
+}
+
+static void test_threads_identical(void **state)
+{
+    (void)state;
+    const int W = 320, H = 184;
+    int count = sanitized() ? 1200 : 20000; /* > 16384: the pool bins in two chunks */
+    float P[16];
+    perspective(P, 1.1, (double)W / H, 0.3, 500);
+    sl_rng rng;
+    sl_rng_seed(&rng, 4242, 1);
+    float *v;
+    uint32_t *ix, nv;
+    random_scene(&rng, count, &v, &ix, &nv);
+    sl_raster *ref = make(W, H, SL_RASTER_ISA_SCALAR, SL_RASTER_DEPTH_INV_W, 1);
+    render(ref, v, nv, ix, (uint32_t)count, P, SL_RASTER_CULL_CW);
+    sl_raster_stats sref;
+    sl_raster_get_stats(ref, &sref);
+    const uint32_t threads[] = {1, 2, 4};
+    for (size_t t = 0; t < SL_COUNTOF(threads); t++) {
+        sl_raster_options o = sl_raster_default_options(W, H);
+        o.threads = threads[t];
+        o.bins_x = 3, o.bins_y = 5;
+        sl_raster *r;
+        assert_int_equal(sl_raster_create(&o, NULL, &r, NULL), SL_OK);
+        render(r, v, nv, ix, (uint32_t)count, P, SL_RASTER_CULL_CW);
+        assert_same_buffer(ref, r);
+        sl_raster_stats st;
+        sl_raster_get_stats(r, &st);
+        assert_int_equal(st.triangles_rasterized, sref.triangles_rasterized);
+        assert_int_equal(st.culled_backface, sref.culled_backface);
+        /* the caller-driven bins: one front end, two renderers running at the same time */
+        sl_raster_clear(r);
+        _Atomic int done = 0;
+        bin_worker w[2] = {{r, 0, 2, &done}, {r, 1, 2, &done}};
+        pthread_t th[2];
+        for (int k = 0; k < 2; k++)
+            assert_int_equal(pthread_create(&th[k], NULL, bin_worker_main, &w[k]), 0);
+        uint32_t chunk = (uint32_t)count / 7 + 1;
+        for (uint32_t first = 0; first < (uint32_t)count; first += chunk) {
+            uint32_t n = SL_MIN(chunk, (uint32_t)count - first);
+            assert_int_equal(sl_raster_bin_triangles(r, v, nv, ix + 3 * first, n, 12, P, SL_RASTER_CULL_CW, NULL),
+                             SL_OK);
+        }
+        atomic_store(&done, 1);
+        for (int k = 0; k < 2; k++)
+            pthread_join(th[k], NULL);
+        sl_raster_flush(r); /* nothing left: a no-op beyond recycling */
+        assert_same_buffer(ref, r);
+        sl_raster_get_stats(r, &st);
+        assert_true(st.bin_references >= st.triangles_rasterized);
+        sl_raster_destroy(r);
+    }
+    sl_raster_destroy(ref);
+    free(v);
+    free(ix);
+}
+
+/* Binned triangles reach the buffer in order even when a direct render follows without flush. */
+static void test_bins_then_direct(void **state)
+{
+    (void)state;
+    sl_raster *a = make(128, 64, SL_RASTER_ISA_AUTO, SL_RASTER_DEPTH_LINEAR_Z, 1);
+    sl_raster *b = make(128, 64, SL_RASTER_ISA_AUTO, SL_RASTER_DEPTH_LINEAR_Z, 1);
+    sl_rng rng;
+    sl_rng_seed(&rng, 8, 8);
+    float v[9 * 60];
+    uint32_t ix[3 * 60];
+    for (int n = 0; n < 60; n++) {
+        random_tri(&rng, 128, 64, n % 3, v + 9 * n);
+        for (int k = 0; k < 3; k++)
+            ix[3 * n + k] = (uint32_t)(3 * n + k);
+    }
+    render(a, v, 180, ix, 60, IDENTITY, SL_RASTER_CULL_NONE);
+    assert_int_equal(sl_raster_bin_triangles(b, v, 180, ix, 30, 12, IDENTITY, SL_RASTER_CULL_NONE, NULL), SL_OK);
+    render(b, v, 180, ix + 90, 30, IDENTITY, SL_RASTER_CULL_NONE);
+    assert_same_buffer(a, b);
+    /* an out-of-range bin renders nothing */
+    assert_int_equal(sl_raster_render_bin(b, 1000), 0);
+    sl_raster_destroy(a);
+    sl_raster_destroy(b);
+}
+
+/* Sizes that are not multiples of the tile, the allocator, memory and begin_frame. */
+static void test_odd_size_and_allocator(void **state)
+{
+    (void)state;
+    sl_test_counter c = {0};
+    sl_allocator al = sl_test_counting_allocator(&c);
+    sl_raster_options o = sl_raster_default_options(37, 13);
+    o.threads = 2;
+    sl_raster *r;
+    assert_int_equal(sl_raster_create(&o, &al, &r, NULL), SL_OK);
+    uint32_t tx, ty;
+    sl_raster_get_size(r, NULL, NULL, &tx, &ty);
+    assert_int_equal(tx, 2);
+    assert_int_equal(ty, 2);
+    assert_true(sl_raster_memory(r) >= 4 * 96);
+    float wall[12] = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
+    uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+    render(r, wall, 4, ix, 2, IDENTITY, SL_RASTER_CULL_NONE); /* INV_W: depth 1 */
+    assert_int_equal(sl_raster_test_rect(r, 0, 0, 37, 13, 0.99f), SL_RASTER_OCCLUDED);
+    assert_int_equal(sl_raster_test_rect(r, 30, 10, 100, 100, 0.99f), SL_RASTER_OCCLUDED);
+    assert_int_equal(sl_raster_test_rect(r, 37, 0, 40, 13, 0.99f), SL_RASTER_OUTSIDE);
+    assert_int_equal(sl_raster_begin_frame(r, SL_RASTER_DEPTH_LINEAR_Z, NULL), SL_OK);
+    assert_int_equal(sl_raster_test_rect(r, 0, 0, 37, 13, 0.01f), SL_RASTER_VISIBLE);
+    render(r, wall, 4, ix, 2, IDENTITY, SL_RASTER_CULL_NONE); /* LINEAR_Z: depth 0.5 */
+    float *img = depth_image(r);
+    for (int i = 0; i < 37 * 13; i++)
+        assert_true(img[i] > 0.49f && img[i] <= 0.5f);
+    free(img);
+    float pt[4] = {0, 0, 0, 1}, x, y, d;
+    assert_true(sl_raster_project(r, pt, &x, &y, &d));
+    assert_true(x == 18.5f && y == 6.5f && d == 0.5f);
+    pt[3] = 0;
+    assert_false(sl_raster_project(r, pt, &x, &y, &d));
+    assert_int_equal(sl_raster_begin_frame(r, (sl_raster_depth)9, NULL), SL_ERROR_INVALID_ARGUMENT);
+    sl_raster_destroy(r);
+    assert_int_equal(c.live, 0);
+    assert_string_equal(sl_raster_isa_name(SL_RASTER_ISA_AVX2), "avx2");
+    assert_true(sl_raster_isa_available(SL_RASTER_ISA_SCALAR));
+}
+
+int main(void)
+{
+    collect_isas();
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_fill_rule_exact),      cmocka_unit_test(test_soup_conservative),
+        cmocka_unit_test(test_shared_edge_watertight), cmocka_unit_test(test_no_double_coverage),
+        cmocka_unit_test(test_huge_triangles),        cmocka_unit_test(test_near_plane_crossing),
+        cmocka_unit_test(test_bad_input),             cmocka_unit_test(test_backface),
+        cmocka_unit_test(test_queries_perspective),   cmocka_unit_test(test_full_screen_tight),
+        cmocka_unit_test(test_orthographic),          cmocka_unit_test(test_isa_bit_identical),
+        cmocka_unit_test(test_inner_coverage),        cmocka_unit_test(test_threads_identical),
+        cmocka_unit_test(test_bins_then_direct),      cmocka_unit_test(test_odd_size_and_allocator),
+        cmocka_unit_test(test_extreme_inputs),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
