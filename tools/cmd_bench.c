@@ -1,8 +1,663 @@
-/* TEMPORARY placeholder while the subcommand is written: fails loudly. */
+/* `sightline bench`: culling methods x scenes x camera paths, every frame judged by the exact point
+ * oracle. Writes per-frame CSV/JSON, a Markdown summary, SVG plots and top-down visibility maps
+ * (library side: include/sightline/bench.h; formats: docs/bench.md), prints the summary table,
+ * and fails loudly when a conservative method drops a visible object. */
 #include "cli.h"
+
+#include "core/sl_core.h"
+#include "sightline/bench.h"
+#include "sightline/path.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#define DEG (M_PI / 180.0)
+#define MAX_SCENES 16
+#define MAX_OPTS 64
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline bench SCENE... (--walk N | --path FILE | --random street|flyover) [options]\n\n"
+            "Run culling methods over scenes and camera views against the exact point oracle. For every\n"
+            "frame the oracle renders once (shared by all methods), then each method culls the same\n"
+            "camera; its time, what it keeps and draws, and its misses against the oracle are recorded.\n\n"
+            "SCENE is city:tiny|small|vienna[:SEED] (generated on the fly), or a file: .slscene, a Quake\n"
+            "III .bsp or .pk3 (with --map), or any format assimp reads.\n\n"
+            "views (one of):\n"
+            "  --walk N             a street-level walk of N frames (sl_path_generate walk; --fps, --seed)\n"
+            "  --path FILE          a path file (docs/paths.md); --frames A:B picks frames A..B-1\n"
+            "  --random KIND        random street or flyover viewpoints (--count N, --seed S)\n"
+            "  --count N            random viewpoints (default 100)\n"
+            "  --seed S             seed of the walk or the random views (default 1)\n"
+            "  --fps F              walk frames per second (default 30; 1.4 m/s, so 30 fps = 4.7 cm a frame)\n"
+            "  --frames A:B         with --path: frames A to B-1 (A:, :B and A also work)\n\n"
+            "methods:\n"
+            "  --methods LIST       comma-separated registry names (default: every registered method that\n"
+            "                       runs with its default options; one that needs an option, like pvs's\n"
+            "                       file=PATH, is reported as not run unless given --method-options;\n"
+            "                       `sightline methods` lists them all)\n"
+            "  --method-options NAME:key=value,...   options for one method (repeatable)\n"
+            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n\n"
+            "rendering:\n"
+            "  --width W --height H viewport of every camera and oracle resolution (default 1024x768,\n"
+            "                       replacing a path file's)\n"
+            "  --threads T          oracle threads (default 2); methods always run on one thread\n"
+            "  --map NAME           map inside a .pk3\n\n"
+            "output:\n"
+            "  --out DIR            output folder (default bench-out): frames.csv, frames.json,\n"
+            "                       summary.md, summary.json, and per scene LABEL-cull-time.svg,\n"
+            "                       LABEL-triangles.svg, LABEL-missed-pixels.svg, LABEL-map-METHOD.png\n"
+            "  --map-eye X,Y,Z      top-down maps of visibility from this point in all directions\n"
+            "                       (default: from the first frame's camera)\n"
+            "  --map-size N         map pixels along its longer side (default 1024)\n"
+            "  --no-plots           no plots and no maps\n"
+            "  --json               print the summary as JSON instead of the table\n"
+            "  --strict             exit 1 when a conservative method misses a visible object (default)\n"
+            "  --no-strict          report such misses loudly but exit 0\n"
+            "  --quiet              no progress bar\n"
+            "  --help               this text\n\n"
+            "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
+            "naming the scene, frame, method and objects, and the command exits 1 (unless --no-strict).\n"
+            "Exit status: 0 ok, 1 failure or violation, 2 usage error.\n\n"
+            "examples:\n"
+            "  sightline bench city:small --walk 300\n"
+            "  sightline bench city:vienna:1 --walk 600 --fps 10 --methods vfc --out vienna-bench\n"
+            "  sightline bench city.slscene --random street --count 200 --seed 3 --repeat 5\n"
+            "  sightline bench city.slscene --path walk.txt --frames 0:100 --method-options vfc:coherence=off\n");
+}
+
+typedef struct bench_args {
+    const char *scenes[MAX_SCENES];
+    uint32_t scene_count;
+    const char *path_file, *random_kind, *methods, *out_dir, *map, *frames;
+    const char *mopt_name[MAX_OPTS], *mopt_value[MAX_OPTS];
+    uint32_t mopt_count;
+    uint32_t walk, count, width, height, threads, repeat, map_size;
+    uint64_t seed;
+    float fps;
+    bool has_walk, has_eye, no_plots, json, quiet, strict;
+    sl_vec3 eye;
+} bench_args;
+
+/* "x,y,z" into three finite floats. */
+static bool parse_vec3(const char *text, sl_vec3 *out)
+{
+    float v[3];
+    const char *p = text;
+    for (int i = 0; i < 3; i++) {
+        char *end;
+        errno = 0;
+        v[i] = strtof(p, &end);
+        if (end == p || errno || !isfinite(v[i]) || (i < 2 ? *end != ',' : *end != 0))
+            return false;
+        p = end + 1;
+    }
+    *out = (sl_vec3){v[0], v[1], v[2]};
+    return true;
+}
+
+/* "A:B", "A:", ":B" or "A" into a first frame and a count (UINT32_MAX: to the end). */
+static bool parse_range(const char *text, uint32_t *first, uint32_t *count)
+{
+    const char *colon = strchr(text, ':');
+    unsigned long long a = 0, b = UINT32_MAX;
+    char *end;
+    if (text[0] != ':') {
+        errno = 0;
+        a = strtoull(text, &end, 10);
+        if (end == text || errno || a > UINT32_MAX || text[0] == '-' || (colon ? end != colon : *end != 0))
+            return false;
+    }
+    if (!colon) {
+        b = a + 1;
+    } else if (colon[1]) {
+        errno = 0;
+        b = strtoull(colon + 1, &end, 10);
+        if (*end || errno || b > UINT32_MAX || colon[1] == '-')
+            return false;
+    }
+    if (b <= a)
+        return false;
+    *first = (uint32_t)a;
+    *count = (uint32_t)(b == UINT32_MAX ? UINT32_MAX : b - a);
+    return true;
+}
+
+/* mkdir -p. */
+static bool make_dirs(const char *dir)
+{
+    char buf[4096];
+    if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
+        return false;
+    for (char *p = buf + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = 0;
+        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+            return false;
+        *p = '/';
+    }
+    if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+        return false;
+    struct stat sb;
+    return stat(buf, &sb) == 0 && S_ISDIR(sb.st_mode);
+}
+
+static int parse(int argc, char **argv, bench_args *g)
+{
+    memset(g, 0, sizeof *g);
+    g->count = 100;
+    g->seed = 1;
+    g->width = 1024;
+    g->height = 768;
+    g->threads = 2;
+    g->repeat = 1;
+    g->fps = 30;
+    g->strict = true;
+    g->out_dir = "bench-out";
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    const char *name, *val;
+    while (cli_next(&a, &name, &val)) {
+        if (!name) {
+            if (g->scene_count == MAX_SCENES) {
+                cli_error(argv[0], "at most %d scenes", MAX_SCENES);
+                return 2;
+            }
+            g->scenes[g->scene_count++] = val;
+        } else if (!strcmp(name, "help")) {
+            usage(stdout);
+            return -1;
+        } else if (!strcmp(name, "walk")) {
+            g->has_walk = cli_parse_u32(&a, name, cli_value(&a, name, val), &g->walk);
+        } else if (!strcmp(name, "path")) {
+            g->path_file = cli_value(&a, name, val);
+        } else if (!strcmp(name, "random")) {
+            g->random_kind = cli_value(&a, name, val);
+        } else if (!strcmp(name, "count")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->count);
+        } else if (!strcmp(name, "seed")) {
+            cli_parse_u64(&a, name, cli_value(&a, name, val), &g->seed);
+        } else if (!strcmp(name, "fps")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->fps);
+        } else if (!strcmp(name, "frames")) {
+            g->frames = cli_value(&a, name, val);
+        } else if (!strcmp(name, "methods")) {
+            g->methods = cli_value(&a, name, val);
+        } else if (!strcmp(name, "method-options")) {
+            const char *v = cli_value(&a, name, val);
+            const char *colon = v ? strchr(v, ':') : NULL;
+            if (v && (!colon || colon == v)) {
+                cli_error(argv[0], "--method-options '%s': expected NAME:key=value,...", v);
+                return 2;
+            }
+            if (v && g->mopt_count == MAX_OPTS) {
+                cli_error(argv[0], "too many --method-options");
+                return 2;
+            }
+            if (v) {
+                g->mopt_name[g->mopt_count] = v;
+                g->mopt_value[g->mopt_count++] = colon + 1;
+            }
+        } else if (!strcmp(name, "repeat")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->repeat);
+        } else if (!strcmp(name, "width")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->width);
+        } else if (!strcmp(name, "height")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->height);
+        } else if (!strcmp(name, "threads")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->threads);
+        } else if (!strcmp(name, "map")) {
+            g->map = cli_value(&a, name, val);
+        } else if (!strcmp(name, "out")) {
+            g->out_dir = cli_value(&a, name, val);
+        } else if (!strcmp(name, "map-eye")) {
+            const char *v = cli_value(&a, name, val);
+            if (v && !parse_vec3(v, &g->eye)) {
+                cli_error(argv[0], "--map-eye '%s': expected X,Y,Z (three finite numbers)", v);
+                return 2;
+            }
+            g->has_eye = true;
+        } else if (!strcmp(name, "map-size")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->map_size);
+        } else if (!strcmp(name, "no-plots")) {
+            g->no_plots = true;
+        } else if (!strcmp(name, "json")) {
+            g->json = true;
+        } else if (!strcmp(name, "strict")) {
+            g->strict = true;
+        } else if (!strcmp(name, "no-strict")) {
+            g->strict = false;
+        } else if (!strcmp(name, "quiet")) {
+            g->quiet = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    const char *cmd = argv[0];
+    int kinds = (g->has_walk ? 1 : 0) + (g->path_file ? 1 : 0) + (g->random_kind ? 1 : 0);
+    if (!g->scene_count) {
+        cli_error(cmd, "missing SCENE (a file or city:tiny|small|vienna[:SEED]; see --help)");
+        return 2;
+    }
+    if (kinds != 1) {
+        cli_error(cmd, kinds ? "give only one of --walk, --path and --random" : "missing views: --walk N, --path FILE "
+                                                                                 "or --random street|flyover");
+        return 2;
+    }
+    if (g->random_kind && strcmp(g->random_kind, "street") && strcmp(g->random_kind, "flyover")) {
+        cli_error(cmd, "--random '%s' is not street or flyover", g->random_kind);
+        return 2;
+    }
+    if ((g->has_walk && g->walk == 0) || (g->random_kind && g->count == 0)) {
+        cli_error(cmd, "no frames to run (--walk/--count must be at least 1)");
+        return 2;
+    }
+    if (g->frames && !g->path_file) {
+        cli_error(cmd, "--frames applies to --path only");
+        return 2;
+    }
+    if (!g->width || !g->height || g->width > 16384 || g->height > 16384) {
+        cli_error(cmd, "--width/--height must be 1..16384");
+        return 2;
+    }
+    if (g->threads < 1 || g->threads > 64) {
+        cli_error(cmd, "--threads must be 1..64");
+        return 2;
+    }
+    if (g->repeat < 1 || g->repeat > 1000) {
+        cli_error(cmd, "--repeat must be 1..1000");
+        return 2;
+    }
+    if (g->map_size && (g->map_size < 16 || g->map_size > 8192)) {
+        cli_error(cmd, "--map-size must be 16..8192");
+        return 2;
+    }
+    if (!(g->fps >= 0.001f && g->fps <= 1000)) {
+        cli_error(cmd, "--fps must be in 0.001..1000");
+        return 2;
+    }
+    return 0;
+}
+
+/* The --method-options text given for a method, or NULL. */
+static const char *options_for(const bench_args *g, const char *name)
+{
+    for (uint32_t i = 0; i < g->mopt_count; i++) {
+        size_t len = (size_t)(g->mopt_value[i] - 1 - g->mopt_name[i]);
+        if (strlen(name) == len && !strncmp(name, g->mopt_name[i], len))
+            return g->mopt_value[i];
+    }
+    return NULL;
+}
+
+/* The methods to run with their options: --methods (default: every registered method that runs
+ * with its default options or was given --method-options; the rest go to skipped with the
+ * reason) and --method-options. Names and options point into argv, names[] or the registry.
+ * Returns the count, or -1 after printing a usage error. */
+static int method_specs(const bench_args *g, const char *cmd, char *names, size_t names_size,
+                        sl_bench_method_spec *specs, sl_bench_skip *skipped, uint32_t *skipped_count)
+{
+    int n = 0;
+    sl_error err;
+    *skipped_count = 0;
+    for (uint32_t i = 0; i < g->mopt_count; i++)
+        for (uint32_t j = 0; j < i; j++) {
+            size_t li = (size_t)(g->mopt_value[i] - 1 - g->mopt_name[i]);
+            size_t lj = (size_t)(g->mopt_value[j] - 1 - g->mopt_name[j]);
+            if (li == lj && !strncmp(g->mopt_name[i], g->mopt_name[j], li)) {
+                cli_error(cmd, "--method-options: options for '%.*s' are given twice", (int)li, g->mopt_name[i]);
+                return -1;
+            }
+        }
+    if (g->methods) {
+        if (snprintf(names, names_size, "%s", g->methods) >= (int)names_size) {
+            cli_error(cmd, "--methods: list too long");
+            return -1;
+        }
+        for (char *save = NULL, *tok = strtok_r(names, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+            uint32_t index;
+            if (sl_cull_method_find(tok, &index, &err) != SL_OK) {
+                cli_error(cmd, "--methods: %s", err.message);
+                return -1;
+            }
+            for (int k = 0; k < n; k++)
+                if (!strcmp(specs[k].name, tok)) {
+                    cli_error(cmd, "--methods: '%s' is listed twice", tok);
+                    return -1;
+                }
+            if (n == (int)SL_BENCH_MAX_METHODS) {
+                cli_error(cmd, "--methods: at most %u methods", SL_BENCH_MAX_METHODS);
+                return -1;
+            }
+            specs[n++] = (sl_bench_method_spec){tok, options_for(g, tok)};
+        }
+        if (!n) {
+            cli_error(cmd, "--methods: empty list");
+            return -1;
+        }
+    } else {
+        uint32_t count = sl_cull_method_count();
+        for (uint32_t i = 0; i < count && n < (int)SL_BENCH_MAX_METHODS; i++) {
+            sl_cull_method_desc d;
+            if (sl_cull_method_info(i, &d, &err) != SL_OK)
+                continue;
+            const char *opts = options_for(g, d.name);
+            if (!opts && sl_cull_method_check_options(d.name, NULL, &err) != SL_OK) {
+                if (*skipped_count < SL_BENCH_MAX_METHODS) {
+                    skipped[*skipped_count].name = d.name;
+                    snprintf(skipped[*skipped_count].reason, sizeof skipped[0].reason, "%s", err.message);
+                    (*skipped_count)++;
+                }
+                continue;
+            }
+            specs[n++] = (sl_bench_method_spec){d.name, opts};
+        }
+    }
+    /* options for a method that is not run, and options (or their absence) a method rejects */
+    for (uint32_t i = 0; i < g->mopt_count; i++) {
+        size_t len = (size_t)(g->mopt_value[i] - 1 - g->mopt_name[i]);
+        int k = 0;
+        while (k < n && (strlen(specs[k].name) != len || strncmp(specs[k].name, g->mopt_name[i], len)))
+            k++;
+        if (k == n) {
+            cli_error(cmd, "--method-options: '%.*s' is not among the methods run", (int)len, g->mopt_name[i]);
+            return -1;
+        }
+    }
+    for (int k = 0; k < n; k++)
+        if (sl_cull_method_check_options(specs[k].name, specs[k].options, &err) != SL_OK) {
+            cli_error(cmd, "%s%s", specs[k].options ? "--method-options: " : "", err.message);
+            return -1;
+        }
+    return n;
+}
+
+/* The views of one scene; first and count select the frames to run. */
+static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, uint32_t *first, uint32_t *count,
+                            sl_error *err)
+{
+    *first = 0;
+    *count = UINT32_MAX;
+    sl_status st;
+    if (g->path_file) {
+        st = sl_path_load(g->path_file, NULL, out, err);
+        if (st == SL_OK && g->frames) {
+            parse_range(g->frames, first, count);
+            if (*first >= sl_path_count(*out)) {
+                st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: --frames %s starts beyond its %u frames",
+                             g->path_file, g->frames, sl_path_count(*out));
+                sl_path_destroy(*out);
+                *out = NULL;
+            }
+        }
+        return st;
+    }
+    bool aerial = g->random_kind && !strcmp(g->random_kind, "flyover");
+    sl_path_options po = sl_path_options_default(aerial ? SL_PATH_FLYOVER : SL_PATH_WALK);
+    po.intrinsics.width = g->width;
+    po.intrinsics.height = g->height;
+    po.seed = g->seed;
+    if (g->has_walk) {
+        po.frames = g->walk;
+        po.fps = g->fps;
+        return sl_path_generate(scene, &po, NULL, out, err);
+    }
+    sl_view_kind kind = !strcmp(g->random_kind, "street") ? SL_VIEWS_STREET : SL_VIEWS_FLYOVER;
+    return sl_path_random_views(scene, kind, g->count, g->seed, &po, NULL, out, err);
+}
+
+static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, uint64_t violations,
+                         const char *out_dir, const sl_bench_skip *skipped, uint32_t nskipped)
+{
+    cli_json_string(j, "out", out_dir);
+    cli_json_uint(j, "violations", violations);
+    cli_json_array_begin(j, "skipped");
+    for (uint32_t i = 0; i < nskipped; i++) {
+        cli_json_object_begin(j, NULL);
+        cli_json_string(j, "name", skipped[i].name);
+        cli_json_string(j, "reason", skipped[i].reason);
+        cli_json_object_end(j);
+    }
+    cli_json_array_end(j);
+    cli_json_array_begin(j, "scenes");
+    for (uint32_t bi = 0; bi < count; bi++) {
+        sl_bench b = benches[bi];
+        sl_scene_stats ss;
+        sl_scene_get_stats(sl_bench_scene(b), &ss);
+        uint32_t nf = sl_bench_frame_count(b);
+        double *oms = malloc((nf ? nf : 1) * sizeof *oms);
+        sl_series_summary os;
+        memset(&os, 0, sizeof os);
+        double vis = 0, tv = 0;
+        for (uint32_t f = 0; f < nf; f++) {
+            sl_bench_frame fr;
+            sl_bench_get_frame(b, f, &fr, NULL);
+            if (oms)
+                oms[f] = fr.oracle_ms;
+            vis += fr.visible_count;
+            tv += (double)fr.triangles_visible;
+        }
+        if (oms)
+            sl_series_summarize(oms, nf, NULL, &os, NULL);
+        free(oms);
+        cli_json_object_begin(j, NULL);
+        cli_json_string(j, "scene", sl_bench_label(b));
+        cli_json_uint(j, "objects", ss.object_count);
+        cli_json_uint(j, "triangles", ss.instanced_triangle_count);
+        cli_json_uint(j, "frames", nf);
+        cli_json_double(j, "visible_mean", nf ? vis / nf : 0);
+        cli_json_double(j, "triangles_visible_mean", nf ? tv / nf : 0);
+        cli_json_object_begin(j, "oracle_ms");
+        cli_json_double(j, "median", os.median);
+        cli_json_double(j, "p95", os.p95);
+        cli_json_double(j, "max", os.max);
+        cli_json_object_end(j);
+        cli_json_array_begin(j, "methods");
+        for (uint32_t mi = 0; mi < sl_bench_method_count(b); mi++) {
+            sl_bench_method_info info;
+            sl_bench_summary s;
+            if (sl_bench_method(b, mi, &info, NULL) != SL_OK || sl_bench_summarize(b, mi, &s, NULL) != SL_OK)
+                continue;
+            cli_json_object_begin(j, NULL);
+            cli_json_string(j, "name", info.name);
+            cli_json_string(j, "options", info.options);
+            cli_json_string(j, "guarantee", sl_cull_guarantee_name(info.guarantee));
+            cli_json_uint(j, "frames", s.frames);
+            cli_json_double(j, "objects_drawn_mean", s.objects_drawn_mean);
+            cli_json_double(j, "triangles_drawn_mean", s.triangles_drawn_mean);
+            cli_json_double(j, "visible_mean", s.visible_mean);
+            cli_json_double(j, "triangles_visible_mean", s.triangles_visible_mean);
+            cli_json_double(j, "overestimation_mean", s.overestimation_mean);
+            cli_json_double(j, "extra_mean", s.extra_mean);
+            cli_json_uint(j, "missed_objects", s.missed_objects_total);
+            cli_json_uint(j, "missed_pixels", s.missed_pixels_total);
+            cli_json_uint(j, "frames_with_misses", s.frames_with_misses);
+            cli_json_object_begin(j, "cull_ms");
+            cli_json_double(j, "median", s.cull_ms.median);
+            cli_json_double(j, "p95", s.cull_ms.p95);
+            cli_json_double(j, "max", s.cull_ms.max);
+            cli_json_double(j, "mean", s.cull_ms.mean);
+            cli_json_double(j, "min", s.cull_ms.min);
+            cli_json_object_end(j);
+            cli_json_object_end(j);
+        }
+        cli_json_array_end(j);
+        cli_json_object_end(j);
+    }
+    cli_json_array_end(j);
+}
+
+/* Make every label distinct by appending -2, -3 ... */
+static void unique_label(char *label, size_t size, char labels[][128], uint32_t count)
+{
+    char base[128];
+    snprintf(base, sizeof base, "%s", label);
+    for (uint32_t k = 2;; k++) {
+        bool clash = false;
+        for (uint32_t i = 0; i < count; i++)
+            clash |= !strcmp(labels[i], label);
+        if (!clash)
+            return;
+        snprintf(label, size, "%.100s-%u", base, k);
+    }
+}
+
 int sl_cmd_bench(int argc, char **argv)
 {
-    (void)argc;
-    cli_error(argv[0], "not implemented yet");
-    return 1;
+    const char *cmd = argv[0];
+    bench_args g;
+    int rc = parse(argc, argv, &g);
+    if (rc)
+        return rc < 0 ? 0 : rc;
+    char names[4096];
+    sl_bench_method_spec specs[SL_BENCH_MAX_METHODS];
+    sl_bench_skip skipped[SL_BENCH_MAX_METHODS];
+    uint32_t nskipped = 0;
+    int nm = method_specs(&g, cmd, names, sizeof names, specs, skipped, &nskipped);
+    if (nm < 0)
+        return 2;
+    if (g.frames) {
+        uint32_t f0, fc;
+        if (!parse_range(g.frames, &f0, &fc)) {
+            cli_error(cmd, "--frames '%s': expected A:B with A < B (or A:, :B, A)", g.frames);
+            return 2;
+        }
+    }
+    if (!nm) {
+        cli_error(cmd, "no registered method runs with its default options; name them with --methods and "
+                       "--method-options");
+        return 2;
+    }
+    for (uint32_t i = 0; i < nskipped; i++)
+        cli_error(cmd, "not running %s: %s (give it --method-options %s:...)", skipped[i].name, skipped[i].reason,
+                  skipped[i].name);
+    if (!make_dirs(g.out_dir)) {
+        cli_error(cmd, "cannot create the output folder '%s': %s", g.out_dir, strerror(errno));
+        return 1;
+    }
+
+    sl_scene scenes[MAX_SCENES] = {0};
+    sl_bench benches[MAX_SCENES] = {0};
+    char labels[MAX_SCENES][128];
+    uint32_t nb = 0;
+    cli_progress_state ps;
+    sl_progress prog = cli_progress(&ps, g.quiet || g.json);
+    sl_error err;
+    int status = 0;
+    char path[4600];
+    for (uint32_t si = 0; si < g.scene_count && !status; si++) {
+        sl_scene s = NULL;
+        char label[128];
+        sl_status st = sl_bench_open_scene(g.scenes[si], g.map, &prog, NULL, &s, label, sizeof label, &err);
+        cli_progress_done(&ps);
+        if (st != SL_OK) {
+            status = cli_fail(cmd, &err);
+            break;
+        }
+        scenes[si] = s;
+        unique_label(label, sizeof label, labels, nb);
+        sl_path views = NULL;
+        uint32_t first, count;
+        st = make_views(&g, s, &views, &first, &count, &err);
+        if (st != SL_OK) {
+            status = cli_fail(cmd, &err);
+            break;
+        }
+        sl_bench_options bo = sl_bench_default_options();
+        bo.width = g.width;
+        bo.height = g.height;
+        bo.threads = g.threads;
+        bo.repeat = g.repeat;
+        bo.label = label;
+        bo.progress = prog;
+        sl_bench b = NULL;
+        st = sl_bench_create(s, specs, (uint32_t)nm, &bo, NULL, &b, &err);
+        if (st == SL_OK) {
+            benches[nb] = b;
+            snprintf(labels[nb], sizeof labels[nb], "%s", label);
+            nb++;
+            st = sl_bench_run_path(b, views, first, count, &err);
+        }
+        cli_progress_done(&ps);
+        if (st == SL_OK && !g.no_plots) {
+            snprintf(path, sizeof path, "%s/%s-", g.out_dir, label);
+            st = sl_bench_write_plots(b, path, &err);
+            sl_bench_map_options mo;
+            memset(&mo, 0, sizeof mo);
+            mo.size = g.map_size;
+            mo.use_eye = g.has_eye;
+            mo.eye = g.eye;
+            sl_bench_frame f0;
+            if (st == SL_OK && !g.has_eye && sl_bench_get_frame(b, 0, &f0, NULL) == SL_OK)
+                mo.camera = f0.camera;
+            snprintf(path, sizeof path, "%s/%s-map-", g.out_dir, label);
+            if (st == SL_OK && (g.has_eye || sl_bench_frame_count(b)))
+                st = sl_bench_write_maps(b, &mo, path, NULL, &err);
+        }
+        sl_path_destroy(views);
+        if (st != SL_OK)
+            status = cli_fail(cmd, &err);
+    }
+    if (!status) {
+        const char *files[] = {"frames.csv", "frames.json", "summary.md"};
+        for (int k = 0; k < 3 && !status; k++) {
+            snprintf(path, sizeof path, "%s/%s", g.out_dir, files[k]);
+            sl_status st = k == 0   ? sl_bench_write_csv(benches, nb, path, &err)
+                           : k == 1 ? sl_bench_write_json(benches, nb, path, &err)
+                                    : sl_bench_write_summary(benches, nb, path, &err);
+            if (st != SL_OK)
+                status = cli_fail(cmd, &err);
+        }
+    }
+    if (!status) {
+        uint64_t violations = sl_bench_print_violations(benches, nb, 20, stderr);
+        snprintf(path, sizeof path, "%s/summary.json", g.out_dir);
+        sl_atomic_file f;
+        if (sl_atomic_open(NULL, path, &f, &err) != SL_OK) {
+            status = cli_fail(cmd, &err);
+        } else {
+            cli_json j;
+            cli_json_begin(&j, f.fp);
+            json_summary(&j, benches, nb, violations, g.out_dir, skipped, nskipped);
+            cli_json_end(&j);
+            if (ferror(f.fp))
+                f.failed = true;
+            if (sl_atomic_commit(&f, &err) != SL_OK)
+                status = cli_fail(cmd, &err);
+        }
+        if (!status) {
+            if (g.json) {
+                cli_json j;
+                cli_json_begin(&j, stdout);
+                json_summary(&j, benches, nb, violations, g.out_dir, skipped, nskipped);
+                cli_json_end(&j);
+            } else {
+                sl_bench_print_summary(benches, nb, stdout);
+                for (uint32_t i = 0; i < nskipped; i++)
+                    printf("not run: %s (%s)\n", skipped[i].name, skipped[i].reason);
+                printf("results in %s/ (frames.csv, frames.json, summary.md, summary.json%s)\n", g.out_dir,
+                       g.no_plots ? "" : ", plots (.svg), maps (-map-METHOD.png)");
+            }
+            if (violations) {
+                fprintf(stderr,
+                        "sightline bench: CONSERVATIVENESS VIOLATION: conservative methods missed %llu visible "
+                        "object(s) in total (see above)%s\n",
+                        (unsigned long long)violations, g.strict ? "" : "; --no-strict: exit status 0");
+                if (g.strict)
+                    status = 1;
+            }
+        }
+    }
+    for (uint32_t i = 0; i < nb; i++)
+        sl_bench_destroy(benches[i]);
+    for (uint32_t i = 0; i < g.scene_count; i++)
+        sl_scene_destroy(scenes[i]);
+    return status;
 }

@@ -1,8 +1,122 @@
-/* TEMPORARY placeholder while the subcommand is written: fails loudly. */
+/* `sightline methods`: the culling methods of the registry (cull.h), each with its guarantee, its
+ * one-line summary and its options. Whatever src/cull/registry.c lists appears here. */
 #include "cli.h"
+
+#include "sightline/cull.h"
+
+#include <string.h>
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline methods [NAME...] [--json]\n\n"
+            "List the registered culling methods: name, guarantee (conservative: never drops a visible\n"
+            "object, held to the oracle with zero tolerance; aggressive: may drop some, its missed pixels\n"
+            "are measured), what the method does, and its options (key=TYPE (default D): meaning).\n"
+            "Options are given to bench/demo as --method-options NAME:key=value,key=value.\n\n"
+            "options:\n"
+            "  NAME...   only these methods (an unknown name is a usage error, exit status 2)\n"
+            "  --json    machine-readable output on stdout\n"
+            "  --help    this text\n\n"
+            "examples:\n"
+            "  sightline methods\n"
+            "  sightline methods vfc --json\n");
+}
+
+/* Print an options help text indented, one option per line. */
+static void print_indented(const char *text, const char *indent)
+{
+    const char *p = text;
+    while (p && *p) {
+        const char *nl = strchr(p, '\n');
+        size_t len = nl ? (size_t)(nl - p) : strlen(p);
+        if (len)
+            printf("%s%.*s\n", indent, (int)len, p);
+        p = nl ? nl + 1 : NULL;
+    }
+}
+
 int sl_cmd_methods(int argc, char **argv)
 {
-    (void)argc;
-    cli_error(argv[0], "not implemented yet");
-    return 1;
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    const char *name, *val;
+    bool json = false;
+    const char *only[64];
+    uint32_t only_count = 0;
+    while (cli_next(&a, &name, &val)) {
+        if (!name) {
+            if (only_count == 64) {
+                cli_error(argv[0], "too many method names");
+                return 2;
+            }
+            only[only_count++] = val;
+        } else if (!strcmp(name, "help")) {
+            usage(stdout);
+            return 0;
+        } else if (!strcmp(name, "json")) {
+            json = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    sl_error err;
+    uint32_t idx[64];
+    uint32_t count = 0;
+    if (only_count) {
+        for (uint32_t i = 0; i < only_count; i++)
+            if (sl_cull_method_find(only[i], &idx[count++], &err) != SL_OK) {
+                cli_error(argv[0], "%s", err.message);
+                return 2;
+            }
+    } else {
+        uint32_t n = sl_cull_method_count();
+        for (uint32_t i = 0; i < n && count < 64; i++)
+            idx[count++] = i;
+    }
+    cli_json j;
+    if (json) {
+        cli_json_begin(&j, stdout);
+        cli_json_array_begin(&j, "methods");
+    }
+    for (uint32_t i = 0; i < count; i++) {
+        sl_cull_method_desc d;
+        if (sl_cull_method_info(idx[i], &d, &err) != SL_OK)
+            return cli_fail(argv[0], &err);
+        if (json) {
+            cli_json_object_begin(&j, NULL);
+            cli_json_string(&j, "name", d.name);
+            cli_json_string(&j, "guarantee", sl_cull_guarantee_name(d.guarantee));
+            cli_json_string(&j, "summary", d.summary);
+            cli_json_array_begin(&j, "options");
+            const char *p = d.options_help;
+            while (p && *p) {
+                const char *nl = strchr(p, '\n');
+                size_t len = nl ? (size_t)(nl - p) : strlen(p);
+                if (len) {
+                    char line[512];
+                    snprintf(line, sizeof line, "%.*s", (int)(len < sizeof line ? len : sizeof line - 1), p);
+                    cli_json_string(&j, NULL, line);
+                }
+                p = nl ? nl + 1 : NULL;
+            }
+            cli_json_array_end(&j);
+            cli_json_object_end(&j);
+        } else {
+            printf("%s%s (%s)\n  %s\n", i ? "\n" : "", d.name, sl_cull_guarantee_name(d.guarantee), d.summary);
+            if (d.options_help && d.options_help[0]) {
+                printf("  options:\n");
+                print_indented(d.options_help, "    ");
+            } else {
+                printf("  options: none\n");
+            }
+        }
+    }
+    if (json) {
+        cli_json_array_end(&j);
+        cli_json_end(&j);
+    }
+    return 0;
 }

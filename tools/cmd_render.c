@@ -1,8 +1,434 @@
-/* TEMPORARY placeholder while the subcommand is written: fails loudly. */
+/* `sightline render`: images of what a camera sees, from the exact point oracle: the object-id
+ * buffer (each object in its own colour), the depth image and the depth-complexity (overdraw)
+ * image, as PNG, for one camera or for the frames of a path.
+ *
+ * Each kind of image is a "mode": a name, a line of help, and a function that writes one frame's
+ * image. Adding an image (say a method's cull map) is one function and one line in `modes[]`; the
+ * option `--NAME` then selects it (as does `--images NAME,...`), and the mode may keep state for
+ * the whole run through its optional setup/cleanup hooks. */
 #include "cli.h"
+
+#include "core/sl_core.h"
+#include "sightline/bench.h"
+#include "sightline/path.h"
+#include "sightline/truth.h"
+#include "truth/plot.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#define DEG (M_PI / 180.0)
+
+/* What a mode sees of the current frame. The oracle has rendered the frame (view 0) before any
+ * mode runs. */
+typedef struct render_ctx {
+    const char *cmd;
+    sl_scene scene;
+    sl_oracle oracle;
+    sl_camera camera;          /* this frame's camera */
+    uint32_t frame;            /* frame number (path index, 0 for --camera) */
+    const sl_oracle_frame *truth;
+    void *state;               /* the mode's own, from its setup hook */
+} render_ctx;
+
+typedef struct render_mode {
+    const char *name;          /* file suffix and option name (--NAME) */
+    bool default_on;           /* written when neither --images nor a mode option is given */
+    bool needs_overdraw;       /* the oracle must count fragments per pixel */
+    const char *help;
+    /* optional: once before the first frame / after the last (state lives in ctx->state) */
+    sl_status (*setup)(render_ctx *ctx, sl_error *err);
+    void (*cleanup)(render_ctx *ctx);
+    /* write this frame's image to file */
+    sl_status (*write)(render_ctx *ctx, const char *file, sl_error *err);
+} render_mode;
+
+static sl_status write_ids(render_ctx *ctx, const char *file, sl_error *err)
+{
+    sl_oracle_view v;
+    sl_status st = sl_oracle_get_view(ctx->oracle, 0, &v, err);
+    return st == SL_OK ? sl_image_write_ids(&v, file, NULL, err) : st;
+}
+
+static sl_status write_depth(render_ctx *ctx, const char *file, sl_error *err)
+{
+    sl_oracle_view v;
+    sl_status st = sl_oracle_get_view(ctx->oracle, 0, &v, err);
+    return st == SL_OK ? sl_image_write_depth(&v, &ctx->camera, file, NULL, err) : st;
+}
+
+static sl_status write_overdraw(render_ctx *ctx, const char *file, sl_error *err)
+{
+    sl_oracle_view v;
+    sl_status st = sl_oracle_get_view(ctx->oracle, 0, &v, err);
+    return st == SL_OK ? sl_image_write_overdraw(&v, file, NULL, NULL, err) : st;
+}
+
+/* The image kinds, in the order they are written. */
+static const render_mode modes[] = {
+    {"id", true, false, "object-id buffer, each object in its own colour (sl_id_color), black = nothing", NULL, NULL,
+     write_ids},
+    {"depth", true, false, "distance from the camera, nearest bright, log scale, normalised per image", NULL, NULL,
+     write_depth},
+    {"overdraw", true, true, "depth complexity: fragments per pixel on a colour ramp, 0 black, the image's max yellow",
+     NULL, NULL, write_overdraw},
+};
+#define MODE_COUNT (sizeof modes / sizeof modes[0])
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline render SCENE (--camera \"x,y,z,yaw,pitch,roll[,fov]\" | --path FILE [--frames A:B])\n"
+            "                        [--width W --height H] [--out DIR] [options]\n\n"
+            "Render the exact id buffer of the point oracle for one camera or for the frames of a path, and\n"
+            "write images as PNG into DIR, named frame-NNNNN-KIND.png. Kinds:\n");
+    for (size_t m = 0; m < MODE_COUNT; m++)
+        fprintf(out, "  %-10s %s%s\n", modes[m].name, modes[m].help, modes[m].default_on ? "" : " (not by default)");
+    fprintf(out,
+            "\nSCENE is city:tiny|small|vienna[:SEED] (generated on the fly) or a file: .slscene, a Quake III\n"
+            ".bsp or .pk3 (with --map), or any format assimp reads.\n\n"
+            "options:\n"
+            "  --camera C        x,y,z,yaw,pitch,roll[,fov]: metres, degrees (yaw 0 looks along +X, 90 along\n"
+            "                    +Y; pitch > 0 up; fov vertical, default 60)\n"
+            "  --path FILE       a path file (docs/paths.md): its cameras\n"
+            "  --frames A:B      with --path: frames A to B-1 (A:, :B and A also work; default all)\n"
+            "  --width W         image width (default 1024, or the path's)\n"
+            "  --height H        image height (default 768, or the path's)\n"
+            "  --out DIR         output folder (default render-out)\n"
+            "  --images LIST     comma-separated kinds to write (default:");
+    for (size_t m = 0, k = 0; m < MODE_COUNT; m++)
+        if (modes[m].default_on)
+            fprintf(out, "%s%s", k++ ? "," : " ", modes[m].name);
+    fprintf(out, ")\n"
+                 "  --KIND            add one kind (e.g. --depth); with any of these only the named kinds are\n"
+                 "                    written\n"
+                 "  --threads T       oracle threads (default 2)\n"
+                 "  --map NAME        map inside a .pk3\n"
+                 "  --json            list the files written as JSON on stdout\n"
+                 "  --quiet           no progress bar\n"
+                 "  --help            this text\n\n"
+                 "examples:\n"
+                 "  sightline render city:tiny --camera \"0,0,1.7,45,0,0\" --out shots\n"
+                 "  sightline render city.slscene --path walk.txt --frames 0:10 --images id,depth\n"
+                 "  sightline render city:small --camera \"0,0,300,30,-45,0,70\" --width 1920 --height 1080\n");
+}
+
+/* "x,y,z,yaw,pitch,roll[,fov]" (degrees) into a camera. */
+static bool parse_camera(const char *text, sl_camera *cam)
+{
+    double v[7];
+    int n = 0;
+    bool done = false;
+    const char *p = text;
+    while (n < 7 && !done) {
+        char *end;
+        errno = 0;
+        v[n] = strtod(p, &end);
+        if (end == p || errno || !isfinite(v[n]) || (*end != 0 && *end != ','))
+            return false;
+        n++;
+        done = *end == 0;
+        p = end + 1;
+    }
+    if (!done || n < 6)
+        return false;
+    cam->position = (sl_vec3){(float)v[0], (float)v[1], (float)v[2]};
+    cam->yaw = (float)(v[3] * DEG);
+    cam->pitch = (float)(v[4] * DEG);
+    cam->roll = (float)(v[5] * DEG);
+    if (n == 7)
+        cam->fov_y = (float)(v[6] * DEG);
+    return true;
+}
+
+/* "A:B", "A:", ":B" or "A". */
+static bool parse_range(const char *text, uint32_t *first, uint32_t *end_out)
+{
+    const char *colon = strchr(text, ':');
+    unsigned long long a = 0, b = UINT32_MAX;
+    char *end;
+    if (text[0] != ':') {
+        errno = 0;
+        a = strtoull(text, &end, 10);
+        if (end == text || errno || a >= UINT32_MAX || text[0] == '-' || (colon ? end != colon : *end != 0))
+            return false;
+    }
+    if (!colon) {
+        b = a + 1;
+    } else if (colon[1]) {
+        errno = 0;
+        b = strtoull(colon + 1, &end, 10);
+        if (*end || errno || b > UINT32_MAX || colon[1] == '-')
+            return false;
+    }
+    if (b <= a)
+        return false;
+    *first = (uint32_t)a;
+    *end_out = (uint32_t)b;
+    return true;
+}
+
+static bool make_dirs(const char *dir)
+{
+    char buf[4096];
+    if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
+        return false;
+    for (char *p = buf + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = 0;
+        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+            return false;
+        *p = '/';
+    }
+    if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+        return false;
+    struct stat sb;
+    return stat(buf, &sb) == 0 && S_ISDIR(sb.st_mode);
+}
+
+static int find_mode(const char *name)
+{
+    for (size_t m = 0; m < MODE_COUNT; m++)
+        if (!strcmp(modes[m].name, name))
+            return (int)m;
+    return -1;
+}
+
 int sl_cmd_render(int argc, char **argv)
 {
-    (void)argc;
-    cli_error(argv[0], "not implemented yet");
-    return 1;
+    const char *cmd = argv[0];
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    const char *name, *val, *scene_spec = NULL, *camera_text = NULL, *path_file = NULL, *frames = NULL;
+    const char *out_dir = "render-out", *images = NULL, *map = NULL;
+    uint32_t width = 0, height = 0, threads = 2;
+    bool json = false, quiet = false, selected[MODE_COUNT] = {false}, any_selected = false;
+    while (cli_next(&a, &name, &val)) {
+        if (!name) {
+            if (scene_spec) {
+                cli_unknown(&a, NULL);
+                break;
+            }
+            scene_spec = val;
+        } else if (!strcmp(name, "help")) {
+            usage(stdout);
+            return 0;
+        } else if (!strcmp(name, "camera")) {
+            camera_text = cli_value(&a, name, val);
+        } else if (!strcmp(name, "path")) {
+            path_file = cli_value(&a, name, val);
+        } else if (!strcmp(name, "frames")) {
+            frames = cli_value(&a, name, val);
+        } else if (!strcmp(name, "width")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &width);
+        } else if (!strcmp(name, "height")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &height);
+        } else if (!strcmp(name, "out")) {
+            out_dir = cli_value(&a, name, val);
+        } else if (!strcmp(name, "images")) {
+            images = cli_value(&a, name, val);
+        } else if (!strcmp(name, "threads")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &threads);
+        } else if (!strcmp(name, "map")) {
+            map = cli_value(&a, name, val);
+        } else if (!strcmp(name, "json")) {
+            json = true;
+        } else if (!strcmp(name, "quiet")) {
+            quiet = true;
+        } else if (find_mode(name) >= 0 && !val) {
+            selected[find_mode(name)] = any_selected = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    if (!scene_spec) {
+        cli_error(cmd, "missing SCENE (see --help)");
+        return 2;
+    }
+    if (!camera_text == !path_file) {
+        cli_error(cmd, camera_text ? "give --camera or --path, not both" : "missing --camera or --path");
+        return 2;
+    }
+    sl_camera cam = sl_camera_default();
+    if (camera_text && !parse_camera(camera_text, &cam)) {
+        cli_error(cmd, "--camera '%s': expected x,y,z,yaw,pitch,roll[,fov] (metres, degrees)", camera_text);
+        return 2;
+    }
+    uint32_t first = 0, end = UINT32_MAX;
+    if (frames && !path_file) {
+        cli_error(cmd, "--frames applies to --path only");
+        return 2;
+    }
+    if (frames && !parse_range(frames, &first, &end)) {
+        cli_error(cmd, "--frames '%s': expected A:B with A < B (or A:, :B, A)", frames);
+        return 2;
+    }
+    if ((width == 0) != (height == 0) || width > 16384 || height > 16384) {
+        cli_error(cmd, "--width and --height go together, each 1..16384");
+        return 2;
+    }
+    if (threads < 1 || threads > 64) {
+        cli_error(cmd, "--threads must be 1..64");
+        return 2;
+    }
+    if (images) {
+        char buf[512];
+        snprintf(buf, sizeof buf, "%s", images);
+        for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+            int m = find_mode(tok);
+            if (m < 0) {
+                cli_error(cmd, "--images: unknown kind '%s' (see --help)", tok);
+                return 2;
+            }
+            selected[m] = any_selected = true;
+        }
+        if (!any_selected) {
+            cli_error(cmd, "--images: empty list");
+            return 2;
+        }
+    }
+    bool overdraw = false;
+    for (size_t m = 0; m < MODE_COUNT; m++) {
+        if (!any_selected)
+            selected[m] = modes[m].default_on;
+        overdraw |= selected[m] && modes[m].needs_overdraw;
+    }
+    if (camera_text) {
+        cam.width = width ? width : 1024;
+        cam.height = height ? height : 768;
+        sl_error cerr;
+        if (sl_camera_validate(&cam, &cerr) != SL_OK) {
+            cli_error(cmd, "--camera: %s", cerr.message);
+            return 2;
+        }
+    }
+
+    sl_error err;
+    sl_path path = NULL;
+    if (path_file) {
+        if (sl_path_load(path_file, NULL, &path, &err) != SL_OK)
+            return cli_fail(cmd, &err);
+        uint32_t n = sl_path_count(path);
+        if (first >= n) {
+            cli_error(cmd, "%s: --frames %s starts beyond its %u frames", path_file, frames ? frames : "", n);
+            sl_path_destroy(path);
+            return 1;
+        }
+        end = SL_MIN(end, n);
+    } else {
+        end = 1;
+    }
+    if (!make_dirs(out_dir)) {
+        cli_error(cmd, "cannot create the output folder '%s': %s", out_dir, strerror(errno));
+        sl_path_destroy(path);
+        return 1;
+    }
+    cli_progress_state ps;
+    sl_progress prog = cli_progress(&ps, quiet || json);
+    sl_scene scene = NULL;
+    char label[128];
+    if (sl_bench_open_scene(scene_spec, map, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
+        cli_progress_done(&ps);
+        sl_path_destroy(path);
+        return cli_fail(cmd, &err);
+    }
+    cli_progress_done(&ps);
+    sl_oracle_options oo = sl_oracle_default_options();
+    oo.threads = threads;
+    oo.count_overdraw = overdraw;
+    sl_oracle oracle = NULL;
+    int status = 0;
+    render_ctx ctx[MODE_COUNT];
+    bool set_up[MODE_COUNT] = {false};
+    memset(ctx, 0, sizeof ctx);
+    if (sl_oracle_create(scene, &oo, NULL, &oracle, &err) != SL_OK)
+        status = cli_fail(cmd, &err);
+    for (size_t m = 0; m < MODE_COUNT && !status; m++) {
+        ctx[m].cmd = cmd;
+        ctx[m].scene = scene;
+        ctx[m].oracle = oracle;
+        if (selected[m] && modes[m].setup) {
+            if (modes[m].setup(&ctx[m], &err) != SL_OK)
+                status = cli_fail(cmd, &err);
+            else
+                set_up[m] = true;
+        }
+    }
+    cli_json j;
+    if (json && !status) {
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "scene", label);
+        cli_json_string(&j, "out", out_dir);
+        cli_json_array_begin(&j, "frames");
+    }
+    uint32_t written = 0;
+    char file[4400];
+    for (uint32_t f = first; f < end && !status; f++) {
+        sl_progress_report(&prog, "rendering", f - first, end - first);
+        sl_camera c = cam;
+        if (path) {
+            c = sl_path_camera(path, f);
+            if (width) {
+                c.width = width;
+                c.height = height;
+            }
+        }
+        sl_oracle_frame truth;
+        if (sl_oracle_render(oracle, &c, &truth, &err) != SL_OK) {
+            sl_error_prefix(&err, "frame %u", f);
+            status = cli_fail(cmd, &err);
+            break;
+        }
+        if (json) {
+            cli_json_object_begin(&j, NULL);
+            cli_json_uint(&j, "frame", f);
+            cli_json_uint(&j, "visible", truth.visible_count);
+            cli_json_double(&j, "oracle_ms", truth.ms);
+            cli_json_array_begin(&j, "files");
+        }
+        for (size_t m = 0; m < MODE_COUNT && !status; m++) {
+            if (!selected[m])
+                continue;
+            ctx[m].camera = c;
+            ctx[m].frame = f;
+            ctx[m].truth = &truth;
+            snprintf(file, sizeof file, "%s/frame-%05u-%s.png", out_dir, f, modes[m].name);
+            if (modes[m].write(&ctx[m], file, &err) != SL_OK) {
+                status = cli_fail(cmd, &err);
+                break;
+            }
+            written++;
+            if (json)
+                cli_json_string(&j, NULL, file);
+        }
+        if (json) {
+            cli_json_array_end(&j);
+            cli_json_object_end(&j);
+        }
+    }
+    sl_progress_report(&prog, "rendering", end - first, end - first);
+    cli_progress_done(&ps);
+    if (json && !status) {
+        cli_json_array_end(&j);
+        cli_json_uint(&j, "images", written);
+        cli_json_end(&j);
+    } else if (json) {
+        fputc('\n', stdout);
+    } else if (!status) {
+        printf("%u image%s of %u frame%s written to %s/\n", written, written == 1 ? "" : "s", end - first,
+               end - first == 1 ? "" : "s", out_dir);
+    }
+    for (size_t m = 0; m < MODE_COUNT; m++)
+        if (set_up[m] && modes[m].cleanup)
+            modes[m].cleanup(&ctx[m]);
+    sl_oracle_destroy(oracle);
+    sl_scene_destroy(scene);
+    sl_path_destroy(path);
+    return status;
 }

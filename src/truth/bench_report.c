@@ -1,0 +1,453 @@
+/* Reports of the benchmark harness: per-frame rows as CSV and JSON, the Markdown summary, and SVG
+ * plots. The columns are documented in docs/bench.md; keep both in step. Every file is written
+ * atomically, so an interrupted run never leaves half a report. */
+#include "bench_internal.h"
+#include "plot.h"
+
+#include <math.h>
+#include <stdarg.h>
+
+#define RAD2DEG (180.0 / 3.14159265358979323846)
+
+static void out(sl_atomic_file *f, const char *fmt, ...) SL_PRINTF(2, 3);
+static void out(sl_atomic_file *f, const char *fmt, ...)
+{
+    if (f->failed)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    if (vfprintf(f->fp, fmt, ap) < 0)
+        f->failed = true;
+    va_end(ap);
+}
+
+static sl_status check_benches(const sl_bench *benches, uint32_t count, const char *path, const char *fn, sl_error *err)
+{
+    if (!path || (count && !benches))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: benches and path must not be NULL", fn);
+    for (uint32_t i = 0; i < count; i++)
+        if (!benches[i])
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: bench %u is NULL", fn, i);
+    return SL_OK;
+}
+
+/* ---- CSV ---- */
+
+/* A CSV field, quoted when it holds a comma, quote or line break. */
+static void csv_text(sl_atomic_file *f, const char *s)
+{
+    if (!strpbrk(s, ",\"\r\n")) {
+        out(f, "%s", s);
+        return;
+    }
+    out(f, "\"");
+    for (; *s; s++) {
+        if (*s == '"')
+            out(f, "\"\"");
+        else
+            out(f, "%c", *s);
+    }
+    out(f, "\"");
+}
+
+static const char csv_header[] =
+    "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,cull_ms_min,"
+    "objects_drawn,triangles_drawn,visible_exact,triangles_visible,missed_objects,missed_pixels,extra_objects,"
+    "overestimation,objects_in_frustum,triangles_in_frustum,covered_pixels,oracle_ms,objects_tested,nodes_visited,"
+    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed\n";
+
+sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
+{
+    sl_status st = check_benches(benches, count, path, "sl_bench_write_csv", err);
+    if (st != SL_OK)
+        return st;
+    sl_atomic_file f;
+    st = sl_atomic_open(count ? &benches[0]->alloc : NULL, path, &f, err);
+    if (st != SL_OK)
+        return st;
+    out(&f, "%s", csv_header);
+    for (uint32_t bi = 0; bi < count; bi++) {
+        struct sl_bench_t *b = benches[bi];
+        for (uint32_t fi = 0; fi < b->frames.count; fi++) {
+            const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, fi);
+            const sl_camera *c = &fr->camera;
+            for (uint32_t mi = 0; mi < b->method_count; mi++) {
+                const sl_bench_record *r = bench_rec(b, fi, mi);
+                if (!r->valid)
+                    continue;
+                const sl_cull_metrics *m = &r->metrics;
+                const sl_cull_stats *s = &r->stats;
+                csv_text(&f, b->label);
+                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,", fr->source, (double)fr->time, (double)c->position.x,
+                    (double)c->position.y, (double)c->position.z, c->yaw * RAD2DEG, c->pitch * RAD2DEG,
+                    c->roll * RAD2DEG);
+                csv_text(&f, b->methods[mi].name);
+                out(&f, ",%s,%.6f,%.6f,%u,%llu,%u,%llu,%u,%llu,%u,%.6f,%u,%llu,%llu,%.3f,%llu,%llu,%llu,%llu,%llu,%llu,",
+                    sl_cull_guarantee_name(b->methods[mi].guarantee), r->cull_ms, r->cull_ms_min, m->result_count,
+                    (unsigned long long)m->triangles_rendered, m->visible_count,
+                    (unsigned long long)m->triangles_visible, m->missed_count, (unsigned long long)m->missed_pixels,
+                    m->extra_count, m->overestimation, fr->objects_in_frustum,
+                    (unsigned long long)fr->triangles_in_frustum, (unsigned long long)fr->covered_pixels, fr->oracle_ms,
+                    (unsigned long long)s->objects_tested, (unsigned long long)s->nodes_visited,
+                    (unsigned long long)s->occlusion_tests, (unsigned long long)s->queries,
+                    (unsigned long long)s->pixels_rasterized, (unsigned long long)s->pixel_queries);
+                /* phases "name=ms;name=ms" and the first missed objects "id:pixels;id:pixels" */
+                for (uint32_t p = 0; p < s->phase_count && p < SL_CULL_MAX_PHASES; p++)
+                    out(&f, "%s%s=%.6f", p ? ";" : "", s->phase_names[p] ? s->phase_names[p] : "?", s->phase_ms[p]);
+                out(&f, ",");
+                for (uint32_t k = 0; k < r->missed_kept; k++)
+                    out(&f, "%s%u:%u", k ? ";" : "", r->missed_ids[k], r->missed_pixels[k]);
+                out(&f, "\n");
+            }
+        }
+    }
+    return sl_atomic_commit(&f, err);
+}
+
+/* ---- JSON ---- */
+
+static void json_str(sl_atomic_file *f, const char *s)
+{
+    out(f, "\"");
+    for (const unsigned char *p = (const unsigned char *)s; p && *p; p++) {
+        if (*p == '"' || *p == '\\')
+            out(f, "\\%c", *p);
+        else if (*p < 0x20)
+            out(f, "\\u%04x", *p);
+        else
+            out(f, "%c", *p);
+    }
+    out(f, "\"");
+}
+
+static void json_num(sl_atomic_file *f, double v)
+{
+    if (isfinite(v))
+        out(f, "%.9g", v);
+    else
+        out(f, "null");
+}
+
+sl_status sl_bench_write_json(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
+{
+    sl_status st = check_benches(benches, count, path, "sl_bench_write_json", err);
+    if (st != SL_OK)
+        return st;
+    sl_atomic_file f;
+    st = sl_atomic_open(count ? &benches[0]->alloc : NULL, path, &f, err);
+    if (st != SL_OK)
+        return st;
+    out(&f, "{\"format\":\"sightline-bench-frames\",\"version\":1,\"scenes\":[");
+    for (uint32_t bi = 0; bi < count; bi++) {
+        struct sl_bench_t *b = benches[bi];
+        sl_scene_stats ss;
+        sl_scene_get_stats(b->scene, &ss);
+        out(&f, "%s\n{\"scene\":", bi ? "," : "");
+        json_str(&f, b->label);
+        out(&f, ",\"objects\":%u,\"triangles\":%llu,\"frames\":%zu,\"methods\":[", ss.object_count,
+            (unsigned long long)ss.instanced_triangle_count, b->frames.count);
+        for (uint32_t mi = 0; mi < b->method_count; mi++) {
+            out(&f, "%s{\"name\":", mi ? "," : "");
+            json_str(&f, b->methods[mi].name);
+            out(&f, ",\"options\":");
+            json_str(&f, b->methods[mi].options);
+            out(&f, ",\"guarantee\":\"%s\",\"external\":%s}", sl_cull_guarantee_name(b->methods[mi].guarantee),
+                b->methods[mi].culler ? "false" : "true");
+        }
+        out(&f, "]}");
+    }
+    out(&f, "],\n\"rows\":[");
+    bool first = true;
+    for (uint32_t bi = 0; bi < count; bi++) {
+        struct sl_bench_t *b = benches[bi];
+        for (uint32_t fi = 0; fi < b->frames.count; fi++) {
+            const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, fi);
+            const sl_camera *c = &fr->camera;
+            for (uint32_t mi = 0; mi < b->method_count; mi++) {
+                const sl_bench_record *r = bench_rec(b, fi, mi);
+                if (!r->valid)
+                    continue;
+                const sl_cull_metrics *m = &r->metrics;
+                const sl_cull_stats *s = &r->stats;
+                out(&f, "%s\n{\"scene\":", first ? "" : ",");
+                first = false;
+                json_str(&f, b->label);
+                out(&f, ",\"frame\":%u,\"time_s\":", fr->source);
+                json_num(&f, fr->time);
+                out(&f, ",\"camera\":{\"x\":");
+                json_num(&f, c->position.x);
+                out(&f, ",\"y\":");
+                json_num(&f, c->position.y);
+                out(&f, ",\"z\":");
+                json_num(&f, c->position.z);
+                out(&f, ",\"yaw_deg\":%.6g,\"pitch_deg\":%.6g,\"roll_deg\":%.6g,\"fov_deg\":%.6g,\"width\":%u,"
+                        "\"height\":%u,\"projection\":\"%s\"}",
+                    c->yaw * RAD2DEG, c->pitch * RAD2DEG, c->roll * RAD2DEG, c->fov_y * RAD2DEG, c->width, c->height,
+                    c->projection == SL_ORTHOGRAPHIC ? "orthographic" : "perspective");
+                out(&f, ",\"method\":");
+                json_str(&f, b->methods[mi].name);
+                out(&f, ",\"guarantee\":\"%s\",\"cull_ms\":", sl_cull_guarantee_name(b->methods[mi].guarantee));
+                json_num(&f, r->cull_ms);
+                out(&f, ",\"cull_ms_min\":");
+                json_num(&f, r->cull_ms_min);
+                out(&f, ",\"objects_drawn\":%u,\"triangles_drawn\":%llu,\"visible_exact\":%u,\"triangles_visible\":%llu,"
+                        "\"missed_objects\":%u,\"missed_pixels\":%llu,\"extra_objects\":%u,\"overestimation\":",
+                    m->result_count, (unsigned long long)m->triangles_rendered, m->visible_count,
+                    (unsigned long long)m->triangles_visible, m->missed_count, (unsigned long long)m->missed_pixels,
+                    m->extra_count);
+                json_num(&f, m->overestimation);
+                out(&f, ",\"objects_in_frustum\":%u,\"triangles_in_frustum\":%llu,\"covered_pixels\":%llu,\"oracle_ms\":",
+                    fr->objects_in_frustum, (unsigned long long)fr->triangles_in_frustum,
+                    (unsigned long long)fr->covered_pixels);
+                json_num(&f, fr->oracle_ms);
+                out(&f, ",\"stats\":{\"objects_tested\":%llu,\"nodes_visited\":%llu,\"occlusion_tests\":%llu,"
+                        "\"queries\":%llu,\"pixels_rasterized\":%llu,\"pixel_queries\":%llu}",
+                    (unsigned long long)s->objects_tested, (unsigned long long)s->nodes_visited,
+                    (unsigned long long)s->occlusion_tests, (unsigned long long)s->queries,
+                    (unsigned long long)s->pixels_rasterized, (unsigned long long)s->pixel_queries);
+                out(&f, ",\"phases_ms\":{");
+                for (uint32_t p = 0; p < s->phase_count && p < SL_CULL_MAX_PHASES; p++) {
+                    out(&f, "%s", p ? "," : "");
+                    json_str(&f, s->phase_names[p] ? s->phase_names[p] : "?");
+                    out(&f, ":");
+                    json_num(&f, s->phase_ms[p]);
+                }
+                out(&f, "},\"missed\":[");
+                for (uint32_t k = 0; k < r->missed_kept; k++)
+                    out(&f, "%s{\"id\":%u,\"pixels\":%u}", k ? "," : "", r->missed_ids[k], r->missed_pixels[k]);
+                out(&f, "]}");
+            }
+        }
+    }
+    out(&f, "]}\n");
+    return sl_atomic_commit(&f, err);
+}
+
+/* ---- Markdown summary ---- */
+
+/* A count with thousands separators ("1 234 567" would be ambiguous in CSV; this is for tables). */
+static const char *grouped(char *buf, size_t n, double v)
+{
+    char raw[64];
+    snprintf(raw, sizeof raw, "%.0f", v);
+    size_t len = strlen(raw), o = 0;
+    for (size_t i = 0; i < len && o + 2 < n; i++) {
+        buf[o++] = raw[i];
+        size_t left = len - 1 - i;
+        if (left && left % 3 == 0 && raw[i] != '-')
+            buf[o++] = ',';
+    }
+    buf[o] = 0;
+    return buf;
+}
+
+/* Milliseconds with 3 significant decimals below 10, else 1 decimal. */
+static const char *ms_text(char *buf, size_t n, double v)
+{
+    snprintf(buf, n, v < 10 ? "%.3f" : "%.1f", v);
+    return buf;
+}
+
+static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
+{
+    for (uint32_t bi = 0; bi < count; bi++) {
+        struct sl_bench_t *b = benches[bi];
+        sl_scene_stats ss;
+        sl_scene_get_stats(b->scene, &ss);
+        char g1[48], g2[48], g3[48];
+        size_t nf = b->frames.count;
+        double vis = 0, tv = 0;
+        double *oms = sl_alloc(&b->alloc, SL_MAX(nf, 1) * sizeof(double));
+        for (size_t i = 0; i < nf; i++) {
+            const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, i);
+            vis += fr->visible_count;
+            tv += (double)fr->triangles_visible;
+            if (oms)
+                oms[i] = fr->oracle_ms;
+        }
+        sl_series_summary os;
+        memset(&os, 0, sizeof os);
+        if (oms)
+            sl_series_summarize(oms, nf, &b->alloc, &os, NULL);
+        sl_free(&b->alloc, oms, SL_MAX(nf, 1) * sizeof(double));
+        const sl_bench_frame *f0 = nf ? &SL_AT(b->frames, sl_bench_frame, 0) : NULL;
+        fprintf(fp, "### %s\n\n", b->label);
+        fprintf(fp, "%s objects, %s triangles; %zu frames", grouped(g1, sizeof g1, ss.object_count),
+                grouped(g2, sizeof g2, (double)ss.instanced_triangle_count), nf);
+        if (f0)
+            fprintf(fp, " at %ux%u", f0->camera.width, f0->camera.height);
+        fprintf(fp, "; exact visible set %s objects and %s triangles per frame (mean); oracle %.1f ms median, %.1f ms "
+                    "p95.\n\n",
+                grouped(g1, sizeof g1, nf ? vis / (double)nf : 0), grouped(g3, sizeof g3, nf ? tv / (double)nf : 0),
+                os.median, os.p95);
+        fprintf(fp, "| method | guarantee | frames | objects drawn | triangles drawn | exact visible | over-estimation "
+                    "| missed objects | missed pixels | cull ms median | cull ms p95 | cull ms max |\n");
+        fprintf(fp, "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n");
+        for (uint32_t mi = 0; mi < b->method_count; mi++) {
+            sl_bench_summary s;
+            if (sl_bench_summarize(b, mi, &s, NULL) != SL_OK)
+                continue;
+            const bench_method *m = &b->methods[mi];
+            bool violated = m->guarantee == SL_CONSERVATIVE && s.missed_objects_total;
+            char t1[32], t2[32], t3[32];
+            fprintf(fp, "| %s | %s | %u | %s | %s | %s | %.2f | %s%llu%s | %llu | %s | %s | %s |\n", m->name,
+                    sl_cull_guarantee_name(m->guarantee), s.frames, grouped(g1, sizeof g1, s.objects_drawn_mean),
+                    grouped(g2, sizeof g2, s.triangles_drawn_mean), grouped(g3, sizeof g3, s.visible_mean),
+                    s.overestimation_mean, violated ? "**" : "", (unsigned long long)s.missed_objects_total,
+                    violated ? " VIOLATION**" : "", (unsigned long long)s.missed_pixels_total,
+                    ms_text(t1, sizeof t1, s.cull_ms.median), ms_text(t2, sizeof t2, s.cull_ms.p95),
+                    ms_text(t3, sizeof t3, s.cull_ms.max));
+        }
+        fprintf(fp, "\n");
+    }
+}
+
+void sl_bench_print_summary(const sl_bench *benches, uint32_t count, FILE *fp)
+{
+    if (!fp || check_benches(benches, count, "", "sl_bench_print_summary", NULL) != SL_OK)
+        return;
+    summary_md(benches, count, fp);
+}
+
+sl_status sl_bench_write_summary(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
+{
+    sl_status st = check_benches(benches, count, path, "sl_bench_write_summary", err);
+    if (st != SL_OK)
+        return st;
+    sl_atomic_file f;
+    st = sl_atomic_open(count ? &benches[0]->alloc : NULL, path, &f, err);
+    if (st != SL_OK)
+        return st;
+    out(&f, "# Sightline benchmark summary\n\n"
+            "Means are per frame; missed objects and pixels are totals over the frames (a conservative method must "
+            "show 0); over-estimation is objects drawn / exact visible objects; cull times are the per-frame "
+            "medians of the repeats, summarised over the frames. Columns: docs/bench.md.\n\n");
+    if (!f.failed) {
+        summary_md(benches, count, f.fp);
+        if (ferror(f.fp))
+            f.failed = true;
+    }
+    return sl_atomic_commit(&f, err);
+}
+
+/* ---- plots ---- */
+
+sl_status sl_bench_write_plots(sl_bench b, const char *prefix, sl_error *err)
+{
+    if (!b || !prefix)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_write_plots: bench and prefix must not be NULL");
+    const sl_allocator *a = &b->alloc;
+    size_t nf = b->frames.count, nm = b->method_count;
+    size_t cells = SL_MAX(nf, 1) * (3 * nm + 2);
+    double *buf = sl_alloc(a, cells * sizeof(double));
+    size_t plen = strlen(prefix) + 32;
+    char *path = sl_alloc(a, plen);
+    sl_plot_series *series = sl_alloc(a, (nm + 1) * sizeof *series);
+    sl_status st = SL_OK;
+    if (!buf || !path || !series) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for the plots", b->label);
+        goto done;
+    }
+    /* columns: cull ms, triangles drawn, missed pixels per method; exact triangles; frame numbers */
+    double *ms = buf, *tri = buf + nf * nm, *miss = buf + 2 * nf * nm, *exact = buf + 3 * nf * nm,
+           *x = exact + nf;
+    for (size_t fi = 0; fi < nf; fi++) {
+        const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, fi);
+        exact[fi] = (double)fr->triangles_visible;
+        x[fi] = (double)fr->source;
+        for (size_t mi = 0; mi < nm; mi++) {
+            const sl_bench_record *r = bench_rec(b, (uint32_t)fi, (uint32_t)mi);
+            ms[mi * nf + fi] = r->valid ? r->cull_ms : NAN;
+            tri[mi * nf + fi] = r->valid ? (double)r->metrics.triangles_rendered : NAN;
+            miss[mi * nf + fi] = r->valid ? (double)r->metrics.missed_pixels : NAN;
+        }
+    }
+    char title[256];
+    sl_plot plot;
+    memset(&plot, 0, sizeof plot);
+    plot.x = nf ? x : NULL;
+    plot.x_label = "frame";
+    plot.series = series;
+
+    for (size_t mi = 0; mi < nm; mi++)
+        series[mi] = (sl_plot_series){b->methods[mi].name, ms + mi * nf, nf, sl_plot_color((uint32_t)mi), false};
+    snprintf(title, sizeof title, "%s: cull time per frame", b->label);
+    plot.title = title;
+    plot.y_label = "cull time (ms)";
+    plot.series_count = (uint32_t)nm;
+    plot.y_scale = SL_PLOT_AUTO;
+    snprintf(path, plen, "%scull-time.svg", prefix);
+    st = sl_plot_write_svg(&plot, path, a, err);
+    if (st != SL_OK)
+        goto done;
+
+    for (size_t mi = 0; mi < nm; mi++)
+        series[mi].y = tri + mi * nf;
+    series[nm] = (sl_plot_series){"exact visible", exact, nf, 0x000000, true};
+    snprintf(title, sizeof title, "%s: triangles drawn per frame", b->label);
+    plot.y_label = "triangles";
+    plot.series_count = (uint32_t)nm + 1;
+    snprintf(path, plen, "%striangles.svg", prefix);
+    st = sl_plot_write_svg(&plot, path, a, err);
+    if (st != SL_OK)
+        goto done;
+
+    for (size_t mi = 0; mi < nm; mi++)
+        series[mi].y = miss + mi * nf;
+    snprintf(title, sizeof title, "%s: missed pixels per frame (conservative methods: 0)", b->label);
+    plot.y_label = "missed pixels";
+    plot.series_count = (uint32_t)nm;
+    plot.y_scale = SL_PLOT_LINEAR;
+    snprintf(path, plen, "%smissed-pixels.svg", prefix);
+    st = sl_plot_write_svg(&plot, path, a, err);
+done:
+    sl_free(a, buf, cells * sizeof(double));
+    sl_free(a, path, plen);
+    sl_free(a, series, (nm + 1) * sizeof *series);
+    return st;
+}
+
+/* ---- violations ---- */
+
+uint64_t sl_bench_print_violations(const sl_bench *benches, uint32_t count, uint32_t max_lines, FILE *fp)
+{
+    if (check_benches(benches, count, "", "sl_bench_print_violations", NULL) != SL_OK)
+        return 0;
+    uint64_t total = 0;
+    for (uint32_t bi = 0; bi < count; bi++) {
+        struct sl_bench_t *b = benches[bi];
+        for (uint32_t mi = 0; mi < b->method_count; mi++) {
+            const bench_method *m = &b->methods[mi];
+            if (m->guarantee != SL_CONSERVATIVE)
+                continue;
+            uint32_t lines = 0, more = 0;
+            for (uint32_t fi = 0; fi < b->frames.count; fi++) {
+                const sl_bench_record *r = bench_rec(b, fi, mi);
+                if (!r->valid || !r->metrics.missed_count)
+                    continue;
+                total += r->metrics.missed_count;
+                if (!fp)
+                    continue;
+                if (lines >= max_lines) {
+                    more++;
+                    continue;
+                }
+                lines++;
+                fprintf(fp,
+                        "CONSERVATIVENESS VIOLATION: scene %s, frame %u: method %s (conservative) missed %u visible "
+                        "object%s (%llu pixels):",
+                        b->label, SL_AT(b->frames, sl_bench_frame, fi).source, m->name, r->metrics.missed_count, r->metrics.missed_count == 1 ? "" : "s",
+                        (unsigned long long)r->metrics.missed_pixels);
+                for (uint32_t k = 0; k < r->missed_kept; k++)
+                    fprintf(fp, "%s object %u (%u px)", k ? "," : "", r->missed_ids[k], r->missed_pixels[k]);
+                if (r->metrics.missed_count > r->missed_kept)
+                    fprintf(fp, ", ...");
+                fprintf(fp, "\n");
+            }
+            if (fp && more)
+                fprintf(fp, "CONSERVATIVENESS VIOLATION: scene %s: method %s missed objects in %u more frames\n",
+                        b->label, m->name, more);
+        }
+    }
+    return total;
+}

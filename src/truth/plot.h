@@ -1,0 +1,64 @@
+/* Report graphics, internal to the library and the command: SVG line plots, and the images of
+ * oracle views (object ids, depth, overdraw) and top-down maps as PNG. Everything is written
+ * atomically (temporary file, then rename). */
+#ifndef SL_TRUTH_PLOT_H
+#define SL_TRUTH_PLOT_H
+
+#include "sightline/camera.h"
+#include "sightline/truth.h"
+#include "core/sl_core.h"
+
+/* One line of a plot: count y values at the plot's x values; non-finite values break the line. */
+typedef struct sl_plot_series {
+    const char *name;
+    const double *y;
+    size_t count;
+    uint32_t color;            /* 0xRRGGBB */
+    bool dashed;
+} sl_plot_series;
+
+typedef enum sl_plot_scale { SL_PLOT_LINEAR = 0, SL_PLOT_LOG = 1, SL_PLOT_AUTO = 2 } sl_plot_scale;
+
+typedef struct sl_plot {
+    const char *title, *x_label, *y_label;
+    const double *x;           /* shared x values, or NULL: 0, 1, 2 ... (the axis spans their range) */
+    const sl_plot_series *series;
+    uint32_t series_count;
+    sl_plot_scale y_scale;     /* AUTO: logarithmic when the positive values span over 2 decades */
+    uint32_t width, height;    /* 0, 0: 960 x 480 */
+} sl_plot;
+
+/* Write a line plot as a standalone SVG file (axes, ticks, grid, legend, title). */
+sl_status sl_plot_write_svg(const sl_plot *plot, const char *path, const sl_allocator *alloc, sl_error *err);
+
+/* Colour of series i from a qualitative palette (0xRRGGBB); repeats after 10. */
+uint32_t sl_plot_color(uint32_t i);
+
+/* PNG of a view's object ids, each object in sl_id_color, black where nothing was drawn. */
+sl_status sl_image_write_ids(const sl_oracle_view *view, const char *path, const sl_allocator *alloc, sl_error *err);
+/* Grey PNG of a view's depth as distance from the camera, nearest bright, farthest dark,
+ * logarithmic in distance for a perspective camera (linear for orthographic) and normalised to
+ * the range the view contains; black where nothing was drawn. The camera gives near, far and
+ * projection. */
+sl_status sl_image_write_depth(const sl_oracle_view *view, const sl_camera *cam, const char *path,
+                               const sl_allocator *alloc, sl_error *err);
+/* PNG of a view's depth complexity (fragments per pixel) on the colour ramp, 0 black and the
+ * view's maximum yellow; *max_out (may be NULL) receives that maximum. The view needs its
+ * overdraw buffer (oracle option count_overdraw). */
+sl_status sl_image_write_overdraw(const sl_oracle_view *view, const char *path, const sl_allocator *alloc,
+                                  uint32_t *max_out, sl_error *err);
+
+/* An RGB image to draw on (rows top to bottom, 3 bytes per pixel). */
+typedef struct sl_canvas {
+    uint8_t *rgb;
+    uint32_t width, height;
+} sl_canvas;
+
+/* A line of the given thickness in pixels; parts outside the canvas are skipped. */
+void sl_canvas_line(sl_canvas *c, double x0, double y0, double x1, double y1, uint32_t color, int thickness);
+/* A circle outline of radius r. */
+void sl_canvas_ring(sl_canvas *c, double cx, double cy, double r, uint32_t color, int thickness);
+/* A filled disc of radius r. */
+void sl_canvas_disc(sl_canvas *c, double cx, double cy, double r, uint32_t color);
+
+#endif

@@ -1,0 +1,155 @@
+#!/bin/bash
+# CLI test of `sightline methods` and `sightline bench`: help texts, usage errors (exit 2), bad
+# files (exit 1), and runs on the tiny city: a walk, random street and flyover views, a hand-written
+# path with a frame range, two scenes at once, method options, a map from a point. Checks the
+# files written (CSV rows = frames x methods, JSON, summary, SVG plots, PNG maps with the PNG
+# signature) and that every conservative method misses nothing. $1 is the sightline binary.
+# Under sanitizers (SL_SANITIZED set) the runs use fewer frames.
+set -u
+SL="$1"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+fail() {
+    echo "FAIL: $*"
+    echo "--- stdout"; head -c 4000 "$tmp/out" 2>/dev/null
+    echo "--- stderr"; head -c 4000 "$tmp/err" 2>/dev/null
+    exit 1
+}
+expect() {
+    local want=$1
+    shift
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local rc=$?
+    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
+}
+has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
+hasnt() { ! grep -q -- "$1" "$2" || fail "'$1' unexpectedly in $2"; }
+is_png() { [ "$(head -c 8 "$1" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$1 is not a PNG"; }
+is_svg() { head -c 5 "$1" | grep -q '<?xml' && grep -q '</svg>' "$1" || fail "$1 is not an SVG"; }
+rows() { echo $(($(wc -l <"$1") - 1)); }
+
+if [ -n "${SL_SANITIZED:-}" ]; then N=4; else N=12; fi
+
+# ---- methods ----
+expect 0 "$SL" methods --help
+has "usage: sightline methods" "$tmp/out"
+has "example" "$tmp/out"
+expect 0 "$SL" methods
+has "vfc (conservative)" "$tmp/out"
+has "leaf_size=" "$tmp/out"
+expect 0 "$SL" methods --json
+has '"name":"vfc"' "$tmp/out"
+has '"guarantee":"conservative"' "$tmp/out"
+expect 0 "$SL" methods vfc --json
+has '"name":"vfc"' "$tmp/out"
+expect 2 "$SL" methods nosuch
+has "unknown culling method 'nosuch'" "$tmp/err"
+expect 2 "$SL" methods --bogus
+
+# ---- bench: help and usage errors (run in an empty folder: nothing may be written) ----
+mkdir "$tmp/cwd"
+cd "$tmp/cwd" || fail "cd"
+expect 0 "$SL" bench --help
+has "usage: sightline bench" "$tmp/out"
+has "examples:" "$tmp/out"
+has "CONSERVATIVENESS VIOLATION" "$tmp/out"
+expect 2 "$SL" bench
+has "missing SCENE" "$tmp/err"
+expect 2 "$SL" bench city:tiny
+has "missing views" "$tmp/err"
+expect 2 "$SL" bench city:tiny --walk 5 --random street
+has "only one of" "$tmp/err"
+expect 2 "$SL" bench city:tiny --random walk
+has "not street or flyover" "$tmp/err"
+expect 2 "$SL" bench city:tiny --walk 0
+expect 2 "$SL" bench city:tiny --walk ten
+expect 2 "$SL" bench city:tiny --walk 5 --bogus
+has "unknown option --bogus" "$tmp/err"
+expect 2 "$SL" bench city:tiny --walk 5 --methods vfc,nosuch
+has "unknown culling method 'nosuch'" "$tmp/err"
+expect 2 "$SL" bench city:tiny --walk 5 --methods vfc,vfc
+expect 2 "$SL" bench city:tiny --walk 5 --method-options vfc:bogus=1
+has "bogus" "$tmp/err"
+expect 2 "$SL" bench city:tiny --walk 5 --method-options coherence=off
+expect 2 "$SL" bench city:tiny --walk 5 --repeat 0
+expect 2 "$SL" bench city:tiny --walk 5 --frames 0:2
+expect 2 "$SL" bench city:tiny --walk 5 --map-eye 1,2
+expect 2 "$SL" bench city:tiny --walk 5 --width 0
+[ -z "$(ls -A "$tmp/cwd")" ] || fail "a usage error wrote into the current folder"
+
+# ---- bad files and scenes: exit 1 ----
+expect 1 "$SL" bench "$tmp/missing.slscene" --walk 5 --out "$tmp/x"
+has "missing.slscene" "$tmp/err"
+head -c 2000 /dev/urandom >"$tmp/garbage.slscene"
+expect 1 "$SL" bench "$tmp/garbage.slscene" --walk 5 --out "$tmp/x"
+has "garbage.slscene" "$tmp/err"
+expect 1 "$SL" bench city:huge --walk 5 --out "$tmp/x"
+has "unknown city preset" "$tmp/err"
+expect 1 "$SL" bench city:tiny --path "$tmp/missing.txt" --out "$tmp/x"
+has "missing.txt" "$tmp/err"
+printf '# sightline-path 1\n0 0 0 nan 0 0 0\n' >"$tmp/bad.txt"
+expect 1 "$SL" bench city:tiny --path "$tmp/bad.txt" --out "$tmp/x"
+has "bad.txt:2" "$tmp/err"
+[ -z "$(ls "$tmp/x" 2>/dev/null | grep -v '^$')" ] || fail "a failed run left files in $tmp/x"
+
+# ---- a walk on the tiny city, every method ----
+expect 0 "$SL" bench city:tiny --walk $N --out "$tmp/walk"
+# methods run by default: every registered one that needs no option; the others are named
+M=$(grep -o '"guarantee":' "$tmp/walk/summary.json" | wc -l)
+[ "$M" -ge 1 ] || fail "no methods ran"
+S=$(grep -o '"reason":' "$tmp/walk/summary.json" | wc -l)
+R=$("$SL" methods --json | grep -o '"name":' | wc -l)
+[ $((M + S)) -eq "$R" ] || fail "$M methods ran and $S were skipped, but $R are registered"
+[ "$(grep -c '^not run: ' "$tmp/out")" -eq "$S" ] || fail "skipped methods are not named on stdout"
+has "### city-tiny-1" "$tmp/out"
+has "| vfc | conservative | $N |" "$tmp/out"
+hasnt "VIOLATION" "$tmp/err"
+for f in frames.csv frames.json summary.md summary.json; do [ -s "$tmp/walk/$f" ] || fail "no $f"; done
+[ "$(rows "$tmp/walk/frames.csv")" -eq $((N * M)) ] || fail "frames.csv has $(rows "$tmp/walk/frames.csv") rows, expected $((N * M))"
+head -1 "$tmp/walk/frames.csv" | grep -q '^scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,' ||
+    fail "frames.csv header"
+cols=$(head -1 "$tmp/walk/frames.csv" | tr ',' '\n' | wc -l)
+awk -F, -v c="$cols" 'NR > 1 && NF != c { exit 1 }' "$tmp/walk/frames.csv" || fail "a CSV row has the wrong field count"
+# every conservative row has zero missed objects (column 18)
+awk -F, 'NR > 1 && $11 == "conservative" && $18 != 0 { exit 1 }' "$tmp/walk/frames.csv" || fail "a conservative miss"
+has '"format":"sightline-bench-frames"' "$tmp/walk/frames.json"
+[ "$(grep -o '"method":' "$tmp/walk/frames.json" | wc -l)" -eq $((N * M)) ] || fail "frames.json rows"
+has '"violations":0' "$tmp/walk/summary.json"
+has "| vfc | conservative | $N |" "$tmp/walk/summary.md"
+for p in cull-time triangles missed-pixels; do is_svg "$tmp/walk/city-tiny-1-$p.svg"; done
+is_png "$tmp/walk/city-tiny-1-map-vfc.png"
+
+# ---- JSON summary, random views, no plots, repeats, method options ----
+expect 0 "$SL" bench city:tiny --random street --count $N --seed 2 --no-plots --json --repeat 3 \
+    --methods vfc --method-options vfc:coherence=off,leaf_size=2 --out "$tmp/rand"
+has '"violations":0' "$tmp/out"
+has '"frames":'"$N" "$tmp/out"
+has 'coherence=false' "$tmp/out"
+has 'leaf_size=2' "$tmp/out"
+[ "$(rows "$tmp/rand/frames.csv")" -eq "$N" ] || fail "random: CSV rows"
+ls "$tmp/rand"/*.svg >/dev/null 2>&1 && fail "--no-plots wrote plots"
+expect 0 "$SL" bench city:tiny --random flyover --count 3 --methods vfc --width 320 --height 240 \
+    --map-eye 0,0,40 --map-size 200 --out "$tmp/fly" --quiet
+is_png "$tmp/fly/city-tiny-1-map-vfc.png"
+grep -q '"width":320' "$tmp/fly/frames.json" || fail "frames.json camera width"
+
+# ---- a path file with a frame range; two scenes at once ----
+cat >"$tmp/p.txt" <<'EOF'
+# sightline-path 1
+camera fov=70 width=640 height=480
+0 0 0 1.7 0 0 0
+1 0 0 1.7 90 0 0
+2 0 0 1.7 180 0 0
+3 0 0 1.7 270 -10 0
+EOF
+expect 0 "$SL" bench city:tiny city:tiny:2 --path "$tmp/p.txt" --frames 1:3 --methods vfc --no-plots --out "$tmp/path"
+[ "$(rows "$tmp/path/frames.csv")" -eq 4 ] || fail "path: 2 frames x 2 scenes expected"
+has '^city-tiny-2,' "$tmp/path/frames.csv"
+has '^city-tiny-1,1,1,' "$tmp/path/frames.csv"
+expect 0 "$SL" bench city:tiny --path "$tmp/p.txt" --frames 3: --methods vfc --no-plots --out "$tmp/path2"
+[ "$(rows "$tmp/path2/frames.csv")" -eq 1 ] || fail "--frames 3: should run one frame"
+expect 1 "$SL" bench city:tiny --path "$tmp/p.txt" --frames 9:12 --out "$tmp/path3"
+has "beyond" "$tmp/err"
+expect 2 "$SL" bench city:tiny --path "$tmp/p.txt" --frames 3:1
+echo "PASS"

@@ -1,0 +1,65 @@
+#!/bin/bash
+# CLI test of `sightline demo`: help, usage errors, and a quick run on the tiny city: the report
+# (HTML and Markdown) exists, every image it references exists, the per-frame files are there, and
+# no conservative method missed anything. $1 is the sightline binary.
+set -u
+SL="$1"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+fail() {
+    echo "FAIL: $*"
+    echo "--- stdout"; head -c 4000 "$tmp/out" 2>/dev/null
+    echo "--- stderr"; head -c 4000 "$tmp/err" 2>/dev/null
+    exit 1
+}
+expect() {
+    local want=$1
+    shift
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local rc=$?
+    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
+}
+has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
+is_png() { [ "$(head -c 8 "$1" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$1 is not a PNG"; }
+
+if [ -n "${SL_SANITIZED:-}" ]; then FRAMES="--frames 6"; else FRAMES=""; fi
+
+expect 0 "$SL" demo --help
+has "usage: sightline demo" "$tmp/out"
+has "examples:" "$tmp/out"
+expect 2 "$SL" demo --bogus
+has "unknown option --bogus" "$tmp/err"
+expect 2 "$SL" demo --preset huge
+has "not tiny, small or vienna" "$tmp/err"
+expect 2 "$SL" demo --frames 0
+expect 2 "$SL" demo extra-argument
+
+# shellcheck disable=SC2086
+expect 0 "$SL" demo --preset tiny --quick $FRAMES --out "$tmp/d" --quiet
+has "Report: $tmp/d/report.html" "$tmp/out"
+has "city-tiny-1-walk" "$tmp/out"
+for f in report.html report.md frames.csv frames.json summary.md walk.txt; do
+    [ -s "$tmp/d/$f" ] || fail "no $f"
+done
+has "Every conservative method kept every visible object" "$tmp/d/report.md"
+has "<h2>The methods</h2>" "$tmp/d/report.html"
+has "vfc" "$tmp/d/report.html"
+# every image the reports reference exists next to them
+refs=$(grep -o 'src="[^"]*"' "$tmp/d/report.html" | sed 's/^src="//; s/"$//')
+[ -n "$refs" ] || fail "report.html references no images"
+for r in $refs; do
+    [ -s "$tmp/d/$r" ] || fail "report.html references missing $r"
+    case "$r" in *.png) is_png "$tmp/d/$r" ;; esac
+done
+for r in $(grep -o '](\([^)]*\))' "$tmp/d/report.md" | sed 's/^](//; s/)$//'); do
+    [ -s "$tmp/d/$r" ] || fail "report.md references missing $r"
+done
+is_png "$tmp/d/frame-id.png"
+"$SL" path check "$tmp/d/walk.txt" >/dev/null 2>&1 || fail "walk.txt is not a valid path file"
+
+# shellcheck disable=SC2086
+expect 0 "$SL" demo --preset tiny --quick --frames 3 --out "$tmp/j" --json
+has '"violations":0' "$tmp/out"
+has '"report":' "$tmp/out"
+echo "PASS"

@@ -1,0 +1,598 @@
+/* The benchmark harness on a hand-built scene whose answer is known: a wall hides one box, two
+ * boxes are in plain sight, one is behind the camera. The records, metrics and summaries of vfc
+ * and of external methods (an exact answer, a broken "conservative" one that drops a visible box,
+ * an aggressive one) are checked against the hand count; then the writers (CSV rows, JSON, the
+ * Markdown summary, plots, the top-down map with its orientation), scene specs, a generated-city
+ * walk with zero misses for every registered conservative method, and the error paths. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include "core/sl_core.h"
+#include "sightline/bench.h"
+#include "sightline/image.h"
+#include "support/counting_alloc.h"
+#include "truth/plot.h"
+
+/* ---- the scene ---- */
+
+static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const uint32_t *idx, uint32_t nt)
+{
+    sl_error err;
+    sl_mesh_desc md = {pos, NULL, nv, idx, nt};
+    uint32_t mesh, obj;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0};
+    assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
+    return obj;
+}
+
+/* An axis-aligned box of 12 triangles (both sides are drawn: it is not flagged closed). */
+static uint32_t add_box(sl_scene s, sl_vec3 lo, sl_vec3 hi)
+{
+    float p[24];
+    for (int i = 0; i < 8; i++) {
+        p[3 * i] = (i & 1) ? hi.x : lo.x;
+        p[3 * i + 1] = (i & 2) ? hi.y : lo.y;
+        p[3 * i + 2] = (i & 4) ? hi.z : lo.z;
+    }
+    static const uint32_t idx[36] = {0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5, 0, 1, 5, 0, 5, 4,
+                                     2, 6, 7, 2, 7, 3, 0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6};
+    return add_mesh_object(s, p, 8, idx, 12);
+}
+
+/* ids of the known scene */
+typedef struct known {
+    sl_scene scene;
+    uint32_t wall, hidden, front, side, behind;
+} known;
+
+/* Camera at the origin looking along +X. The wall (x = 10, y in [-20, 2]) hides `hidden`
+ * (x 20..22, y -5..-3); `front` is between the camera and the wall; `side` (x 30..32, y 8..10)
+ * shows past the wall's end; `behind` (x -12..-10, y 4..6) is behind the camera, north-west. */
+static known make_known(void)
+{
+    known k;
+    assert_int_equal(sl_scene_create(NULL, &k.scene, NULL), SL_OK);
+    float wp[12] = {10, -20, -5, 10, 2, -5, 10, 2, 20, 10, -20, 20};
+    uint32_t wi[6] = {0, 1, 2, 0, 2, 3};
+    k.wall = add_mesh_object(k.scene, wp, 4, wi, 2);
+    k.hidden = add_box(k.scene, (sl_vec3){20, -5, -1}, (sl_vec3){22, -3, 1});
+    k.front = add_box(k.scene, (sl_vec3){5, -4, -1}, (sl_vec3){6, -3, 0});
+    k.side = add_box(k.scene, (sl_vec3){30, 8, -1}, (sl_vec3){32, 10, 1});
+    k.behind = add_box(k.scene, (sl_vec3){-12, 4, -1}, (sl_vec3){-10, 6, 1});
+    return k;
+}
+
+static sl_camera camera_at(float yaw)
+{
+    sl_camera c = sl_camera_default();
+    c.position = (sl_vec3){0, 0, 0};
+    c.yaw = yaw;
+    c.width = 256;
+    c.height = 192;
+    return c;
+}
+
+static char *temp_dir(void)
+{
+    static char dir[64];
+    snprintf(dir, sizeof dir, "/tmp/sl_test_bench_XXXXXX");
+    assert_non_null(mkdtemp(dir));
+    return dir;
+}
+
+static void remove_dir(const char *dir)
+{
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+static char *read_text(const char *path, size_t *len)
+{
+    uint8_t *data;
+    size_t size;
+    sl_error err;
+    assert_int_equal(sl_file_read_all(NULL, path, &data, &size, &err), SL_OK);
+    char *text = malloc(size + 1);
+    memcpy(text, data, size);
+    text[size] = 0;
+    sl_free(NULL, data, size);
+    if (len)
+        *len = size;
+    return text;
+}
+
+static size_t count_lines(const char *text)
+{
+    size_t n = 0;
+    for (; *text; text++)
+        n += *text == '\n';
+    return n;
+}
+
+/* ---- tests ---- */
+
+static void test_known_scene_records(void **state)
+{
+    (void)state;
+    known k = make_known();
+    sl_test_counter counter = {0, 0, 0};
+    sl_allocator alloc = sl_test_counting_allocator(&counter);
+    sl_bench_method_spec specs[] = {{"vfc", NULL}};
+    sl_bench_options opt = sl_bench_default_options();
+    opt.repeat = 3;
+    opt.label = "known";
+    sl_bench b;
+    sl_error err;
+    assert_int_equal(sl_bench_create(k.scene, specs, 1, &opt, &alloc, &b, &err), SL_OK);
+    uint32_t exact, broken, rough;
+    assert_int_equal(sl_bench_add_external(b, "exact", SL_CONSERVATIVE, &exact, &err), SL_OK);
+    assert_int_equal(sl_bench_add_external(b, "broken", SL_CONSERVATIVE, &broken, &err), SL_OK);
+    assert_int_equal(sl_bench_add_external(b, "rough", SL_AGGRESSIVE, &rough, &err), SL_OK);
+    assert_int_equal(sl_bench_method_count(b), 4);
+    assert_string_equal(sl_bench_label(b), "known");
+
+    /* frame 0: looking along +X */
+    sl_camera c0 = camera_at(0);
+    assert_int_equal(sl_bench_run_frame(b, &c0, &err), SL_OK);
+    sl_oracle_frame truth;
+    assert_int_equal(sl_bench_last_truth(b, &truth, &err), SL_OK);
+    assert_int_equal(truth.visible_count, 3);
+    assert_int_equal(truth.visible[0], k.wall);
+    assert_int_equal(truth.visible[1], k.front);
+    assert_int_equal(truth.visible[2], k.side);
+    uint32_t side_pixels = truth.pixels[2];
+    assert_true(side_pixels > 0);
+
+    sl_bench_frame fr;
+    assert_int_equal(sl_bench_get_frame(b, 0, &fr, &err), SL_OK);
+    assert_int_equal(fr.visible_count, 3);
+    assert_int_equal(fr.triangles_visible, 2 + 12 + 12);
+    assert_int_equal(fr.camera.width, 256);
+
+    /* vfc keeps everything in the frustum: the visible three and the hidden box, not the one behind */
+    sl_bench_record r;
+    assert_int_equal(sl_bench_get_record(b, 0, 0, &r, &err), SL_OK);
+    assert_true(r.valid);
+    assert_int_equal(r.metrics.result_count, 4);
+    assert_int_equal(r.metrics.visible_count, 3);
+    assert_int_equal(r.metrics.missed_count, 0);
+    assert_int_equal(r.metrics.missed_pixels, 0);
+    assert_int_equal(r.metrics.extra_count, 1);
+    assert_int_equal(r.metrics.triangles_rendered, 2 + 3 * 12);
+    assert_int_equal(r.metrics.triangles_visible, 26);
+    assert_true(fabs(r.metrics.overestimation - 4.0 / 3.0) < 1e-12);
+    assert_true(r.cull_ms_min <= r.cull_ms && r.cull_ms >= 0);
+    assert_int_equal(r.stats.objects_visible, 4);
+    const uint32_t *ids;
+    uint32_t n;
+    assert_int_equal(sl_bench_last_result(b, 0, &ids, &n, &err), SL_OK);
+    assert_int_equal(n, 4);
+    assert_int_equal(ids[3], k.side);
+
+    /* external methods are pending until submitted */
+    assert_int_equal(sl_bench_get_record(b, 0, exact, &r, &err), SL_OK);
+    assert_false(r.valid);
+    assert_int_equal(sl_bench_submit(b, exact, truth.visible, truth.visible_count, 0.5, &err), SL_OK);
+    uint32_t dropped[] = {k.wall, k.front}; /* drops `side`, which is visible */
+    assert_int_equal(sl_bench_submit(b, broken, dropped, 2, 0.25, &err), SL_OK);
+    uint32_t only_wall[] = {k.wall};
+    assert_int_equal(sl_bench_submit(b, rough, only_wall, 1, 0.1, &err), SL_OK);
+    assert_int_equal(sl_bench_get_record(b, 0, exact, &r, &err), SL_OK);
+    assert_true(r.valid);
+    assert_int_equal(r.metrics.missed_count, 0);
+    assert_true(r.metrics.overestimation == 1.0);
+    assert_true(r.cull_ms == 0.5);
+    assert_int_equal(sl_bench_get_record(b, 0, broken, &r, &err), SL_OK);
+    assert_int_equal(r.metrics.missed_count, 1);
+    assert_int_equal(r.missed_kept, 1);
+    assert_int_equal(r.missed_ids[0], k.side);
+    assert_int_equal(r.missed_pixels[0], side_pixels);
+    assert_int_equal(r.metrics.missed_pixels, side_pixels);
+    assert_int_equal(sl_bench_get_record(b, 0, rough, &r, &err), SL_OK);
+    assert_int_equal(r.metrics.missed_count, 2);
+
+    /* bad submissions change nothing */
+    uint32_t unsorted[] = {k.side, k.wall};
+    assert_int_equal(sl_bench_submit(b, exact, unsorted, 2, 0, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "ascending"));
+    uint32_t out_of_range[] = {99};
+    assert_int_equal(sl_bench_submit(b, exact, out_of_range, 1, 0, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_submit(b, 0, truth.visible, 1, 0, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_submit(b, exact, truth.visible, 1, NAN, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_get_record(b, 0, exact, &r, &err), SL_OK);
+    assert_int_equal(r.metrics.missed_count, 0);
+    assert_int_equal(sl_bench_add_external(b, "late", SL_AGGRESSIVE, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+
+    /* frame 1: turned around, only the box behind is visible; "broken" is not submitted */
+    sl_camera c1 = camera_at((float)M_PI);
+    assert_int_equal(sl_bench_run_frame(b, &c1, &err), SL_OK);
+    assert_int_equal(sl_bench_last_truth(b, &truth, &err), SL_OK);
+    assert_int_equal(truth.visible_count, 1);
+    assert_int_equal(truth.visible[0], k.behind);
+    assert_int_equal(sl_bench_submit(b, exact, truth.visible, 1, 0.5, &err), SL_OK);
+    assert_int_equal(sl_bench_submit(b, rough, NULL, 0, 0.1, &err), SL_OK);
+    assert_int_equal(sl_bench_frame_count(b), 2);
+
+    sl_bench_summary s;
+    assert_int_equal(sl_bench_summarize(b, 0, &s, &err), SL_OK);
+    assert_int_equal(s.frames, 2);
+    assert_true(s.visible_mean == 2.0);
+    assert_int_equal(s.missed_objects_total, 0);
+    assert_int_equal(s.first_miss_frame, SL_NONE);
+    assert_int_equal(s.cull_ms.count, 2);
+    assert_int_equal(sl_bench_summarize(b, broken, &s, &err), SL_OK);
+    assert_int_equal(s.frames, 1); /* only the submitted frame counts */
+    assert_int_equal(s.missed_objects_total, 1);
+    assert_int_equal(s.missed_pixels_total, side_pixels);
+    assert_int_equal(s.frames_with_misses, 1);
+    assert_int_equal(s.first_miss_frame, 0);
+    assert_int_equal(s.first_miss_object, k.side);
+    assert_true(s.cull_ms.median == 0.25);
+    assert_int_equal(sl_bench_summarize(b, rough, &s, &err), SL_OK);
+    assert_int_equal(s.missed_objects_total, 3);
+    /* only conservative methods violate: the broken one's single miss */
+    assert_int_equal(sl_bench_violations(b), 1);
+
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *mem = open_memstream(&buf, &len);
+    assert_int_equal(sl_bench_print_violations(&b, 1, 10, mem), 1);
+    fclose(mem);
+    char expect[160];
+    snprintf(expect, sizeof expect, "frame 0: method broken (conservative) missed 1 visible object (%u pixels): object %u",
+             side_pixels, k.side);
+    assert_non_null(strstr(buf, "CONSERVATIVENESS VIOLATION: scene known"));
+    assert_non_null(strstr(buf, expect));
+    assert_null(strstr(buf, "rough"));
+    free(buf);
+
+    sl_bench_destroy(b);
+    assert_int_equal(counter.live, 0);
+    sl_scene_destroy(k.scene);
+}
+
+static void test_reports(void **state)
+{
+    (void)state;
+    known k = make_known();
+    sl_bench_method_spec specs[] = {{"vfc", "coherence=false"}};
+    sl_bench_options opt = sl_bench_default_options();
+    opt.label = "known";
+    opt.width = 200; /* overrides the cameras' viewport */
+    opt.height = 150;
+    sl_bench b;
+    sl_error err;
+    assert_int_equal(sl_bench_create(k.scene, specs, 1, &opt, NULL, &b, &err), SL_OK);
+    sl_bench_method_info info;
+    assert_int_equal(sl_bench_method(b, 0, &info, &err), SL_OK);
+    assert_string_equal(info.name, "vfc");
+    assert_non_null(strstr(info.options, "coherence=false"));
+    assert_false(info.external);
+    uint32_t broken;
+    assert_int_equal(sl_bench_add_external(b, "broken", SL_CONSERVATIVE, &broken, &err), SL_OK);
+    for (int f = 0; f < 3; f++) {
+        sl_camera c = camera_at(f == 2 ? (float)M_PI : 0);
+        assert_int_equal(sl_bench_run_frame(b, &c, &err), SL_OK);
+        if (f < 2) {
+            uint32_t dropped[] = {k.wall, k.front};
+            assert_int_equal(sl_bench_submit(b, broken, dropped, 2, 1.0, &err), SL_OK);
+        }
+    }
+    sl_bench_frame fr;
+    assert_int_equal(sl_bench_get_frame(b, 0, &fr, &err), SL_OK);
+    assert_int_equal(fr.camera.width, 200);
+    assert_int_equal(fr.camera.height, 150);
+
+    char *dir = temp_dir();
+    char path[256];
+    /* CSV: a header and one row per valid frame x method (3 vfc + 2 broken) */
+    snprintf(path, sizeof path, "%s/frames.csv", dir);
+    assert_int_equal(sl_bench_write_csv(&b, 1, path, &err), SL_OK);
+    char *text = read_text(path, NULL);
+    assert_int_equal(count_lines(text), 1 + 3 + 2);
+    assert_true(!strncmp(text, "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,", 77));
+    char row[128];
+    snprintf(row, sizeof row, ",broken,conservative,1.000000,1.000000,2,14,3,26,1,");
+    assert_non_null(strstr(text, row));
+    snprintf(row, sizeof row, ",%u:", k.side); /* the missed object and its pixels, last column */
+    assert_non_null(strstr(text, row));
+    free(text);
+    /* JSON */
+    snprintf(path, sizeof path, "%s/frames.json", dir);
+    assert_int_equal(sl_bench_write_json(&b, 1, path, &err), SL_OK);
+    text = read_text(path, NULL);
+    assert_true(!strncmp(text, "{\"format\":\"sightline-bench-frames\",\"version\":1,", 47));
+    snprintf(row, sizeof row, "\"missed\":[{\"id\":%u,\"pixels\":", k.side);
+    assert_non_null(strstr(text, row));
+    assert_non_null(strstr(text, "\"external\":true"));
+    size_t rows = 0;
+    for (const char *p = text; (p = strstr(p, "\"method\":")); p++)
+        rows++;
+    assert_int_equal(rows, 5);
+    free(text);
+    /* the summary */
+    snprintf(path, sizeof path, "%s/summary.md", dir);
+    assert_int_equal(sl_bench_write_summary(&b, 1, path, &err), SL_OK);
+    text = read_text(path, NULL);
+    assert_non_null(strstr(text, "### known"));
+    assert_non_null(strstr(text, "| vfc | conservative | 3 | "));
+    assert_non_null(strstr(text, "| broken | conservative | 2 | "));
+    assert_non_null(strstr(text, "**2 VIOLATION**"));
+    free(text);
+    /* plots */
+    snprintf(path, sizeof path, "%s/known-", dir);
+    assert_int_equal(sl_bench_write_plots(b, path, &err), SL_OK);
+    static const char *plots[] = {"cull-time", "triangles", "missed-pixels"};
+    for (int i = 0; i < 3; i++) {
+        snprintf(path, sizeof path, "%s/known-%s.svg", dir, plots[i]);
+        text = read_text(path, NULL);
+        assert_true(!strncmp(text, "<?xml", 5));
+        assert_non_null(strstr(text, "</svg>"));
+        assert_non_null(strstr(text, "vfc"));
+        if (i == 1)
+            assert_non_null(strstr(text, "exact visible"));
+        free(text);
+    }
+
+    /* the map from frame 0's camera: vfc keeps 3 visible, 1 hidden (orange), drops 1 (grey) */
+    sl_bench_map_options mo;
+    memset(&mo, 0, sizeof mo);
+    mo.camera = camera_at(0);
+    mo.size = 300;
+    snprintf(path, sizeof path, "%s/known-map-", dir);
+    sl_bench_map_counts counts[2];
+    assert_int_equal(sl_bench_write_maps(b, &mo, path, counts, &err), SL_OK);
+    assert_int_equal(counts[0].visible_kept, 3);
+    assert_int_equal(counts[0].missed, 0);
+    assert_int_equal(counts[0].extra, 1);
+    assert_int_equal(counts[0].culled, 1);
+    snprintf(path, sizeof path, "%s/known-map-broken.png", dir);
+    assert_int_equal(access(path, F_OK), -1); /* external methods get no map */
+    snprintf(path, sizeof path, "%s/known-map-vfc.png", dir);
+    uint8_t *px;
+    uint32_t w, h;
+    assert_int_equal(sl_png_read_rgba(path, NULL, &px, &w, &h, &err), SL_OK);
+    assert_int_equal(w, 300);
+    /* orientation: north up, east right. The grey box (behind, x -11, y 5) lies left of and above
+     * the orange one (hidden, x 21, y -4) */
+    double gx = 0, gy = 0, gn = 0, ox = 0, oy = 0, on = 0;
+    for (uint32_t y = 0; y < h; y++)
+        for (uint32_t x = 0; x < w; x++) {
+            const uint8_t *p = px + 4 * ((size_t)y * w + x);
+            int r = p[0], g = p[1], bl = p[2];
+            if (abs(r - g) < 6 && abs(g - bl) < 6 && r > 60 && r < 245)
+                gx += x, gy += y, gn++;
+            else if (r > 150 && g > 60 && bl < 60 && r > g + 40)
+                ox += x, oy += y, on++;
+        }
+    assert_true(gn > 20 && on > 20);
+    assert_true(gx / gn < ox / on);
+    assert_true(gy / gn < oy / on);
+    sl_free(NULL, px, (size_t)w * h * 4);
+
+    /* a map from a point sees in all directions: then everything but the hidden box is visible */
+    mo.use_eye = true;
+    mo.eye = (sl_vec3){0, 0, 0};
+    mo.cube_size = 128;
+    assert_int_equal(sl_bench_write_maps(b, &mo, path, counts, &err), SL_OK);
+    assert_int_equal(counts[0].visible_kept + counts[0].missed, 4);
+    assert_int_equal(counts[0].missed, 0);
+    mo.size = 5;
+    assert_int_equal(sl_bench_write_maps(b, &mo, path, counts, &err), SL_ERROR_INVALID_ARGUMENT);
+    /* a write into a missing folder fails cleanly */
+    snprintf(path, sizeof path, "%s/missing/frames.csv", dir);
+    assert_int_equal(sl_bench_write_csv(&b, 1, path, &err), SL_ERROR_IO);
+    remove_dir(dir);
+    sl_bench_destroy(b);
+    sl_scene_destroy(k.scene);
+}
+
+static void test_plot_svg(void **state)
+{
+    (void)state;
+    char *dir = temp_dir();
+    char path[256];
+    sl_error err;
+    /* a long series is thinned per pixel column and stays small; spikes survive */
+    size_t n = 200000;
+    double *y = malloc(n * sizeof *y);
+    for (size_t i = 0; i < n; i++)
+        y[i] = 1.0 + (double)(i % 97) * 0.01;
+    y[123457] = 5000; /* one spike: the log scale turns on and the spike's value is drawn */
+    y[5] = NAN;
+    sl_plot_series se = {"a <method> & co", y, n, sl_plot_color(0), false};
+    sl_plot p;
+    memset(&p, 0, sizeof p);
+    p.title = "t";
+    p.x_label = "frame";
+    p.y_label = "ms";
+    p.series = &se;
+    p.series_count = 1;
+    p.y_scale = SL_PLOT_AUTO;
+    snprintf(path, sizeof path, "%s/long.svg", dir);
+    assert_int_equal(sl_plot_write_svg(&p, path, NULL, &err), SL_OK);
+    size_t len;
+    char *text = read_text(path, &len);
+    assert_true(len < 400000);
+    assert_non_null(strstr(text, "(log scale)"));
+    assert_non_null(strstr(text, "a &lt;method&gt; &amp; co"));
+    free(text);
+    /* no series at all: still a valid image saying so */
+    p.series_count = 0;
+    snprintf(path, sizeof path, "%s/empty.svg", dir);
+    assert_int_equal(sl_plot_write_svg(&p, path, NULL, &err), SL_OK);
+    text = read_text(path, NULL);
+    assert_non_null(strstr(text, "no data"));
+    free(text);
+    /* a single point is drawn as a dot */
+    double one = 3;
+    sl_plot_series s1 = {"one", &one, 1, 0xff0000, false};
+    p.series = &s1;
+    p.series_count = 1;
+    snprintf(path, sizeof path, "%s/one.svg", dir);
+    assert_int_equal(sl_plot_write_svg(&p, path, NULL, &err), SL_OK);
+    text = read_text(path, NULL);
+    assert_non_null(strstr(text, "<circle"));
+    free(text);
+    free(y);
+    remove_dir(dir);
+}
+
+static bool cancel_after_two(void *user, const char *stage, uint64_t done, uint64_t total)
+{
+    (void)user, (void)stage, (void)total;
+    return done < 2;
+}
+
+static void test_city_walk(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene s;
+    char label[64];
+    assert_int_equal(sl_bench_open_scene("city:tiny:2", NULL, NULL, NULL, &s, label, sizeof label, &err), SL_OK);
+    assert_string_equal(label, "city-tiny-2");
+    /* every registered method that runs with its default options, as the commands run them; the
+     * others (a method that needs a baked file) are named with a reason */
+    uint32_t total = sl_cull_method_count(), skipped_count = 0;
+    sl_bench_method_spec *specs = calloc(total, sizeof *specs);
+    sl_bench_skip *skipped = calloc(total, sizeof *skipped);
+    uint32_t nm = sl_bench_registered_methods(specs, total, skipped, total, &skipped_count);
+    assert_int_equal(nm + skipped_count, total);
+    assert_true(nm >= 1);
+    assert_string_equal(specs[0].name, "vfc");
+    for (uint32_t i = 0; i < skipped_count; i++) {
+        assert_non_null(strstr(skipped[i].reason, skipped[i].name));
+        assert_int_not_equal(sl_cull_method_check_options(skipped[i].name, NULL, &err), SL_OK);
+    }
+    free(skipped);
+    sl_bench_options opt = sl_bench_default_options();
+    opt.width = 320;
+    opt.height = 240;
+    opt.label = label;
+    sl_bench b;
+    assert_int_equal(sl_bench_create(s, specs, nm, &opt, NULL, &b, &err), SL_OK);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.frames = getenv("SL_SANITIZED") ? 8 : 40;
+    po.fps = 2;
+    sl_path walk;
+    assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
+    assert_int_equal(sl_bench_run_path(b, walk, 0, UINT32_MAX, &err), SL_OK);
+    assert_int_equal(sl_bench_frame_count(b), po.frames);
+    sl_bench_frame fr;
+    assert_int_equal(sl_bench_get_frame(b, 1, &fr, &err), SL_OK);
+    assert_true(fr.time == sl_path_poses(walk)[1].time);
+    assert_int_equal(sl_bench_violations(b), 0);
+    for (uint32_t m = 0; m < nm; m++) {
+        sl_bench_summary sum;
+        assert_int_equal(sl_bench_summarize(b, m, &sum, &err), SL_OK);
+        assert_int_equal(sum.frames, po.frames);
+        assert_true(sum.visible_mean > 0);
+        assert_true(sum.objects_drawn_mean > 0);
+    }
+    /* the first frame range and the end are honoured; progress may cancel */
+    sl_bench b2;
+    opt.progress = (sl_progress){cancel_after_two, NULL};
+    assert_int_equal(sl_bench_create(s, specs, 1, &opt, NULL, &b2, &err), SL_OK);
+    assert_int_equal(sl_bench_run_path(b2, walk, po.frames - 1, 10, &err), SL_OK);
+    assert_int_equal(sl_bench_frame_count(b2), 1);
+    assert_int_equal(sl_bench_run_path(b2, walk, 0, 5, &err), SL_ERROR_CANCELLED);
+    assert_int_equal(sl_bench_frame_count(b2), 3);
+    assert_int_equal(sl_bench_run_path(b2, walk, po.frames + 1, 1, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_bench_destroy(b2);
+    sl_path_destroy(walk);
+    sl_bench_destroy(b);
+    free(specs);
+    sl_scene_destroy(s);
+}
+
+static void test_errors(void **state)
+{
+    (void)state;
+    known k = make_known();
+    sl_test_counter counter = {0, 0, 0};
+    sl_allocator alloc = sl_test_counting_allocator(&counter);
+    sl_error err;
+    sl_bench b = (sl_bench)0x1;
+    sl_bench_method_spec nosuch[] = {{"vfc", NULL}, {"nosuch", NULL}};
+    assert_int_equal(sl_bench_create(k.scene, nosuch, 2, NULL, &alloc, &b, &err), SL_ERROR_NOT_FOUND);
+    assert_null(b);
+    assert_non_null(strstr(err.message, "nosuch"));
+    assert_int_equal(counter.live, 0);
+    sl_bench_method_spec bad[] = {{"vfc", "leaf_size=999"}};
+    assert_int_equal(sl_bench_create(k.scene, bad, 1, NULL, &alloc, &b, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "leaf_size"));
+    assert_int_equal(counter.live, 0);
+    sl_bench_method_spec twice[] = {{"vfc", NULL}, {"vfc", NULL}};
+    assert_int_equal(sl_bench_create(k.scene, twice, 2, NULL, &alloc, &b, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "twice"));
+    sl_bench_options opt = sl_bench_default_options();
+    opt.repeat = 0;
+    assert_int_equal(sl_bench_create(k.scene, NULL, 0, &opt, &alloc, &b, &err), SL_ERROR_INVALID_ARGUMENT);
+    opt = sl_bench_default_options();
+    opt.threads = 0;
+    assert_int_equal(sl_bench_create(k.scene, NULL, 0, &opt, &alloc, &b, &err), SL_ERROR_INVALID_ARGUMENT);
+    opt = sl_bench_default_options();
+    opt.width = 10;
+    assert_int_equal(sl_bench_create(k.scene, NULL, 0, &opt, &alloc, &b, &err), SL_ERROR_INVALID_ARGUMENT);
+
+    /* a bench with external methods only; submissions need a frame */
+    assert_int_equal(sl_bench_create(k.scene, NULL, 0, NULL, &alloc, &b, &err), SL_OK);
+    uint32_t m;
+    assert_int_equal(sl_bench_add_external(b, "x", SL_CONSERVATIVE, &m, &err), SL_OK);
+    assert_int_equal(sl_bench_add_external(b, "x", SL_CONSERVATIVE, &m, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_submit(b, m, NULL, 0, 0, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "no current frame"));
+    sl_camera c = camera_at(0);
+    c.fov_y = NAN;
+    assert_int_equal(sl_bench_run_frame(b, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_last_truth(b, &(sl_oracle_frame){0}, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_bench_record r;
+    assert_int_equal(sl_bench_get_record(b, 5, 0, &r, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_bench_summary s;
+    assert_int_equal(sl_bench_summarize(b, 3, &s, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_summarize(b, m, &s, &err), SL_OK); /* no frames: zeros */
+    assert_int_equal(s.frames, 0);
+    sl_bench_destroy(b);
+    assert_int_equal(counter.live, 0);
+    sl_bench_destroy(NULL);
+
+    /* scene specs */
+    sl_scene s2 = NULL;
+    char label[32];
+    assert_int_equal(sl_bench_open_scene("city:huge", NULL, NULL, NULL, &s2, label, sizeof label, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "unknown city preset 'huge'"));
+    assert_int_equal(sl_bench_open_scene("city:tiny:x1", NULL, NULL, NULL, &s2, label, sizeof label, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "seed"));
+    assert_int_equal(sl_bench_open_scene("city:tiny:-1", NULL, NULL, NULL, &s2, label, sizeof label, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_int_not_equal(sl_bench_open_scene("/nonexistent/dir/x.slscene", NULL, NULL, NULL, &s2, label, sizeof label,
+                                             &err),
+                         SL_OK);
+    assert_non_null(strstr(err.message, "/nonexistent/dir/x.slscene"));
+    assert_null(s2);
+    sl_scene_destroy(k.scene);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_known_scene_records),
+        cmocka_unit_test(test_reports),
+        cmocka_unit_test(test_plot_svg),
+        cmocka_unit_test(test_city_walk),
+        cmocka_unit_test(test_errors),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
