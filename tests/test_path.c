@@ -396,10 +396,12 @@ static void test_no_streets(void **state)
     }
     assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 5, 1, NULL, NULL, &p, &err), SL_ERROR_UNSUPPORTED);
     assert_non_null(strstr(err.message, "no street network"));
-    /* Quake III spawn points stand in for streets in random street views */
+    /* Quake III spawn points (player origins) stand in for streets in random street views; the eye
+     * is Quake III's view height, 26 units, above them: 26 * 0.5 = 13 m at this scene's unit scale */
     assert_int_equal(sl_scene_set_meta(s, "q3.spawns", "1 2 3; 4 5 6;7.5 -8 9;", NULL), SL_OK);
+    assert_int_equal(sl_scene_set_meta(s, "q3.unit_scale", "0.5", NULL), SL_OK);
     assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 30, 1, NULL, NULL, &p, &err), SL_OK);
-    const float spawns[3][3] = {{1, 2, 3}, {4, 5, 6}, {7.5f, -8, 9}};
+    const float spawns[3][3] = {{1, 2, 3 + 13.0f}, {4, 5, 6 + 13.0f}, {7.5f, -8, 9 + 13.0f}};
     int used[3] = {0, 0, 0};
     for (uint32_t i = 0; i < 30; i++) {
         const sl_pose *q = &sl_path_poses(p)[i];

@@ -835,8 +835,15 @@ static sl_status views_street(sl_scene scene, const sl_path_options *o, uint32_t
         size_t n;
         if ((st = parse_spawns(sl_scene_meta(scene, "q3.spawns"), &path->alloc, &sp, &n, err)) != SL_OK)
             return st;
+        /* spawn points are player origins; Quake III's eye is DEFAULT_VIEWHEIGHT = 26 units above */
+        const char *scale_text = sl_scene_meta(scene, "q3.unit_scale");
+        double unit = scale_text ? strtod(scale_text, NULL) : 1.0 / 32.0;
+        if (!(unit > 0 && unit < 1e3))
+            unit = 1.0 / 32.0;
+        float view_height = (float)(26.0 * unit);
         for (uint32_t i = 0; i < count && st == SL_OK; i++) {
             sl_pose q = {(float)i, sp[sl_rng_below(rng, (uint32_t)SL_MIN(n, UINT32_MAX))], 0, 0, 0};
+            q.position.z += view_height;
             q.yaw = (float)(sl_rng_double(rng) * 2 * M_PI - M_PI);
             st = sl_path_append(path, &q, err);
         }
