@@ -11,7 +11,9 @@
  * usage: bench_raster_throughput [--runs N] [--quick] [--threads N] [--isa NAME]...
  *   --runs N     runs per figure (default 7); --quick: 3 runs, fewer triangles
  *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best)
- *   --isa NAME   only this path (scalar, sse41, avx2, avx512); may repeat */
+ *   --isa NAME   only this path (scalar, sse41, avx2, avx512); may repeat
+ *   --size N     only the triangle figure for bounding squares of N pixels (one of the sizes
+ *                above), no clear or query figures: for profiling one size */
 #include "core/sl_core.h"
 #include "sightline/raster.h"
 
@@ -229,7 +231,7 @@ int main(int argc, char **argv)
     bool quick = false;
     uint32_t threads = 0;
     sl_raster_isa only[8];
-    int nonly = 0;
+    int nonly = 0, only_size = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--runs") && i + 1 < argc) {
             runs = atoi(argv[++i]);
@@ -242,6 +244,15 @@ int main(int argc, char **argv)
             runs = 3;
         } else if (!strcmp(argv[i], "--threads") && i + 1 < argc) {
             threads = (uint32_t)atoi(argv[++i]);
+        } else if (!strcmp(argv[i], "--size") && i + 1 < argc) {
+            only_size = atoi(argv[++i]);
+            bool known = false;
+            for (size_t s = 0; s < SL_COUNTOF(sizes); s++)
+                known |= sizes[s] == only_size;
+            if (!known) {
+                fprintf(stderr, "bench_raster_throughput: --size must be 10, 25, 50, 100, 250 or 500\n");
+                return 2;
+            }
         } else if (!strcmp(argv[i], "--isa") && i + 1 < argc && nonly < 8) {
             const char *n = argv[++i];
             sl_raster_isa isa = !strcmp(n, "scalar") ? SL_RASTER_ISA_SCALAR
@@ -255,7 +266,8 @@ int main(int argc, char **argv)
             }
             only[nonly++] = isa;
         } else {
-            fprintf(stderr, "usage: %s [--runs N] [--quick] [--threads N] [--isa scalar|sse41|avx2|avx512]...\n", argv[0]);
+            fprintf(stderr, "usage: %s [--runs N] [--quick] [--threads N] [--isa scalar|sse41|avx2|avx512]... [--size N]\n",
+                    argv[0]);
             return 2;
         }
     }
@@ -285,10 +297,17 @@ int main(int argc, char **argv)
         printf("## %s\n\n", sl_raster_isa_name(isa));
         printf("| figure | Sightline | MOC AVX2 | ratio |\n|---|---:|---:|---:|\n");
         for (size_t s = 0; s < SL_COUNTOF(sizes); s++) {
+            if (only_size && sizes[s] != only_size)
+                continue;
             double m = throughput(r, P, sizes[s], runs, quick);
             printf("| triangles %dx%d (Mtri/s) | %.2f | %g-%g | %.2fx |\n", sizes[s], sizes[s], m, moc_mtri_lo[s],
                    moc_mtri_hi[s], m / moc_mtri_hi[s]);
             fflush(stdout);
+        }
+        if (only_size) {
+            printf("\n");
+            sl_raster_destroy(r);
+            continue;
         }
         double c = clear_ms(r, runs);
         printf("| clear (ms) | %.4f | %.3f | %.2fx |\n", c, moc_clear_ms, moc_clear_ms / c);
@@ -305,6 +324,8 @@ int main(int argc, char **argv)
         printf("| figure | wall clock | per CPU second of all threads |\n|---|---:|---:|\n");
         sl_raster *r = make(best, threads);
         for (size_t s = 0; s < SL_COUNTOF(sizes); s++) {
+            if (only_size && sizes[s] != only_size)
+                continue;
             which_clock = CLOCK_WALL;
             double wall = throughput(r, P, sizes[s], runs, quick);
             which_clock = CLOCK_PROCESS;
@@ -315,6 +336,8 @@ int main(int argc, char **argv)
         printf("\n");
         sl_raster_destroy(r);
     }
+    if (only_size)
+        return 0;
     /* memory of a context at 1920x1080: single-threaded, and with a 2-thread pool after binning
      * the largest stream (queue storage is kept for reuse) */
     sl_raster *r = make(SL_RASTER_ISA_AUTO, 1);

@@ -1030,6 +1030,313 @@ static void test_odd_size_and_allocator(void **state)
     assert_true(sl_raster_isa_available(SL_RASTER_ISA_SCALAR));
 }
 
+/* ---- the batched SIMD paths against the scalar reference, through the internal kernels ---- */
+
+static const sl_rt_kernels *kernels_of(sl_raster_isa isa)
+{
+    switch (isa) {
+#if defined(SL_RT_X86)
+    case SL_RASTER_ISA_SSE41: return &sl_rt_kernels_sse41;
+    case SL_RASTER_ISA_AVX2: return &sl_rt_kernels_avx2;
+    case SL_RASTER_ISA_AVX512: return &sl_rt_kernels_avx512;
+#endif
+    default: return &sl_rt_kernels_scalar;
+    }
+}
+
+/* Triangles for the front end: random sizes from sub-pixel to huge, with bad indices, NaN and
+ * infinite vertices, degenerate ones, near-plane crossings and guard-band clipping. */
+static void hostile_batch(sl_rng *rng, uint32_t count, uint32_t stride_floats, float *v, uint32_t nv, uint32_t *ix)
+{
+    for (uint32_t i = 0; i < nv; i++) {
+        float *p = v + (size_t)i * stride_floats;
+        float z = -sl_rng_range(rng, 0.2f, 60.0f);
+        float r = sl_rng_below(rng, 4) == 0 ? sl_rng_range(rng, 0, 500) : sl_rng_range(rng, 0, 3);
+        p[0] = sl_rng_range(rng, -1, 1) * -z * 0.7f + sl_rng_range(rng, -r, r);
+        p[1] = sl_rng_range(rng, -1, 1) * -z * 0.5f + sl_rng_range(rng, -r, r);
+        p[2] = z;
+        uint32_t kind = sl_rng_below(rng, 40);
+        if (kind == 0)
+            p[sl_rng_below(rng, 3)] = NAN;
+        else if (kind == 1)
+            p[sl_rng_below(rng, 3)] = INFINITY;
+        else if (kind == 2)
+            p[2] = sl_rng_range(rng, -1, 3); /* near or behind the camera */
+        for (uint32_t k = 3; k < stride_floats; k++)
+            p[k] = 12345.0f; /* padding must not be read as a coordinate */
+    }
+    for (uint32_t t = 0; t < count; t++) {
+        uint32_t base = sl_rng_below(rng, nv > 2 ? nv - 2 : 1);
+        for (int k = 0; k < 3; k++)
+            ix[3 * t + k] = base + (uint32_t)k;
+        uint32_t kind = sl_rng_below(rng, 30);
+        if (kind == 0)
+            ix[3 * t + sl_rng_below(rng, 3)] = nv + sl_rng_below(rng, 5); /* out of range */
+        else if (kind == 1)
+            ix[3 * t + 2] = ix[3 * t]; /* degenerate */
+        else if (kind == 2)
+            ix[3 * t + 1] = 0xFFFFFFFFu;
+    }
+}
+
+/* Every path's front end gives the same prims and counts as the scalar one, batch tails included. */
+static void test_front_end_paths(void **state)
+{
+    (void)state;
+    sl_rng rng;
+    sl_rng_seed(&rng, 2024, 11);
+    float P[16];
+    perspective(P, 1.2, 16.0 / 9.0, 0.5, 400);
+    const uint32_t strides[] = {3, 4, 7};
+    int rounds = sanitized() ? 40 : 200;
+    for (int round = 0; round < rounds; round++) {
+        uint32_t sf = strides[round % 3], nv = 3 + sl_rng_below(&rng, 120), count = sl_rng_below(&rng, 70);
+        float *v = malloc(sizeof(float) * sf * nv);
+        uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (count + 1));
+        assert_true(v && ix);
+        hostile_batch(&rng, count, sf, v, nv, ix);
+        sl_rt_view view;
+        sl_rt_view_init(&view, 160 + sl_rng_below(&rng, 200), 90 + sl_rng_below(&rng, 100), 1e-5f,
+                        (sl_raster_depth)(round & 1));
+        sl_rt_batch b = {v, round % 17 == 5 ? 0 : nv, ix, count, sf * 4, P, (sl_raster_backface)(round % 3)};
+        int mode = round % 4 == 3 ? SL_RT_INNER : SL_RT_CENTER;
+        sl_rt_prim ref[512], got[512];
+        sl_rt_counters cref, cgot;
+        memset(&cref, 0, sizeof cref);
+        uint32_t nref = 0;
+        for (uint32_t t = 0; t < count;)
+            nref += sl_rt_front_prims(&view, mode, &b, &t, count, &cref, ref + nref, 512 - nref);
+        for (int ii = 1; ii < isa_count; ii++) {
+            const sl_rt_kernels *k = kernels_of(isa_list[ii]);
+            memset(&cgot, 0, sizeof cgot);
+            memset(got, 0xA5, sizeof got);
+            uint32_t ngot = 0;
+            for (uint32_t t = 0; t < count;)
+                ngot += k->front(&view, mode, &b, &t, count, &cgot, got + ngot, 512 - ngot);
+            assert_int_equal(ngot, nref);
+            for (uint32_t i = 0; i < nref; i++)
+                if (memcmp(&got[i], &ref[i], offsetof(sl_rt_prim, area) - 4) != 0 || got[i].area != ref[i].area)
+                    fail_msg("%s round %d: prim %u differs", sl_raster_isa_name(isa_list[ii]), round, i);
+            assert_memory_equal(&cgot, &cref, sizeof cref);
+        }
+        free(v);
+        free(ix);
+    }
+}
+
+/* A target of w x h pixels owned by the test. */
+typedef struct test_target {
+    sl_rt_target t;
+    size_t tiles;
+} test_target;
+
+static void target_init(test_target *tt, int32_t w, int32_t h)
+{
+    tt->t.tiles_x = (w + SL_RT_TILE_W - 1) / SL_RT_TILE_W;
+    tt->t.tiles_y = (h + SL_RT_TILE_H - 1) / SL_RT_TILE_H;
+    tt->t.width = w, tt->t.height = h;
+    tt->tiles = (size_t)tt->t.tiles_x * (size_t)tt->t.tiles_y;
+    /* aligned_alloc wants a multiple of the alignment: an even number of tiles */
+    size_t even = (tt->tiles + 1) & ~(size_t)1;
+    tt->t.mask = aligned_alloc(64, even * SL_RT_SUBTILES * sizeof(uint32_t));
+    tt->t.depth = aligned_alloc(64, even * sizeof(sl_rt_tile_depth));
+    assert_true(tt->t.mask && tt->t.depth);
+    memset(tt->t.mask, 0, tt->tiles * SL_RT_SUBTILES * sizeof(uint32_t));
+    memset(tt->t.depth, 0, tt->tiles * sizeof(sl_rt_tile_depth));
+}
+
+static void target_copy(test_target *dst, const test_target *src)
+{
+    memcpy(dst->t.mask, src->t.mask, src->tiles * SL_RT_SUBTILES * sizeof(uint32_t));
+    memcpy(dst->t.depth, src->t.depth, src->tiles * sizeof(sl_rt_tile_depth));
+}
+
+static void target_free(test_target *tt)
+{
+    free(tt->t.mask);
+    free(tt->t.depth);
+}
+
+/* Snapped prims (w = 1, given pixel corners) for the setup paths: sizes from one pixel to beyond
+ * the small-triangle limit, axis-aligned edges (top and bottom ties), tile- and screen-edge
+ * positions, in a random depth order. */
+static uint32_t setup_prims(sl_rng *rng, const sl_rt_view *view, int mode, sl_rt_prim *out, uint32_t cap)
+{
+    uint32_t n = 0;
+    while (n < cap) {
+        float sz;
+        uint32_t kind = sl_rng_below(rng, 8);
+        if (kind < 3)
+            sz = sl_rng_range(rng, 0.5f, 12);
+        else if (kind < 5)
+            sz = sl_rng_range(rng, 12, 80);
+        else if (kind < 7)
+            sz = sl_rng_range(rng, 80, 180); /* around the small-path limit */
+        else
+            sz = sl_rng_range(rng, 180, 700);
+        float cx = sl_rng_range(rng, -40, (float)view->width + 40),
+              cy = sl_rng_range(rng, -40, (float)view->height + 40);
+        float px[3], py[3];
+        for (int k = 0; k < 3; k++) {
+            px[k] = cx + sl_rng_range(rng, -sz, sz);
+            py[k] = cy + sl_rng_range(rng, -sz, sz);
+        }
+        uint32_t shape = sl_rng_below(rng, 6);
+        if (shape == 0) {
+            py[1] = py[0]; /* a horizontal edge */
+        } else if (shape == 1) {
+            px[2] = px[1]; /* a vertical edge */
+            py[1] = py[0];
+        } else if (shape == 2) {
+            /* corners on half pixels: edges through pixel centres */
+            for (int k = 0; k < 3; k++)
+                px[k] = roundf(px[k] * 2) / 2, py[k] = roundf(py[k] * 2) / 2;
+        } else if (shape == 3) {
+            /* a long sliver */
+            px[2] = px[0] + (px[1] - px[0]) * 0.5f + 0.3f;
+            py[2] = py[0] + (py[1] - py[0]) * 0.5f;
+        }
+        int32_t X[3], Y[3];
+        float d[3];
+        for (int k = 0; k < 3; k++) {
+            X[k] = (int32_t)lrintf(px[k] * 256), Y[k] = (int32_t)lrintf(py[k] * 256);
+            d[k] = sl_rng_range(rng, 0.05f, 1.0f);
+        }
+        if (sl_rt_prepare(view, X, Y, d, mode, false, SL_RASTER_CULL_NONE, &out[n]) == 1)
+            n++;
+    }
+    return n;
+}
+
+/* The batched setup and the small-triangle kernels merge exactly what the reference setup and the
+ * scalar kernel merge: whole screen and bin by bin, over a buffer already holding partial and full
+ * subtiles of every kind. */
+static void test_batched_render_paths(void **state)
+{
+    (void)state;
+    sl_rng rng;
+    sl_rng_seed(&rng, 77, 5);
+    const int32_t sizes[][2] = {{300, 200}, {129, 67}, {64, 40}};
+    int rounds = sanitized() ? 2 : 6;
+    for (size_t si = 0; si < SL_COUNTOF(sizes); si++)
+        for (int mode = SL_RT_CENTER; mode <= SL_RT_INNER; mode++)
+            for (int round = 0; round < rounds; round++) {
+                sl_rt_view view;
+                sl_rt_view_init(&view, (uint32_t)sizes[si][0], (uint32_t)sizes[si][1], 1e-5f, SL_RASTER_DEPTH_LINEAR_Z);
+                enum { N = 300 };
+                sl_rt_prim pre[N], prims[N];
+                setup_prims(&rng, &view, mode, pre, N);
+                uint32_t n = setup_prims(&rng, &view, mode, prims, N);
+                test_target base, ref, got;
+                target_init(&base, sizes[si][0], sizes[si][1]);
+                target_init(&ref, sizes[si][0], sizes[si][1]);
+                target_init(&got, sizes[si][0], sizes[si][1]);
+                int32_t tx = base.t.tiles_x, ty = base.t.tiles_y;
+                sl_rt_kernels_scalar.render(&base.t, mode, pre, N, 0, tx, 0, ty);
+                target_copy(&ref, &base);
+                sl_rt_kernels_scalar.render(&ref.t, mode, prims, n, 0, tx, 0, ty);
+                for (int ii = 1; ii < isa_count; ii++) {
+                    const sl_rt_kernels *k = kernels_of(isa_list[ii]);
+                    /* the whole screen, in uneven chunks of prims */
+                    target_copy(&got, &base);
+                    for (uint32_t i = 0; i < n;) {
+                        uint32_t c = 1 + sl_rng_below(&rng, 20);
+                        c = c < n - i ? c : n - i;
+                        k->render(&got.t, mode, prims + i, c, 0, tx, 0, ty);
+                        i += c;
+                    }
+                    assert_memory_equal(got.t.mask, ref.t.mask, ref.tiles * SL_RT_SUBTILES * sizeof(uint32_t));
+                    assert_memory_equal(got.t.depth, ref.t.depth, ref.tiles * sizeof(sl_rt_tile_depth));
+                    /* bin by bin: 3 x 2 rectangles of tiles, odd widths included */
+                    target_copy(&got, &base);
+                    int32_t bx[4] = {0, tx / 3 + 1, 2 * tx / 3 + 1, tx}, by[3] = {0, ty / 2 + 1, ty};
+                    for (int a = 0; a < 3; a++)
+                        for (int c = 0; c < 2; c++)
+                            if (bx[a] < bx[a + 1] && by[c] < by[c + 1])
+                                k->render(&got.t, mode, prims, n, bx[a], bx[a + 1], by[c], by[c + 1]);
+                    assert_memory_equal(got.t.mask, ref.t.mask, ref.tiles * SL_RT_SUBTILES * sizeof(uint32_t));
+                    assert_memory_equal(got.t.depth, ref.t.depth, ref.tiles * sizeof(sl_rt_tile_depth));
+                }
+                target_free(&base);
+                target_free(&ref);
+                target_free(&got);
+            }
+}
+
+/* Small and mid-size triangles at many positions: every path covers exactly the reference pixels
+ * (the small path's float thresholds are exact), up to and beyond the small-path size limit. */
+static void test_fill_rule_sizes(void **state)
+{
+    (void)state;
+    const int W = 320, H = 200;
+    int rounds = sanitized() ? 30 : 150;
+    sl_rng rng;
+    sl_rng_seed(&rng, 31, 7);
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, 1);
+        for (int n = 0; n < rounds; n++) {
+            float sz = n % 3 == 0 ? sl_rng_range(&rng, 1, 15)
+                                  : (n % 3 == 1 ? sl_rng_range(&rng, 15, 90) : sl_rng_range(&rng, 90, 160));
+            float cx = sl_rng_range(&rng, 0, W), cy = sl_rng_range(&rng, 0, H), p[9];
+            for (int k = 0; k < 3; k++) {
+                float px = cx + sl_rng_range(&rng, -sz, sz), py = cy + sl_rng_range(&rng, -sz, sz);
+                if (n % 5 == 0)
+                    px = roundf(px * 2) / 2, py = roundf(py * 2) / 2; /* ties */
+                p[3 * k] = px / (0.5f * W) - 1.0f;
+                p[3 * k + 1] = 1.0f - py / (0.5f * H);
+                p[3 * k + 2] = sl_rng_range(&rng, -0.9f, 0.9f);
+            }
+            if (n % 7 == 0)
+                p[4] = p[1]; /* a horizontal edge */
+            uint32_t ix[3] = {0, 1, 2};
+            ref_tri t;
+            assert_true(ref_setup(r, IDENTITY, p, &t));
+            sl_raster_clear(r);
+            render(r, p, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+            float *img = depth_image(r);
+            for (int j = 0; j < H; j++)
+                for (int i = 0; i < W; i++) {
+                    bool cov = ref_covers(&t, i, j);
+                    float b = img[j * W + i];
+                    if (cov != (b > 0.0f))
+                        fail_msg("isa %s triangle %d (size %g) pixel (%d,%d): reference %d, buffer %g",
+                                 sl_raster_isa_name(isa_list[ii]), n, (double)sz, i, j, cov, (double)b);
+                    if (cov && (double)b > ref_depth(&t, i, j) + 1e-12)
+                        fail_msg("pixel (%d,%d): depth %.17g nearer than true %.17g", i, j, (double)b,
+                                 ref_depth(&t, i, j));
+                }
+            free(img);
+        }
+        sl_raster_destroy(r);
+    }
+}
+
+/* A subtile partly covered by a far occluder and then wholly by a nearer one takes the nearer
+ * depth over its whole area (the old layer lies inside the new coverage). */
+static void test_merge_covering_layer(void **state)
+{
+    (void)state;
+    for (int ii = 0; ii < isa_count; ii++) {
+        sl_raster *r = make(64, 32, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, 1);
+        /* far: the left half of the screen at depth 0.5 (z = 0); near: all of it at depth 0.6 */
+        float far[12] = {-1, -1, 0, 0.0f, -1, 0, 0.0f, 1, 0, -1, 1, 0};
+        float near[12] = {-1, -1, -0.2f, 1, -1, -0.2f, 1, 1, -0.2f, -1, 1, -0.2f};
+        float part[9] = {-1, 1, 0, -0.9f, 1, 0, -1, 0.8f, 0}; /* a corner of the first subtile */
+        uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+        render(r, far, 4, ix, 2, IDENTITY, SL_RASTER_CULL_NONE);
+        render(r, part, 3, ix, 1, IDENTITY, SL_RASTER_CULL_NONE);
+        render(r, near, 4, ix, 2, IDENTITY, SL_RASTER_CULL_NONE);
+        float sub[8 * 8];
+        assert_int_equal(sl_raster_read_subtile_depth(r, sub, 64, NULL), SL_OK);
+        for (int i = 0; i < 8 * 4; i++)
+            if (!(sub[i] > 0.599f && sub[i] <= 0.6f))
+                fail_msg("%s: subtile %d holds %g, not the near layer", sl_raster_isa_name(isa_list[ii]), i,
+                         (double)sub[i]);
+        assert_int_equal(sl_raster_test_rect(r, 0, 0, 64, 32, 0.58f), SL_RASTER_OCCLUDED);
+        sl_raster_destroy(r);
+    }
+}
+
 int main(void)
 {
     collect_isas();
@@ -1042,7 +1349,9 @@ int main(void)
         cmocka_unit_test(test_orthographic),          cmocka_unit_test(test_isa_bit_identical),
         cmocka_unit_test(test_inner_coverage),        cmocka_unit_test(test_threads_identical),
         cmocka_unit_test(test_bins_then_direct),      cmocka_unit_test(test_odd_size_and_allocator),
-        cmocka_unit_test(test_extreme_inputs),
+        cmocka_unit_test(test_extreme_inputs),        cmocka_unit_test(test_front_end_paths),
+        cmocka_unit_test(test_batched_render_paths),  cmocka_unit_test(test_fill_rule_sizes),
+        cmocka_unit_test(test_merge_covering_layer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,8 +1,882 @@
-/* TEMPORARY placeholder while the subcommand is written: fails loudly. */
+/* `sightline pvs`: bake, inspect, query and verify precomputed from-region visibility (.slpvs).
+ * The format is in docs/pvs.md; the library calls in include/sightline/pvs.h and region.h. */
 #include "cli.h"
+
+#include "sightline/gen.h"
+#include "sightline/pvs.h"
+#include "sightline/region.h"
+#include "sightline/scene.h"
+#include "sightline/slscene.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void usage_main(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline pvs <action> [options]   (sightline pvs <action> --help for details)\n\n"
+            "Precomputed from-region visibility: the objects visible from anywhere in each view cell.\n\n"
+            "actions:\n"
+            "  build SCENE -o OUT.slpvs      bake a PVS (view cells + a method), on all cores or under mpiexec\n"
+            "  info FILE.slpvs               header figures, cells, sizes, build metadata\n"
+            "  query FILE.slpvs --point X,Y,Z | --cell N    the cell of a point and its visible set\n"
+            "  verify FILE.slpvs [--scene SCENE --cells N]  checksums and sets; with a scene, zero misses\n"
+            "                                against the region oracle on N random cells\n\n"
+            "examples:\n"
+            "  sightline pvs build city.slscene -o city.slpvs --method sample --options eps=1.5,cell=2\n"
+            "  mpiexec -n 4 sightline pvs build city.slscene -o city.slpvs\n"
+            "  sightline pvs info city.slpvs --json\n"
+            "  sightline pvs query city.slpvs --point 10,-4,1.7\n"
+            "  sightline pvs verify city.slpvs --scene city.slscene --cells 200\n");
+}
+
+static void usage_build(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline pvs build SCENE -o OUT.slpvs [options]\n"
+            "       sightline pvs build --city PRESET -o OUT.slpvs [options]\n\n"
+            "Make view cells for SCENE and bake the set of objects visible from each cell. The file is\n"
+            "byte-identical whatever the thread or process count. A checkpoint journal (OUT.slpvs.ckpt)\n"
+            "records every finished cell: an interrupted bake continues with --resume.\n\n"
+            "SCENE is a .slscene, a Quake III .bsp or .pk3 (with --map), or any file assimp reads;\n"
+            "--city PRESET generates the procedural city (tiny, small, vienna) in memory instead.\n\n"
+            "view cells:\n"
+            "  --cells KIND      streets: constrained triangulation of the street space (default with\n"
+            "                    streets); grid: squares over the streets; bsp: the map's own clusters\n"
+            "                    (default for Quake III maps); adaptive: subdivision of --volume\n"
+            "  --cell-size M     streets: longest triangle edge (12); grid: square side (8); adaptive:\n"
+            "                    largest box (16)\n"
+            "  --eye-min H       lowest eye above the ground (1.0 m)\n"
+            "  --eye-max H       highest eye above the ground (2.0 m)\n"
+            "  --volume X0,Y0,Z0,X1,Y1,Z1   adaptive: the navigable box\n\n"
+            "method:\n"
+            "  --method NAME     baking method (default sample); available:\n");
+    for (uint32_t i = 0; i < sl_pvs_method_count(); i++) {
+        sl_pvs_method_desc d;
+        if (sl_pvs_method_info(i, &d, NULL) != SL_OK)
+            continue;
+        fprintf(out, "                    %s (%s): %s\n", d.name, sl_cull_guarantee_name(d.guarantee), d.summary);
+        const char *h = d.options_help;
+        while (h && *h) {
+            const char *e = strchr(h, '\n');
+            int n = e ? (int)(e - h) : (int)strlen(h);
+            fprintf(out, "                      %.*s\n", n, h);
+            h += n + (e ? 1 : 0);
+        }
+    }
+    fprintf(out,
+            "  --options K=V,... the method's options\n\n"
+            "running:\n"
+            "  --threads N       OpenMP threads per process (default: all cores)\n"
+            "  --mpi             distribute cells over MPI processes (automatic under mpiexec)\n"
+            "  --resume          continue an interrupted bake from its checkpoint\n"
+            "  --checkpoint F    journal path (default OUT.slpvs.ckpt)\n"
+            "  --keep-checkpoint keep the journal after success\n"
+            "  --stop-after N    testing: stop after N newly baked cells (exit 3), leaving the journal\n"
+            "  --map NAME        map inside a .pk3\n"
+            "  --seed N          --city: generator seed (default 1)\n"
+            "  --json            machine-readable summary on stdout\n"
+            "  --quiet           no progress bar\n"
+            "  --help            this text\n\n"
+            "examples:\n"
+            "  sightline pvs build city.slscene -o city.slpvs\n"
+            "  sightline pvs build --city tiny -o tiny.slpvs --cell-size 8 --options eps=1,cell=1\n"
+            "  mpiexec -n 2 sightline pvs build city.slscene -o city.slpvs --threads 1\n"
+            "  sightline pvs build oa_dm1.pk3 --map oa_dm1 --cells bsp --method adjustable -o dm1.slpvs\n");
+}
+
+static void usage_info(FILE *out)
+{
+    fprintf(out, "usage: sightline pvs info FILE.slpvs [--json]\n\n"
+                 "Print the header figures (cells, objects, set sizes, fraction culled, bytes) and the build\n"
+                 "metadata of a PVS file. The compressed sets are not decoded (see verify).\n\n"
+                 "options:\n  --json   machine-readable output\n  --help   this text\n\n"
+                 "example:\n  sightline pvs info city.slpvs --json\n");
+}
+
+static void usage_query(FILE *out)
+{
+    fprintf(out, "usage: sightline pvs query FILE.slpvs (--point X,Y,Z | --cell N) [options]\n\n"
+                 "Find the view cell holding a point (or take a cell by number) and print its visible set.\n\n"
+                 "options:\n"
+                 "  --point X,Y,Z  a position (metres)\n"
+                 "  --cell N       a cell number\n"
+                 "  --scene SCENE  the scene, needed to locate points in Quake III cluster cells\n"
+                 "  --map NAME     map inside a .pk3\n"
+                 "  --ids          print the object ids too\n"
+                 "  --json         machine-readable output\n"
+                 "  --help         this text\n\n"
+                 "examples:\n  sightline pvs query city.slpvs --point 10,-4,1.7 --ids\n"
+                 "  sightline pvs query city.slpvs --cell 12 --json\n");
+}
+
+static void usage_verify(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline pvs verify FILE.slpvs [--scene SCENE | --city PRESET] [options]\n\n"
+            "Check every checksum and decode every set. With a scene, also check that the file belongs to\n"
+            "it and hold the sets to the region oracle (dense cube-map sampling of each cell, a lower\n"
+            "bound of the exact visible set): every object the oracle sees must be in the cell's set.\n"
+            "Misses are listed with the cell and the object, and make the exit status 1. For Quake III\n"
+            "cluster cells the map's own PVS is checked the same way and the sizes compared.\n\n"
+            "options:\n"
+            "  --scene SCENE   the scene the PVS was baked for; --city PRESET [--seed N] generates it\n"
+            "  --map NAME      map inside a .pk3\n"
+            "  --cells N       random cells to check with the oracle (default 20 with a scene)\n"
+            "  --all           every cell\n"
+            "  --seed N        cell choice and oracle sampling seed (default 1)\n"
+            "  --face-size N   oracle cube-map face resolution (default 256)\n"
+            "  --spacing M     oracle sample spacing along cell edges (default 1 m)\n"
+            "  --samples N     oracle random points on the faces and inside, each (default 24)\n"
+            "  --json          machine-readable output\n"
+            "  --quiet         no progress bar\n"
+            "  --help          this text\n\n"
+            "examples:\n  sightline pvs verify city.slpvs\n"
+            "  sightline pvs verify city.slpvs --scene city.slscene --cells 200 --json\n");
+}
+
+/* ---- shared helpers ---- */
+
+static sl_status load_scene(const char *path, const char *map, const char *city, uint64_t seed, sl_scene *out,
+                            sl_error *err)
+{
+    if (city) {
+        sl_city_preset p;
+        sl_status st = sl_city_preset_from_name(city, &p, err);
+        if (st != SL_OK)
+            return st;
+        sl_city_options o = sl_city_defaults(p);
+        o.seed = seed;
+        return sl_gen_city(&o, NULL, out, err);
+    }
+    return sl_scene_open(path, map, NULL, out, err);
+}
+
+static bool parse_floats(cli_args *a, const char *name, const char *text, float *out, int n)
+{
+    if (!text)
+        return false;
+    const char *p = text;
+    for (int i = 0; i < n; i++) {
+        char *end;
+        out[i] = strtof(p, &end);
+        if (end == p || !isfinite(out[i]) || (i + 1 < n ? *end != ',' : *end != 0)) {
+            cli_error(a->cmd, "--%s: '%s' is not %d comma-separated numbers", name, text, n);
+            a->error = true;
+            return false;
+        }
+        p = end + 1;
+    }
+    return true;
+}
+
+/* ---- build ---- */
+
+static int run_build(int argc, char **argv)
+{
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    a.cmd = "pvs build";
+    const char *name, *val, *scene_path = NULL, *output = NULL, *cells_kind = NULL, *map = NULL, *city = NULL;
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    sl_viewcell_options vo;
+    memset(&vo, 0, sizeof vo);
+    float volume[6];
+    bool has_volume = false, json = false, quiet = false, mpi = false;
+    uint64_t seed = 1;
+    while (cli_next(&a, &name, &val)) {
+        if (!name && !strcmp(val, "-o")) {
+            output = cli_value(&a, "o", NULL);
+        } else if (!name) {
+            if (scene_path) {
+                cli_unknown(&a, NULL);
+                break;
+            }
+            scene_path = val;
+        } else if (!strcmp(name, "help")) {
+            usage_build(stdout);
+            return 0;
+        } else if (!strcmp(name, "output")) {
+            output = cli_value(&a, name, val);
+        } else if (!strcmp(name, "cells")) {
+            cells_kind = cli_value(&a, name, val);
+        } else if (!strcmp(name, "cell-size")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &vo.max_edge);
+        } else if (!strcmp(name, "eye-min")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &vo.eye_min);
+        } else if (!strcmp(name, "eye-max")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &vo.eye_max);
+        } else if (!strcmp(name, "volume")) {
+            has_volume = parse_floats(&a, name, cli_value(&a, name, val), volume, 6);
+        } else if (!strcmp(name, "method")) {
+            bo.method = cli_value(&a, name, val);
+        } else if (!strcmp(name, "options")) {
+            bo.method_options = cli_value(&a, name, val);
+        } else if (!strcmp(name, "threads")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &bo.threads);
+        } else if (!strcmp(name, "mpi")) {
+            mpi = true;
+        } else if (!strcmp(name, "resume")) {
+            bo.resume = true;
+        } else if (!strcmp(name, "checkpoint")) {
+            bo.checkpoint = cli_value(&a, name, val);
+        } else if (!strcmp(name, "keep-checkpoint")) {
+            bo.keep_checkpoint = true;
+        } else if (!strcmp(name, "stop-after")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &bo.stop_after);
+        } else if (!strcmp(name, "map")) {
+            map = cli_value(&a, name, val);
+        } else if (!strcmp(name, "city")) {
+            city = cli_value(&a, name, val);
+        } else if (!strcmp(name, "seed")) {
+            cli_parse_u64(&a, name, cli_value(&a, name, val), &seed);
+        } else if (!strcmp(name, "json")) {
+            json = true;
+        } else if (!strcmp(name, "quiet")) {
+            quiet = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    if ((!scene_path && !city) || (scene_path && city) || !output) {
+        cli_error(a.cmd, "%s (see sightline pvs build --help)",
+                  !output ? "missing -o OUT.slpvs" : scene_path && city ? "give SCENE or --city, not both" : "missing SCENE");
+        return 2;
+    }
+    if (cells_kind && strcmp(cells_kind, "streets") && strcmp(cells_kind, "grid") && strcmp(cells_kind, "bsp") &&
+        strcmp(cells_kind, "adaptive")) {
+        cli_error(a.cmd, "--cells: '%s' is not streets, grid, bsp or adaptive", cells_kind);
+        return 2;
+    }
+    if (cells_kind && !strcmp(cells_kind, "adaptive") && !has_volume) {
+        cli_error(a.cmd, "--cells adaptive needs --volume X0,Y0,Z0,X1,Y1,Z1");
+        return 2;
+    }
+    sl_error err;
+    if (sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
+        cli_error(a.cmd, "%s", err.message);
+        return 2;
+    }
+    /* under mpiexec every process runs this; only rank 0 talks */
+    const char *pmi = getenv("PMI_SIZE");
+    if (pmi && atoi(pmi) > 1)
+        mpi = true;
+    sl_scene scene;
+    if (load_scene(scene_path, map, city, seed, &scene, &err) != SL_OK)
+        return cli_fail(a.cmd, &err);
+    sl_viewcells cells = NULL;
+    sl_status st;
+    if (!cells_kind) {
+        sl_bsp_view bv;
+        cells_kind = sl_scene_street_polygon_count(scene) > 0 ? "streets" : sl_scene_bsp(scene, &bv) ? "bsp" : NULL;
+        if (!cells_kind) {
+            sl_scene_destroy(scene);
+            cli_error(a.cmd, "the scene has neither streets nor BSP clusters: choose --cells grid or --cells adaptive "
+                             "--volume ...");
+            return 2;
+        }
+    }
+    if (!strcmp(cells_kind, "streets"))
+        st = sl_viewcells_from_streets(scene, &vo, &cells, &err);
+    else if (!strcmp(cells_kind, "grid"))
+        st = sl_viewcells_grid(scene, &vo, &cells, &err);
+    else if (!strcmp(cells_kind, "bsp"))
+        st = sl_viewcells_from_bsp(scene, &vo, &cells, &err);
+    else {
+        sl_aabb box = {{volume[0], volume[1], volume[2]}, {volume[3], volume[4], volume[5]}};
+        st = sl_viewcells_adaptive(scene, &box, SL_NONE, &vo, &cells, &err);
+    }
+    if (st != SL_OK) {
+        sl_scene_destroy(scene);
+        return cli_fail(a.cmd, &err);
+    }
+    cli_progress_state ps;
+    sl_pvs_build_stats stats;
+    int rank = 0;
+    if (mpi) {
+        bo.progress = cli_progress(&ps, true); /* the MPI driver reports nothing per cell */
+        st = sl_pvs_build_mpi(scene, cells, output, &bo, &stats, &rank, &err);
+    } else {
+        bo.progress = cli_progress(&ps, quiet || json);
+        st = sl_pvs_build(scene, cells, output, &bo, &stats, &err);
+        cli_progress_done(&ps);
+    }
+    sl_viewcells_destroy(cells);
+    sl_scene_destroy(scene);
+    if (rank != 0)
+        return st == SL_OK ? 0 : 1;
+    if (stats.notice[0])
+        fprintf(stderr, "sightline pvs build: WARNING: %s\n", stats.notice);
+    if (st != SL_OK) {
+        if (st == SL_ERROR_CANCELLED && bo.stop_after) {
+            fprintf(stderr, "sightline pvs build: %s\n", err.message);
+            return 3;
+        }
+        return cli_fail(a.cmd, &err);
+    }
+    double per_cell = stats.cells_baked ? stats.cell_seconds / stats.cells_baked : 0;
+    if (json) {
+        cli_json j;
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "file", output);
+        cli_json_string(&j, "cells_kind", cells_kind);
+        cli_json_string(&j, "method", stats.method);
+        cli_json_string(&j, "options", stats.options);
+        cli_json_uint(&j, "cells", stats.cells);
+        cli_json_uint(&j, "cells_baked", stats.cells_baked);
+        cli_json_uint(&j, "cells_resumed", stats.cells_resumed);
+        cli_json_uint(&j, "processes", stats.processes);
+        cli_json_uint(&j, "threads", stats.threads);
+        cli_json_double(&j, "seconds", stats.seconds);
+        cli_json_double(&j, "seconds_per_cell", per_cell);
+        cli_json_double(&j, "max_cell_seconds", stats.max_cell_seconds);
+        cli_json_uint(&j, "visible_total", stats.visible_total);
+        cli_json_double(&j, "mean_culled", stats.mean_culled);
+        cli_json_uint(&j, "file_bytes", stats.file_bytes);
+        cli_json_uint(&j, "occluders_removed", stats.occluders_removed);
+        cli_json_string(&j, "notice", stats.notice);
+        cli_json_end(&j);
+    } else {
+        char b[32];
+        printf("%s: %u %s cells, method %s (%s)\n", output, stats.cells, cells_kind, stats.method, stats.options);
+        printf("  baked %u cells (%u resumed) in %.2f s on %u process(es) x %u thread(s); %.4f s per cell (max %.4f)\n",
+               stats.cells_baked, stats.cells_resumed, stats.seconds, stats.processes, stats.threads, per_cell,
+               stats.max_cell_seconds);
+        printf("  mean visible %.1f objects, mean culled %.4f%%, %s on disk, %llu occluders vanished under shrinking\n",
+               stats.cells ? (double)stats.visible_total / stats.cells : 0.0, 100.0 * stats.mean_culled,
+               cli_bytes(stats.file_bytes, b, sizeof b), (unsigned long long)stats.occluders_removed);
+    }
+    return 0;
+}
+
+/* ---- info ---- */
+
+static int run_info(int argc, char **argv)
+{
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    a.cmd = "pvs info";
+    const char *name, *val, *file = NULL;
+    bool json = false;
+    while (cli_next(&a, &name, &val)) {
+        if (!name) {
+            if (file) {
+                cli_unknown(&a, NULL);
+                break;
+            }
+            file = val;
+        } else if (!strcmp(name, "help")) {
+            usage_info(stdout);
+            return 0;
+        } else if (!strcmp(name, "json")) {
+            json = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    if (!file) {
+        cli_error(a.cmd, "missing FILE.slpvs (see sightline pvs info --help)");
+        return 2;
+    }
+    sl_error err;
+    sl_pvs p;
+    if (sl_pvs_load(file, NULL, &p, &err) != SL_OK)
+        return cli_fail(a.cmd, &err);
+    sl_pvs_info in;
+    sl_pvs_get_info(p, &in);
+    sl_viewcells_stats cs;
+    sl_viewcells_get_stats(sl_pvs_cells(p), &cs);
+    if (json) {
+        cli_json j;
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "file", file);
+        char ver[32];
+        snprintf(ver, sizeof ver, "%u.%u", in.version_major, in.version_minor);
+        cli_json_string(&j, "version", ver);
+        cli_json_uint(&j, "cells", in.cell_count);
+        cli_json_uint(&j, "prisms", cs.prisms);
+        cli_json_uint(&j, "boxes", cs.boxes);
+        cli_json_uint(&j, "clusters", cs.clusters);
+        cli_json_double(&j, "cell_area_m2", cs.area);
+        cli_json_uint(&j, "objects", in.object_count);
+        cli_json_uint(&j, "visible_total", in.visible_total);
+        cli_json_uint(&j, "min_visible", in.min_visible);
+        cli_json_uint(&j, "max_visible", in.max_visible);
+        cli_json_double(&j, "mean_visible", in.mean_visible);
+        cli_json_double(&j, "mean_culled", in.mean_culled);
+        cli_json_uint(&j, "file_bytes", in.file_size);
+        cli_json_uint(&j, "data_bytes", in.data_bytes);
+        cli_json_uint(&j, "raw_bytes", in.raw_bytes);
+        cli_json_uint(&j, "blocks", in.block_count);
+        char key[32];
+        snprintf(key, sizeof key, "%016llx", (unsigned long long)in.scene_key);
+        cli_json_string(&j, "scene_key", key);
+        cli_json_object_begin(&j, "meta");
+        const char *m = sl_pvs_meta_text(p);
+        while (*m) {
+            const char *eol = strchr(m, '\n');
+            size_t n = eol ? (size_t)(eol - m) : strlen(m);
+            const char *eq = memchr(m, '=', n);
+            if (eq) {
+                char k[128], v[1100];
+                snprintf(k, sizeof k, "%.*s", (int)(eq - m), m);
+                snprintf(v, sizeof v, "%.*s", (int)(n - (size_t)(eq - m) - 1), eq + 1);
+                cli_json_string(&j, k, v);
+            }
+            m += n + (eol ? 1 : 0);
+        }
+        cli_json_object_end(&j);
+        cli_json_end(&j);
+    } else {
+        char b1[32], b2[32], b3[32];
+        printf("%s: .slpvs %u.%u, %u cells (%u prisms, %u boxes, %u clusters, %.0f m^2), %u objects\n", file,
+               in.version_major, in.version_minor, in.cell_count, cs.prisms, cs.boxes, cs.clusters, cs.area,
+               in.object_count);
+        printf("  visible per cell: min %u, mean %.1f, max %u; mean culled %.4f%%\n", in.min_visible, in.mean_visible,
+               in.max_visible, 100.0 * in.mean_culled);
+        printf("  %s on disk: sets %s compressed from %s in %u blocks of %u cells\n",
+               cli_bytes(in.file_size, b1, sizeof b1), cli_bytes(in.data_bytes, b2, sizeof b2),
+               cli_bytes(in.raw_bytes, b3, sizeof b3), in.block_count, in.block_cells);
+        printf("  scene key %016llx\n", (unsigned long long)in.scene_key);
+        const char *m = sl_pvs_meta_text(p);
+        while (*m) {
+            const char *eol = strchr(m, '\n');
+            size_t n = eol ? (size_t)(eol - m) : strlen(m);
+            printf("  %.*s\n", (int)n, m);
+            m += n + (eol ? 1 : 0);
+        }
+    }
+    sl_pvs_destroy(p);
+    return 0;
+}
+
+/* ---- query ---- */
+
+static int run_query(int argc, char **argv)
+{
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    a.cmd = "pvs query";
+    const char *name, *val, *file = NULL, *scene_path = NULL, *map = NULL;
+    float point[3];
+    bool has_point = false, has_cell = false, json = false, ids = false;
+    uint32_t cell = 0;
+    while (cli_next(&a, &name, &val)) {
+        if (!name) {
+            if (file) {
+                cli_unknown(&a, NULL);
+                break;
+            }
+            file = val;
+        } else if (!strcmp(name, "help")) {
+            usage_query(stdout);
+            return 0;
+        } else if (!strcmp(name, "point")) {
+            has_point = parse_floats(&a, name, cli_value(&a, name, val), point, 3);
+        } else if (!strcmp(name, "cell")) {
+            has_cell = cli_parse_u32(&a, name, cli_value(&a, name, val), &cell);
+        } else if (!strcmp(name, "scene")) {
+            scene_path = cli_value(&a, name, val);
+        } else if (!strcmp(name, "map")) {
+            map = cli_value(&a, name, val);
+        } else if (!strcmp(name, "ids")) {
+            ids = true;
+        } else if (!strcmp(name, "json")) {
+            json = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    if (!file || has_point == has_cell) {
+        cli_error(a.cmd, "%s (see sightline pvs query --help)",
+                  !file ? "missing FILE.slpvs" : "give exactly one of --point X,Y,Z and --cell N");
+        return 2;
+    }
+    sl_error err;
+    sl_pvs p;
+    if (sl_pvs_load(file, NULL, &p, &err) != SL_OK)
+        return cli_fail(a.cmd, &err);
+    sl_scene scene = NULL;
+    if (scene_path && sl_scene_open(scene_path, map, NULL, &scene, &err) != SL_OK) {
+        sl_pvs_destroy(p);
+        return cli_fail(a.cmd, &err);
+    }
+    sl_viewcells cells = sl_pvs_cells(p);
+    if (has_point)
+        cell = sl_viewcells_locate(cells, scene, (sl_vec3){point[0], point[1], point[2]});
+    int rc = 0;
+    sl_pvs_info in;
+    sl_pvs_get_info(p, &in);
+    uint32_t *set = malloc(((size_t)in.object_count + 1) * sizeof *set), n = 0;
+    if (!set) {
+        cli_error(a.cmd, "out of memory");
+        rc = 1;
+    } else if (cell != SL_NONE && cell >= sl_viewcells_count(cells)) {
+        cli_error(a.cmd, "cell %u does not exist (%u cells)", cell, sl_viewcells_count(cells));
+        rc = 1;
+    } else if (cell != SL_NONE && sl_pvs_cell_set(p, cell, set, in.object_count, &n, &err) != SL_OK) {
+        rc = cli_fail(a.cmd, &err);
+    } else if (json) {
+        cli_json j;
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "file", file);
+        if (cell == SL_NONE)
+            cli_json_key(&j, "cell"), fputs("null", stdout);
+        else
+            cli_json_uint(&j, "cell", cell);
+        cli_json_uint(&j, "visible", n);
+        cli_json_uint(&j, "objects", in.object_count);
+        if (ids) {
+            cli_json_array_begin(&j, "ids");
+            for (uint32_t i = 0; i < n; i++)
+                cli_json_uint(&j, NULL, set[i]);
+            cli_json_array_end(&j);
+        }
+        cli_json_end(&j);
+    } else if (cell == SL_NONE) {
+        printf("no view cell holds (%g, %g, %g): a renderer falls back to view-frustum culling\n", (double)point[0],
+               (double)point[1], (double)point[2]);
+    } else {
+        const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
+        printf("cell %u (%s, box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f): %u of %u objects visible\n", cell,
+               c->shape == SL_CELL_PRISM ? "prism" : c->shape == SL_CELL_BOX ? "box" : "cluster",
+               (double)c->bounds.min.x, (double)c->bounds.min.y, (double)c->bounds.min.z, (double)c->bounds.max.x,
+               (double)c->bounds.max.y, (double)c->bounds.max.z, n, in.object_count);
+        if (ids) {
+            for (uint32_t i = 0; i < n; i++)
+                printf("%s%u", i ? " " : "  ", set[i]);
+            if (n)
+                printf("\n");
+        }
+    }
+    free(set);
+    sl_scene_destroy(scene);
+    sl_pvs_destroy(p);
+    return rc;
+}
+
+/* ---- verify ---- */
+
+static int cmp_u32(const void *x, const void *y)
+{
+    uint32_t a = *(const uint32_t *)x, b = *(const uint32_t *)y;
+    return (a > b) - (a < b);
+}
+
+/* The map's own PVS as an object set: objects of the leaves of every cluster visible from c. */
+static uint32_t bsp_set(sl_scene scene, int32_t cluster, uint8_t *mark, uint32_t *out)
+{
+    sl_bsp_view bv;
+    if (!sl_scene_bsp(scene, &bv))
+        return 0;
+    uint32_t no = sl_scene_object_count(scene), n = 0;
+    memset(mark, 0, no);
+    for (uint32_t l = 0; l < bv.leaf_count; l++) {
+        int32_t c = bv.leaves[l].cluster;
+        if (c < 0 || (uint32_t)c >= bv.cluster_count)
+            continue;
+        bool vis = !bv.pvs || bv.cluster_bytes == 0 ||
+                   (bv.pvs[(size_t)cluster * bv.cluster_bytes + ((uint32_t)c >> 3)] >> (c & 7)) & 1;
+        if (!vis)
+            continue;
+        for (uint32_t k = 0; k < bv.leaves[l].object_count; k++) {
+            uint32_t id = bv.leaf_objects[bv.leaves[l].first_object + k];
+            if (id < no && !mark[id]) {
+                mark[id] = 1;
+                out[n++] = id;
+            }
+        }
+    }
+    /* objects in no leaf (models, props) are always drawn by the map's renderer */
+    uint8_t *in_leaf = mark + no;
+    memset(in_leaf, 0, no);
+    for (uint32_t k = 0; k < bv.leaf_object_count; k++)
+        if (bv.leaf_objects[k] < no)
+            in_leaf[bv.leaf_objects[k]] = 1;
+    for (uint32_t id = 0; id < no; id++)
+        if (!in_leaf[id] && !mark[id]) {
+            mark[id] = 1;
+            out[n++] = id;
+        }
+    qsort(out, n, sizeof *out, cmp_u32);
+    return n;
+}
+
+static bool contains(const uint32_t *set, uint32_t n, uint32_t id)
+{
+    uint32_t lo = 0, hi = n;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (set[mid] < id)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < n && set[lo] == id;
+}
+
+static int run_verify(int argc, char **argv)
+{
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    a.cmd = "pvs verify";
+    const char *name, *val, *file = NULL, *scene_path = NULL, *map = NULL, *city = NULL;
+    bool json = false, quiet = false, all = false;
+    uint32_t ncheck = 20, face = 256, samples = 24;
+    float spacing = 1.0f;
+    uint64_t seed = 1;
+    while (cli_next(&a, &name, &val)) {
+        if (!name) {
+            if (file) {
+                cli_unknown(&a, NULL);
+                break;
+            }
+            file = val;
+        } else if (!strcmp(name, "help")) {
+            usage_verify(stdout);
+            return 0;
+        } else if (!strcmp(name, "scene")) {
+            scene_path = cli_value(&a, name, val);
+        } else if (!strcmp(name, "city")) {
+            city = cli_value(&a, name, val);
+        } else if (!strcmp(name, "map")) {
+            map = cli_value(&a, name, val);
+        } else if (!strcmp(name, "cells")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &ncheck);
+        } else if (!strcmp(name, "all")) {
+            all = true;
+        } else if (!strcmp(name, "seed")) {
+            cli_parse_u64(&a, name, cli_value(&a, name, val), &seed);
+        } else if (!strcmp(name, "face-size")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &face);
+        } else if (!strcmp(name, "spacing")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &spacing);
+        } else if (!strcmp(name, "samples")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &samples);
+        } else if (!strcmp(name, "json")) {
+            json = true;
+        } else if (!strcmp(name, "quiet")) {
+            quiet = true;
+        } else {
+            cli_unknown(&a, name);
+        }
+    }
+    if (a.error)
+        return 2;
+    if (!file || (scene_path && city)) {
+        cli_error(a.cmd, "%s (see sightline pvs verify --help)", !file ? "missing FILE.slpvs" : "give --scene or --city, not both");
+        return 2;
+    }
+    sl_error err;
+    sl_pvs p;
+    if (sl_pvs_load(file, NULL, &p, &err) != SL_OK)
+        return cli_fail(a.cmd, &err);
+    if (sl_pvs_verify(p, &err) != SL_OK) {
+        sl_pvs_destroy(p);
+        return cli_fail(a.cmd, &err);
+    }
+    sl_pvs_info in;
+    sl_pvs_get_info(p, &in);
+    if (!scene_path && !city) {
+        if (json) {
+            cli_json j;
+            cli_json_begin(&j, stdout);
+            cli_json_string(&j, "file", file);
+            cli_json_bool(&j, "valid", true);
+            cli_json_uint(&j, "cells", in.cell_count);
+            cli_json_end(&j);
+        } else {
+            printf("%s: ok, %u cells, every checksum and set checked\n", file, in.cell_count);
+        }
+        sl_pvs_destroy(p);
+        return 0;
+    }
+    sl_scene scene;
+    if (load_scene(scene_path, map, city, seed, &scene, &err) != SL_OK) {
+        sl_pvs_destroy(p);
+        return cli_fail(a.cmd, &err);
+    }
+    int rc = 0;
+    if (in.object_count != sl_scene_object_count(scene) || in.scene_key != sl_pvs_scene_key(scene)) {
+        cli_error(a.cmd, "%s was not baked for this scene (scene key %016llx, file %016llx)", file,
+                  (unsigned long long)sl_pvs_scene_key(scene), (unsigned long long)in.scene_key);
+        sl_scene_destroy(scene);
+        sl_pvs_destroy(p);
+        return 1;
+    }
+    sl_viewcells cells = sl_pvs_cells(p);
+    uint32_t nc = sl_viewcells_count(cells), no = in.object_count;
+    if (all || ncheck > nc)
+        ncheck = nc;
+    /* a deterministic random choice of cells: a partial Fisher-Yates shuffle of 0..nc-1 */
+    uint32_t *order = malloc(((size_t)nc + 1) * sizeof *order);
+    uint32_t *set = malloc(((size_t)no + 1) * sizeof *set);
+    uint32_t *bset = malloc(((size_t)no + 1) * sizeof *bset);
+    uint8_t *mark = malloc(2 * (size_t)no + 1);
+    if (!order || !set || !bset || !mark) {
+        free(order), free(set), free(bset), free(mark);
+        sl_scene_destroy(scene);
+        sl_pvs_destroy(p);
+        cli_error(a.cmd, "out of memory");
+        return 1;
+    }
+    for (uint32_t i = 0; i < nc; i++)
+        order[i] = i;
+    uint64_t r = seed * 0x9e3779b97f4a7c15ull + 1;
+    for (uint32_t i = 0; i < ncheck; i++) {
+        r ^= r << 13, r ^= r >> 7, r ^= r << 17;
+        uint32_t j = i + (uint32_t)(r % (nc - i));
+        uint32_t t = order[i];
+        order[i] = order[j];
+        order[j] = t;
+    }
+    sl_region_oracle_options oo;
+    memset(&oo, 0, sizeof oo);
+    oo.face_size = face;
+    oo.edge_spacing = spacing;
+    oo.face_samples = samples;
+    oo.interior_samples = samples;
+    oo.seed = seed;
+    sl_region_oracle ro;
+    if (sl_region_oracle_create(scene, &oo, NULL, &ro, &err) != SL_OK) {
+        rc = cli_fail(a.cmd, &err);
+        ncheck = 0;
+    }
+    bool bsp = sl_viewcells_data(cells)[0].shape == SL_CELL_CLUSTER;
+    uint64_t misses = 0, bsp_misses = 0, oracle_total = 0, set_total = 0, bsp_total = 0, added_total = 0;
+    uint32_t checked = 0, cells_with_miss = 0;
+    double over_sum = 0;
+    cli_progress_state ps;
+    sl_progress prog = cli_progress(&ps, quiet || json);
+    /* misses kept for the JSON report (the first 10000) */
+    typedef struct miss {
+        uint32_t cell, object, pixels;
+        bool in_pvs, in_map;
+    } miss;
+    size_t miss_cap = 10000, miss_n = 0;
+    miss *list = json ? malloc(miss_cap * sizeof *list) : NULL;
+    for (uint32_t i = 0; i < ncheck; i++) {
+        uint32_t c = order[i];
+        uint32_t n;
+        sl_region_visibility v;
+        if (sl_pvs_cell_set(p, c, set, no, &n, &err) != SL_OK || sl_region_oracle_cell(ro, cells, c, &v, &err) != SL_OK) {
+            cli_progress_done(&ps);
+            rc = cli_fail(a.cmd, &err);
+            break;
+        }
+        uint32_t nb = bsp ? bsp_set(scene, sl_viewcells_data(cells)[c].cluster, mark, bset) : 0;
+        uint32_t cell_miss = 0;
+        for (uint32_t k = 0; k < v.visible_count; k++) {
+            uint32_t id = v.visible[k];
+            bool in_set = contains(set, n, id);
+            bool in_bsp = !bsp || contains(bset, nb, id);
+            if (!in_set) {
+                misses++;
+                cell_miss++;
+            }
+            if (!in_bsp)
+                bsp_misses++;
+            if (!in_set || !in_bsp) {
+                if (json) {
+                    if (list && miss_n < miss_cap)
+                        list[miss_n++] = (miss){c, id, v.max_pixels[k], in_set, in_bsp};
+                } else {
+                    fprintf(stderr, "MISS: cell %u, object %u (%u pixels at most): %s%s\n", c, id, v.max_pixels[k],
+                            in_set ? "" : "not in the PVS", !in_bsp ? (in_set ? "not in the map's PVS" : ", nor in the map's PVS") : "");
+                }
+            }
+        }
+        cells_with_miss += cell_miss > 0;
+        oracle_total += v.visible_count;
+        set_total += n;
+        bsp_total += nb;
+        added_total += v.added_last_tenth;
+        over_sum += (double)n / (v.visible_count ? v.visible_count : 1);
+        checked++;
+        if (prog.fn)
+            prog.fn(prog.user, "oracle cells", checked, ncheck);
+    }
+    cli_progress_done(&ps);
+    sl_region_oracle_destroy(ro);
+    if (rc == 0 && misses > 0)
+        rc = 1;
+    double over = checked ? over_sum / checked : 0;
+    if (json) {
+        cli_json j;
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "file", file);
+        cli_json_bool(&j, "valid", true);
+        cli_json_uint(&j, "cells", nc);
+        cli_json_uint(&j, "checked", checked);
+        cli_json_uint(&j, "misses", misses);
+        cli_json_uint(&j, "cells_with_misses", cells_with_miss);
+        cli_json_double(&j, "oracle_visible_mean", checked ? (double)oracle_total / checked : 0);
+        cli_json_double(&j, "pvs_visible_mean", checked ? (double)set_total / checked : 0);
+        cli_json_double(&j, "overestimation_mean", over);
+        cli_json_double(&j, "oracle_added_last_tenth_mean", checked ? (double)added_total / checked : 0);
+        if (bsp) {
+            cli_json_double(&j, "map_pvs_visible_mean", checked ? (double)bsp_total / checked : 0);
+            cli_json_uint(&j, "map_pvs_misses", bsp_misses);
+        }
+        cli_json_array_begin(&j, "missed");
+        for (size_t m = 0; m < miss_n; m++) {
+            cli_json_object_begin(&j, NULL);
+            cli_json_uint(&j, "cell", list[m].cell);
+            cli_json_uint(&j, "object", list[m].object);
+            cli_json_uint(&j, "pixels", list[m].pixels);
+            cli_json_bool(&j, "in_pvs", list[m].in_pvs);
+            cli_json_bool(&j, "in_map_pvs", list[m].in_map);
+            cli_json_object_end(&j);
+        }
+        cli_json_array_end(&j);
+        cli_json_end(&j);
+    } else {
+        printf("%s: checksums and sets ok; %u of %u cells held to the region oracle: %llu missed objects in %u cells\n",
+               file, checked, nc, (unsigned long long)misses, cells_with_miss);
+        printf("  mean per cell: oracle %.1f, PVS %.1f objects (over-estimation %.2fx); oracle convergence: %.2f "
+               "objects first seen in the last 10%% of samples\n",
+               checked ? (double)oracle_total / checked : 0, checked ? (double)set_total / checked : 0, over,
+               checked ? (double)added_total / checked : 0);
+        if (bsp)
+            printf("  map's own cluster PVS: %.1f objects per cell (%.2fx the baked PVS), %llu objects the oracle sees "
+                   "missing from it\n",
+                   checked ? (double)bsp_total / checked : 0, set_total ? (double)bsp_total / set_total : 0,
+                   (unsigned long long)bsp_misses);
+    }
+    free(list);
+    free(order), free(set), free(bset), free(mark);
+    sl_scene_destroy(scene);
+    sl_pvs_destroy(p);
+    return rc;
+}
+
 int sl_cmd_pvs(int argc, char **argv)
 {
-    (void)argc;
-    cli_error(argv[0], "not implemented yet");
-    return 1;
+    if (argc < 2) {
+        usage_main(stderr);
+        return 2;
+    }
+    const char *action = argv[1];
+    if (!strcmp(action, "--help") || !strcmp(action, "-h") || !strcmp(action, "help")) {
+        usage_main(stdout);
+        return 0;
+    }
+    if (!strcmp(action, "build"))
+        return run_build(argc - 1, argv + 1);
+    if (!strcmp(action, "info"))
+        return run_info(argc - 1, argv + 1);
+    if (!strcmp(action, "query"))
+        return run_query(argc - 1, argv + 1);
+    if (!strcmp(action, "verify"))
+        return run_verify(argc - 1, argv + 1);
+    cli_error("pvs", "unknown action '%s' (build, info, query or verify; see sightline pvs --help)", action);
+    return 2;
 }

@@ -4,7 +4,19 @@
 #include "culler_internal.h"
 
 #define SL_CULL_METHODS(X) \
-    X(vfc)
+    X(vfc)                      \
+    X(cullmap)                  \
+    X(horizon)                  \
+    X(dhorizon)                 \
+    X(pvs)                      \
+    X(hzb)                      \
+    X(lazygrid)                 \
+    X(lazygrid_z)               \
+    X(busygrid)                 \
+    X(hom)                      \
+    X(frusta)                   \
+    X(plp)                      \
+    X(cplp)
 
 #define SL_DECLARE_METHOD(name) extern const sl_cull_method sl_cull_method_##name;
 SL_CULL_METHODS(SL_DECLARE_METHOD)

@@ -269,28 +269,31 @@ static sl_status check_batch(const char *what, const float *vertices, const uint
     return SL_OK;
 }
 
-static bool emit_direct(void *user, const sl_rt_prim *p)
+/* Prepared triangles handed from the front end to the kernels at a time (16 KiB on the stack). */
+#define PRIM_BUF 256
+
+/* Front end and rendering of triangles [first, last) on the calling thread, in order. */
+static void render_direct(sl_raster *ctx, const sl_rt_batch *b, uint32_t first, uint32_t last)
 {
-    const sl_raster *ctx = user;
-    sl_rt_tri t;
-    if (sl_rt_setup(p, ctx->mode, false, &t)) {
-        int32_t tx0 = t.col0 / SL_RT_TILE_W, tx1 = (t.col1 - 1) / SL_RT_TILE_W + 1;
-        int32_t ty0 = t.row0 / SL_RT_TILE_H, ty1 = (t.row1 - 1) / SL_RT_TILE_H + 1;
-        ctx->k->raster(&ctx->target, &t, tx0, tx1, ty0, ty1);
+    sl_rt_prim prims[PRIM_BUF];
+    for (uint32_t t = first; t < last;) {
+        uint32_t n = ctx->k->front(&ctx->view, ctx->mode, b, &t, last, &ctx->cnt, prims, PRIM_BUF);
+        ctx->k->render(&ctx->target, ctx->mode, prims, n, 0, ctx->target.tiles_x, 0, ctx->target.tiles_y);
     }
-    return true;
 }
 
-typedef struct bin_emit {
-    sl_rt_bins *bins;
-    uint32_t slot;
-    sl_rt_counters *cnt;
-} bin_emit;
-
-static bool emit_bin(void *user, const sl_rt_prim *p)
+/* Front end of slot `slot` into the bins; false when queue storage ran out. */
+static bool bin_range(sl_raster *ctx, uint32_t slot, const sl_rt_batch *b, uint32_t first, uint32_t last)
 {
-    bin_emit *e = user;
-    return sl_rt_bins_add(e->bins, e->slot, p, &e->cnt->bin_refs);
+    sl_rt_prim prims[PRIM_BUF];
+    sl_rt_counters *cnt = &ctx->slot_cnt[slot];
+    for (uint32_t t = first; t < last;) {
+        uint32_t n = ctx->k->front(&ctx->view, ctx->mode, b, &t, last, cnt, prims, PRIM_BUF);
+        for (uint32_t i = 0; i < n; i++)
+            if (!sl_rt_bins_add(ctx->bins, slot, &prims[i], &cnt->bin_refs))
+                return false;
+    }
+    return true;
 }
 
 typedef struct pool_job {
@@ -307,8 +310,7 @@ static void front_end_job(void *arg, uint32_t w)
     sl_raster *ctx = j->ctx;
     uint64_t n = j->last - j->first, parts = ctx->slots;
     uint32_t first = j->first + (uint32_t)(n * w / parts), last = j->first + (uint32_t)(n * (w + 1) / parts);
-    bin_emit e = {ctx->bins, w, &ctx->slot_cnt[w]};
-    if (!sl_rt_front_end(&ctx->view, ctx->mode, j->batch, first, last, &ctx->slot_cnt[w], emit_bin, &e))
+    if (!bin_range(ctx, w, j->batch, first, last))
         atomic_store(&j->failed, true);
 }
 
@@ -354,7 +356,7 @@ sl_status sl_raster_render_triangles(sl_raster *ctx, const float *vertices, uint
     /* triangles binned earlier come first */
     sl_raster_flush(ctx);
     if (!ctx->pool || triangle_count < POOL_MIN_TRIANGLES) {
-        sl_rt_front_end(&ctx->view, ctx->mode, &b, 0, triangle_count, &ctx->cnt, emit_direct, ctx);
+        render_direct(ctx, &b, 0, triangle_count);
         return SL_OK;
     }
     pool_job j = {.ctx = ctx, .batch = &b};
@@ -390,8 +392,7 @@ sl_status sl_raster_bin_triangles(sl_raster *ctx, const float *vertices, uint32_
         return st;
     sl_rt_batch b = {vertices, vertex_count, indices, triangle_count, vertex_stride_bytes, model_to_clip, backface};
     ctx->pending = true;
-    bin_emit e = {ctx->bins, 0, &ctx->slot_cnt[0]};
-    if (!sl_rt_front_end(&ctx->view, ctx->mode, &b, 0, triangle_count, &ctx->slot_cnt[0], emit_bin, &e))
+    if (!bin_range(ctx, 0, &b, 0, triangle_count))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "raster: bin: out of memory for the bin queues");
     return SL_OK;
 }

@@ -1,8 +1,10 @@
-/* AVX-512 kernels of the occlusion rasterizer (F, BW, VL, DQ). The row spans and queries are the
- * 8-lane code of raster_simd8.h; the tile loop takes two adjacent tiles per 512-bit register
- * (lanes 0-7 the left tile's subtiles, 8-15 the right one's), with mask registers instead of
- * blends. Bit-identical to raster_scalar.c (same exact coverage, same float operations in the
- * same order, contraction off); run only when the CPU reports all four extensions. */
+/* AVX-512 kernels of the occlusion rasterizer (F, BW, VL, DQ). The front end, the small-triangle
+ * setup, the row spans and the queries are the 8-lane code of raster_simd8.h and raster_batch8.h;
+ * the tile loops take two adjacent tiles per 512-bit register (lanes 0-7 the left tile's
+ * subtiles, 8-15 the right one's), with mask registers instead of blends, and triangles two tiles
+ * wide two tile rows per register of spans (raster_narrow). Bit-identical to raster_scalar.c (same
+ * exact coverage, same float operations in the same order, contraction off); run only when the
+ * CPU reports all four extensions. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #elif defined(__GNUC__)
@@ -16,6 +18,8 @@
 #define SL_RT_T AVX512
 #define SL_RT_NAME(n) n##_avx512
 #include "raster/raster_simd8.h"
+#define SL_RT_D8_512 1 /* raster_batch8.h's double arithmetic on 512-bit registers */
+#include "raster/raster_batch8.h"
 
 /* za of two tiles in one register from their depth blocks (za[8] then zm[8] each), and back. */
 AVX512 static inline void load_pair(const sl_rt_tile_depth *dp, __m512 *za, __m512 *zm)
@@ -40,7 +44,7 @@ AVX512 static inline void merge_pair(__m512i c, __m512 z, uint32_t *mp, sl_rt_ti
     __mmask16 act = _mm512_test_epi32_mask(c, c) & _mm512_cmp_ps_mask(z, za, _CMP_GT_OQ);
     __mmask16 nearer = _mm512_cmp_ps_mask(z, zm, _CMP_GT_OQ) &
                        _mm512_cmp_ps_mask(_mm512_sub_ps(z, zm), _mm512_sub_ps(zm, za), _CMP_GT_OQ);
-    __mmask16 repl = _mm512_testn_epi32_mask(m, m) | nearer;
+    __mmask16 repl = _mm512_testn_epi32_mask(_mm512_andnot_si512(c, m), _mm512_andnot_si512(c, m)) | nearer;
     __m512i nm = _mm512_mask_mov_epi32(_mm512_or_si512(m, c), repl, c);
     __m512 nz = _mm512_mask_mov_ps(_mm512_min_ps(zm, z), repl, z);
     __mmask16 full = _mm512_cmpeq_epi32_mask(nm, _mm512_set1_epi32(-1));
@@ -51,82 +55,352 @@ AVX512 static inline void merge_pair(__m512i c, __m512 z, uint32_t *mp, sl_rt_ti
     store_pair(dp, za, zm);
 }
 
-/* merge_pair with every subtile fully covered. */
+/* merge_pair with every subtile fully covered: a nearer subtile takes z in za and zm and loses its
+ * mask, with masked stores (nothing else to read). */
 AVX512 static inline void merge_pair_full(__m512 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
-    __m512 za, zm;
-    load_pair(dp, &za, &zm);
+    __m512 za = _mm512_shuffle_f32x4(_mm512_load_ps(dp[0].za), _mm512_load_ps(dp[1].za), 0x44);
     __mmask16 act = _mm512_cmp_ps_mask(z, za, _CMP_GT_OQ);
-    if (!act)
-        return;
-    __m512i m = _mm512_loadu_si512(mp);
-    __mmask16 nearer = _mm512_cmp_ps_mask(z, zm, _CMP_GT_OQ) &
-                       _mm512_cmp_ps_mask(_mm512_sub_ps(z, zm), _mm512_sub_ps(zm, za), _CMP_GT_OQ);
-    __mmask16 repl = _mm512_testn_epi32_mask(m, m) | nearer;
-    __m512 nz = _mm512_mask_mov_ps(_mm512_min_ps(zm, z), repl, z);
-    _mm512_storeu_si512(mp, _mm512_maskz_mov_epi32((__mmask16)~act, m));
-    store_pair(dp, _mm512_mask_mov_ps(za, act, nz), _mm512_mask_mov_ps(zm, act, nz));
+    _mm512_mask_storeu_epi32(mp, act, _mm512_setzero_si512());
+    /* tile 0: za then zm from lanes 0-7, tile 1 from lanes 8-15 */
+    __m512 z0 = _mm512_shuffle_f32x4(z, z, 0x44), z1 = _mm512_shuffle_f32x4(z, z, 0xEE);
+    unsigned a0 = act & 0xFFu, a1 = act >> 8;
+    _mm512_mask_store_ps(dp[0].za, (__mmask16)(a0 | a0 << 8), z0);
+    _mm512_mask_store_ps(dp[1].za, (__mmask16)(a1 | a1 << 8), z1);
+}
+
+/* merge_full_tile on one tile with AVX-512 masked stores: a nearer subtile takes z in za and zm
+ * (one store over the tile's depth line) and loses its mask. */
+AVX512 static inline void merge_full_one(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    __mmask8 act = _mm256_cmp_ps_mask(z, _mm256_load_ps(dp->za), _CMP_GT_OQ);
+    __m512 z2 = _mm512_insertf32x8(_mm512_castps256_ps512(z), z, 1);
+    _mm512_mask_store_ps(dp->za, (__mmask16)(act | (unsigned)act << 8), z2);
+    _mm256_mask_store_epi32(mp, act, _mm256_setzero_si256());
+}
+
+AVX512 static inline __m512 pair_depth(float z0, float zdx, float zrow, int32_t dx, __m512 off2, __m512 zclamp2);
+AVX512 static inline __m512i pair_masks(__m512i xl2, __m512i xr2, int32_t x, __m512i ctl2);
+
+/* The general kernel (any triangle sl_rt_setup produces): exact stepped thresholds, then the tiles
+ * of each tile row two at a time. The next tile row's spans and tile range are computed before the
+ * current row's tiles: the loop's exit is mispredicted at the end of most rows, and the work
+ * issued before it then need not be redone. */
+AVX512 static inline __attribute__((always_inline)) void general_rows(const sl_rt_target *tg, const sl_rt_tri *t,
+                                                                      int32_t tx0, int32_t tx1, int32_t ty0,
+                                                                      int32_t ty1, bool phases)
+{
+    const __m256i ctl = transpose_ctl();
+    const __m512i ctl2 = _mm512_broadcast_i64x4(ctl);
+    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
+    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(off), off, 1);
+    const __m512 zclamp2 = _mm512_set1_ps(t->zclamp);
+    const float z0 = t->z0, zdx = t->zdx, zdy = t->zdy;
+    const int32_t x_ref = t->x_ref, y_ref = t->y_ref;
+    uint32_t *const mask = tg->mask;
+    sl_rt_tile_depth *const depth = tg->depth;
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    vdda dda;
+    vdda_init(&dda, t, ty0 * SL_RT_TILE_H);
+    __m256i xl, xr;
+    int32_t ta = 0, tb = 0, ia = 0, ib = 0;
+    vdda_spans(&dda, t, ty0 * SL_RT_TILE_H, &xl, &xr);
+    bool any = span_tiles(xl, xr, tx0, tx1, &ta, &tb, &ia, &ib);
+    for (int32_t ty = ty0; ty < ty1; ty++) {
+        __m256i nxl = xl, nxr = xr;
+        int32_t nta = 0, ntb = 0, nia = 0, nib = 0;
+        bool nany = false;
+        if (ty + 1 < ty1) {
+            vdda_spans(&dda, t, (ty + 1) * SL_RT_TILE_H, &nxl, &nxr);
+            nany = span_tiles(nxl, nxr, tx0, tx1, &nta, &ntb, &nia, &nib);
+            __asm__("" : "+x"(nxl), "+x"(nxr), "+r"(nta), "+r"(ntb), "+r"(nia), "+r"(nib), "+r"(nany));
+        }
+        if (any) {
+            float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
+            size_t row = (size_t)ty * tiles_x;
+            const __m512i xl2 = _mm512_broadcast_i64x4(xl), xr2 = _mm512_broadcast_i64x4(xr);
+            int32_t ea = ia < ib ? ia : tb, eb = ia < ib ? ib : tb, tx = ta;
+            /* with enough full tiles: partial tiles on the left in pairs (the second may be a full
+             * one), the full ones with masked stores, the partial ones on the right in pairs; else
+             * one loop of pairs (fewer mispredicted loop exits) */
+            if (!phases || eb - ea < 6)
+                ea = eb = ta;
+            for (; tx < eb; tx += 2) {
+                if (tx >= ea && tx + 1 < eb)
+                    break;
+                size_t ti = row + (size_t)tx;
+                int32_t x = tx * SL_RT_TILE_W;
+                if (tx + 1 >= tx1) {
+                    float zt = (z0 + zdx * (float)(x - x_ref)) + zrow;
+                    __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
+                    merge_tile(_mm256_shuffle_epi8(row_masks(xl, xr, x), ctl), z, mask + ti * SL_RT_SUBTILES,
+                               &depth[ti]);
+                    tx++;
+                    break;
+                }
+                merge_pair(pair_masks(xl2, xr2, x, ctl2), pair_depth(z0, zdx, zrow, x - x_ref, off2, zclamp2),
+                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
+            }
+            for (; tx + 1 < eb; tx += 2) {
+                size_t ti = row + (size_t)tx;
+                merge_pair_full(pair_depth(z0, zdx, zrow, tx * SL_RT_TILE_W - x_ref, off2, zclamp2),
+                                mask + ti * SL_RT_SUBTILES, &depth[ti]);
+            }
+            for (; tx < tb; tx += 2) {
+                size_t ti = row + (size_t)tx;
+                int32_t x = tx * SL_RT_TILE_W;
+                if (tx + 1 >= tx1) {
+                    float zt = (z0 + zdx * (float)(x - x_ref)) + zrow;
+                    __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
+                    merge_tile(_mm256_shuffle_epi8(row_masks(xl, xr, x), ctl), z, mask + ti * SL_RT_SUBTILES,
+                               &depth[ti]);
+                    break;
+                }
+                merge_pair(pair_masks(xl2, xr2, x, ctl2), pair_depth(z0, zdx, zrow, x - x_ref, off2, zclamp2),
+                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
+            }
+        }
+        xl = nxl, xr = nxr, ta = nta, tb = ntb, ia = nia, ib = nib, any = nany;
+    }
+}
+
+/* Wide triangles (12 tiles and more) take the three loops for rows with enough full tiles; the
+ * others one loop of pairs, which mispredicts less. Two copies of the loops, each compiled for
+ * its case. */
+AVX512 static __attribute__((noinline)) void general_wide(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0,
+                                                          int32_t tx1, int32_t ty0, int32_t ty1)
+{
+    general_rows(tg, t, tx0, tx1, ty0, ty1, true);
+}
+
+/* The general kernel for triangles narrower than 12 tiles: two tile rows per step, over the union of
+ * their tile ranges (a tile a row does not reach has no coverage: its merge changes nothing), so
+ * one loop exit (mispredicted at most rows' ends) serves two rows and each step has two
+ * independent merges. The next two rows are computed before the current ones' tiles. */
+AVX512 static __attribute__((noinline)) void general_narrow(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0,
+                                                            int32_t tx1, int32_t ty0, int32_t ty1)
+{
+    const __m256i ctl = transpose_ctl();
+    const __m512i ctl2 = _mm512_broadcast_i64x4(ctl);
+    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
+    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(off), off, 1);
+    const __m512 zclamp2 = _mm512_set1_ps(t->zclamp);
+    const float z0 = t->z0, zdx = t->zdx, zdy = t->zdy;
+    const int32_t x_ref = t->x_ref, y_ref = t->y_ref;
+    uint32_t *const mask = tg->mask;
+    sl_rt_tile_depth *const depth = tg->depth;
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    vdda dda;
+    vdda_init(&dda, t, ty0 * SL_RT_TILE_H);
+    grow g0, g1;
+    grow_at(&dda, t, ty0, ty1, tx0, tx1, &g0);
+    grow_at(&dda, t, ty0 + 1, ty1, tx0, tx1, &g1);
+    for (int32_t ty = ty0; ty < ty1; ty += 2) {
+        grow n0, n1;
+        grow_at(&dda, t, ty + 2, ty1, tx0, tx1, &n0);
+        grow_at(&dda, t, ty + 3, ty1, tx0, tx1, &n1);
+        if (g0.any || g1.any) {
+            int32_t ta = g0.any ? g0.ta : g1.ta, tb = g0.any ? g0.tb : g1.tb;
+            if (g0.any && g1.any)
+                ta = sl_rt_mini(g0.ta, g1.ta), tb = sl_rt_maxi(g0.tb, g1.tb);
+            bool two = ty + 1 < ty1;
+            float zr0 = zdy * (float)(ty * SL_RT_TILE_H - y_ref), zr1 = zdy * (float)((ty + 1) * SL_RT_TILE_H - y_ref);
+            size_t row = (size_t)ty * tiles_x;
+            const __m512i xl0 = _mm512_broadcast_i64x4(g0.xl), xr0 = _mm512_broadcast_i64x4(g0.xr);
+            const __m512i xl1 = _mm512_broadcast_i64x4(g1.xl), xr1 = _mm512_broadcast_i64x4(g1.xr);
+            for (int32_t tx = ta; tx < tb; tx += 2) {
+                size_t ti = row + (size_t)tx;
+                int32_t x = tx * SL_RT_TILE_W;
+                if (tx + 1 >= tx1) {
+                    /* the last tile of the caller's range alone */
+                    __m256 za = _mm256_set1_ps((z0 + zdx * (float)(x - x_ref)) + zr0);
+                    merge_tile(_mm256_shuffle_epi8(row_masks(g0.xl, g0.xr, x), ctl),
+                               _mm256_max_ps(_mm256_add_ps(za, off), zclamp), mask + ti * SL_RT_SUBTILES, &depth[ti]);
+                    if (two) {
+                        __m256 zb = _mm256_set1_ps((z0 + zdx * (float)(x - x_ref)) + zr1);
+                        merge_tile(_mm256_shuffle_epi8(row_masks(g1.xl, g1.xr, x), ctl),
+                                   _mm256_max_ps(_mm256_add_ps(zb, off), zclamp),
+                                   mask + (ti + tiles_x) * SL_RT_SUBTILES, &depth[ti + tiles_x]);
+                    }
+                    break;
+                }
+                merge_pair(pair_masks(xl0, xr0, x, ctl2), pair_depth(z0, zdx, zr0, x - x_ref, off2, zclamp2),
+                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
+                if (two)
+                    merge_pair(pair_masks(xl1, xr1, x, ctl2), pair_depth(z0, zdx, zr1, x - x_ref, off2, zclamp2),
+                               mask + (ti + tiles_x) * SL_RT_SUBTILES, &depth[ti + tiles_x]);
+            }
+        }
+        g0 = n0, g1 = n1;
+    }
 }
 
 AVX512 static void raster_avx512(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0, int32_t tx1, int32_t ty0,
                                  int32_t ty1)
 {
-    const __m256i ctl = transpose_ctl();
-    const __m512i ctl2 = _mm512_broadcast_i64x4(ctl), ones = _mm512_set1_epi32(-1), zero = _mm512_setzero_si512();
+    if (tx1 - tx0 >= 12)
+        general_wide(tg, t, tx0, tx1, ty0, ty1);
+    else
+        general_narrow(tg, t, tx0, tx1, ty0, ty1);
+}
+
+/* Depths of the pair of tiles starting at pixel column x: lanes 0-7 the left tile's subtiles, 8-15
+ * the right one's, each ((z0 + zdx*(float)(x - x_ref)) + zrow) + off[k], clamped, as in scalar. */
+AVX512 static inline __m512 pair_depth(float z0, float zdx, float zrow, int32_t dx, __m512 off2, __m512 zclamp2)
+{
     const __m512i pair_x = _mm512_setr_epi32(0, 0, 0, 0, 0, 0, 0, 0, 32, 32, 32, 32, 32, 32, 32, 32);
-    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
-    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(off), off, 1);
-    const __m512 zclamp2 = _mm512_set1_ps(t->zclamp);
-    bool tall = ty1 - ty0 > 4;
-    edge_dda dda[3];
-    if (tall)
-        for (int e = 0; e < 3; e++)
-            dda_init(&dda[e], t, e, ty0 * SL_RT_TILE_H);
-    for (int32_t ty = ty0; ty < ty1; ty++) {
-        int32_t j0 = ty * SL_RT_TILE_H, ta, tb, ia, ib;
-        __m256i xl, xr;
-        if (tall)
-            row_spans_dda(t, dda, j0, &xl, &xr);
-        else
-            row_spans(t, j0, &xl, &xr);
-        if (!span_tiles(xl, xr, tx0, tx1, &ta, &tb, &ia, &ib))
-            continue;
-        float zrow = t->zdy * (float)(j0 - t->y_ref);
-        size_t row = (size_t)ty * (size_t)tg->tiles_x;
-        const __m512i xl2 = _mm512_broadcast_i64x4(xl), xr2 = _mm512_broadcast_i64x4(xr);
-        int32_t tx = ta;
-        for (; tx + 1 < tb; tx += 2) {
-            int32_t x = tx * SL_RT_TILE_W;
-            size_t ti = row + (size_t)tx;
-            float za_ = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
-            float zb_ = (t->z0 + t->zdx * (float)(x + SL_RT_TILE_W - t->x_ref)) + zrow;
-            __m512 zt = _mm512_insertf32x8(_mm512_set1_ps(za_), _mm256_set1_ps(zb_), 1);
-            __m512 z = _mm512_max_ps(_mm512_add_ps(zt, off2), zclamp2);
-            uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
-            if (tx >= ia && tx + 1 < ib) {
-                merge_pair_full(z, mp, &tg->depth[ti]);
-                continue;
+    __m512 xf = _mm512_cvtepi32_ps(_mm512_add_epi32(_mm512_set1_epi32(dx), pair_x));
+    __m512 zt = _mm512_add_ps(_mm512_add_ps(_mm512_set1_ps(z0), _mm512_mul_ps(_mm512_set1_ps(zdx), xf)),
+                              _mm512_set1_ps(zrow));
+    return _mm512_max_ps(_mm512_add_ps(zt, off2), zclamp2);
+}
+
+/* Subtile masks of the pair of tiles at local column x from the row spans (both tiles' copies). */
+AVX512 static inline __m512i pair_masks(__m512i xl2, __m512i xr2, int32_t x, __m512i ctl2)
+{
+    const __m512i pair_x = _mm512_setr_epi32(0, 0, 0, 0, 0, 0, 0, 0, 32, 32, 32, 32, 32, 32, 32, 32);
+    const __m512i ones = _mm512_set1_epi32(-1), zero = _mm512_setzero_si512();
+    __m512i xo = _mm512_add_epi32(_mm512_set1_epi32(x), pair_x);
+    __m512i lo = _mm512_max_epi32(_mm512_sub_epi32(xl2, xo), zero);
+    __m512i hi = _mm512_max_epi32(_mm512_sub_epi32(xr2, xo), zero);
+    return _mm512_shuffle_epi8(_mm512_andnot_si512(_mm512_sllv_epi32(ones, hi), _mm512_sllv_epi32(ones, lo)), ctl2);
+}
+
+/* A small triangle (raster_batch8.h): float thresholds, then the tiles of each tile row two at a
+ * time. A pair may reach one tile past the triangle (no coverage there: its merge changes
+ * nothing) but never past the caller's range tx_end. Rows are computed one ahead, as in the
+ * general kernel. */
+AVX512 static inline __attribute__((always_inline)) void raster_small(const sl_rt_target *tg, small_tri *t,
+                                                                      int32_t tx_end)
+{
+    const __m256i ctl = transpose_ctl();
+    const __m512i ctl2 = _mm512_broadcast_i64x4(ctl);
+    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(t->off), t->off, 1);
+    const __m512 zclamp2 = _mm512_broadcast_f32x8(t->zclamp);
+    const float z0 = t->z0, zdx = t->zdx, zdy = t->zdy;
+    const int32_t x_ref = t->x_ref, y_ref = t->y_ref, ox = t->ox;
+    uint32_t *const mask = tg->mask;
+    sl_rt_tile_depth *const depth = tg->depth;
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    small_row cur;
+    small_row_at(t, t->ty0, &cur);
+    for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
+        small_row nxt = cur;
+        if (ty + 1 < t->ty1)
+            small_row_at(t, ty + 1, &nxt);
+        if (cur.any) {
+            float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
+            size_t row = (size_t)ty * tiles_x;
+            const __m512i xl2 = _mm512_broadcast_i64x4(cur.xl), xr2 = _mm512_broadcast_i64x4(cur.xr);
+            for (int32_t tx = cur.ta; tx < cur.tb; tx += 2) {
+                int32_t x = tx * SL_RT_TILE_W;
+                size_t ti = row + (size_t)tx;
+                if (SL_UNLIKELY(tx + 1 >= tx_end)) {
+                    float zt = (z0 + zdx * (float)(x - x_ref)) + zrow;
+                    __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zt), t->off), t->zclamp);
+                    merge_tile(_mm256_shuffle_epi8(row_masks(cur.xl, cur.xr, x - ox), ctl), z,
+                               mask + ti * SL_RT_SUBTILES, &depth[ti]);
+                    break;
+                }
+                merge_pair(pair_masks(xl2, xr2, x - ox, ctl2), pair_depth(z0, zdx, zrow, x - x_ref, off2, zclamp2),
+                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
             }
-            __m512i xo = _mm512_add_epi32(_mm512_set1_epi32(x), pair_x);
-            __m512i lo = _mm512_max_epi32(_mm512_sub_epi32(xl2, xo), zero);
-            __m512i hi = _mm512_max_epi32(_mm512_sub_epi32(xr2, xo), zero);
-            __m512i rows = _mm512_andnot_si512(_mm512_sllv_epi32(ones, hi), _mm512_sllv_epi32(ones, lo));
-            merge_pair(_mm512_shuffle_epi8(rows, ctl2), z, mp, &tg->depth[ti]);
         }
-        if (tx < tb) {
-            int32_t x = tx * SL_RT_TILE_W;
-            size_t ti = row + (size_t)tx;
-            float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
-            __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
-            if (tx >= ia && tx < ib)
-                merge_full_tile(z, tg->mask + ti * SL_RT_SUBTILES, &tg->depth[ti]);
-            else
-                merge_tile(_mm256_shuffle_epi8(row_masks(xl, xr, x), ctl), z, tg->mask + ti * SL_RT_SUBTILES,
-                           &tg->depth[ti]);
+        cur = nxt;
+    }
+}
+
+/* Set up prims in groups of 8; small ones take raster_small, each loaded (with its first tile row)
+ * before the previous one is rasterized, the others the reference setup and the general kernel. */
+/* A triangle at most two tiles wide whose pair of tile columns lies in the caller's range: two tile
+ * rows at a time, their 16 pixel rows' spans in one register per edge, then one pair of tiles per
+ * tile row, without a branch inside (a row or tile past the triangle has no coverage: its merge
+ * changes nothing; only a row past the caller's range is skipped). */
+AVX512 static inline __attribute__((always_inline)) void raster_narrow(const sl_rt_target *tg, const small_tri *t,
+                                                                       int32_t ty_end, bool one_step)
+{
+    const __m512 ramp16 = _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const __m512 nbig = _mm512_set1_ps((float)-SL_RT_BIG);
+    const __m512i ctl2 = _mm512_broadcast_i64x4(transpose_ctl());
+    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(t->off), t->off, 1);
+    const __m512 zclamp2 = _mm512_broadcast_f32x8(t->zclamp);
+    const __m512 cap = _mm512_broadcast_f32x8(t->cap), cl = _mm512_broadcast_f32x8(t->cl);
+    const __m512 cr = _mm512_broadcast_f32x8(t->cr);
+    const __m512 row0 = _mm512_set1_ps((float)t->row0), row1 = _mm512_set1_ps((float)t->row1);
+    __m512 n[3], s16[3], dd[3];
+    for (int e = 0; e < 3; e++) {
+        /* rows 8-15: one more step of 8 rows; every value an integer below 2^24, exact */
+        n[e] = _mm512_insertf32x8(_mm512_castps256_ps512(t->n[e]), _mm256_add_ps(t->n[e], t->s8[e]), 1);
+        __m512 s8 = _mm512_broadcast_f32x8(t->s8[e]);
+        s16[e] = _mm512_add_ps(s8, s8);
+        dd[e] = _mm512_broadcast_f32x8(t->dd[e]);
+    }
+    const int32_t x = t->tx0 * SL_RT_TILE_W, dxl = x - t->ox, dxz = x - t->x_ref;
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    for (int32_t ty = t->ty0; ty < t->ty1; ty += 2) {
+        __m512 t0 = _mm512_ceil_ps(_mm512_div_ps(n[0], dd[0]));
+        __m512 t1 = _mm512_ceil_ps(_mm512_div_ps(n[1], dd[1]));
+        __m512 t2 = _mm512_ceil_ps(_mm512_div_ps(n[2], dd[2]));
+        for (int e = 0; e < 3; e++)
+            n[e] = _mm512_add_ps(n[e], s16[e]);
+        __m512 xl = _mm512_max_ps(_mm512_max_ps(cl, t0), _mm512_min_ps(t2, cap));
+        __m512 xr = _mm512_min_ps(_mm512_min_ps(cr, t1), _mm512_max_ps(t2, cap));
+        __m512 j = _mm512_add_ps(_mm512_set1_ps((float)(ty * SL_RT_TILE_H)), ramp16);
+        __mmask16 valid = _mm512_cmp_ps_mask(j, row0, _CMP_GE_OQ) & _mm512_cmp_ps_mask(j, row1, _CMP_LT_OQ);
+        xr = _mm512_mask_mov_ps(nbig, valid, xr);
+        __m512i xli = _mm512_cvttps_epi32(xl), xri = _mm512_cvttps_epi32(xr);
+        size_t ti = (size_t)ty * tiles_x + (size_t)t->tx0;
+        float zrow0 = t->zdy * (float)(ty * SL_RT_TILE_H - t->y_ref);
+        merge_pair(pair_masks(_mm512_shuffle_i64x2(xli, xli, 0x44), _mm512_shuffle_i64x2(xri, xri, 0x44), dxl, ctl2),
+                   pair_depth(t->z0, t->zdx, zrow0, dxz, off2, zclamp2), tg->mask + ti * SL_RT_SUBTILES,
+                   &tg->depth[ti]);
+        if (!one_step && SL_UNLIKELY(ty + 1 >= ty_end))
+            break;
+        ti += tiles_x;
+        float zrow1 = t->zdy * (float)((ty + 1) * SL_RT_TILE_H - t->y_ref);
+        merge_pair(pair_masks(_mm512_shuffle_i64x2(xli, xli, 0xEE), _mm512_shuffle_i64x2(xri, xri, 0xEE), dxl, ctl2),
+                   pair_depth(t->z0, t->zdx, zrow1, dxz, off2, zclamp2), tg->mask + ti * SL_RT_SUBTILES,
+                   &tg->depth[ti]);
+        if (one_step)
+            break;
+    }
+}
+
+/* Set up prims in groups of 8: small ones take raster_small, the others the reference setup and
+ * the general kernel. */
+AVX512 static void render_avx512(const sl_rt_target *tg, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0,
+                             int32_t tx1, int32_t ty0, int32_t ty1)
+{
+    for (uint32_t i = 0; i < n; i += 8) {
+        uint32_t k = n - i < 8 ? n - i : 8;
+        small8 s;
+        unsigned empty, small = setup8(p + i, k, mode, &s, &empty);
+        for (uint32_t l = 0; l < k; l++) {
+            if (small >> l & 1) {
+                small_tri st;
+                if (!small_load(&s, (int)l, tx0, tx1, ty0, ty1, &st))
+                    continue;
+                if (st.tx1 - st.tx0 == 1) {
+                    raster_cols(tg, &st, 1);
+                } else if (st.tx1 - st.tx0 == 2) {
+                    /* up to two tile rows (both inside the caller's range): no loop at all */
+                    if (st.ty1 - st.ty0 <= 2 && st.ty0 + 1 < ty1)
+                        raster_narrow(tg, &st, ty1, true);
+                    else
+                        raster_narrow(tg, &st, ty1, false);
+                } else if (st.tx1 - st.tx0 == 3) {
+                    raster_cols(tg, &st, 3);
+                } else {
+                    raster_small(tg, &st, tx1);
+                }
+            } else if (!(empty >> l & 1)) {
+                sl_rt_render_each(raster_avx512, tg, mode, p + i + l, 1, tx0, tx1, ty0, ty1);
+            }
         }
     }
 }
 
-const sl_rt_kernels sl_rt_kernels_avx512 = {SL_RASTER_ISA_AVX512, raster_avx512, query_avx512, rect_avx512};
+const sl_rt_kernels sl_rt_kernels_avx512 = {SL_RASTER_ISA_AVX512, raster_avx512, query_avx512, rect_avx512,
+                                            front_avx512, render_avx512};
 
 #endif

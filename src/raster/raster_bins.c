@@ -1,8 +1,9 @@
 /* Screen bins and the built-in thread pool of the occlusion rasterizer.
  *
- * The screen is cut into a grid of bins (rectangles of whole tiles). A front end sets up triangles
- * and appends a pointer to each in the queue of every bin its tile bounds overlap; a renderer
- * drains a bin's queues in order. There is one queue per (front-end slot, bin): the caller-driven
+ * The screen is cut into a grid of bins (rectangles of whole tiles). A front end prepares
+ * triangles and appends a copy of each (64 bytes) to the queue of every bin its tile bounds
+ * overlap; a renderer drains a bin's queues in order, handing the kernels runs of consecutive
+ * triangles (the batched SIMD setup works on groups of 8). There is one queue per (front-end slot, bin): the caller-driven
  * API uses slot 0, the pool's parallel front end uses slot w for worker w's contiguous share of
  * the triangles, and a bin renders slot 0's queue before slot 1's, so every tile sees the
  * triangles in submission order whatever the thread count: the buffer is identical.
@@ -155,21 +156,12 @@ static bool push(sl_rt_bins *b, slot *s, queue *q, const sl_rt_prim *t)
     return true;
 }
 
-/* Tile bounds of a triangle, half-open. */
-static inline void prim_tiles(const sl_rt_prim *t, int32_t *tx0, int32_t *tx1, int32_t *ty0, int32_t *ty1)
-{
-    *tx0 = t->col0 / SL_RT_TILE_W;
-    *tx1 = (t->col1 - 1) / SL_RT_TILE_W + 1;
-    *ty0 = t->row0 / SL_RT_TILE_H;
-    *ty1 = (t->row1 - 1) / SL_RT_TILE_H + 1;
-}
-
 bool sl_rt_bins_add(sl_rt_bins *b, uint32_t slot_index, const sl_rt_prim *prim, uint64_t *refs)
 {
     slot *s = &b->slots[slot_index];
     const sl_rt_prim *t = prim;
-    int32_t tx0, tx1, ty0, ty1;
-    prim_tiles(t, &tx0, &tx1, &ty0, &ty1);
+    int32_t tx0 = t->col0 / SL_RT_TILE_W, tx1 = (t->col1 - 1) / SL_RT_TILE_W + 1;
+    int32_t ty0 = t->row0 / SL_RT_TILE_H, ty1 = (t->row1 - 1) / SL_RT_TILE_H + 1;
     uint32_t bx0 = (uint32_t)tx0 / b->bin_tw, bx1 = (uint32_t)(tx1 - 1) / b->bin_tw;
     uint32_t by0 = (uint32_t)ty0 / b->bin_th, by1 = (uint32_t)(ty1 - 1) / b->bin_th;
     for (uint32_t by = by0; by <= by1; by++)
@@ -201,18 +193,17 @@ uint32_t sl_rt_bins_render(sl_rt_bins *b, const sl_rt_kernels *k, const sl_rt_ta
                 q->rblock = q->rblock->next;
                 q->rpos = 0;
             }
-            const sl_rt_prim *p = &q->rblock->refs[q->rpos++];
-            q->consumed++;
-            int32_t tx0, tx1, ty0, ty1;
-            prim_tiles(p, &tx0, &tx1, &ty0, &ty1);
-            tx0 = sl_rt_maxi(tx0, btx0), tx1 = sl_rt_mini(tx1, btx1);
-            ty0 = sl_rt_maxi(ty0, bty0), ty1 = sl_rt_mini(ty1, bty1);
-            /* the setup is redone in every bin a triangle reaches: 64 bytes per queued triangle
-             * instead of the ~200 of a set-up one, and the same bits everywhere */
-            sl_rt_tri t;
-            if (sl_rt_setup(p, mode, false, &t))
-                k->raster(tg, &t, tx0, tx1, ty0, ty1);
-            n++;
+            /* the run of published triangles left in this block; the setup is redone in every bin
+             * a triangle reaches: 64 bytes per queued triangle instead of a set-up one, and the
+             * same bits everywhere */
+            uint64_t left = pub - q->consumed;
+            uint32_t run = REF_BLOCK - q->rpos;
+            if (left < run)
+                run = (uint32_t)left;
+            k->render(tg, mode, &q->rblock->refs[q->rpos], run, btx0, btx1, bty0, bty1);
+            q->rpos += run;
+            q->consumed += run;
+            n += run;
         }
     }
     return n;

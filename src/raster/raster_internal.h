@@ -21,7 +21,7 @@
 
 #include <stdatomic.h>
 
-#define SL_RT_TILE_W 32
+#define SL_RT_TILE_W 32 /* the SIMD kernels divide by it with >> 5 */
 #define SL_RT_TILE_H 8
 #define SL_RT_SUBTILES 8
 #define SL_RT_SUB_W 8
@@ -76,26 +76,6 @@ typedef struct sl_rt_tri {
     int32_t ja[3], jb[3];
 } sl_rt_tri;
 
-/* The kernels of one instruction set. Tile ranges are half-open and already clipped to the
- * triangle's pixel bounds. */
-typedef struct sl_rt_kernels {
-    sl_raster_isa isa;
-    /* Merge an occluder into tiles [tx0,tx1) x [ty0,ty1). */
-    void (*raster)(const sl_rt_target *t, const sl_rt_tri *tri, int32_t tx0, int32_t tx1, int32_t ty0, int32_t ty1);
-    /* Query: true when some pixel the triangle covers may show it (whole triangle). */
-    bool (*query_tri)(const sl_rt_target *t, const sl_rt_tri *tri);
-    /* True when every pixel of [x0,x1) x [y0,y1) (inside the screen, non-empty) hides depth d. */
-    bool (*rect_occluded)(const sl_rt_target *t, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d);
-} sl_rt_kernels;
-
-extern const sl_rt_kernels sl_rt_kernels_scalar;
-#if defined(__x86_64__) || defined(__i386__)
-#define SL_RT_X86 1
-extern const sl_rt_kernels sl_rt_kernels_sse41;
-extern const sl_rt_kernels sl_rt_kernels_avx2;
-extern const sl_rt_kernels sl_rt_kernels_avx512;
-#endif
-
 /* ---- front end: transform, clip, snap, set up (raster_setup.c) ---- */
 
 /* Per-frame projection parameters derived from the context. */
@@ -120,11 +100,11 @@ typedef struct sl_rt_prim {
     int32_t X[3], Y[3]; /* 1/256 pixel */
     float d[3];
     int32_t col0, col1, row0, row1;
-    int64_t area;       /* twice the area, in (1/256 pixel)^2, > 0 */
+    double area;        /* twice the area, in (1/256 pixel)^2, > 0: an integer below 2^47, exact */
 } sl_rt_prim;
-
-/* Receives each prepared triangle; returns false to stop (out of memory). */
-typedef bool (*sl_rt_emit_fn)(void *user, const sl_rt_prim *prim);
+/* the SIMD front ends write prims as two 32-byte rows of 32-bit fields in this order */
+_Static_assert(sizeof(sl_rt_prim) == 64 && offsetof(sl_rt_prim, col0) == 36 && offsetof(sl_rt_prim, area) == 56,
+               "sl_rt_prim layout");
 
 /* Description of a triangle batch as the API receives it. */
 typedef struct sl_rt_batch {
@@ -136,6 +116,38 @@ typedef struct sl_rt_batch {
     const float *m; /* model-to-clip, column-major */
     sl_raster_backface backface;
 } sl_rt_batch;
+
+/* Largest number of prepared triangles one input triangle can give (a clipped polygon's fan). */
+#define SL_RT_FAN_MAX 10
+
+/* The kernels of one instruction set. Tile ranges are half-open. */
+typedef struct sl_rt_kernels {
+    sl_raster_isa isa;
+    /* Merge an occluder into tiles [tx0,tx1) x [ty0,ty1), already clipped to its pixel bounds. */
+    void (*raster)(const sl_rt_target *t, const sl_rt_tri *tri, int32_t tx0, int32_t tx1, int32_t ty0, int32_t ty1);
+    /* Query: true when some pixel the triangle covers may show it (whole triangle). */
+    bool (*query_tri)(const sl_rt_target *t, const sl_rt_tri *tri);
+    /* True when every pixel of [x0,x1) x [y0,y1) (inside the screen, non-empty) hides depth d. */
+    bool (*rect_occluded)(const sl_rt_target *t, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d);
+    /* Front end: triangles *next.. of a batch (up to last) into prepared occluders, in order, written to
+     * out while a whole group still fits (cap >= 8 * SL_RT_FAN_MAX); advances *next past the triangles
+     * consumed and returns the number of prims. Every path gives the same prims and counts as
+     * sl_rt_front_prims. */
+    uint32_t (*front)(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32_t *next, uint32_t last,
+                      sl_rt_counters *cnt, sl_rt_prim *out, uint32_t cap);
+    /* Set up and merge prims [0, n), in order, into the tiles [tx0,tx1) x [ty0,ty1) of the target
+     * (a bin, or the whole screen). Same buffer as sl_rt_setup + raster for each prim. */
+    void (*render)(const sl_rt_target *t, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0, int32_t tx1,
+                   int32_t ty0, int32_t ty1);
+} sl_rt_kernels;
+
+extern const sl_rt_kernels sl_rt_kernels_scalar;
+#if defined(__x86_64__) || defined(__i386__)
+#define SL_RT_X86 1
+extern const sl_rt_kernels sl_rt_kernels_sse41;
+extern const sl_rt_kernels sl_rt_kernels_avx2;
+extern const sl_rt_kernels sl_rt_kernels_avx512;
+#endif
 
 void sl_rt_view_init(sl_rt_view *v, uint32_t width, uint32_t height, float near_w, sl_raster_depth depth);
 /* Clip-space position of vertex (x,y,z,1): ((m0*x + m4*y) + m8*z) + m12 per row, no contraction. */
@@ -153,10 +165,15 @@ int sl_rt_prepare(const sl_rt_view *v, const int32_t X[3], const int32_t Y[3], c
 /* Second half, for `mode`, query = nearest-depth planes: edges and depth plane. False when a
  * horizontal edge leaves no pixel row. Deterministic: every path and bin gets the same bits. */
 bool sl_rt_setup(const sl_rt_prim *p, int mode, bool query, sl_rt_tri *out);
-/* Run triangles [first, last) of a batch through transform, reject, clip and setup, emitting each
- * set-up occluder triangle. Returns false if emit stopped. */
-bool sl_rt_front_end(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32_t first, uint32_t last,
-                     sl_rt_counters *cnt, sl_rt_emit_fn emit, void *user);
+/* The scalar front end (the reference of every kernel's `front`): transform, reject, clip, snap
+ * and prepare triangles *next.. (up to last) into out while SL_RT_FAN_MAX more fit in cap; advances
+ * *next and returns the number of prims written. */
+uint32_t sl_rt_front_prims(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32_t *next, uint32_t last,
+                           sl_rt_counters *cnt, sl_rt_prim *out, uint32_t cap);
+/* sl_rt_setup, tile clipping and raster for each prim in turn: the reference of every `render`. */
+void sl_rt_render_each(void (*raster)(const sl_rt_target *, const sl_rt_tri *, int32_t, int32_t, int32_t, int32_t),
+                       const sl_rt_target *t, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0, int32_t tx1,
+                       int32_t ty0, int32_t ty1);
 
 /* Mesh query over a batch: returns the query answer. */
 sl_raster_result sl_rt_query_batch(const sl_rt_view *v, const sl_rt_kernels *k, const sl_rt_target *t,
@@ -216,12 +233,13 @@ static inline void sl_rt_rows_to_subtiles(const uint32_t rows[8], uint32_t sub[8
 }
 
 /* The merge of one occluder subtile (coverage c != 0 at depth z) into (m, za, zm); see
- * docs/rasterizer.md. Every SIMD path implements exactly this. */
+ * docs/rasterizer.md. Every SIMD path implements exactly this. When the old mask lies inside c
+ * (no old pixel keeps zm), the new layer simply replaces it: every pixel of c is at least z. */
 static inline void sl_rt_merge(uint32_t c, float z, uint32_t *m, float *za, float *zm)
 {
     if (c == 0 || !(z > *za))
         return;
-    bool repl = *m == 0 || (z > *zm && (z - *zm) > (*zm - *za));
+    bool repl = (*m & ~c) == 0 || (z > *zm && (z - *zm) > (*zm - *za));
     uint32_t nm = repl ? c : (*m | c);
     float nz = repl ? z : sl_rt_minf(*zm, z);
     if (nm == ~0u) {

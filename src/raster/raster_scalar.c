@@ -138,4 +138,11 @@ static bool rect_scalar(const sl_rt_target *tg, int32_t x0, int32_t y0, int32_t 
     return true;
 }
 
-const sl_rt_kernels sl_rt_kernels_scalar = {SL_RASTER_ISA_SCALAR, raster_scalar, query_scalar, rect_scalar};
+static void render_scalar(const sl_rt_target *tg, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0, int32_t tx1,
+                          int32_t ty0, int32_t ty1)
+{
+    sl_rt_render_each(raster_scalar, tg, mode, p, n, tx0, tx1, ty0, ty1);
+}
+
+const sl_rt_kernels sl_rt_kernels_scalar = {SL_RASTER_ISA_SCALAR, raster_scalar, query_scalar, rect_scalar,
+                                            sl_rt_front_prims, render_scalar};

@@ -1,8 +1,10 @@
-/* Front end of the occlusion rasterizer, shared by every instruction-set path: vertex transform,
+/* The scalar front end of the occlusion rasterizer and the reference setup: vertex transform,
  * rejection of bad input, homogeneous clipping (near plane, w > epsilon, x/y guard band), snapping
  * to 1/256 pixel and the exact edge and conservative depth-plane setup of sl_rt_tri
- * (raster_internal.h). Running the same code for every path is what makes their buffers
- * bit-identical; the kernels only do exact integer/double work and an identical float sequence. */
+ * (raster_internal.h). The AVX2 and AVX-512 paths run batched copies of the front end and of the
+ * depth-plane setup (raster_batch8.h) that repeat these operations exactly, and clip through this
+ * code; that, exact coverage and an identical float sequence in the kernels make every path's
+ * buffer bit-identical. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #elif defined(__GNUC__)
@@ -122,7 +124,7 @@ int sl_rt_prepare(const sl_rt_view *v, const int32_t Xi[3], const int32_t Yi[3],
         return 0;
     /* orient so that the inside is where every edge function is positive */
     int i1 = area > 0 ? 1 : 2, i2 = 3 - i1;
-    p->area = area < 0 ? -area : area;
+    p->area = (double)(area < 0 ? -area : area);
     p->X[0] = Xi[0], p->X[1] = Xi[i1], p->X[2] = Xi[i2];
     p->Y[0] = Yi[0], p->Y[1] = Yi[i1], p->Y[2] = Yi[i2];
     p->d[0] = di[0], p->d[1] = di[i1], p->d[2] = di[i2];
@@ -152,7 +154,7 @@ bool sl_rt_setup(const sl_rt_prim *p, int mode, bool query, sl_rt_tri *o)
 {
     const int32_t *X = p->X, *Y = p->Y;
     const float *d = p->d;
-    int64_t area = p->area;
+    double area = p->area;
     int32_t col0 = p->col0, col1 = p->col1, row0 = p->row0, row1 = p->row1;
     int32_t xmin = min3i(X[0], X[1], X[2]), xmax = max3i(X[0], X[1], X[2]);
     int32_t ymin = min3i(Y[0], Y[1], Y[2]), ymax = max3i(Y[0], Y[1], Y[2]);
@@ -226,7 +228,7 @@ bool sl_rt_setup(const sl_rt_prim *p, int mode, bool query, sl_rt_tri *o)
     double ex1 = (double)(X[1] - X[0]) * k, ey1 = (double)(Y[1] - Y[0]) * k;
     double ex2 = (double)(X[2] - X[0]) * k, ey2 = (double)(Y[2] - Y[0]) * k;
     double dd1 = (double)d[1] - (double)d[0], dd2 = (double)d[2] - (double)d[0];
-    double inv_det = 65536.0 / (double)area; /* det = ex1*ey2 - ex2*ey1 = area / 256^2, exactly */
+    double inv_det = 65536.0 / area; /* det = ex1*ey2 - ex2*ey1 = area / 256^2, exactly */
     double a = (dd1 * ey2 - dd2 * ey1) * inv_det, b = (ex1 * dd2 - ex2 * dd1) * inv_det;
     double cref = (double)d[0] + a * ((double)col0 - X[0] * k) + b * ((double)row0 - Y[0] * k);
     float dmin = sl_rt_minf(sl_rt_minf(d[0], d[1]), d[2]);
@@ -416,12 +418,13 @@ static int clip_and_snap(const sl_rt_view *v, float c[3][4], unsigned need, int3
     return p.n;
 }
 
-bool sl_rt_front_end(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32_t first, uint32_t last,
-                     sl_rt_counters *cnt, sl_rt_emit_fn emit, void *user)
+uint32_t sl_rt_front_prims(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32_t *next, uint32_t last,
+                           sl_rt_counters *cnt, sl_rt_prim *out, uint32_t cap)
 {
     fetcher f;
     fetcher_init(&f, v, b);
-    for (uint32_t t = first; t < last; t++) {
+    uint32_t n_out = 0, t = *next;
+    for (; t < last && n_out + SL_RT_FAN_MAX <= cap; t++) {
         cnt->submitted++;
         float c[3][4];
         unsigned ocor = 0;
@@ -458,12 +461,10 @@ bool sl_rt_front_end(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32
         for (int i = 1; i + 1 < n; i++) {
             int32_t tx[3] = {X[0], X[i], X[i + 1]}, ty[3] = {Y[0], Y[i], Y[i + 1]};
             float td[3] = {d[0], d[i], d[i + 1]};
-            sl_rt_prim prim;
-            int r = sl_rt_prepare(v, tx, ty, td, mode, false, b->backface, &prim);
+            int r = sl_rt_prepare(v, tx, ty, td, mode, false, b->backface, &out[n_out]);
             if (r == 1) {
                 cnt->rasterized++;
-                if (!emit(user, &prim))
-                    return false;
+                n_out++;
             } else if (r == 0) {
                 cnt->culled_backface++;
             } else if (r == -1) {
@@ -473,7 +474,23 @@ bool sl_rt_front_end(const sl_rt_view *v, int mode, const sl_rt_batch *b, uint32
             }
         }
     }
-    return true;
+    *next = t;
+    return n_out;
+}
+
+void sl_rt_render_each(void (*raster)(const sl_rt_target *, const sl_rt_tri *, int32_t, int32_t, int32_t, int32_t),
+                       const sl_rt_target *tg, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0, int32_t tx1,
+                       int32_t ty0, int32_t ty1)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        sl_rt_tri t;
+        if (!sl_rt_setup(&p[i], mode, false, &t))
+            continue;
+        int32_t a0 = sl_rt_maxi(tx0, t.col0 / SL_RT_TILE_W), a1 = sl_rt_mini(tx1, (t.col1 - 1) / SL_RT_TILE_W + 1);
+        int32_t b0 = sl_rt_maxi(ty0, t.row0 / SL_RT_TILE_H), b1 = sl_rt_mini(ty1, (t.row1 - 1) / SL_RT_TILE_H + 1);
+        if (a0 < a1 && b0 < b1)
+            raster(tg, &t, a0, a1, b0, b1);
+    }
 }
 
 /* A degenerate (zero-area after snapping) query triangle still marks pixels: test its box. */

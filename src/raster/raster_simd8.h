@@ -1,6 +1,6 @@
 /* 8-lane (256-bit) building blocks of the AVX2 and AVX-512 kernels of the occlusion rasterizer:
- * exact row spans (by division, or stepped for tall triangles), tile ranges, row masks, the
- * subtile merge and the query tests. Included by raster_avx2.c and raster_avx512.c after
+ * exact row spans (by division for queries, stepped without a division or a branch for the general
+ * occluder kernels), tile ranges, row masks, the subtile merge and the query tests. Included by raster_avx2.c and raster_avx512.c after
  * defining SL_RT_T (the target attribute of every function) and SL_RT_NAME(n) (a suffix for the
  * query kernels), so that each file compiles its own copy for its own instruction set. Nothing
  * here may differ from raster_scalar.c in its results. */
@@ -10,6 +10,16 @@
 
 #include <immintrin.h>
 #include <math.h>
+
+/* Fixed-count loops over lanes, corners and edges are unrolled, so that their vectors stay in
+ * registers (GCC does not peel them at -O2). */
+#if defined(__clang__)
+#define SL_RT_UNROLL _Pragma("clang loop unroll(full)")
+#elif defined(__GNUC__)
+#define SL_RT_UNROLL _Pragma("GCC unroll 8")
+#else
+#define SL_RT_UNROLL
+#endif
 
 /* Byte shuffle turning rows (lane r, byte c) into subtiles (lane c, byte r) within each half. */
 SL_RT_T static inline __m256i transpose_ctl(void)
@@ -31,55 +41,81 @@ SL_RT_T static inline __m256i edge_thresholds(const sl_rt_tri *t, int e, int32_t
     return _mm256_set_m128i(_mm256_cvttpd_epi32(qhi), _mm256_cvttpd_epi32(qlo));
 }
 
-/* Exact incremental thresholds for tall triangles, without a division per tile row. With
+/* Exact incremental thresholds of the general kernel, without a division per tile row. With
  * N = num(j0) = t0*D - e0 (t0 = ceil(N/D), 0 <= e0 < D) and r*S = Q_r*D + E_r (0 <= E_r < D):
  *     ceil((N + r*S) / D) = t0 + Q_r + (E_r > e0 ? 1 : 0)
- * and the same step with r = 8 moves (t0, e0) to the next tile row. All integers: same results
- * as the division. */
-typedef struct edge_dda {
-    __m256i q, e;     /* Q_r and E_r of rows r = 0..7 */
-    int64_t t0, e0;   /* at the current tile row's first row */
-    int64_t q8, e8, den;
-} edge_dda;
+ * and the same step with r = 8 moves (t0, e0) to the next tile row. All integers: the same
+ * results as the reference's division. The three edges' (t0, e0) sit in the 64-bit lanes 0-2 of
+ * one register each and step without a branch. */
+typedef struct vdda {
+    __m256i t, e, q8, e8, d; /* int64 lanes: t0, e0, the 8-row step and D of slots 0-2 */
+    __m256i q[3], er[3];     /* int32 lanes r = 0..7: Q_r and E_r of each slot */
+} vdda;
 
-SL_RT_T static void dda_init(edge_dda *d, const sl_rt_tri *t, int e, int32_t j0)
+SL_RT_T static void vdda_init(vdda *v, const sl_rt_tri *t, int32_t j0)
 {
-    double S = t->nstep[e], D = t->den[e], N = t->num0[e] + (double)j0 * S;
-    double t0 = ceil(N / D);
-    d->t0 = (int64_t)t0;
-    d->e0 = (int64_t)(t0 * D - N); /* |t0*D| < 2^49: exact */
-    double q1 = floor(S / D), e1 = S - q1 * D;
+    int64_t T[4] = {0, 0, 0, 0}, E[4] = {0, 0, 0, 0}, Q8[4] = {0, 0, 0, 0}, E8[4] = {0, 0, 0, 0};
+    int64_t D[4] = {1, 1, 1, 1};
     const __m256d rlo = _mm256_setr_pd(0, 1, 2, 3), rhi = _mm256_setr_pd(4, 5, 6, 7);
-    __m256d dv = _mm256_set1_pd(D), q1v = _mm256_set1_pd(q1), e1v = _mm256_set1_pd(e1);
-    __m256d relo = _mm256_mul_pd(rlo, e1v), rehi = _mm256_mul_pd(rhi, e1v); /* < 2^34: exact */
-    __m256d klo = _mm256_floor_pd(_mm256_div_pd(relo, dv)), khi = _mm256_floor_pd(_mm256_div_pd(rehi, dv));
-    __m256d qlo = _mm256_add_pd(_mm256_mul_pd(rlo, q1v), klo), qhi = _mm256_add_pd(_mm256_mul_pd(rhi, q1v), khi);
-    __m256d elo = _mm256_sub_pd(relo, _mm256_mul_pd(klo, dv)), ehi = _mm256_sub_pd(rehi, _mm256_mul_pd(khi, dv));
-    d->q = _mm256_set_m128i(_mm256_cvttpd_epi32(qhi), _mm256_cvttpd_epi32(qlo));
-    d->e = _mm256_set_m128i(_mm256_cvttpd_epi32(ehi), _mm256_cvttpd_epi32(elo));
-    double k8 = floor(8.0 * e1 / D);
-    d->q8 = (int64_t)(8.0 * q1 + k8);
-    d->e8 = (int64_t)(8.0 * e1 - k8 * D);
-    d->den = (int64_t)D;
-}
-
-/* Thresholds of the current tile row, clamped to [col0, col1]. */
-SL_RT_T static inline __m256i dda_thresholds(const edge_dda *d, __m256i c0, __m256i c1)
-{
-    int64_t t0 = d->t0 < -SL_RT_BIG ? -SL_RT_BIG : (d->t0 > SL_RT_BIG ? SL_RT_BIG : d->t0);
-    __m256i carry = _mm256_cmpgt_epi32(d->e, _mm256_set1_epi32((int32_t)d->e0));
-    __m256i v = _mm256_sub_epi32(_mm256_add_epi32(_mm256_set1_epi32((int32_t)t0), d->q), carry);
-    return _mm256_min_epi32(_mm256_max_epi32(v, c0), c1);
-}
-
-SL_RT_T static inline void dda_next(edge_dda *d)
-{
-    d->t0 += d->q8;
-    d->e0 -= d->e8;
-    if (d->e0 < 0) {
-        d->e0 += d->den;
-        d->t0 += 1;
+    SL_RT_UNROLL
+    for (int s = 0; s < 3; s++) {
+        double S = t->nstep[s], Dd = t->den[s], N = t->num0[s] + (double)j0 * S;
+        double t0 = ceil(N / Dd);
+        T[s] = (int64_t)t0;
+        E[s] = (int64_t)(t0 * Dd - N); /* |t0*D| < 2^53: exact */
+        double q1 = floor(S / Dd), e1 = S - q1 * Dd;
+        __m256d dv = _mm256_set1_pd(Dd), q1v = _mm256_set1_pd(q1), e1v = _mm256_set1_pd(e1);
+        __m256d relo = _mm256_mul_pd(rlo, e1v), rehi = _mm256_mul_pd(rhi, e1v); /* < 2^34: exact */
+        __m256d klo = _mm256_floor_pd(_mm256_div_pd(relo, dv)), khi = _mm256_floor_pd(_mm256_div_pd(rehi, dv));
+        __m256d qlo = _mm256_add_pd(_mm256_mul_pd(rlo, q1v), klo), qhi = _mm256_add_pd(_mm256_mul_pd(rhi, q1v), khi);
+        __m256d elo = _mm256_sub_pd(relo, _mm256_mul_pd(klo, dv)), ehi = _mm256_sub_pd(rehi, _mm256_mul_pd(khi, dv));
+        v->q[s] = _mm256_set_m128i(_mm256_cvttpd_epi32(qhi), _mm256_cvttpd_epi32(qlo));
+        v->er[s] = _mm256_set_m128i(_mm256_cvttpd_epi32(ehi), _mm256_cvttpd_epi32(elo));
+        double k8 = floor(8.0 * e1 / Dd);
+        Q8[s] = (int64_t)(8.0 * q1 + k8);
+        E8[s] = (int64_t)(8.0 * e1 - k8 * Dd);
+        D[s] = (int64_t)Dd;
     }
+    v->t = _mm256_loadu_si256((const __m256i *)T);
+    v->e = _mm256_loadu_si256((const __m256i *)E);
+    v->q8 = _mm256_loadu_si256((const __m256i *)Q8);
+    v->e8 = _mm256_loadu_si256((const __m256i *)E8);
+    v->d = _mm256_loadu_si256((const __m256i *)D);
+}
+
+/* Spans [xl, xr) of the rows of the current tile row (j0..j0+7; rows outside [row0, row1)
+ * emptied), every threshold clamped to [col0, col1] as in the reference; then steps to the next
+ * tile row. */
+SL_RT_T static inline void vdda_spans(vdda *v, const sl_rt_tri *t, int32_t j0, __m256i *pxl, __m256i *pxr)
+{
+    const __m256i big = _mm256_set1_epi64x(SL_RT_BIG), nbig = _mm256_set1_epi64x(-SL_RT_BIG);
+    __m256i tc = _mm256_blendv_epi8(v->t, big, _mm256_cmpgt_epi64(v->t, big));
+    tc = _mm256_blendv_epi8(tc, nbig, _mm256_cmpgt_epi64(nbig, tc));
+    const __m256i c0 = _mm256_set1_epi32(t->col0), c1 = _mm256_set1_epi32(t->col1);
+    __m256i th[3];
+    SL_RT_UNROLL
+    for (int s = 0; s < 3; s++) {
+        __m256i sel = _mm256_set1_epi32(2 * s);
+        __m256i ts = _mm256_permutevar8x32_epi32(tc, sel), es = _mm256_permutevar8x32_epi32(v->e, sel);
+        __m256i x = _mm256_sub_epi32(_mm256_add_epi32(ts, v->q[s]), _mm256_cmpgt_epi32(v->er[s], es));
+        th[s] = _mm256_min_epi32(_mm256_max_epi32(x, c0), c1);
+    }
+    __m256i cap = _mm256_set1_epi32(t->cap);
+    __m256i xl = _mm256_max_epi32(th[0], _mm256_min_epi32(th[2], cap));
+    __m256i xr = _mm256_min_epi32(th[1], _mm256_max_epi32(th[2], cap));
+    if (j0 < t->row0 || j0 + SL_RT_TILE_H > t->row1) {
+        __m256i j = _mm256_add_epi32(_mm256_set1_epi32(j0), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+        __m256i valid = _mm256_and_si256(_mm256_cmpgt_epi32(j, _mm256_set1_epi32(t->row0 - 1)),
+                                         _mm256_cmpgt_epi32(_mm256_set1_epi32(t->row1), j));
+        xr = _mm256_blendv_epi8(xl, xr, valid);
+    }
+    *pxl = xl;
+    *pxr = xr;
+    /* (t0, e0) += one tile row: t0 += q8, e0 -= e8, borrowing D when e0 goes negative */
+    __m256i e = _mm256_sub_epi64(v->e, v->e8);
+    __m256i borrow = _mm256_cmpgt_epi64(_mm256_setzero_si256(), e);
+    v->e = _mm256_add_epi64(e, _mm256_and_si256(borrow, v->d));
+    v->t = _mm256_sub_epi64(_mm256_add_epi64(v->t, v->q8), borrow);
 }
 
 /* Turn per-edge thresholds into the spans [xl, xr) of rows j0..j0+7 (invalid rows emptied). */
@@ -105,21 +141,6 @@ SL_RT_T static inline void combine_spans(const sl_rt_tri *t, int32_t j0, __m256i
 static inline bool edge_active(const sl_rt_tri *t, int e, int32_t j0)
 {
     return t->ja[e] <= j0 + SL_RT_TILE_H - 1 && t->jb[e] >= j0;
-}
-
-/* Spans of rows j0..j0+7 from the incremental thresholds; advances them to the next tile row. */
-SL_RT_T static inline void row_spans_dda(const sl_rt_tri *t, edge_dda dda[3], int32_t j0, __m256i *pxl, __m256i *pxr)
-{
-    const __m256i c0 = _mm256_set1_epi32(t->col0), c1 = _mm256_set1_epi32(t->col1);
-    __m256i ta = edge_active(t, 0, j0) ? dda_thresholds(&dda[0], c0, c1) : c0;
-    __m256i tb = edge_active(t, 1, j0) ? dda_thresholds(&dda[1], c0, c1) : c1;
-    __m256i tc;
-    bool use_c = edge_active(t, 2, j0);
-    if (use_c)
-        tc = dda_thresholds(&dda[2], c0, c1);
-    for (int e = 0; e < 3; e++)
-        dda_next(&dda[e]);
-    combine_spans(t, j0, ta, tb, use_c ? &tc : NULL, pxl, pxr);
 }
 
 /* Column spans [xl, xr) of the 8 rows j0..j0+7, equal (as coverage) to raster_scalar.c's
@@ -168,16 +189,38 @@ SL_RT_T static inline bool span_tiles(__m256i xl, __m256i xr, int32_t tx0, int32
         *ta = tx0, *tb = tx1;
         return true;
     }
-    int32_t lo = hmin(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MAX), xl, ne));
-    int32_t hi = hmax(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MIN), xr, ne));
-    *ta = sl_rt_maxi(tx0, lo / SL_RT_TILE_W);
-    *tb = sl_rt_mini(tx1, (hi - 1) / SL_RT_TILE_W + 1);
+    /* spans lie in [col0, col1], so the columns are >= 0: unsigned division is a shift */
+    uint32_t lo = (uint32_t)hmin(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MAX), xl, ne));
+    uint32_t hi = (uint32_t)hmax(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MIN), xr, ne));
+    *ta = sl_rt_maxi(tx0, (int32_t)(lo / SL_RT_TILE_W));
+    *tb = sl_rt_mini(tx1, (int32_t)((hi - 1) / SL_RT_TILE_W + 1));
     if (nm == 0xFF) {
-        int32_t l = hmax(xl), r = hmin(xr);
-        *ia = sl_rt_maxi(*ta, (l + SL_RT_TILE_W - 1) / SL_RT_TILE_W);
-        *ib = sl_rt_mini(*tb, r / SL_RT_TILE_W);
+        uint32_t l = (uint32_t)hmax(xl), r = (uint32_t)hmin(xr);
+        *ia = sl_rt_maxi(*ta, (int32_t)((l + SL_RT_TILE_W - 1) / SL_RT_TILE_W));
+        *ib = sl_rt_mini(*tb, (int32_t)(r / SL_RT_TILE_W));
     }
     return *ta < *tb;
+}
+
+/* Spans and tile ranges of tile row ty of a general triangle (none past ty_end), computed where
+ * this is called (see raster_avx512.c). */
+typedef struct grow {
+    __m256i xl, xr;
+    int32_t ta, tb, ia, ib; /* the tiles the spans touch, and those every row covers */
+    bool any;
+} grow;
+
+SL_RT_T static inline __attribute__((always_inline)) void grow_at(vdda *dda, const sl_rt_tri *t, int32_t ty,
+                                                                int32_t ty_end, int32_t tx0, int32_t tx1, grow *g)
+{
+    g->any = false;
+    g->ta = g->tb = g->ia = g->ib = 0;
+    g->xl = g->xr = _mm256_setzero_si256();
+    if (ty < ty_end) {
+        vdda_spans(dda, t, ty * SL_RT_TILE_H, &g->xl, &g->xr);
+        g->any = span_tiles(g->xl, g->xr, tx0, tx1, &g->ta, &g->tb, &g->ia, &g->ib);
+    }
+    __asm__("" : "+x"(g->xl), "+x"(g->xr), "+r"(g->ta), "+r"(g->tb), "+r"(g->ia), "+r"(g->ib), "+r"(g->any));
 }
 
 /* Row masks of the tile at column x: bits [xl - x, xr - x) of each row (vpsllvd gives 0 past 31). */
@@ -190,18 +233,18 @@ SL_RT_T static inline __m256i row_masks(__m256i xl, __m256i xr, int32_t x)
     return _mm256_andnot_si256(_mm256_sllv_epi32(ones, hi), _mm256_sllv_epi32(ones, lo));
 }
 
-/* sl_rt_merge of coverage c at depth z into one tile. */
+/* sl_rt_merge of coverage c at depth z into one tile. No early exit: which tiles a triangle
+ * changes is data-dependent, and a mispredicted branch costs more than the stores it saves. */
 SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
     const __m256i zero = _mm256_setzero_si256(), ones = _mm256_set1_epi32(-1);
     __m256 za = _mm256_load_ps(dp->za);
     __m256i act = _mm256_andnot_si256(_mm256_cmpeq_epi32(c, zero), _mm256_castps_si256(_mm256_cmp_ps(z, za, _CMP_GT_OQ)));
-    /* no early exit: partial tiles are where branches mispredict; inactive lanes store back */
     __m256i m = _mm256_load_si256((const __m256i *)mp);
     __m256 zm = _mm256_load_ps(dp->zm);
     __m256 nearer = _mm256_and_ps(_mm256_cmp_ps(z, zm, _CMP_GT_OQ),
                                   _mm256_cmp_ps(_mm256_sub_ps(z, zm), _mm256_sub_ps(zm, za), _CMP_GT_OQ));
-    __m256i repl = _mm256_or_si256(_mm256_cmpeq_epi32(m, zero), _mm256_castps_si256(nearer));
+    __m256i repl = _mm256_or_si256(_mm256_cmpeq_epi32(_mm256_andnot_si256(c, m), zero), _mm256_castps_si256(nearer));
     __m256i nm = _mm256_blendv_epi8(_mm256_or_si256(m, c), c, repl);
     __m256 nz = _mm256_blendv_ps(_mm256_min_ps(zm, z), z, _mm256_castsi256_ps(repl));
     __m256i full = _mm256_cmpeq_epi32(nm, ones);
@@ -213,22 +256,16 @@ SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_t
     _mm256_store_ps(dp->zm, zm);
 }
 
-/* merge_tile with c = ~0 in every lane: the union is always full. */
+/* merge_tile with c = ~0 in every lane: the old mask lies inside c, so a nearer subtile simply
+ * takes z over its whole area. */
 SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
     __m256 za = _mm256_load_ps(dp->za);
     __m256 act = _mm256_cmp_ps(z, za, _CMP_GT_OQ);
-    if (_mm256_testz_ps(act, act))
-        return;
     __m256i m = _mm256_load_si256((const __m256i *)mp);
-    __m256 zm = _mm256_load_ps(dp->zm);
-    __m256 nearer = _mm256_and_ps(_mm256_cmp_ps(z, zm, _CMP_GT_OQ),
-                                  _mm256_cmp_ps(_mm256_sub_ps(z, zm), _mm256_sub_ps(zm, za), _CMP_GT_OQ));
-    __m256 repl = _mm256_or_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(m, _mm256_setzero_si256())), nearer);
-    __m256 nz = _mm256_blendv_ps(_mm256_min_ps(zm, z), z, repl);
     _mm256_store_si256((__m256i *)mp, _mm256_andnot_si256(_mm256_castps_si256(act), m));
-    _mm256_store_ps(dp->za, _mm256_blendv_ps(za, nz, act));
-    _mm256_store_ps(dp->zm, _mm256_blendv_ps(zm, nz, act));
+    _mm256_store_ps(dp->za, _mm256_blendv_ps(za, z, act));
+    _mm256_store_ps(dp->zm, _mm256_blendv_ps(_mm256_load_ps(dp->zm), z, act));
 }
 
 /* Lanes where the subtile hides depth z under coverage c (sl_rt_subtile_hides). */

@@ -133,7 +133,7 @@ SSE41 static inline void merge4(__m128i c, __m128 z, uint32_t *mp, float *zap, f
     __m128i m = _mm_load_si128((const __m128i *)mp);
     __m128 zm = _mm_load_ps(zmp);
     __m128 nearer = _mm_and_ps(_mm_cmpgt_ps(z, zm), _mm_cmpgt_ps(_mm_sub_ps(z, zm), _mm_sub_ps(zm, za)));
-    __m128i repl = _mm_or_si128(_mm_cmpeq_epi32(m, zero), _mm_castps_si128(nearer));
+    __m128i repl = _mm_or_si128(_mm_cmpeq_epi32(_mm_andnot_si128(c, m), zero), _mm_castps_si128(nearer));
     __m128i nm = _mm_blendv_epi8(_mm_or_si128(m, c), c, repl);
     __m128 nz = _mm_blendv_ps(_mm_min_ps(zm, z), z, _mm_castsi128_ps(repl));
     __m128i full = _mm_cmpeq_epi32(nm, ones);
@@ -145,7 +145,7 @@ SSE41 static inline void merge4(__m128i c, __m128 z, uint32_t *mp, float *zap, f
     _mm_store_ps(zmp, zm);
 }
 
-/* merge4 with full coverage. */
+/* merge4 with full coverage: the old mask lies inside it, so every nearer subtile takes z. */
 SSE41 static inline void merge4_full(__m128 z, uint32_t *mp, float *zap, float *zmp)
 {
     __m128 za = _mm_load_ps(zap);
@@ -153,13 +153,9 @@ SSE41 static inline void merge4_full(__m128 z, uint32_t *mp, float *zap, float *
     if (_mm_movemask_ps(act) == 0)
         return;
     __m128i m = _mm_load_si128((const __m128i *)mp);
-    __m128 zm = _mm_load_ps(zmp);
-    __m128 nearer = _mm_and_ps(_mm_cmpgt_ps(z, zm), _mm_cmpgt_ps(_mm_sub_ps(z, zm), _mm_sub_ps(zm, za)));
-    __m128 repl = _mm_or_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(m, _mm_setzero_si128())), nearer);
-    __m128 nz = _mm_blendv_ps(_mm_min_ps(zm, z), z, repl);
     _mm_store_si128((__m128i *)mp, _mm_andnot_si128(_mm_castps_si128(act), m));
-    _mm_store_ps(zap, _mm_blendv_ps(za, nz, act));
-    _mm_store_ps(zmp, _mm_blendv_ps(zm, nz, act));
+    _mm_store_ps(zap, _mm_blendv_ps(za, z, act));
+    _mm_store_ps(zmp, _mm_blendv_ps(_mm_load_ps(zmp), z, act));
 }
 
 SSE41 static void raster_sse41(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0, int32_t tx1, int32_t ty0,
@@ -271,6 +267,13 @@ SSE41 static bool rect_sse41(const sl_rt_target *tg, int32_t x0, int32_t y0, int
     return true;
 }
 
-const sl_rt_kernels sl_rt_kernels_sse41 = {SL_RASTER_ISA_SSE41, raster_sse41, query_sse41, rect_sse41};
+static void render_sse41(const sl_rt_target *tg, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0, int32_t tx1,
+                         int32_t ty0, int32_t ty1)
+{
+    sl_rt_render_each(raster_sse41, tg, mode, p, n, tx0, tx1, ty0, ty1);
+}
+
+const sl_rt_kernels sl_rt_kernels_sse41 = {SL_RASTER_ISA_SSE41, raster_sse41, query_sse41, rect_sse41,
+                                           sl_rt_front_prims, render_sse41};
 
 #endif

@@ -1,0 +1,164 @@
+/* Sightline precomputed visibility: baking a potentially visible set (PVS) per view cell, the
+ * .slpvs file that stores it, and reading it back.
+ *
+ * A PVS assigns to every view cell (region.h) the ascending list of object ids that may be seen
+ * from somewhere in the cell. Baking methods are named like cullers:
+ *  - "sample": occluder shrinking with point sampling (Wonka's thesis, chapters 5 and 7):
+ *    conservative for 2.5D scenes (building footprints as occluders);
+ *  - "adjustable": the adjustable (angular) shrinking of Koldas's thesis (chapter 4):
+ *    conservative, visible sets valid in an eps-disk around a point, cells covered by disks;
+ *  - "mappvs": a Quake III map's own cluster PVS stored as a Sightline PVS (aggressive: it is
+ *    whatever the map's compiler produced), for verification and comparison;
+ *  - a method is one file in src/region and one line in the method registry (guided visibility
+ *    sampling, "gvs", plugs in the same way).
+ * sl_pvs_method_count/info list them with their options (docs/pvs.md).
+ *
+ * The bake distributes cells over OpenMP threads (sl_pvs_build) or MPI processes
+ * (sl_pvs_build_mpi); each cell's set is a function of the scene, the cells and the options only,
+ * and the file is written in cell order, so the output is byte-identical whatever the thread or
+ * process count. A checkpoint journal makes an interrupted bake resumable without recomputing or
+ * losing finished cells.
+ *
+ * File (docs/pvs.md has the byte layout): a versioned header and section table with an XXH3-64
+ * checksum per section; the view-cell table; per cell the set delta-coded (varint gaps) in blocks
+ * of cells compressed with zstd, each block with its own checksum; build metadata. Loading maps
+ * the file and checks everything but the compressed blocks, which are checked when first decoded
+ * (sl_pvs_verify checks them all). Written to a temporary file and renamed.
+ */
+#ifndef SIGHTLINE_PVS_H
+#define SIGHTLINE_PVS_H
+
+#include "core.h"
+#include "geom.h"
+#include "scene.h"
+#include "cull.h"
+#include "region.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sl_pvs_t *sl_pvs;
+
+/* ---- the file ---------------------------------------------------------------------------------- */
+
+typedef struct sl_pvs_info {
+    uint32_t version_major, version_minor;
+    uint32_t cell_count, object_count;
+    uint32_t block_cells, block_count;
+    uint64_t scene_key;         /* sl_pvs_scene_key of the scene it was baked for */
+    uint64_t cells_key;         /* sl_viewcells_key of its cells */
+    uint64_t visible_total;     /* sum over cells of the set sizes */
+    uint32_t min_visible, max_visible;
+    double mean_visible;
+    double mean_culled;         /* mean over cells of 1 - |set| / object_count */
+    uint64_t file_size;
+    uint64_t data_bytes;        /* compressed sets */
+    uint64_t raw_bytes;         /* the same, delta-coded before compression */
+} sl_pvs_info;
+
+/* Fingerprint of what a PVS depends on in a scene: object count, per-object mesh, kind, flags and
+ * triangle count, the bounds of static objects, the footprints. */
+SL_API uint64_t sl_pvs_scene_key(sl_scene scene);
+
+/* Write a PVS: cell i's set is ids[offsets[i] .. offsets[i+1]), strictly ascending, each below
+ * object_count. meta: "key=value" lines separated by '\n' (no NUL, no '=' in keys), may be NULL.
+ * Atomic: written to a temporary file that is renamed over path. Deterministic bytes. */
+SL_API sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
+                              const uint64_t *offsets, const uint32_t *ids, const char *meta, sl_error *err);
+
+/* Open a .slpvs (memory-mapped; alloc may be NULL). Everything except the compressed blocks is
+ * validated; a bad file fails with SL_ERROR_FORMAT naming the file, the offset or cell and why;
+ * a newer major version with SL_ERROR_UNSUPPORTED. */
+SL_API sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err);
+/* The same from bytes in memory (copied). `name` stands for the file name in messages. */
+SL_API sl_status sl_pvs_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc,
+                                    sl_pvs *out, sl_error *err);
+/* Release it. NULL is ignored. */
+SL_API void sl_pvs_destroy(sl_pvs pvs);
+
+/* Header figures (visible counts come from the set table: no decompression). */
+SL_API void sl_pvs_get_info(sl_pvs pvs, sl_pvs_info *info);
+/* The view cells (owned by the PVS). */
+SL_API sl_viewcells sl_pvs_cells(sl_pvs pvs);
+/* Build metadata value for key (method, options, timings ...), or NULL. */
+SL_API const char *sl_pvs_meta(sl_pvs pvs, const char *key);
+/* The whole metadata text ("key=value" lines). */
+SL_API const char *sl_pvs_meta_text(sl_pvs pvs);
+/* Number of objects in cell `cell`'s set (no decompression); 0 for a cell out of range. */
+SL_API uint32_t sl_pvs_cell_count(sl_pvs pvs, uint32_t cell);
+/* Decode cell `cell`'s set into out_ids (capacity >= its count), ascending. The block's checksum
+ * is checked on first use. Uses a cache inside the handle: one thread at a time. Allocation-free
+ * after the first call. */
+SL_API sl_status sl_pvs_cell_set(sl_pvs pvs, uint32_t cell, uint32_t *out_ids, uint32_t capacity, uint32_t *count,
+                                 sl_error *err);
+/* Check every checksum and decode every set (ranges, order, counts). */
+SL_API sl_status sl_pvs_verify(sl_pvs pvs, sl_error *err);
+
+/* ---- baking ------------------------------------------------------------------------------------ */
+
+/* A registered baking method. Strings are static. */
+typedef struct sl_pvs_method_desc {
+    const char *name;
+    const char *summary;
+    const char *options_help;   /* one line per option: "key=TYPE (default D): meaning" */
+    sl_cull_guarantee guarantee;
+} sl_pvs_method_desc;
+
+SL_API uint32_t sl_pvs_method_count(void);
+SL_API sl_status sl_pvs_method_info(uint32_t index, sl_pvs_method_desc *out, sl_error *err);
+/* Check a method's options without a scene (unknown or malformed keys are rejected). */
+SL_API sl_status sl_pvs_method_check_options(const char *method, const char *options, sl_error *err);
+
+typedef struct sl_pvs_build_options {
+    const char *method;         /* NULL: "sample" */
+    const char *method_options; /* "key=value,..." for the method; NULL: defaults */
+    uint32_t threads;           /* OpenMP threads; 0: all the machine offers */
+    const char *checkpoint;     /* journal path; NULL: "<output>.ckpt" */
+    bool resume;                /* continue from an existing journal (it must match the bake) */
+    bool keep_checkpoint;       /* keep the journal after a successful bake */
+    uint32_t stop_after;        /* testing: stop with SL_ERROR_CANCELLED after this many newly baked
+                                   cells, leaving the journal behind; 0: never */
+    sl_progress progress;       /* called under a lock, from whichever thread finished a cell */
+    const sl_allocator *alloc;  /* called from several threads at once: must be thread-safe */
+} sl_pvs_build_options;
+
+typedef struct sl_pvs_build_stats {
+    uint32_t cells;             /* cells in the PVS */
+    uint32_t cells_baked;       /* computed by this run */
+    uint32_t cells_resumed;     /* taken from the journal */
+    uint32_t processes;         /* MPI processes (1 without MPI) */
+    uint32_t threads;           /* threads per process */
+    double seconds;             /* wall time of the whole bake */
+    double cell_seconds;        /* sum over the cells baked here of their compute time */
+    double max_cell_seconds;
+    uint64_t visible_total;
+    double mean_culled;         /* mean over cells of 1 - |set| / objects */
+    uint64_t file_bytes;
+    uint64_t occluders_removed; /* method-specific: occluders that vanished under shrinking */
+    char method[32];            /* the method used */
+    char options[256];          /* its effective options (truncated if longer) */
+    char notice[256];           /* what the method wants the user to know about the options, or "" */
+} sl_pvs_build_stats;
+
+/* Bake the PVS of `cells` for `scene` with a method and write it to `output`. stats may be NULL. */
+SL_API sl_status sl_pvs_build(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
+                              sl_pvs_build_stats *stats, sl_error *err);
+/* The same across the processes of an MPI job (mpiexec -n N): every process calls it with the
+ * same scene, cells and options; process 0 hands out cells dynamically, gathers the sets, keeps
+ * the journal and writes the file. Initialises MPI if needed and finalises it if it did.
+ * SL_ERROR_UNSUPPORTED when Sightline was built without MPI. *rank (may be NULL) receives the
+ * process's rank. */
+SL_API sl_status sl_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output,
+                                  const sl_pvs_build_options *opt, sl_pvs_build_stats *stats, int *rank,
+                                  sl_error *err);
+/* Bake one cell into ids (capacity >= object count), for tests and tools; method and options as
+ * for sl_pvs_build. Slow when repeated: prefer sl_pvs_build. */
+SL_API sl_status sl_pvs_bake_cell(sl_scene scene, sl_viewcells cells, uint32_t cell, const char *method,
+                                  const char *method_options, uint32_t *ids, uint32_t capacity, uint32_t *count,
+                                  sl_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,572 @@
+/* hom: hierarchical occlusion maps, after Zhang, Manocha, Hudson & Hoff, "Visibility Culling
+ * using Hierarchical Occlusion Maps" (SIGGRAPH 1997), sections 3-5, as summarised in the SIGGRAPH
+ * 2000 course "Visibility, problems, techniques and applications" (section 6.2).
+ *
+ * Occlusion is split into a 2D overlap test and a depth test:
+ *  - occluders: the best proxies in the frustum by Coorg-Teller quality under a triangle budget
+ *    (occluders.c), rendered once into the conservative rasterizer ("white on black");
+ *  - the opacity pyramid: level 0 is the subtile grid (8x4 pixels), opacity 1 where the subtile's
+ *    farthest depth is above the clear value (every pixel covered) and 0 otherwise (a partially
+ *    covered subtile counts as empty, which under-estimates opacity: safe); each coarser level
+ *    averages its 2x2 children;
+ *  - the depth estimation buffer (DEB): a coarse screen grid (`deb` pixels a cell), each cell the
+ *    farthest depth of every occluder whose screen rectangle touches it;
+ *  - a box passes the overlap test when the pyramid shows its rectangle opaque: starting at the
+ *    coarsest level where it spans at most 2x2 entries, an entry at or above `threshold` counts
+ *    as covered, a lower one is refined through its children, and a level-0 entry below it is a
+ *    hole; then the depth test: the box's nearest depth must be farther than every DEB cell its
+ *    rectangle touches (depth=deb), or than the rasterizer's per-pixel depth (depth=zbuffer, the
+ *    paper's "no-background z-buffer").
+ * threshold = 1 (default) is conservative; below 1 small holes "dissolve" and the method declares
+ * itself aggressive (approximate culling, section 5.3). */
+#include "occluders.h"
+
+#include <math.h>
+
+#define MAX_LEVELS 24
+
+typedef struct hom_config {
+    sl_occ_common c;
+    float threshold;
+    uint32_t deb;
+    uint32_t depth;            /* 0 deb, 1 zbuffer */
+} hom_config;
+
+typedef struct hom_state {
+    sl_allocator alloc;
+    sl_scene scene;
+    hom_config cfg;
+    sl_bvh bvh;
+    float *node_area;
+    uint32_t node_slots;
+    sl_occ_set *occ;
+    sl_occ_raster r;
+    sl_occ_pick *heap, *picks;
+    uint32_t *pick_ids, pick_cap;
+    uint32_t object_count;
+    uint32_t *sort_scratch;
+    /* opacity pyramid */
+    float *pyr;
+    size_t pyr_cap;
+    uint32_t levels, lw[MAX_LEVELS], lh[MAX_LEVELS];
+    size_t loff[MAX_LEVELS];
+    const float *level_ptr[MAX_LEVELS];
+    uint32_t pyr_w, pyr_h;
+    /* depth estimation buffer */
+    float *deb;
+    uint32_t dw, dh;
+    size_t deb_cap;
+    uint64_t overlap_reads;
+} hom_state;
+
+static const char g_help[] =
+    "threshold=0.01..1 (default 1): opacity that counts as opaque; below 1 the method is aggressive\n"
+    "depth=deb|zbuffer (default deb): depth test against the depth estimation buffer or the rasterizer\n"
+    "deb=8..512 (default 32): edge of a depth estimation buffer cell in pixels\n" SL_OCC_HELP_RASTER
+    "occluders=0..4096 (default 128): most occluders chosen per frame by Coorg-Teller quality\n"
+    "budget=0..10000000 (default 20000): triangle budget of the chosen occluders\n"
+    "min_quality=NUMBER (default 0.0005): least quality (solid angle, sr) of an occluder\n"
+    "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
+    "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n"
+    "leaf_size=1..16 (default 4): most objects per BVH leaf\n" SL_OCC_HELP_DEBUG;
+
+static sl_status hom_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
+{
+    static const char *const depth_names[] = {"deb", "zbuffer"};
+    hom_config *c = config;
+    sl_status st;
+    if ((st = sl_opts_float(o, "threshold", 1.0f, 0.01f, 1.0f, &c->threshold, err)) != SL_OK ||
+        (st = sl_opts_enum(o, "depth", depth_names, 2, 0, &c->depth, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "deb", 32, 8, 512, &c->deb, err)) != SL_OK ||
+        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG, 128, 20000, &c->c,
+                                      err)) != SL_OK)
+        return st;
+    if (c->threshold < 1.0f)
+        *g = SL_AGGRESSIVE;
+    return SL_OK;
+}
+
+static void hom_destroy(void *state)
+{
+    hom_state *s = state;
+    if (!s)
+        return;
+    const sl_allocator *a = &s->alloc;
+    sl_bvh_destroy(s->bvh);
+    sl_free(a, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
+    sl_occ_raster_free(&s->r);
+    sl_occ_set_destroy(s->occ);
+    size_t pc = s->pick_cap ? s->pick_cap : 1;
+    sl_free(a, s->heap, pc * sizeof(sl_occ_pick));
+    sl_free(a, s->picks, pc * sizeof(sl_occ_pick));
+    sl_free(a, s->pick_ids, pc * sizeof(uint32_t));
+    sl_free(a, s->sort_scratch, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
+    sl_free(a, s->pyr, s->pyr_cap * sizeof(float));
+    sl_free(a, s->deb, s->deb_cap * sizeof(float));
+    sl_free(a, s, sizeof *s);
+}
+
+static sl_status refresh_node_areas(hom_state *s, sl_error *err)
+{
+    uint32_t n = s->bvh->node_slots;
+    if (n != s->node_slots) {
+        sl_free(&s->alloc, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
+        s->node_area = sl_alloc(&s->alloc, (size_t)(n ? n : 1) * sizeof(float));
+        s->node_slots = s->node_area ? n : 0;
+        if (!s->node_area)
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory for %u node areas", n);
+    }
+    sl_occ_node_areas(s->occ, s->bvh, s->node_area);
+    return SL_OK;
+}
+
+static sl_status hom_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
+{
+    hom_state *s = sl_calloc(alloc, 1, sizeof *s);
+    if (!s)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory");
+    s->alloc = *alloc;
+    s->scene = scene;
+    s->cfg = *(const hom_config *)config;
+    s->object_count = sl_scene_object_count(scene);
+    sl_bvh_options bo = {0};
+    bo.max_leaf_size = s->cfg.c.leaf_size;
+    bo.alloc = alloc;
+    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, true, 0};
+    sl_status st = sl_bvh_build(scene, &bo, &s->bvh, err);
+    if (st == SL_OK)
+        st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
+    if (st == SL_OK)
+        st = refresh_node_areas(s, err);
+    if (st == SL_OK)
+        st = sl_occ_raster_init(&s->r, &s->cfg.c, s->occ, alloc, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "hom");
+        hom_destroy(s);
+        return st;
+    }
+    s->pick_cap = s->cfg.c.occluders;
+    size_t pc = s->pick_cap ? s->pick_cap : 1;
+    s->heap = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
+    s->picks = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
+    s->pick_ids = sl_alloc(alloc, pc * sizeof(uint32_t));
+    s->sort_scratch = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
+    if (!s->heap || !s->picks || !s->pick_ids || !s->sort_scratch) {
+        hom_destroy(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory");
+    }
+    *state = s;
+    return SL_OK;
+}
+
+static sl_status hom_scene_changed(void *state, sl_error *err)
+{
+    hom_state *s = state;
+    sl_status st = sl_bvh_refit(s->bvh, s->scene, err);
+    if (st == SL_OK)
+        st = sl_bvh_rebuild_if_degraded(s->bvh, s->scene, 0, NULL, err);
+    if (st == SL_OK)
+        st = refresh_node_areas(s, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "hom");
+        return st;
+    }
+    sl_occ_set_scene_changed(s->occ);
+    return SL_OK;
+}
+
+static sl_status size_buffers(hom_state *s, uint32_t w, uint32_t h, sl_error *err)
+{
+    if (s->pyr && s->pyr_w == w && s->pyr_h == h)
+        return SL_OK;
+    uint32_t tx, ty;
+    sl_raster_get_size(s->r.ctx, NULL, NULL, &tx, &ty);
+    uint32_t lw = tx * 4, lh = ty * 2;
+    size_t total = 0;
+    s->levels = 0;
+    for (;;) {
+        s->lw[s->levels] = lw;
+        s->lh[s->levels] = lh;
+        s->loff[s->levels] = total;
+        total += (size_t)lw * lh;
+        s->levels++;
+        if ((lw == 1 && lh == 1) || s->levels == MAX_LEVELS)
+            break;
+        lw = (lw + 1) / 2;
+        lh = (lh + 1) / 2;
+    }
+    sl_free(&s->alloc, s->pyr, s->pyr_cap * sizeof(float));
+    s->pyr = sl_alloc(&s->alloc, total * sizeof(float));
+    s->pyr_cap = s->pyr ? total : 0;
+    s->dw = (w + s->cfg.deb - 1) / s->cfg.deb;
+    s->dh = (h + s->cfg.deb - 1) / s->cfg.deb;
+    size_t dn = (size_t)s->dw * s->dh;
+    sl_free(&s->alloc, s->deb, s->deb_cap * sizeof(float));
+    s->deb = sl_alloc(&s->alloc, dn * sizeof(float));
+    s->deb_cap = s->deb ? dn : 0;
+    if (!s->pyr || !s->deb)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory for the occlusion maps");
+    for (uint32_t i = 0; i < s->levels; i++)
+        s->level_ptr[i] = s->pyr + s->loff[i];
+    s->pyr_w = w;
+    s->pyr_h = h;
+    return SL_OK;
+}
+
+/* Level 0 from the buffer (1: every pixel of the subtile covered), then 2x2 averages over the
+ * children that exist. */
+static void build_pyramid(hom_state *s)
+{
+    size_t n0 = (size_t)s->lw[0] * s->lh[0];
+    (void)sl_raster_read_subtile_depth(s->r.ctx, s->pyr, n0, NULL);
+    for (size_t i = 0; i < n0; i++)
+        s->pyr[i] = s->pyr[i] > 0.0f ? 1.0f : 0.0f;
+    for (uint32_t l = 1; l < s->levels; l++) {
+        const float *src = s->pyr + s->loff[l - 1];
+        float *dst = s->pyr + s->loff[l];
+        uint32_t sw = s->lw[l - 1], sh = s->lh[l - 1], w = s->lw[l], h = s->lh[l];
+        for (uint32_t y = 0; y < h; y++)
+            for (uint32_t x = 0; x < w; x++) {
+                float sum = 0;
+                int cnt = 0;
+                for (uint32_t dy = 0; dy < 2; dy++)
+                    for (uint32_t dx = 0; dx < 2; dx++) {
+                        uint32_t cx = 2 * x + dx, cy = 2 * y + dy;
+                        if (cx < sw && cy < sh) {
+                            sum += src[(size_t)cy * sw + cx];
+                            cnt++;
+                        }
+                    }
+                dst[(size_t)y * w + x] = sum / (float)cnt; /* four 1s average to exactly 1 */
+            }
+    }
+}
+
+/* Write far depth d over the DEB cells of pixel rectangle r. */
+static void deb_write(hom_state *s, const sl_occ_rect *r, float d)
+{
+    uint32_t cx0 = (uint32_t)r->x0 / s->cfg.deb, cx1 = (uint32_t)(r->x1 - 1) / s->cfg.deb;
+    uint32_t cy0 = (uint32_t)r->y0 / s->cfg.deb, cy1 = (uint32_t)(r->y1 - 1) / s->cfg.deb;
+    for (uint32_t cy = cy0; cy <= cy1; cy++)
+        for (uint32_t cx = cx0; cx <= cx1; cx++) {
+            float *p = &s->deb[(size_t)cy * s->dw + cx];
+            *p = sl_occ_minf(*p, d);
+        }
+}
+
+/* Screen rectangle, nearest depth (in r->dnear) and farthest depth of a convex polygon or point
+ * set. False when it lies
+ * wholly outside one clip plane (nothing to write). A polygon crossing the near plane covers the
+ * whole screen; its farthest depth is at the point of largest w (1/w) or z (orthographic). */
+static bool poly_rect(const sl_occ_view *v, const sl_vec3 *p, uint32_t n, sl_occ_rect *r, float *far_d)
+{
+    float nd = 0;
+    const float *m = v->vp.m;
+    const float hw = 0.5f * (float)v->width, hh = 0.5f * (float)v->height;
+    unsigned all = 63;
+    bool near_cross = false;
+    float minx = INFINITY, maxx = -INFINITY, miny = INFINITY, maxy = -INFINITY, fd = INFINITY;
+    for (uint32_t i = 0; i < n; i++) {
+        float x = m[0] * p[i].x + m[4] * p[i].y + m[8] * p[i].z + m[12];
+        float y = m[1] * p[i].x + m[5] * p[i].y + m[9] * p[i].z + m[13];
+        float z = m[2] * p[i].x + m[6] * p[i].y + m[10] * p[i].z + m[14];
+        float w = m[3] * p[i].x + m[7] * p[i].y + m[11] * p[i].z + m[15];
+        all &= (x < -w ? 1u : 0u) | (x > w ? 2u : 0u) | (y < -w ? 4u : 0u) | (y > w ? 8u : 0u) | (z < -w ? 16u : 0u) |
+               (z > w ? 32u : 0u);
+        if (!(w > 0)) {
+            near_cross = true;
+            continue;
+        }
+        float inv = 1.0f / w;
+        float dd = v->ortho ? 0.5f * (1.0f - z * inv) : inv;
+        fd = sl_occ_minf(fd, dd);
+        nd = sl_occ_maxf(nd, dd);
+        if (z < -w || w < 1e-5f) {
+            near_cross = true;
+            continue;
+        }
+        float sx = (x * inv) * hw + hw, sy = hh - (y * inv) * hh;
+        minx = sl_occ_minf(minx, sx);
+        maxx = sl_occ_maxf(maxx, sx);
+        miny = sl_occ_minf(miny, sy);
+        maxy = sl_occ_maxf(maxy, sy);
+    }
+    if (all || !isfinite(fd))
+        return false;
+    /* nudged farther by 2^-20 relative for the rounding of the transform */
+    *far_d = sl_occ_maxf(fd - fabsf(fd) * (1.0f / 1048576.0f), 0.0f);
+    if (near_cross || !isfinite(minx) || !isfinite(maxx) || !isfinite(miny) || !isfinite(maxy)) {
+        *r = (sl_occ_rect){0, 0, (int32_t)v->width, (int32_t)v->height, 0};
+        return true;
+    }
+    const float eps = 1.0f / 64.0f;
+    float fx0 = sl_occ_maxf(floorf(minx - eps), 0.0f), fx1 = sl_occ_minf(floorf(maxx + eps) + 1.0f, (float)v->width);
+    float fy0 = sl_occ_maxf(floorf(miny - eps), 0.0f), fy1 = sl_occ_minf(floorf(maxy + eps) + 1.0f, (float)v->height);
+    if (!(fx0 < fx1) || !(fy0 < fy1))
+        return false;
+    *r = (sl_occ_rect){(int32_t)fx0, (int32_t)fy0, (int32_t)fx1, (int32_t)fy1, nd + fabsf(nd) * (1.0f / 1048576.0f)};
+    return true;
+}
+
+/* Clip convex polygon p[0..n) to the slab lo <= dot(a, x) <= hi (Sutherland-Hodgman, both sides). */
+static uint32_t clip_slab(const sl_vec3 *p, uint32_t n, sl_vec3 a, float lo, float hi, sl_vec3 *out)
+{
+    sl_vec3 tmp[24];
+    uint32_t m = 0;
+    for (int side = 0; side < 2; side++) {
+        const sl_vec3 *src = side ? tmp : p;
+        uint32_t sn = side ? m : n;
+        sl_vec3 *dst = side ? out : tmp;
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < sn && k + 2 < 24; i++) {
+            sl_vec3 u = src[i], w = src[(i + 1) % sn];
+            float du = a.x * u.x + a.y * u.y + a.z * u.z, dw = a.x * w.x + a.y * w.y + a.z * w.z;
+            float fu = side ? hi - du : du - lo, fw = side ? hi - dw : dw - lo;
+            if (fu >= 0)
+                dst[k++] = u;
+            if ((fu >= 0) != (fw >= 0)) {
+                float t = fu / (fu - fw);
+                dst[k++] = (sl_vec3){u.x + t * (w.x - u.x), u.y + t * (w.y - u.y), u.z + t * (w.z - u.z)};
+            }
+        }
+        m = k;
+        if (side == 0 && m < 3)
+            return 0;
+    }
+    return m;
+}
+
+/* The DEB: each chosen occluder writes its farthest depth into the cells its screen rectangle
+ * touches. A prism does it per front face, each face cut into slabs across its depth so that a
+ * long façade seen at a grazing angle does not spread its farthest depth over the whole street;
+ * the slabs' union is the face, so every covered pixel still gets a depth no nearer than the
+ * occluder there. Other proxies use their box. A slab (or box) that the rendered occluders hide
+ * completely is never the front surface at any pixel and writes nothing: the front surface at a
+ * covered pixel belongs to a slab that is not hidden, whose rectangle contains the pixel, so the
+ * cell still holds a depth no nearer than it. Without this, the hidden buildings behind a
+ * street's façades would drag every cell to their far depth. */
+static void build_deb(hom_state *s, const sl_occ_view *v, const uint32_t *proxies, uint32_t n)
+{
+    size_t dn = (size_t)s->dw * s->dh;
+    for (size_t i = 0; i < dn; i++)
+        s->deb[i] = INFINITY;
+    const sl_occ_set *o = s->occ;
+    for (uint32_t i = 0; i < n; i++) {
+        const sl_occ_proxy *pr = &o->proxies[proxies[i]];
+        sl_occ_rect r;
+        float far_d;
+        if (pr->kind != SL_OCC_PRISM || pr->face_count == 0) {
+            sl_aabb b = sl_occ_proxy_box(o, pr);
+            sl_vec3 c[8];
+            for (int k = 0; k < 8; k++)
+                c[k] = (sl_vec3){(k & 1) ? b.max.x : b.min.x, (k & 2) ? b.max.y : b.min.y, (k & 4) ? b.max.z : b.min.z};
+            /* the box's corners as a point set: its rectangle and farthest corner bound the proxy */
+            if (poly_rect(v, c, 8, &r, &far_d) &&
+                !(r.dnear > 0 && sl_occ_raster_test(&s->r, r.x0, r.y0, r.x1, r.y1, r.dnear) != SL_RASTER_VISIBLE))
+                deb_write(s, &r, far_d);
+            continue;
+        }
+        for (uint32_t fi = 0; fi < pr->face_count; fi++) {
+            const sl_occ_face *f = &o->faces[pr->face_first + fi];
+            const sl_vec3 *p = o->face_verts + f->first;
+            /* front faces only: a closed prism's back faces lie behind its front faces */
+            float side = v->ortho ? -(f->normal.x * v->fwd.x + f->normal.y * v->fwd.y + f->normal.z * v->fwd.z)
+                                  : f->normal.x * (v->eye.x - p[0].x) + f->normal.y * (v->eye.y - p[0].y) +
+                                        f->normal.z * (v->eye.z - p[0].z);
+            if (!(side > 0))
+                continue;
+            /* slab direction: the face's extent along the view direction, in eye depth */
+            float dmin = INFINITY, dmax = -INFINITY;
+            for (uint32_t k = 0; k < f->count; k++) {
+                float d = v->fwd.x * p[k].x + v->fwd.y * p[k].y + v->fwd.z * p[k].z;
+                dmin = sl_occ_minf(dmin, d);
+                dmax = sl_occ_maxf(dmax, d);
+            }
+            float e = v->fwd.x * v->eye.x + v->fwd.y * v->eye.y + v->fwd.z * v->eye.z;
+            float znear = sl_occ_maxf(dmin - e, 0.5f);
+            uint32_t slabs = v->ortho || f->count > 16 ? 1 : (uint32_t)sl_occ_minf(ceilf((dmax - dmin) / (0.25f * znear)), 8.0f);
+            slabs = slabs < 1 ? 1 : slabs;
+            for (uint32_t k = 0; k < slabs; k++) {
+                float lo = dmin + (dmax - dmin) * (float)k / (float)slabs;
+                float hi = k + 1 == slabs ? dmax : dmin + (dmax - dmin) * (float)(k + 1) / (float)slabs;
+                sl_vec3 q[24];
+                const sl_vec3 *piece = p;
+                uint32_t m = f->count;
+                if (slabs > 1) {
+                    m = clip_slab(p, f->count, v->fwd, lo, hi, q);
+                    piece = q;
+                }
+                if (m < 3 || !poly_rect(v, piece, m, &r, &far_d))
+                    continue;
+                /* a slab hidden behind the other occluders is never the front surface: skip it */
+                if (r.dnear > 0 && sl_occ_raster_test(&s->r, r.x0, r.y0, r.x1, r.y1, r.dnear) != SL_RASTER_VISIBLE)
+                    continue;
+                deb_write(s, &r, far_d);
+            }
+        }
+    }
+}
+
+/* Overlap test: every subtile the rectangle touches is opaque (at the threshold). */
+static bool overlap_covered(hom_state *s, const sl_occ_rect *r)
+{
+    uint32_t sx0 = (uint32_t)r->x0 >> 3, sx1 = (uint32_t)(r->x1 - 1) >> 3;
+    uint32_t sy0 = (uint32_t)r->y0 >> 2, sy1 = (uint32_t)(r->y1 - 1) >> 2;
+    uint32_t l = 0;
+    while (l + 1 < s->levels && ((sx1 >> l) - (sx0 >> l) > 1 || (sy1 >> l) - (sy0 >> l) > 1))
+        l++;
+    /* explicit stack of (level, x, y) entries to examine */
+    struct {
+        uint8_t l;
+        uint32_t x, y;
+    } stack[4 * MAX_LEVELS + 8];
+    uint32_t sp = 0;
+    for (uint32_t y = sy0 >> l; y <= sy1 >> l; y++)
+        for (uint32_t x = sx0 >> l; x <= sx1 >> l; x++) {
+            stack[sp].l = (uint8_t)l;
+            stack[sp].x = x;
+            stack[sp].y = y;
+            sp++;
+        }
+    float t = s->cfg.threshold;
+    while (sp) {
+        sp--;
+        uint32_t L = stack[sp].l, x = stack[sp].x, y = stack[sp].y;
+        s->overlap_reads++;
+        float o = s->pyr[s->loff[L] + (size_t)y * s->lw[L] + x];
+        if (o >= t)
+            continue;
+        if (L == 0 || o <= 0.0f)
+            return false;
+        /* refine: the children that exist and meet the rectangle */
+        for (uint32_t dy = 0; dy < 2; dy++)
+            for (uint32_t dx = 0; dx < 2; dx++) {
+                uint32_t cx = 2 * x + dx, cy = 2 * y + dy;
+                if (cx >= s->lw[L - 1] || cy >= s->lh[L - 1])
+                    continue;
+                if (cx < (sx0 >> (L - 1)) || cx > (sx1 >> (L - 1)) || cy < (sy0 >> (L - 1)) || cy > (sy1 >> (L - 1)))
+                    continue;
+                stack[sp].l = (uint8_t)(L - 1);
+                stack[sp].x = cx;
+                stack[sp].y = cy;
+                sp++;
+            }
+    }
+    return true;
+}
+
+static bool occluded(hom_state *s, const sl_occ_view *v, const sl_aabb *b, sl_cull_stats *st)
+{
+    sl_occ_rect r;
+    int k = sl_occ_project_box(v, b, &r);
+    if (k == SL_OCC_OUT)
+        return true;
+    if (k == SL_OCC_NEAR)
+        return false;
+    st->occlusion_tests++;
+    if (!overlap_covered(s, &r))
+        return false;
+    if (s->cfg.depth == 1)
+        return sl_occ_raster_test(&s->r, r.x0, r.y0, r.x1, r.y1, r.dnear) != SL_RASTER_VISIBLE;
+    uint32_t cx0 = (uint32_t)r.x0 / s->cfg.deb, cx1 = (uint32_t)(r.x1 - 1) / s->cfg.deb;
+    uint32_t cy0 = (uint32_t)r.y0 / s->cfg.deb, cy1 = (uint32_t)(r.y1 - 1) / s->cfg.deb;
+    for (uint32_t cy = cy0; cy <= cy1; cy++)
+        for (uint32_t cx = cx0; cx <= cx1; cx++)
+            if (!(r.dnear < s->deb[(size_t)cy * s->dw + cx]))
+                return false;
+    return true;
+}
+
+static sl_status hom_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+                          sl_cull_stats *stats, sl_error *err)
+{
+    (void)capacity;
+    hom_state *s = state;
+    double t0 = sl_now();
+    sl_occ_view v;
+    sl_occ_view_init(&v, cam);
+    sl_status st = sl_occ_raster_begin(&s->r, &v, err);
+    if (st == SL_OK)
+        st = size_buffers(s, v.width, v.height, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "hom");
+        return st;
+    }
+    s->overlap_reads = 0;
+    uint32_t np = sl_occ_select(s->occ, &v, s->bvh, s->node_area, s->cfg.c.occluders, s->cfg.c.budget,
+                                s->cfg.c.min_quality, s->heap, s->picks, &stats->nodes_visited);
+    for (uint32_t i = 0; i < np; i++)
+        s->pick_ids[i] = s->picks[i].proxy;
+    double t1 = sl_now();
+    sl_occ_raster_render(&s->r, s->occ, &v, s->pick_ids, np);
+    build_pyramid(s);
+    build_deb(s, &v, s->pick_ids, np);
+    double t2 = sl_now();
+    const struct sl_bvh_t *b = s->bvh;
+    const float e[3] = {v.eye.x, v.eye.y, v.eye.z};
+    uint32_t k = 0;
+    uint64_t visited = 0, tested = 0;
+    if (b->node_slots) {
+        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
+        for (;;) {
+            const sl_bvh_node *n = &b->nodes[ni];
+            visited++;
+            int r = mask ? sl_occ_frustum_classify(&v, &n->box, mask) : 0;
+            if (r >= 0 && !occluded(s, &v, &n->box, stats)) {
+                if (n->count == 0) {
+                    bool right = sl_bvh_right_first(b->nodes, n, e);
+                    stack[sp] = n->first + (right ? 0 : 1);
+                    masks[sp] = (uint32_t)r;
+                    sp++;
+                    ni = n->first + (right ? 1 : 0);
+                    mask = (uint32_t)r;
+                    continue;
+                }
+                for (uint32_t j = n->first; j < n->first + n->count; j++) {
+                    tested++;
+                    const sl_aabb *ob = &b->object_bounds[j];
+                    if (r && sl_occ_frustum_classify(&v, ob, (uint32_t)r) < 0)
+                        continue;
+                    if (n->count > 1 && occluded(s, &v, ob, stats))
+                        continue;
+                    out[k++] = b->objects[j];
+                }
+            }
+            if (sp == 0)
+                break;
+            sp--;
+            ni = stack[sp];
+            mask = masks[sp];
+        }
+    }
+    double t3 = sl_now();
+    sl_cull_sort_ids(out, k, s->sort_scratch);
+    double t4 = sl_now();
+    stats->nodes_visited += visited;
+    stats->objects_tested = tested;
+    stats->queries = s->r.queries;
+    stats->pixel_queries = s->r.pixel_queries + s->overlap_reads * 32; /* a level-0 entry stands for 32 pixels */
+    sl_cull_phase(stats, "select", sl_cull_ms(t0, t1));
+    sl_cull_phase(stats, "maps", sl_cull_ms(t1, t2));
+    sl_cull_phase(stats, "traverse", sl_cull_ms(t2, t3));
+    sl_cull_phase(stats, "sort", sl_cull_ms(t3, t4));
+    *count = k;
+    sl_occ_levels lv = {s->levels, s->level_ptr, s->lw, s->lh, true};
+    if ((st = sl_occ_raster_end(&s->r, &lv, err)) != SL_OK)
+        sl_error_prefix(err, "hom");
+    return st;
+}
+
+const sl_cull_method sl_cull_method_hom = {
+    .name = "hom",
+    .summary = "hierarchical occlusion maps: opacity pyramid of quality-selected occluder proxies plus a depth "
+               "estimation buffer; threshold 1 conservative, below 1 aggressive (Zhang et al. 1997)",
+    .options_help = g_help,
+    .guarantee = SL_CONSERVATIVE,
+    .config_size = sizeof(hom_config),
+    .configure = hom_configure,
+    .create = hom_create,
+    .cull = hom_cull,
+    .scene_changed = hom_scene_changed,
+    .destroy = hom_destroy,
+};

@@ -1,0 +1,1177 @@
+/* Occluder proxies, their per-frame selection (Coorg & Teller, "Real-time occlusion culling for
+ * models with large occluders", I3D 1997, section 3: the quality metric -A (N.V) / |D|^2), the
+ * frame's view and box projection, the shared options, and the rasterizer wrapper used by every
+ * image-space method. See occluders.h for the contracts and docs/occlusion.md for the design. */
+#include "occluders.h"
+
+#include <float.h>
+#include <math.h>
+
+/* ---- the view ---- */
+
+void sl_occ_view_init(sl_occ_view *v, const sl_camera *cam)
+{
+    memset(v, 0, sizeof *v);
+    v->cam = *cam;
+    v->vp = sl_camera_view_proj(cam);
+    v->eye = cam->position;
+    sl_vec3 right, up;
+    sl_camera_basis(cam, &v->fwd, &right, &up);
+    v->fr = sl_camera_frustum(cam);
+    for (int i = 0; i < 6; i++)
+        v->slack[i] = 1e-6f * (1.0f + fabsf(v->fr.planes[i].d));
+    v->ortho = cam->projection == SL_ORTHOGRAPHIC;
+    v->width = cam->width;
+    v->height = cam->height;
+    v->depth = v->ortho ? SL_RASTER_DEPTH_LINEAR_Z : SL_RASTER_DEPTH_INV_W;
+    if (v->ortho)
+        v->focal = (float)cam->height / cam->ortho_height;
+    else
+        v->focal = (float)((double)cam->height / (2.0 * tan(0.5 * (double)cam->fov_y)));
+}
+
+int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask)
+{
+    uint32_t out = mask;
+    for (uint32_t i = 0; i < 6; i++) {
+        if (!(mask & (1u << i)))
+            continue;
+        const sl_plane *p = &v->fr.planes[i];
+        float px = p->a >= 0 ? b->max.x : b->min.x, nx = p->a >= 0 ? b->min.x : b->max.x;
+        float py = p->b >= 0 ? b->max.y : b->min.y, ny = p->b >= 0 ? b->min.y : b->max.y;
+        float pz = p->c >= 0 ? b->max.z : b->min.z, nz = p->c >= 0 ? b->min.z : b->max.z;
+        if (p->a * px + p->b * py + p->c * pz + p->d < -v->slack[i])
+            return -1;
+        if (p->a * nx + p->b * ny + p->c * nz + p->d >= 0)
+            out &= ~(1u << i);
+    }
+    return (int)out;
+}
+
+/* Pixel range [lo, hi) of every pixel an interval [a, b] touches, grown by 1/64 pixel and clamped
+ * to [0, n] (the rasterizer's own rule for box queries). */
+static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
+{
+    const float eps = 1.0f / 64.0f;
+    float fa = floorf(a - eps), fb = floorf(b + eps) + 1.0f;
+    fa = fa < 0.0f ? 0.0f : (fa > (float)n ? (float)n : fa);
+    fb = fb < 0.0f ? 0.0f : (fb > (float)n ? (float)n : fb);
+    *lo = (int32_t)fa;
+    *hi = (int32_t)fb;
+}
+
+int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
+{
+    const float *m = v->vp.m;
+    r->x0 = 0;
+    r->y0 = 0;
+    r->x1 = (int32_t)v->width;
+    r->y1 = (int32_t)v->height;
+    r->dnear = INFINITY;
+    /* clip = M * (x, y, z, 1): the corners from the min corner plus the three edge vectors */
+    float base[4], ex[4], ey[4], ez[4];
+    float dx = b->max.x - b->min.x, dy = b->max.y - b->min.y, dz = b->max.z - b->min.z;
+    for (int i = 0; i < 4; i++) {
+        base[i] = m[i] * b->min.x + m[4 + i] * b->min.y + m[8 + i] * b->min.z + m[12 + i];
+        ex[i] = m[i] * dx;
+        ey[i] = m[4 + i] * dy;
+        ez[i] = m[8 + i] * dz;
+    }
+    unsigned all = 63;
+    bool near_cross = false;
+    float minx = INFINITY, maxx = -INFINITY, miny = INFINITY, maxy = -INFINITY, dn = -INFINITY;
+    const float hw = 0.5f * (float)v->width, hh = 0.5f * (float)v->height;
+    for (int k = 0; k < 8; k++) {
+        float c[4];
+        for (int i = 0; i < 4; i++)
+            c[i] = base[i] + ((k & 1) ? ex[i] : 0.0f) + ((k & 2) ? ey[i] : 0.0f) + ((k & 4) ? ez[i] : 0.0f);
+        float x = c[0], y = c[1], z = c[2], w = c[3];
+        if (!isfinite(x) || !isfinite(y) || !isfinite(z) || !isfinite(w))
+            return SL_OCC_NEAR;
+        unsigned o = (x < -w ? 1u : 0u) | (x > w ? 2u : 0u) | (y < -w ? 4u : 0u) | (y > w ? 8u : 0u) |
+                     (z < -w ? 16u : 0u) | (z > w ? 32u : 0u);
+        all &= o;
+        if (z < -w || w < 1e-5f) {
+            near_cross = true;
+            continue;
+        }
+        float inv = 1.0f / w;
+        float sx = (x * inv) * hw + hw, sy = hh - (y * inv) * hh;
+        float d = v->ortho ? 0.5f * (1.0f - z * inv) : inv;
+        minx = sl_occ_minf(minx, sx);
+        maxx = sl_occ_maxf(maxx, sx);
+        miny = sl_occ_minf(miny, sy);
+        maxy = sl_occ_maxf(maxy, sy);
+        dn = sl_occ_maxf(dn, d);
+    }
+    if (all)
+        return SL_OCC_OUT;
+    if (near_cross)
+        return SL_OCC_NEAR;
+    if (!isfinite(minx) || !isfinite(maxx) || !isfinite(miny) || !isfinite(maxy) || !isfinite(dn))
+        return SL_OCC_NEAR;
+    touched(minx, maxx, (int32_t)v->width, &r->x0, &r->x1);
+    touched(miny, maxy, (int32_t)v->height, &r->y0, &r->y1);
+    if (r->x0 >= r->x1 || r->y0 >= r->y1)
+        return SL_OCC_OUT;
+    /* the nearest corner's depth, nudged nearer to cover the rounding of the transform */
+    r->dnear = dn + fabsf(dn) * (1.0f / 1048576.0f);
+    return SL_OCC_RECT;
+}
+
+/* ---- options ---- */
+
+sl_status sl_occ_opts_string(sl_opts *o, const char *key, const char **out, sl_error *err)
+{
+    (void)err;
+    *out = NULL;
+    bool known = false;
+    for (uint32_t i = 0; i < o->known_count; i++)
+        known |= strcmp(o->known[i], key) == 0;
+    if (!known && o->known_count < SL_OPTS_MAX_ENTRIES)
+        o->known[o->known_count++] = key;
+    for (uint32_t i = 0; i < o->count; i++)
+        if (strcmp(o->keys[i], key) == 0) {
+            o->used[i] = true;
+            *out = o->values[i];
+        }
+    size_t n = strlen(o->effective);
+    snprintf(o->effective + n, sizeof o->effective - n, "%s%s=%s", n ? "," : "", key, *out ? *out : "none");
+    return SL_OK;
+}
+
+sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occluders, uint32_t def_budget,
+                                  sl_occ_common *c, sl_error *err)
+{
+    static const char *const isa_names[] = {"auto", "scalar", "sse41", "avx2", "avx512"};
+    sl_status st;
+    if (which & SL_OCC_OPT_RASTER) {
+        if ((st = sl_opts_u32(o, "threads", 1, 1, 16, &c->threads, err)) != SL_OK ||
+            (st = sl_opts_enum(o, "isa", isa_names, 5, 0, &c->isa, err)) != SL_OK)
+            return st;
+    } else {
+        c->threads = 1;
+    }
+    if (which & SL_OCC_OPT_SELECT) {
+        if ((st = sl_opts_u32(o, "occluders", def_occluders, 0, 4096, &c->occluders, err)) != SL_OK ||
+            (st = sl_opts_u32(o, "budget", def_budget, 0, 10000000, &c->budget, err)) != SL_OK ||
+            (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->min_quality, err)) != SL_OK)
+            return st;
+    }
+    if ((st = sl_opts_float(o, "inset", 0.1f, 0.01f, 10.0f, &c->inset, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "all_objects", false, &c->all_objects, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "leaf_size", SL_BVH_DEFAULT_LEAF_SIZE, 1, SL_BVH_MAX_LEAF_SIZE, &c->leaf_size, err)) !=
+            SL_OK)
+        return st;
+    if (which & SL_OCC_OPT_DEBUG) {
+        const char *d, *r;
+        if ((st = sl_occ_opts_string(o, "dump", &d, err)) != SL_OK ||
+            (st = sl_occ_opts_string(o, "record", &r, err)) != SL_OK ||
+            (st = sl_opts_u32(o, "debug_frame", 0, 0, UINT32_MAX, &c->debug_frame, err)) != SL_OK)
+            return st;
+        if ((d && strlen(d) >= sizeof c->dump_buf - 16) || (r && strlen(r) >= sizeof c->record_buf))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option %s is longer than %zu characters", o->method,
+                           d && strlen(d) >= sizeof c->dump_buf - 16 ? "dump" : "record", sizeof c->dump_buf - 16);
+        if (d)
+            snprintf(c->dump_buf, sizeof c->dump_buf, "%s", d);
+        if (r)
+            snprintf(c->record_buf, sizeof c->record_buf, "%s", r);
+        c->dump = d ? c->dump_buf : NULL;
+        c->record = r ? c->record_buf : NULL;
+    }
+    return SL_OK;
+}
+
+/* ---- prisms: footprint polygons shrunk inward ---- */
+
+typedef struct { double x, y; } dvec2;
+
+static double cross2(dvec2 a, dvec2 b) { return a.x * b.y - a.y * b.x; }
+static dvec2 sub2(dvec2 a, dvec2 b) { return (dvec2){a.x - b.x, a.y - b.y}; }
+
+static double seg_point_dist(dvec2 p, dvec2 a, dvec2 b)
+{
+    dvec2 ab = sub2(b, a), ap = sub2(p, a);
+    double l2 = ab.x * ab.x + ab.y * ab.y, t = l2 > 0 ? (ap.x * ab.x + ap.y * ab.y) / l2 : 0;
+    t = t < 0 ? 0 : (t > 1 ? 1 : t);
+    double dx = a.x + t * ab.x - p.x, dy = a.y + t * ab.y - p.y;
+    return sqrt(dx * dx + dy * dy);
+}
+
+/* Do segments ab and cd intersect (touching counts)? */
+static bool seg_intersect(dvec2 a, dvec2 b, dvec2 c, dvec2 d)
+{
+    double d1 = cross2(sub2(b, a), sub2(c, a)), d2 = cross2(sub2(b, a), sub2(d, a));
+    double d3 = cross2(sub2(d, c), sub2(a, c)), d4 = cross2(sub2(d, c), sub2(b, c));
+    if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0)))
+        return true;
+    /* collinear or touching cases: close enough counts as touching */
+    return seg_point_dist(c, a, b) == 0 || seg_point_dist(d, a, b) == 0 || seg_point_dist(a, c, d) == 0 ||
+           seg_point_dist(b, c, d) == 0;
+}
+
+static double seg_seg_dist(dvec2 a, dvec2 b, dvec2 c, dvec2 d)
+{
+    if (seg_intersect(a, b, c, d))
+        return 0;
+    double m = seg_point_dist(a, c, d);
+    m = fmin(m, seg_point_dist(b, c, d));
+    m = fmin(m, seg_point_dist(c, a, b));
+    return fmin(m, seg_point_dist(d, a, b));
+}
+
+static bool point_in_poly(dvec2 p, const dvec2 *q, uint32_t n)
+{
+    bool in = false;
+    for (uint32_t i = 0, j = n - 1; i < n; j = i++)
+        if ((q[i].y > p.y) != (q[j].y > p.y) && p.x < (q[j].x - q[i].x) * (p.y - q[i].y) / (q[j].y - q[i].y) + q[i].x)
+            in = !in;
+    return in;
+}
+
+/* Offset the counter-clockwise simple polygon p[0..n) inward by d into q, and check that every
+ * point of q lies at least d (less a relative 1e-6) from p's boundary and inside p: q simple, its
+ * edges parallel to p's and pointing the same way, every pair of edges at least d apart, and its
+ * first vertex inside p. False when the offset collapses or cannot be certified. */
+static bool inset_polygon(const dvec2 *p, uint32_t n, double d, dvec2 *q)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        dvec2 a = p[(i + n - 1) % n], b = p[i], c = p[(i + 1) % n];
+        dvec2 e0 = sub2(b, a), e1 = sub2(c, b);
+        double l0 = hypot(e0.x, e0.y), l1 = hypot(e1.x, e1.y);
+        if (!(l0 > 0) || !(l1 > 0))
+            return false;
+        dvec2 n0 = {-e0.y / l0, e0.x / l0}, n1 = {-e1.y / l1, e1.x / l1}; /* left = inward for CCW */
+        double det = cross2(n0, n1);
+        if (fabs(det) < 1e-9) {
+            if (n0.x * n1.x + n0.y * n1.y < 0)
+                return false; /* a spike folding back */
+            q[i] = (dvec2){b.x + d * n0.x, b.y + d * n0.y};
+        } else {
+            double c0 = n0.x * b.x + n0.y * b.y + d, c1 = n1.x * b.x + n1.y * b.y + d;
+            q[i] = (dvec2){(c0 * n1.y - c1 * n0.y) / det, (n0.x * c1 - n1.x * c0) / det};
+        }
+        if (!isfinite(q[i].x) || !isfinite(q[i].y) || hypot(q[i].x - b.x, q[i].y - b.y) > 50.0 * d)
+            return false;
+    }
+    double area = 0;
+    for (uint32_t i = 0; i < n; i++)
+        area += cross2(q[i], q[(i + 1) % n]);
+    if (!(area > 0))
+        return false;
+    for (uint32_t i = 0; i < n; i++) {
+        dvec2 pe = sub2(p[(i + 1) % n], p[i]), qe = sub2(q[(i + 1) % n], q[i]);
+        if (!(pe.x * qe.x + pe.y * qe.y > 0) || hypot(qe.x, qe.y) < 1e-4)
+            return false;
+    }
+    double need = d * (1.0 - 1e-6);
+    for (uint32_t i = 0; i < n; i++) {
+        dvec2 a = q[i], b = q[(i + 1) % n];
+        for (uint32_t j = 0; j < n; j++) {
+            /* offset edges: non-adjacent ones must not meet */
+            if (j != i && j != (i + 1) % n && (j + 1) % n != i && seg_intersect(a, b, q[j], q[(j + 1) % n]))
+                return false;
+            if (seg_seg_dist(a, b, p[j], p[(j + 1) % n]) < need)
+                return false;
+        }
+    }
+    return point_in_poly(q[0], p, n);
+}
+
+/* Ear-clip the counter-clockwise simple polygon q[0..n) into n-2 triangles (tri, 3 each). */
+static bool ear_clip(const dvec2 *q, uint32_t n, uint32_t *work, uint32_t *tri)
+{
+    for (uint32_t i = 0; i < n; i++)
+        work[i] = i;
+    uint32_t m = n, t = 0, guard = 0;
+    while (m > 3) {
+        bool found = false;
+        for (uint32_t k = 0; k < m && !found; k++) {
+            uint32_t ia = work[(k + m - 1) % m], ib = work[k], ic = work[(k + 1) % m];
+            dvec2 a = q[ia], b = q[ib], c = q[ic];
+            if (!(cross2(sub2(b, a), sub2(c, b)) > 0))
+                continue;
+            bool empty = true;
+            for (uint32_t j = 0; j < m && empty; j++) {
+                uint32_t ij = work[j];
+                if (ij == ia || ij == ib || ij == ic)
+                    continue;
+                dvec2 p = q[ij];
+                if (cross2(sub2(b, a), sub2(p, a)) >= 0 && cross2(sub2(c, b), sub2(p, b)) >= 0 &&
+                    cross2(sub2(a, c), sub2(p, c)) >= 0)
+                    empty = false;
+            }
+            if (!empty)
+                continue;
+            tri[3 * t] = ia;
+            tri[3 * t + 1] = ib;
+            tri[3 * t + 2] = ic;
+            t++;
+            for (uint32_t j = k; j + 1 < m; j++)
+                work[j] = work[j + 1];
+            m--;
+            found = true;
+        }
+        if (!found || ++guard > 4 * n)
+            return false;
+    }
+    tri[3 * t] = work[0];
+    tri[3 * t + 1] = work[1];
+    tri[3 * t + 2] = work[2];
+    return true;
+}
+
+/* Merge the roof triangles into convex polygons (Hertel-Mehlhorn: drop a diagonal while both
+ * polygons it separates stay convex). polys: up to n-2 polygons of up to n vertex indices each,
+ * stored with stride n; len[i] = 0 for merged-away ones. */
+static void merge_convex(const dvec2 *q, uint32_t n, const uint32_t *tri, uint32_t *polys, uint32_t *len)
+{
+    uint32_t np = n - 2;
+    for (uint32_t i = 0; i < np; i++) {
+        memcpy(polys + (size_t)i * n, tri + 3 * i, 3 * sizeof(uint32_t));
+        len[i] = 3;
+    }
+    bool merged = true;
+    while (merged) {
+        merged = false;
+        for (uint32_t a = 0; a < np && !merged; a++) {
+            if (!len[a])
+                continue;
+            for (uint32_t b = a + 1; b < np && !merged; b++) {
+                if (!len[b])
+                    continue;
+                uint32_t *pa = polys + (size_t)a * n, *pb = polys + (size_t)b * n;
+                for (uint32_t i = 0; i < len[a] && !merged; i++) {
+                    uint32_t u = pa[i], w = pa[(i + 1) % len[a]];
+                    for (uint32_t j = 0; j < len[b] && !merged; j++) {
+                        if (pb[j] != w || pb[(j + 1) % len[b]] != u)
+                            continue;
+                        /* splice: pa up to u, then pb from after u around to before w, then w.. */
+                        uint32_t tmp[256], k = 0;
+                        if (len[a] + len[b] - 2 > 256 || len[a] + len[b] - 2 > n)
+                            continue;
+                        for (uint32_t s = 0; s < len[a]; s++) {
+                            uint32_t v = pa[(i + 1 + s) % len[a]]; /* starts at w, ends at u */
+                            tmp[k++] = v;
+                        }
+                        for (uint32_t s = 2; s < len[b]; s++)
+                            tmp[k++] = pb[(j + s) % len[b]]; /* after u, before w */
+                        bool convex = true;
+                        for (uint32_t s = 0; s < k && convex; s++) {
+                            dvec2 x = q[tmp[s]], y = q[tmp[(s + 1) % k]], z = q[tmp[(s + 2) % k]];
+                            convex = cross2(sub2(y, x), sub2(z, y)) > -1e-12;
+                        }
+                        if (!convex)
+                            continue;
+                        memcpy(pa, tmp, k * sizeof(uint32_t));
+                        len[a] = k;
+                        len[b] = 0;
+                        merged = true;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/* Growable arrays of the set under construction. */
+typedef struct build_ctx {
+    const sl_allocator *a;
+    sl_array proxies, pos, idx, faces, fverts;
+    bool keep_verts;            /* store the faces' vertices (frusta, hom), not only their planes */
+} build_ctx;
+
+static bool push_face(build_ctx *b, uint32_t proxy, const sl_vec3 *v, uint32_t count)
+{
+    /* Newell normal and area of a planar polygon */
+    double nx = 0, ny = 0, nz = 0, cx = 0, cy = 0, cz = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        const sl_vec3 *p = &v[i], *q = &v[(i + 1) % count];
+        nx += ((double)p->y - q->y) * ((double)p->z + q->z);
+        ny += ((double)p->z - q->z) * ((double)p->x + q->x);
+        nz += ((double)p->x - q->x) * ((double)p->y + q->y);
+        cx += p->x;
+        cy += p->y;
+        cz += p->z;
+    }
+    double len = sqrt(nx * nx + ny * ny + nz * nz);
+    if (!(len > 0))
+        return true; /* degenerate: no face */
+    sl_occ_face f;
+    f.proxy = proxy;
+    f.first = (uint32_t)b->fverts.count;
+    f.count = b->keep_verts ? count : 0;
+    f.normal = (sl_vec3){(float)(nx / len), (float)(ny / len), (float)(nz / len)};
+    f.centre = (sl_vec3){(float)(cx / count), (float)(cy / count), (float)(cz / count)};
+    f.area = (float)(0.5 * len);
+    return (!b->keep_verts || sl_array_push(b->a, &b->fverts, sizeof(sl_vec3), v, count)) &&
+           sl_array_push(b->a, &b->faces, sizeof f, &f, 1);
+}
+
+/* Make the prism proxy of footprint fi, or count it rejected. */
+static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, dvec2 *work_p, dvec2 *work_q, uint32_t *work_i,
+                           uint32_t *tri, uint32_t *polys, uint32_t *plen, sl_vec3 *work_v, sl_error *err)
+{
+    sl_footprint_view fp = sl_scene_footprint(s->scene, fi);
+    uint32_t n = fp.vertex_count;
+    if (n < 3 || n > 512)
+        return SL_OK;
+    if (fp.object != SL_NONE && fp.object >= s->object_count)
+        return SL_OK;
+    for (uint32_t i = 0; i < n; i++)
+        work_p[i] = (dvec2){fp.xy[2 * i], fp.xy[2 * i + 1]};
+    /* the largest inset up to the option that can be certified, halving down to 1 cm */
+    double d = s->opt.inset;
+    bool ok = false;
+    while (!ok && d >= 0.01 - 1e-9) {
+        ok = (double)fp.roof_z - fp.base_z > 2 * d + 0.01 && inset_polygon(work_p, n, d, work_q) &&
+             ear_clip(work_q, n, work_i, tri);
+        if (!ok)
+            d *= 0.5;
+    }
+    if (!ok) {
+        s->prisms_rejected++;
+        return SL_OK;
+    }
+    /* float rounding of the vertices must not undo the inset: d is at least 1 cm and the vertex
+     * error is 1e-7 relative, so rounding to float keeps the prism inside for coordinates
+     * below 1e4 m; beyond that the prism is not certified */
+    double maxc = fmax(fabs((double)fp.roof_z), fabs((double)fp.base_z));
+    for (uint32_t i = 0; i < n; i++)
+        maxc = fmax(maxc, fmax(fabs(work_q[i].x), fabs(work_q[i].y)));
+    if (maxc * 4.0 * FLT_EPSILON > 0.25 * d) {
+        s->prisms_rejected++;
+        return SL_OK;
+    }
+    double z0 = (double)fp.base_z + d, z1 = (double)fp.roof_z - d;
+    d -= maxc * 4.0 * FLT_EPSILON; /* what the float vertices still guarantee */
+    uint32_t pi = (uint32_t)b->proxies.count, v0 = (uint32_t)(b->pos.count / 3);
+    sl_occ_proxy pr;
+    memset(&pr, 0, sizeof pr);
+    pr.object = fp.object;
+    pr.kind = SL_OCC_PRISM;
+    pr.mesh = SL_NONE;
+    pr.source = fi;
+    pr.first = (uint32_t)(b->idx.count / 3);
+    pr.inset = (float)d;
+    pr.closed = true;
+    pr.enabled = true;
+    pr.box = sl_aabb_empty();
+    /* vertices: the base ring then the top ring */
+    for (int ring = 0; ring < 2; ring++)
+        for (uint32_t i = 0; i < n; i++) {
+            float v[3] = {(float)work_q[i].x, (float)work_q[i].y, (float)(ring ? z1 : z0)};
+            if (!sl_array_push(b->a, &b->pos, sizeof(float), v, 3))
+                return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for prism vertices");
+            sl_aabb_grow(&pr.box, (sl_vec3){v[0], v[1], v[2]});
+        }
+    const float *P = NULL;
+    uint32_t k = 0;
+    /* walls: outward (right of the CCW edge), counter-clockwise seen from outside */
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t j = (i + 1) % n;
+        uint32_t wall[6] = {v0 + i, v0 + j, v0 + n + j, v0 + i, v0 + n + j, v0 + n + i};
+        if (!sl_array_push(b->a, &b->idx, sizeof(uint32_t), wall, 6))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for prism triangles");
+        k += 2;
+    }
+    /* roof (normal +z) and floor (normal -z) */
+    for (uint32_t i = 0; i + 2 < n; i++) {
+        uint32_t roof[3] = {v0 + n + tri[3 * i], v0 + n + tri[3 * i + 1], v0 + n + tri[3 * i + 2]};
+        uint32_t floor_[3] = {v0 + tri[3 * i], v0 + tri[3 * i + 2], v0 + tri[3 * i + 1]};
+        if (!sl_array_push(b->a, &b->idx, sizeof(uint32_t), roof, 3) ||
+            !sl_array_push(b->a, &b->idx, sizeof(uint32_t), floor_, 3))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for prism triangles");
+        k += 2;
+    }
+    pr.count = k;
+    pr.triangles = k;
+    /* faces: walls, convex roof and floor pieces */
+    P = b->pos.data;
+    pr.face_first = (uint32_t)b->faces.count;
+    double area = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t j = (i + 1) % n;
+        sl_vec3 q[4] = {{P[3 * (v0 + i)], P[3 * (v0 + i) + 1], P[3 * (v0 + i) + 2]},
+                        {P[3 * (v0 + j)], P[3 * (v0 + j) + 1], P[3 * (v0 + j) + 2]},
+                        {P[3 * (v0 + n + j)], P[3 * (v0 + n + j) + 1], P[3 * (v0 + n + j) + 2]},
+                        {P[3 * (v0 + n + i)], P[3 * (v0 + n + i) + 1], P[3 * (v0 + n + i) + 2]}};
+        if (!push_face(b, pi, q, 4))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for faces");
+    }
+    merge_convex(work_q, n, tri, polys, plen);
+    for (uint32_t i = 0; i + 2 < n; i++) {
+        if (!plen[i])
+            continue;
+        for (int side = 0; side < 2; side++) {
+            for (uint32_t m = 0; m < plen[i]; m++) {
+                uint32_t vi = polys[(size_t)i * n + (side ? plen[i] - 1 - m : m)];
+                work_v[m] = (sl_vec3){(float)work_q[vi].x, (float)work_q[vi].y, (float)(side ? z0 : z1)};
+            }
+            if (!push_face(b, pi, work_v, plen[i]))
+                return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for faces");
+        }
+    }
+    pr.face_count = (uint32_t)b->faces.count - pr.face_first;
+    const sl_occ_face *F = b->faces.data;
+    for (uint32_t i = 0; i < pr.face_count; i++)
+        area += F[pr.face_first + i].area;
+    pr.area = (float)(0.5 * area);
+    if (!sl_array_push(b->a, &b->proxies, sizeof pr, &pr, 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for proxies");
+    if (fp.object != SL_NONE)
+        s->object_proxy[fp.object] = pi;
+    s->prisms++;
+    return SL_OK;
+}
+
+/* Area of a mesh under a transform, and (for static objects) its largest triangles as faces. */
+static sl_status add_mesh_proxy(sl_occ_set *s, build_ctx *b, uint32_t kind, uint32_t mesh, const sl_affine *xf,
+                                uint32_t object, uint32_t source, bool static_faces, sl_error *err)
+{
+    const struct sl_scene_t *sc = s->scene;
+    const sl_mesh_rec *mr = &sl_scene_meshes(sc)[mesh];
+    const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
+    const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
+    uint32_t pi = (uint32_t)b->proxies.count;
+    sl_occ_proxy pr;
+    memset(&pr, 0, sizeof pr);
+    pr.object = object;
+    pr.kind = kind;
+    pr.mesh = mesh;
+    pr.source = source;
+    pr.triangles = mr->triangle_count;
+    pr.enabled = true;
+    pr.box = sl_aabb_transform(&mr->bounds, xf);
+    pr.face_first = (uint32_t)b->faces.count;
+    /* keep the K largest triangles (insertion into a small sorted list) */
+    uint32_t K = static_faces ? s->opt.mesh_faces : 0;
+    uint32_t best[64];
+    float best_area[64];
+    uint32_t nb = 0;
+    double area = 0;
+    for (uint32_t t = 0; t < mr->triangle_count; t++) {
+        sl_vec3 v[3];
+        for (int c = 0; c < 3; c++) {
+            const float *p = pos + 3 * (size_t)idx[3 * t + c];
+            v[c] = sl_affine_point(xf, (sl_vec3){p[0], p[1], p[2]});
+        }
+        double e1[3] = {(double)v[1].x - v[0].x, (double)v[1].y - v[0].y, (double)v[1].z - v[0].z};
+        double e2[3] = {(double)v[2].x - v[0].x, (double)v[2].y - v[0].y, (double)v[2].z - v[0].z};
+        double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+        float a = (float)(0.5 * sqrt(cx * cx + cy * cy + cz * cz));
+        area += a;
+        if (K == 0 || !(a > 0) || (nb == K && a <= best_area[nb - 1]))
+            continue;
+        uint32_t j = nb < K ? nb++ : K - 1;
+        while (j > 0 && best_area[j - 1] < a) {
+            best[j] = best[j - 1];
+            best_area[j] = best_area[j - 1];
+            j--;
+        }
+        best[j] = t;
+        best_area[j] = a;
+    }
+    for (uint32_t i = 0; i < nb; i++) {
+        sl_vec3 v[3];
+        for (int c = 0; c < 3; c++) {
+            const float *p = pos + 3 * (size_t)idx[3 * best[i] + c];
+            v[c] = sl_affine_point(xf, (sl_vec3){p[0], p[1], p[2]});
+        }
+        if (!push_face(b, pi, v, 3))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for faces");
+    }
+    pr.face_count = (uint32_t)b->faces.count - pr.face_first;
+    pr.area = (float)(0.5 * area);
+    if (!sl_array_push(b->a, &b->proxies, sizeof pr, &pr, 1))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for proxies");
+    if (object != SL_NONE && s->object_proxy[object] == SL_NONE)
+        s->object_proxy[object] = pi;
+    if (kind == SL_OCC_MESH)
+        s->meshes++;
+    else
+        s->scene_meshes++;
+    return SL_OK;
+}
+
+void sl_occ_set_destroy(sl_occ_set *s)
+{
+    if (!s)
+        return;
+    const sl_allocator *a = &s->alloc;
+    sl_free(a, s->proxies, (size_t)s->proxy_count * sizeof(sl_occ_proxy));
+    sl_free(a, s->object_proxy, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
+    sl_free(a, s->prism_xf, (size_t)(s->proxy_count ? s->proxy_count : 1) * sizeof(sl_affine));
+    sl_free(a, s->prism_pos, (size_t)s->prism_vertex_count * 3 * sizeof(float));
+    sl_free(a, s->prism_idx, (size_t)s->prism_tri_count * 3 * sizeof(uint32_t));
+    sl_free(a, s->faces, (size_t)s->face_count * sizeof(sl_occ_face));
+    sl_free(a, s->face_verts, (size_t)s->face_vert_count * sizeof(sl_vec3));
+    sl_free(a, s, sizeof *s);
+}
+
+/* Shrink a builder array to an exactly sized owned block (so that free sizes are known). */
+static void *take(const sl_allocator *a, sl_array *arr, size_t elem)
+{
+    if (arr->count == 0) {
+        sl_array_free(a, arr, elem);
+        return NULL;
+    }
+    void *p = sl_realloc(a, arr->data, arr->cap * elem, arr->count * elem);
+    if (!p)
+        return NULL;
+    arr->data = NULL;
+    arr->cap = 0;
+    return p;
+}
+
+sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_allocator *alloc, sl_occ_set **out,
+                            sl_error *err)
+{
+    *out = NULL;
+    sl_occ_set *s = sl_calloc(alloc, 1, sizeof *s);
+    if (!s)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory");
+    s->alloc = *alloc;
+    s->scene = scene;
+    s->opt = *opt;
+    if (s->opt.mesh_faces > 64)
+        s->opt.mesh_faces = 64;
+    s->object_count = sl_scene_object_count(scene);
+    s->object_proxy = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
+    build_ctx b = {alloc, {0}, {0}, {0}, {0}, {0}, opt->faces};
+    sl_status st = SL_OK;
+    dvec2 *wp = NULL, *wq = NULL;
+    uint32_t *wi = NULL, *tri = NULL, *polys = NULL, *plen = NULL;
+    sl_vec3 *wv = NULL;
+    uint32_t maxn = 3;
+    uint32_t nf = sl_scene_footprint_count(scene);
+    for (uint32_t i = 0; i < nf; i++) {
+        uint32_t n = sl_scene_footprint(scene, i).vertex_count;
+        if (n <= 512)
+            maxn = SL_MAX(maxn, n);
+    }
+    wp = sl_alloc(alloc, maxn * sizeof(dvec2));
+    wq = sl_alloc(alloc, maxn * sizeof(dvec2));
+    wi = sl_alloc(alloc, maxn * sizeof(uint32_t));
+    tri = sl_alloc(alloc, 3 * (size_t)maxn * sizeof(uint32_t));
+    polys = sl_alloc(alloc, (size_t)maxn * maxn * sizeof(uint32_t));
+    plen = sl_alloc(alloc, maxn * sizeof(uint32_t));
+    wv = sl_alloc(alloc, maxn * sizeof(sl_vec3));
+    if (!s->object_proxy || !wp || !wq || !wi || !tri || !polys || !plen || !wv) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory");
+        goto done;
+    }
+    for (uint32_t i = 0; i < s->object_count; i++)
+        s->object_proxy[i] = SL_NONE;
+    /* 1. footprint prisms */
+    for (uint32_t i = 0; i < nf && st == SL_OK; i++)
+        st = add_prism(s, &b, i, wp, wq, wi, tri, polys, plen, wv, err);
+    /* 2. objects flagged OCCLUDER without a prism: their own mesh */
+    const sl_object_rec *objects = sl_scene_objects(scene);
+    const sl_affine *xfs = sl_scene_transforms(scene);
+    for (uint32_t o = 0; o < s->object_count && st == SL_OK; o++) {
+        if ((!(objects[o].flags & SL_OBJECT_OCCLUDER) && !s->opt.all_objects) || s->object_proxy[o] != SL_NONE)
+            continue;
+        sl_affine id = sl_affine_identity();
+        const sl_affine *xf = objects[o].transform == SL_NONE ? &id : &xfs[objects[o].transform];
+        st = add_mesh_proxy(s, &b, SL_OCC_MESH, objects[o].mesh, xf, o, SL_NONE,
+                            s->opt.faces && !(objects[o].flags & SL_OBJECT_DYNAMIC), err);
+    }
+    /* 3. the scene's 3D occluder meshes (static, trusted to lie inside their objects) */
+    uint32_t no = sl_scene_occluder_count(scene);
+    for (uint32_t i = 0; i < no && st == SL_OK; i++) {
+        sl_occluder_view ov = sl_scene_occluder(scene, i);
+        st = add_mesh_proxy(s, &b, SL_OCC_SCENE_MESH, ov.mesh, &ov.transform, SL_NONE, i, s->opt.faces, err);
+    }
+    if (st != SL_OK)
+        goto done;
+    s->proxy_count = (uint32_t)b.proxies.count;
+    s->prism_vertex_count = (uint32_t)(b.pos.count / 3);
+    s->prism_tri_count = (uint32_t)(b.idx.count / 3);
+    s->face_count = (uint32_t)b.faces.count;
+    s->face_vert_count = (uint32_t)b.fverts.count;
+    s->proxies = take(alloc, &b.proxies, sizeof(sl_occ_proxy));
+    s->prism_pos = take(alloc, &b.pos, sizeof(float));
+    s->prism_idx = take(alloc, &b.idx, sizeof(uint32_t));
+    s->faces = take(alloc, &b.faces, sizeof(sl_occ_face));
+    s->face_verts = take(alloc, &b.fverts, sizeof(sl_vec3));
+    s->prism_xf = sl_alloc(alloc, (size_t)(s->proxy_count ? s->proxy_count : 1) * sizeof(sl_affine));
+    if ((s->proxy_count && !s->proxies) || (s->prism_vertex_count && !s->prism_pos) ||
+        (s->prism_tri_count && !s->prism_idx) || (s->face_count && !s->faces) ||
+        (s->face_vert_count && !s->face_verts) || !s->prism_xf) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory");
+        goto done;
+    }
+    /* remember each prism's object transform, to notice when the object moves */
+    for (uint32_t p = 0; p < s->proxy_count; p++) {
+        uint32_t o = s->proxies[p].object;
+        s->prism_xf[p] = (o != SL_NONE && objects[o].transform != SL_NONE) ? xfs[objects[o].transform]
+                                                                           : sl_affine_identity();
+    }
+done:
+    sl_free(alloc, wp, maxn * sizeof(dvec2));
+    sl_free(alloc, wq, maxn * sizeof(dvec2));
+    sl_free(alloc, wi, maxn * sizeof(uint32_t));
+    sl_free(alloc, tri, 3 * (size_t)maxn * sizeof(uint32_t));
+    sl_free(alloc, polys, (size_t)maxn * maxn * sizeof(uint32_t));
+    sl_free(alloc, plen, maxn * sizeof(uint32_t));
+    sl_free(alloc, wv, maxn * sizeof(sl_vec3));
+    sl_array_free(alloc, &b.proxies, sizeof(sl_occ_proxy));
+    sl_array_free(alloc, &b.pos, sizeof(float));
+    sl_array_free(alloc, &b.idx, sizeof(uint32_t));
+    sl_array_free(alloc, &b.faces, sizeof(sl_occ_face));
+    sl_array_free(alloc, &b.fverts, sizeof(sl_vec3));
+    if (st != SL_OK) {
+        sl_occ_set_destroy(s);
+        return st;
+    }
+    *out = s;
+    return SL_OK;
+}
+
+void sl_occ_set_scene_changed(sl_occ_set *s)
+{
+    const sl_object_rec *objects = sl_scene_objects(s->scene);
+    const sl_affine *xfs = sl_scene_transforms(s->scene);
+    for (uint32_t p = 0; p < s->proxy_count; p++) {
+        sl_occ_proxy *pr = &s->proxies[p];
+        if (pr->kind != SL_OCC_PRISM || pr->object == SL_NONE || !pr->enabled)
+            continue;
+        sl_affine now = objects[pr->object].transform != SL_NONE ? xfs[objects[pr->object].transform]
+                                                                 : sl_affine_identity();
+        if (memcmp(&now, &s->prism_xf[p], sizeof now) != 0)
+            pr->enabled = false; /* the building moved off its footprint: never trust it again */
+    }
+}
+
+/* ---- per-frame use ---- */
+
+bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
+{
+    const sl_occ_proxy *p = &s->proxies[proxy];
+    if (!p->enabled)
+        return false;
+    sl_aabb box = sl_occ_proxy_box(s, p);
+    float g = 1e-3f + 1e-6f * (fabsf(v->eye.x) + fabsf(v->eye.y) + fabsf(v->eye.z));
+    if (sl_occ_point_in_box(v->eye, &box, g))
+        return false;
+    if (p->object != SL_NONE) {
+        sl_aabb ob = sl_scene_object_bounds_array(s->scene)[p->object];
+        if (sl_occ_point_in_box(v->eye, &ob, g))
+            return false;
+    }
+    if (p->kind != SL_OCC_PRISM)
+        return true;
+    if (v->ortho)
+        return p->inset * v->focal >= SL_OCC_MIN_INSET_PX;
+    /* farthest corner: every point of the prism is at most this far from the eye */
+    float dx = sl_occ_maxf(fabsf(box.min.x - v->eye.x), fabsf(box.max.x - v->eye.x));
+    float dy = sl_occ_maxf(fabsf(box.min.y - v->eye.y), fabsf(box.max.y - v->eye.y));
+    float dz = sl_occ_maxf(fabsf(box.min.z - v->eye.z), fabsf(box.max.z - v->eye.z));
+    float dmax = sqrtf(dx * dx + dy * dy + dz * dz) * 1.0001f;
+    return p->inset * v->focal >= SL_OCC_MIN_INSET_PX * dmax;
+}
+
+float sl_occ_quality(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
+{
+    const sl_occ_proxy *p = &s->proxies[proxy];
+    if (p->kind == SL_OCC_PRISM) {
+        float q = 0;
+        for (uint32_t i = 0; i < p->face_count; i++) {
+            const sl_occ_face *f = &s->faces[p->face_first + i];
+            float dx = f->centre.x - v->eye.x, dy = f->centre.y - v->eye.y, dz = f->centre.z - v->eye.z;
+            float d2 = dx * dx + dy * dy + dz * dz;
+            if (!(d2 > 1e-6f))
+                continue;
+            float ndv = (f->normal.x * dx + f->normal.y * dy + f->normal.z * dz) / sqrtf(d2);
+            if (ndv < 0)
+                q += -f->area * ndv / d2;
+        }
+        return q;
+    }
+    sl_aabb b = sl_occ_proxy_box(s, p);
+    float dx = 0.5f * (b.min.x + b.max.x) - v->eye.x, dy = 0.5f * (b.min.y + b.max.y) - v->eye.y;
+    float dz = 0.5f * (b.min.z + b.max.z) - v->eye.z;
+    float r2 = 0.25f * ((b.max.x - b.min.x) * (b.max.x - b.min.x) + (b.max.y - b.min.y) * (b.max.y - b.min.y) +
+                        (b.max.z - b.min.z) * (b.max.z - b.min.z));
+    float d2 = sl_occ_maxf(dx * dx + dy * dy + dz * dz, sl_occ_maxf(r2, 1e-6f));
+    return p->area / d2;
+}
+
+void sl_occ_node_areas(const sl_occ_set *s, const struct sl_bvh_t *bvh, float *node_area)
+{
+    for (uint32_t i = bvh->node_slots; i-- > 0;) {
+        const sl_bvh_node *n = &bvh->nodes[i];
+        float a = 0;
+        if (i == 1 && bvh->node_slots > 1 && bvh->nodes[0].count == 0) {
+            node_area[i] = 0; /* padding slot */
+            continue;
+        }
+        if (n->count) {
+            for (uint32_t j = n->first; j < n->first + n->count; j++) {
+                uint32_t p = s->object_proxy[bvh->objects[j]];
+                if (p != SL_NONE)
+                    a = sl_occ_maxf(a, s->proxies[p].area);
+            }
+        } else {
+            a = sl_occ_maxf(node_area[n->first], node_area[n->first + 1]);
+        }
+        node_area[i] = a;
+    }
+}
+
+/* Min-heap by quality of the best candidates so far. */
+static void heap_push(sl_occ_pick *h, uint32_t *n, uint32_t cap, sl_occ_pick x)
+{
+    if (*n == cap) {
+        if (x.quality <= h[0].quality)
+            return;
+        /* replace the worst and sift down */
+        uint32_t i = 0;
+        for (;;) {
+            uint32_t l = 2 * i + 1, r = l + 1, m = i;
+            float mq = x.quality;
+            if (l < *n && h[l].quality < mq)
+                m = l, mq = h[l].quality;
+            if (r < *n && h[r].quality < mq)
+                m = r;
+            if (m == i)
+                break;
+            h[i] = h[m];
+            i = m;
+        }
+        h[i] = x;
+        return;
+    }
+    uint32_t i = (*n)++;
+    while (i > 0 && h[(i - 1) / 2].quality > x.quality) {
+        h[i] = h[(i - 1) / 2];
+        i = (i - 1) / 2;
+    }
+    h[i] = x;
+}
+
+static void consider(const sl_occ_set *s, const sl_occ_view *v, uint32_t p, float min_quality, sl_occ_pick *heap,
+                     uint32_t *hn, uint32_t cap)
+{
+    /* twice the half area over the squared distance to the box bounds every face's -A(N.V)/|D|^2
+     * summed: skip the exact sum when that cannot beat the worst kept so far */
+    sl_aabb b = sl_occ_proxy_box(s, &s->proxies[p]);
+    const float e[3] = {v->eye.x, v->eye.y, v->eye.z};
+    float d2 = sl_bvh_dist2(&b, e);
+    if (d2 > 0) {
+        float bound = 2.0f * s->proxies[p].area / d2;
+        if (bound < min_quality || (*hn == cap && bound <= heap[0].quality))
+            return;
+    }
+    if (!sl_occ_usable(s, p, v))
+        return;
+    float q = sl_occ_quality(s, p, v);
+    if (q >= min_quality && q > 0)
+        heap_push(heap, hn, cap, (sl_occ_pick){p, q});
+}
+
+uint32_t sl_occ_select(const sl_occ_set *s, const sl_occ_view *v, const struct sl_bvh_t *bvh, const float *node_area,
+                       uint32_t max_count, uint32_t tri_budget, float min_quality, sl_occ_pick *heap,
+                       sl_occ_pick *out, uint64_t *nodes_visited)
+{
+    if (max_count == 0 || s->proxy_count == 0)
+        return 0;
+    uint32_t hn = 0;
+    uint64_t visited = 0;
+    const float e[3] = {v->eye.x, v->eye.y, v->eye.z};
+    if (bvh->node_slots) {
+        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
+        for (;;) {
+            const sl_bvh_node *n = &bvh->nodes[ni];
+            visited++;
+            bool go = node_area[ni] > 0;
+            if (go) {
+                /* no quality below this node can reach min_quality, or beat the worst kept once
+                 * the heap is full (the walk goes near to far, so it fills with good ones early) */
+                float d2 = sl_bvh_dist2(&n->box, e), bound = 2.0f * node_area[ni];
+                go = d2 <= 0 || (bound >= min_quality * d2 && !(hn == max_count && bound <= heap[0].quality * d2));
+            }
+            int r = go ? (mask ? sl_occ_frustum_classify(v, &n->box, mask) : 0) : -1;
+            if (r >= 0) {
+                if (n->count == 0) {
+                    bool right = sl_bvh_right_first(bvh->nodes, n, e);
+                    stack[sp] = n->first + (right ? 0 : 1);
+                    masks[sp] = (uint32_t)r;
+                    sp++;
+                    ni = n->first + (right ? 1 : 0);
+                    mask = (uint32_t)r;
+                    continue;
+                }
+                for (uint32_t j = n->first; j < n->first + n->count; j++) {
+                    uint32_t p = s->object_proxy[bvh->objects[j]];
+                    if (p == SL_NONE)
+                        continue;
+                    if (r && sl_occ_frustum_classify(v, &bvh->object_bounds[j], (uint32_t)r) < 0)
+                        continue;
+                    consider(s, v, p, min_quality, heap, &hn, max_count);
+                }
+            }
+            if (sp == 0)
+                break;
+            sp--;
+            ni = stack[sp];
+            mask = masks[sp];
+        }
+    }
+    /* proxies that belong to no object are not in the tree */
+    for (uint32_t p = 0; p < s->proxy_count; p++) {
+        if (s->proxies[p].object != SL_NONE)
+            continue;
+        sl_aabb b = s->proxies[p].box;
+        if (sl_occ_frustum_classify(v, &b, 0x3f) >= 0)
+            consider(s, v, p, min_quality, heap, &hn, max_count);
+    }
+    if (nodes_visited)
+        *nodes_visited += visited;
+    /* heap sort: best first */
+    uint32_t n = hn;
+    while (n > 1) {
+        sl_occ_pick top = heap[0], x = heap[n - 1];
+        n--;
+        uint32_t i = 0;
+        for (;;) {
+            uint32_t l = 2 * i + 1, r = l + 1, m = i;
+            float mq = x.quality;
+            if (l < n && heap[l].quality < mq)
+                m = l, mq = heap[l].quality;
+            if (r < n && heap[r].quality < mq)
+                m = r;
+            if (m == i)
+                break;
+            heap[i] = heap[m];
+            i = m;
+        }
+        heap[i] = x;
+        heap[n] = top;
+    }
+    /* heap[0..hn) is now in decreasing quality; keep what fits in the budget */
+    uint32_t k = 0;
+    uint64_t tris = 0;
+    for (uint32_t i = 0; i < hn; i++) {
+        uint32_t t = s->proxies[heap[i].proxy].triangles;
+        if (tris + t > tri_budget)
+            continue;
+        tris += t;
+        out[k++] = heap[i];
+    }
+    /* render order: nearest first. The rasterizer merges two depth layers per block and keeps the
+     * nearer one when they differ a lot, so front-to-back submission keeps the most occlusion;
+     * the distance rides in the quality field from here on (insertion sort: k is small) */
+    for (uint32_t i = 0; i < k; i++) {
+        sl_aabb b = sl_occ_proxy_box(s, &s->proxies[out[i].proxy]);
+        out[i].quality = sl_bvh_dist2(&b, e);
+    }
+    for (uint32_t i = 1; i < k; i++) {
+        sl_occ_pick x = out[i];
+        uint32_t j = i;
+        for (; j > 0 && out[j - 1].quality > x.quality; j--)
+            out[j] = out[j - 1];
+        out[j] = x;
+    }
+    return k;
+}
+
+/* ---- the rasterizer wrapper ---- */
+
+sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_occ_set *set,
+                             const sl_allocator *alloc, sl_error *err)
+{
+    memset(r, 0, sizeof *r);
+    r->alloc = *alloc;
+    r->threads = c->threads;
+    r->isa = c->isa;
+    if (!sl_raster_isa_available((sl_raster_isa)c->isa))
+        return sl_fail(err, SL_ERROR_UNSUPPORTED, "isa=%s: this CPU cannot run it",
+                       sl_raster_isa_name((sl_raster_isa)c->isa));
+    r->batch_cap = (size_t)(set ? set->prism_tri_count : 0) * 3 + 3;
+    r->batch = sl_alloc(alloc, r->batch_cap * sizeof(uint32_t));
+    r->proxy_count = set ? set->proxy_count : 0;
+    r->stamp = sl_calloc(alloc, r->proxy_count ? r->proxy_count : 1, sizeof(uint32_t));
+    if (!r->batch || !r->stamp)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for the occluder batch");
+    if (c->dump) {
+        snprintf(r->dump_path, sizeof r->dump_path, "%s", c->dump);
+        r->dump = r->dump_path;
+    }
+    if (c->record) {
+        snprintf(r->record_path, sizeof r->record_path, "%s", c->record);
+        r->record = r->record_path;
+    }
+    r->debug_frame = c->debug_frame;
+    return SL_OK;
+}
+
+void sl_occ_raster_free(sl_occ_raster *r)
+{
+    sl_raster_destroy(r->ctx);
+    sl_occ_recorder_destroy(r->rec);
+    sl_free(&r->alloc, r->batch, r->batch_cap * sizeof(uint32_t));
+    sl_free(&r->alloc, r->stamp, (size_t)(r->proxy_count ? r->proxy_count : 1) * sizeof(uint32_t));
+    memset(r, 0, sizeof *r);
+}
+
+sl_status sl_occ_raster_begin(sl_occ_raster *r, const sl_occ_view *v, sl_error *err)
+{
+    sl_status st;
+    if (!r->ctx || r->width != v->width || r->height != v->height) {
+        sl_raster_destroy(r->ctx);
+        r->ctx = NULL;
+        sl_raster_options o = sl_raster_default_options(v->width, v->height);
+        o.threads = r->threads;
+        o.isa = (sl_raster_isa)r->isa;
+        o.depth = v->depth;
+        if ((st = sl_raster_create(&o, &r->alloc, &r->ctx, err)) != SL_OK)
+            return st;
+        r->width = v->width;
+        r->height = v->height;
+    }
+    if ((st = sl_raster_begin_frame(r->ctx, v->depth, err)) != SL_OK)
+        return st;
+    if (++r->frame_id == 0) {
+        memset(r->stamp, 0, (size_t)r->proxy_count * sizeof(uint32_t));
+        r->frame_id = 1;
+    }
+    r->queries = r->pixel_queries = r->occluders_rendered = r->triangles_rendered = 0;
+    sl_occ_recorder_destroy(r->rec);
+    r->rec = NULL;
+    if (r->record && r->frame == r->debug_frame) {
+        sl_raster_options o = sl_raster_default_options(v->width, v->height);
+        if ((st = sl_occ_recorder_create(&r->alloc, &o, v->depth, &r->rec, err)) != SL_OK)
+            return st;
+    }
+    return SL_OK;
+}
+
+/* model-to-clip = vp * affine, in double, rounded once */
+static void mul_affine(const sl_mat4 *vp, const sl_affine *t, float out[16])
+{
+    double a4[16] = {0};
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 4; c++)
+            a4[c * 4 + r] = t->m[4 * r + c];
+    a4[15] = 1;
+    for (int c = 0; c < 4; c++)
+        for (int r = 0; r < 4; r++) {
+            double s = 0;
+            for (int k = 0; k < 4; k++)
+                s += (double)vp->m[k * 4 + r] * a4[c * 4 + k];
+            out[c * 4 + r] = (float)s;
+        }
+}
+
+uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const uint32_t *proxies,
+                              uint32_t n)
+{
+    size_t k = 0;
+    uint32_t rendered = 0;
+    const struct sl_scene_t *sc = s->scene;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t p = proxies[i];
+        if (r->stamp[p] == r->frame_id)
+            continue;
+        r->stamp[p] = r->frame_id;
+        const sl_occ_proxy *pr = &s->proxies[p];
+        rendered++;
+        r->triangles_rendered += pr->triangles;
+        if (pr->kind == SL_OCC_PRISM) {
+            size_t m = 3 * (size_t)pr->count;
+            memcpy(r->batch + k, s->prism_idx + 3 * (size_t)pr->first, m * sizeof(uint32_t));
+            k += m;
+            continue;
+        }
+        const sl_mesh_rec *mr = &sl_scene_meshes(sc)[pr->mesh];
+        sl_affine xf;
+        if (pr->kind == SL_OCC_MESH) {
+            uint32_t t = sl_scene_objects(sc)[pr->object].transform;
+            xf = t == SL_NONE ? sl_affine_identity() : sl_scene_transforms(sc)[t];
+        } else {
+            xf = sl_scene_occluder(s->scene, pr->source).transform;
+        }
+        float m[16];
+        mul_affine(&v->vp, &xf, m);
+        const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
+        const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
+        /* two-sided: open meshes are seen from both sides by the oracle */
+        (void)sl_raster_render_triangles(r->ctx, pos, mr->vertex_count, idx, mr->triangle_count, 12, m,
+                                         SL_RASTER_CULL_NONE, NULL);
+        if (r->rec)
+            sl_occ_recorder_batch(r->rec, pos, 12, idx, mr->triangle_count, m, SL_RASTER_CULL_NONE);
+    }
+    if (k) {
+        /* prisms are closed and the eye is outside them (sl_occ_usable): back faces are hidden */
+        (void)sl_raster_render_triangles(r->ctx, s->prism_pos, s->prism_vertex_count, r->batch, (uint32_t)(k / 3), 12,
+                                         v->vp.m, SL_RASTER_CULL_CW, NULL);
+        if (r->rec)
+            sl_occ_recorder_batch(r->rec, s->prism_pos, 12, r->batch, (uint32_t)(k / 3), v->vp.m, SL_RASTER_CULL_CW);
+    }
+    r->occluders_rendered += rendered;
+    return rendered;
+}
+
+sl_raster_result sl_occ_raster_test(sl_occ_raster *r, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d)
+{
+    r->queries++;
+    if (x1 > x0 && y1 > y0)
+        r->pixel_queries += (uint64_t)(x1 - x0) * (uint64_t)(y1 - y0);
+    sl_raster_result res = sl_raster_test_rect(r->ctx, x0, y0, x1, y1, d);
+    if (r->rec)
+        sl_occ_recorder_query(r->rec, x0, y0, x1, y1, d, res);
+    return res;
+}
+
+sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, const sl_occ_view *v, uint32_t object)
+{
+    const struct sl_scene_t *sc = scene;
+    const sl_object_rec *o = &sl_scene_objects(sc)[object];
+    const sl_mesh_rec *mr = &sl_scene_meshes(sc)[o->mesh];
+    sl_affine xf = o->transform == SL_NONE ? sl_affine_identity() : sl_scene_transforms(sc)[o->transform];
+    float m[16];
+    mul_affine(&v->vp, &xf, m);
+    const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
+    const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
+    r->queries++;
+    sl_raster_result res = sl_raster_test_triangles(r->ctx, pos, mr->vertex_count, idx, mr->triangle_count, 12, m,
+                                                    SL_RASTER_CULL_NONE);
+    if (r->rec)
+        sl_occ_recorder_mesh_query(r->rec, pos, 12, idx, mr->triangle_count, m, SL_RASTER_CULL_NONE, res);
+    return res;
+}
+
+sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err)
+{
+    bool debug = r->frame == r->debug_frame;
+    r->frame++;
+    if (!debug)
+        return SL_OK;
+    sl_status st = SL_OK;
+    if (r->rec) {
+        st = sl_occ_recorder_save(r->rec, r->record, err);
+        sl_occ_recorder_destroy(r->rec);
+        r->rec = NULL;
+        if (st != SL_OK)
+            return st;
+    }
+    if (r->dump) {
+        char path[300];
+        size_t n = (size_t)r->width * r->height;
+        float *depth = sl_alloc(&r->alloc, n * sizeof(float));
+        if (!depth)
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "dump: out of memory for %zu depths", n);
+        st = sl_raster_read_depth(r->ctx, depth, n, err);
+        snprintf(path, sizeof path, "%s-depth.png", r->dump);
+        if (st == SL_OK)
+            st = sl_occ_write_depth_png(path, depth, r->width, r->height, &r->alloc, err);
+        sl_free(&r->alloc, depth, n * sizeof(float));
+        if (st == SL_OK && levels && levels->count) {
+            snprintf(path, sizeof path, "%s-pyramid.png", r->dump);
+            st = sl_occ_write_levels_png(path, levels, &r->alloc, err);
+        }
+    }
+    return st;
+}

@@ -1,0 +1,349 @@
+/* Shared machinery of the online occlusion methods (hzb, hom, lazygrid, lazygrid-z, busygrid,
+ * frusta, plp, cplp): the per-frame view, box projection, occluder proxies and their selection,
+ * a rasterizer wrapper that counts, records and dumps, and the debugging recorder/replayer.
+ *
+ * Occluder proxies (docs/occlusion.md, "Occluders"). A proxy is geometry that lies INSIDE an
+ * object's solid, so that whatever it hides the object hides too; the methods render proxies,
+ * never anything larger than the original:
+ *  - PRISM: a 2.5D footprint (sl_scene_footprint, inside its building by construction: roof at the
+ *    eave, walls moved inward by the window recess) shrunk further by `inset` metres in every
+ *    direction (polygon offset inward, roof lowered, base raised). The inset is what makes the
+ *    proxy conservative against the oracle's pixel sampling: a pixel centre the rasterizer counts
+ *    as covered by the shrunk prism is at least SL_OCC_MIN_INSET_PX pixels inside the building's
+ *    silhouette whenever inset * focal / distance >= SL_OCC_MIN_INSET_PX, so the independent
+ *    1/256-pixel snapping of rasterizer and oracle cannot disagree there. Beyond that distance a
+ *    prism is not used (sl_occ_usable). A closed outward-wound solid: back faces may be culled.
+ *  - MESH: the object's own triangles (objects flagged SL_OBJECT_OCCLUDER without a footprint,
+ *    e.g. the solid world faces of a Quake III map), with the object's current transform, so a
+ *    moving occluder is rendered where it is. Its silhouette coincides with the original, so its
+ *    conservativeness rests on the rasterizer and the oracle snapping the same edges alike (both
+ *    follow the same fill rule; see docs/occlusion.md for the residual risk).
+ *  - SCENE_MESH: a 3D occluder mesh of the scene (sl_scene_add_occluder), trusted to lie inside.
+ * The meshoptimizer simplifier is not used: its output is not guaranteed to lie inside the
+ * original, and a proxy must never exceed the original's silhouette.
+ *
+ * Everything here is allocation-free per frame except the rasterizer's (re)creation when the
+ * camera's resolution changes and the debugging outputs of the frame asked for.
+ */
+#ifndef SL_CULL_OCCLUDERS_H
+#define SL_CULL_OCCLUDERS_H
+
+#include "culler_internal.h"
+
+#include "accel/bvh_internal.h"
+#include "scene/scene_internal.h"
+#include "sightline/accel.h"
+#include "sightline/raster.h"
+
+/* Pixels a prism proxy must lie inside its object's silhouette: 8 times the combined snapping
+ * error of the rasterizer and the oracle (1/512 pixel each, plus float transform rounding). */
+#define SL_OCC_MIN_INSET_PX (1.0f / 32.0f)
+
+/* Branch-free float min/max without libm's NaN rules (compiles to minss/maxss; with a NaN they
+ * return the second argument). */
+static inline float sl_occ_minf(float a, float b) { return a < b ? a : b; }
+static inline float sl_occ_maxf(float a, float b) { return a > b ? a : b; }
+
+/* ---- the frame's view ---- */
+
+typedef struct sl_occ_view {
+    sl_camera cam;
+    sl_mat4 vp;               /* world to clip (float, what the rasterizer is given) */
+    sl_vec3 eye, fwd;
+    sl_frustum fr;
+    float slack[6];           /* plane slack as vfc: 1e-6 (1 + |d|) */
+    bool ortho;
+    float focal;              /* pixels per metre at unit forward distance (perspective), or pixels
+                                 per metre (orthographic) */
+    uint32_t width, height;
+    sl_raster_depth depth;    /* INV_W for perspective, LINEAR_Z for orthographic */
+} sl_occ_view;
+
+/* Fill a view from a validated camera. */
+void sl_occ_view_init(sl_occ_view *v, const sl_camera *cam);
+
+/* A box's screen footprint: the half-open pixel rectangle of every pixel its projection touches
+ * (grown by 1/64 pixel for rounding) and the depth of its nearest point in the rasterizer's
+ * convention (larger = nearer), nudged nearer by 2^-20 relative. */
+typedef struct sl_occ_rect {
+    int32_t x0, y0, x1, y1;
+    float dnear;
+} sl_occ_rect;
+
+enum {
+    SL_OCC_OUT = 0,    /* beyond a frustum plane (or off screen): invisible */
+    SL_OCC_RECT = 1,   /* rect and dnear are valid */
+    SL_OCC_NEAR = 2    /* crosses the near plane, contains the eye or is not finite: treat as visible,
+                          rect is the whole screen and dnear +infinity */
+};
+
+/* Project box b. Returns SL_OCC_OUT, SL_OCC_RECT or SL_OCC_NEAR. */
+int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r);
+
+/* Forward (eye-space) depth range of a box: min and max of dot(fwd, p - eye) over its corners. */
+static inline void sl_occ_box_zrange(const sl_occ_view *v, const sl_aabb *b, float *zmin, float *zmax)
+{
+    const float f[3] = {v->fwd.x, v->fwd.y, v->fwd.z};
+    const float lo[3] = {b->min.x - v->eye.x, b->min.y - v->eye.y, b->min.z - v->eye.z};
+    const float hi[3] = {b->max.x - v->eye.x, b->max.y - v->eye.y, b->max.z - v->eye.z};
+    float a = 0, c = 0;
+    for (int i = 0; i < 3; i++) {
+        float p = f[i] * lo[i], q = f[i] * hi[i];
+        a += p < q ? p : q;
+        c += p < q ? q : p;
+    }
+    *zmin = a;
+    *zmax = c;
+}
+
+/* Frustum classification with plane masks (as vfc): -1 outside, else the mask of the planes the
+ * box straddles (0: wholly inside). */
+int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask);
+
+/* True when point p lies in box b grown by g. */
+static inline bool sl_occ_point_in_box(sl_vec3 p, const sl_aabb *b, float g)
+{
+    return p.x >= b->min.x - g && p.x <= b->max.x + g && p.y >= b->min.y - g && p.y <= b->max.y + g &&
+           p.z >= b->min.z - g && p.z <= b->max.z + g;
+}
+
+/* ---- occluder proxies ---- */
+
+typedef enum sl_occ_kind { SL_OCC_PRISM = 1, SL_OCC_MESH = 2, SL_OCC_SCENE_MESH = 3 } sl_occ_kind;
+
+typedef struct sl_occ_proxy {
+    uint32_t object;          /* the object it stands for, or SL_NONE */
+    uint32_t kind;            /* sl_occ_kind */
+    uint32_t mesh;            /* MESH, SCENE_MESH: the scene mesh */
+    uint32_t source;          /* PRISM: footprint index; SCENE_MESH: occluder index */
+    uint32_t first, count;    /* PRISM: triangles [first, first+count) of prism_idx (3 indices each) */
+    uint32_t face_first, face_count; /* planar convex faces for shadow frusta (faces[]) */
+    uint32_t triangles;       /* triangles rendered for it */
+    float inset;              /* metres inside the object (0: coincides, MESH) */
+    float area;               /* half the surface area: the mean projected area of a convex solid */
+    sl_aabb box;              /* world box (PRISM, SCENE_MESH; MESH reads the object's current box) */
+    bool closed;              /* closed, outward-wound: back faces may be culled */
+    bool enabled;             /* PRISM: false once its object moved away from the footprint */
+} sl_occ_proxy;
+
+/* A planar convex polygon of a proxy (a prism wall, a convex piece of a roof, a mesh triangle),
+ * vertices counter-clockwise seen from the side its normal points to. */
+typedef struct sl_occ_face {
+    uint32_t proxy;
+    uint32_t first, count;    /* vertices in face_verts, world coordinates; count 0 when the set was
+                                 made without `faces` (then only the plane, centre and area are kept)
+                                 (MESH proxies: static objects only, a moving one's are not kept) */
+    sl_vec3 normal;           /* unit */
+    sl_vec3 centre;
+    float area;
+} sl_occ_face;
+
+typedef struct sl_occ_options {
+    float inset;              /* metres a prism is shrunk by (0.01 .. 10) */
+    bool all_objects;         /* every object without a prism gets a MESH proxy, not only OCCLUDER ones */
+    bool faces;               /* keep the convex faces' vertices (frusta, hom) and MESH faces */
+    uint32_t mesh_faces;      /* largest triangles kept per MESH proxy as faces */
+} sl_occ_options;
+
+typedef struct sl_occ_set {
+    sl_allocator alloc;
+    sl_scene scene;
+    sl_occ_options opt;
+    uint32_t proxy_count;
+    sl_occ_proxy *proxies;
+    uint32_t object_count;
+    uint32_t *object_proxy;   /* per object: its proxy or SL_NONE */
+    sl_affine *prism_xf;      /* per proxy: the object's transform when the prism was made */
+    float *prism_pos;         /* world vertices of every prism, 3 floats each */
+    uint32_t prism_vertex_count;
+    uint32_t *prism_idx;      /* 3 per triangle, into prism_pos */
+    uint32_t prism_tri_count;
+    sl_occ_face *faces;
+    uint32_t face_count;
+    sl_vec3 *face_verts;
+    uint32_t face_vert_count;
+    uint32_t prisms, prisms_rejected, meshes, scene_meshes;
+} sl_occ_set;
+
+/* Build the proxies of a scene. */
+sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_allocator *alloc, sl_occ_set **out,
+                            sl_error *err);
+void sl_occ_set_destroy(sl_occ_set *s);
+/* Objects moved: a prism whose object's transform changed is disabled (the footprint no longer
+ * describes it); MESH proxies follow their object by themselves. */
+void sl_occ_set_scene_changed(sl_occ_set *s);
+
+/* Current world box of a proxy. */
+static inline sl_aabb sl_occ_proxy_box(const sl_occ_set *s, const sl_occ_proxy *p)
+{
+    return p->kind == SL_OCC_MESH ? sl_scene_object_bounds_array(s->scene)[p->object] : p->box;
+}
+
+/* May the proxy be rendered this frame? Enabled; the eye outside its (and its object's) box; a
+ * prism near enough that its inset is at least SL_OCC_MIN_INSET_PX pixels on screen. */
+bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v);
+
+/* Coorg-Teller occluder quality, summed over the proxy's faces: -A (N.V) / |D|^2 with V the unit
+ * direction from the eye to the face centre and D the vector to it (a solid-angle estimate); for a
+ * MESH proxy, its half area over the squared distance to its box centre. */
+float sl_occ_quality(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v);
+
+/* Per BVH node slot, the largest proxy area in its subtree (0 where none), for pruning the
+ * selection walk: area / dist^2(eye, node) bounds every quality below the node. */
+void sl_occ_node_areas(const sl_occ_set *s, const struct sl_bvh_t *bvh, float *node_area);
+
+typedef struct sl_occ_pick {
+    uint32_t proxy;
+    float quality;
+} sl_occ_pick;
+
+/* Choose this frame's occluders: the usable proxies in the frustum whose quality is at least
+ * min_quality, the best max_count of them, then in decreasing quality while their triangles fit
+ * in tri_budget. heap must hold max_count entries. Writes the choice to out sorted nearest first
+ * (the order to render them in; out[i].quality then holds the squared distance to the proxy's
+ * box) and returns its length. nodes_visited (may be NULL) counts the walk. */
+uint32_t sl_occ_select(const sl_occ_set *s, const sl_occ_view *v, const struct sl_bvh_t *bvh, const float *node_area,
+                       uint32_t max_count, uint32_t tri_budget, float min_quality, sl_occ_pick *heap,
+                       sl_occ_pick *out, uint64_t *nodes_visited);
+
+/* ---- options shared by the methods ---- */
+
+typedef struct sl_occ_common {
+    uint32_t threads;         /* rasterizer threads (the caller included) */
+    uint32_t isa;             /* sl_raster_isa */
+    uint32_t leaf_size;       /* BVH leaf size */
+    float inset;
+    bool all_objects;         /* every object may occlude (its own mesh), not only OCCLUDER ones */
+    uint32_t occluders;       /* most occluders chosen per frame */
+    uint32_t budget;          /* their triangle budget */
+    float min_quality;        /* least Coorg-Teller quality of a chosen occluder */
+    const char *dump;         /* PNG prefix for the depth buffer and pyramid of frame debug_frame */
+    const char *record;       /* file recording frame debug_frame's occluders and queries */
+    uint32_t debug_frame;
+    char dump_buf[256], record_buf[256];
+} sl_occ_common;
+
+enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4 };
+
+/* Read the shared options named by `which` (SL_OCC_OPT_*), with the method's defaults for
+ * occluders and budget. */
+sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occluders, uint32_t def_budget,
+                                  sl_occ_common *c, sl_error *err);
+/* Help lines of the shared options. */
+#define SL_OCC_HELP_RASTER \
+    "threads=1..16 (default 1): rasterizer threads, the caller included (used for batches of 512+ triangles)\n" \
+    "isa=auto|scalar|sse41|avx2|avx512 (default auto): rasterizer instruction set\n"
+#define SL_OCC_HELP_DEBUG \
+    "dump=PREFIX (default none): at frame debug_frame write PREFIX-depth.png and, where the method has one, " \
+    "PREFIX-pyramid.png (its pyramid or grid)\n" \
+    "record=FILE (default none): record frame debug_frame's occluders and queries for replay\n" \
+    "debug_frame=N (default 0): the cull call (0 = first) that dump and record capture\n"
+
+/* A string option (no scene paths may contain ',' or white space). *out is NULL when absent;
+ * it points into o's text, copied by the caller. */
+sl_status sl_occ_opts_string(sl_opts *o, const char *key, const char **out, sl_error *err);
+
+/* ---- the rasterizer wrapper ---- */
+
+typedef struct sl_occ_recorder sl_occ_recorder;
+
+typedef struct sl_occ_raster {
+    sl_allocator alloc;
+    sl_raster *ctx;
+    uint32_t width, height;
+    uint32_t threads, isa;
+    uint32_t *batch;          /* prism indices of one batch */
+    size_t batch_cap;         /* in indices */
+    uint32_t *stamp;          /* per proxy: frame + 1 when rendered this frame */
+    uint32_t proxy_count;
+    uint32_t frame_id;        /* increments per frame (never 0 in stamp) */
+    uint64_t frame;           /* cull calls so far */
+    /* counters of the frame */
+    uint64_t queries, pixel_queries, occluders_rendered, triangles_rendered;
+    /* debugging */
+    const char *dump, *record;
+    uint32_t debug_frame;
+    sl_occ_recorder *rec;     /* non-NULL while frame debug_frame is being recorded */
+    char dump_path[256], record_path[256];
+} sl_occ_raster;
+
+sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_occ_set *set,
+                             const sl_allocator *alloc, sl_error *err);
+void sl_occ_raster_free(sl_occ_raster *r);
+/* Start a frame: (re)create the context at the camera's resolution when it changed, clear it in
+ * the view's depth mode, start recording if this is the debug frame. */
+sl_status sl_occ_raster_begin(sl_occ_raster *r, const sl_occ_view *v, sl_error *err);
+/* Render proxies (skipping those already rendered this frame): prisms in one batch (threaded when
+ * large), meshes one call each. Returns the number rendered. */
+uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const uint32_t *proxies,
+                              uint32_t n);
+/* Was the proxy rendered this frame? */
+static inline bool sl_occ_raster_rendered(const sl_occ_raster *r, uint32_t proxy)
+{
+    return r->stamp[proxy] == r->frame_id;
+}
+/* test_rect through the wrapper: counted (queries, pixels) and recorded. */
+sl_raster_result sl_occ_raster_test(sl_occ_raster *r, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d);
+/* Test an object by its own triangles (sl_raster_test_triangles, two-sided, with its current
+ * transform): counted as one query and recorded. */
+sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, const sl_occ_view *v, uint32_t object);
+/* End a frame: on the debug frame, write the recording and the dumps (the pyramid given as
+ * `levels` float images, level i of size w_i x h_i, may be NULL). Debug output failures are
+ * reported as errors of the cull call. */
+typedef struct sl_occ_levels {
+    uint32_t count;
+    const float *const *data;
+    const uint32_t *w, *h;
+    bool opacity;             /* values are opacities in [0,1] (else depths, larger = nearer) */
+} sl_occ_levels;
+sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err);
+
+/* ---- debugging (occlusion_debug.c) ---- */
+
+/* Write a depth buffer (width x height floats, larger = nearer, 0 = empty) as a grey PNG: empty
+ * pixels black, the rest from dark (far) to white (near) on a logarithmic ramp. */
+sl_status sl_occ_write_depth_png(const char *path, const float *depth, uint32_t width, uint32_t height,
+                                 const sl_allocator *alloc, sl_error *err);
+/* Write pyramid levels in one grey PNG, mipmap style: level 0 on the left, the coarser levels
+ * stacked top to bottom to its right, each at its own size (depths on the ramp of
+ * sl_occ_write_depth_png, opacities from black 0 to white 1). */
+sl_status sl_occ_write_levels_png(const char *path, const sl_occ_levels *levels, const sl_allocator *alloc,
+                                  sl_error *err);
+
+/* A recording of one frame: the rasterizer's options, every occluder batch (triangles expanded
+ * to 3 vertices each, the model-to-clip matrix, the back-face mode) and every rectangle query with
+ * its answer, in order. The file format is in docs/occlusion.md. */
+sl_status sl_occ_recorder_create(const sl_allocator *alloc, const sl_raster_options *ropt, sl_raster_depth depth,
+                                 sl_occ_recorder **out, sl_error *err);
+void sl_occ_recorder_destroy(sl_occ_recorder *rec);
+/* Append a batch (vertices at byte stride, indices) or a query; failures are sticky. */
+void sl_occ_recorder_batch(sl_occ_recorder *rec, const float *vertices, uint32_t vertex_stride_bytes,
+                           const uint32_t *indices, uint32_t triangle_count, const float m[16],
+                           sl_raster_backface backface);
+void sl_occ_recorder_query(sl_occ_recorder *rec, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d,
+                           sl_raster_result result);
+/* A triangle-mesh query (sl_raster_test_triangles) with its answer. */
+void sl_occ_recorder_mesh_query(sl_occ_recorder *rec, const float *vertices, uint32_t vertex_stride_bytes,
+                                const uint32_t *indices, uint32_t triangle_count, const float m[16],
+                                sl_raster_backface backface, sl_raster_result result);
+/* Write the recording atomically. */
+sl_status sl_occ_recorder_save(sl_occ_recorder *rec, const char *path, sl_error *err);
+
+/* What a replay found. */
+typedef struct sl_occ_replay_report {
+    uint32_t width, height;
+    uint32_t batches, queries;
+    uint64_t triangles;
+    uint32_t mismatches;      /* queries whose answer differs from the recorded one */
+    uint32_t first_mismatch;  /* index of the first, or UINT32_MAX */
+    uint32_t occluded;        /* recorded OCCLUDED answers */
+    uint64_t depth_hash;      /* XXH3 of the final depth buffer (read_depth) */
+} sl_occ_replay_report;
+
+/* Replay a recording on a fresh single-threaded context with the given instruction set (AUTO:
+ * the best available): render every batch, re-run every query, compare the answers. Validates
+ * the whole file first (SL_ERROR_FORMAT naming the offset and the field). */
+sl_status sl_occ_replay(const char *path, sl_raster_isa isa, const sl_allocator *alloc, sl_occ_replay_report *out,
+                        sl_error *err);
+
+#endif

@@ -1,0 +1,243 @@
+/* pvs: precomputed from-region visibility at run time — find the view cell holding the eye, then
+ * frustum-cull that cell's baked visible set (P. Wonka, PhD thesis, TU Wien 2001, section 5.2.4
+ * and the walkthrough of section 5.7: "visible objects of the current view cell ... view-frustum
+ * culled"). The set comes from a .slpvs file (include/sightline/pvs.h, `sightline pvs build`).
+ *
+ * Conservative when the file was baked by a conservative method for this scene: every object
+ * visible from anywhere in the cell is in the set, and the frustum test only drops boxes wholly
+ * outside the frustum. Two cases fall back to plain view-frustum culling of every object, so the
+ * guarantee holds everywhere: an eye in no cell (inside a building, above the eye range, off the
+ * streets), and dynamic objects (cars), whose baked positions mean nothing once they move
+ * (option dynamic=frustum, the default).
+ *
+ * Steady state allocates nothing: the decoded set of the current cell is kept, and re-decoded only
+ * when the eye changes cell (one zstd block, cached by the PVS handle). */
+#include "culler_internal.h"
+
+#include "sightline/accel.h"
+#include "sightline/pvs.h"
+#include "scene/scene_internal.h"
+
+#include <math.h>
+
+#define PATH_MAX_CHARS SL_OPTS_MAX_CHARS
+
+typedef struct pvs_config {
+    char file[PATH_MAX_CHARS + 1];
+    uint32_t dynamic;           /* 0: frustum, 1: pvs */
+    bool aggressive;            /* accept a file baked by an aggressive method */
+} pvs_config;
+
+typedef struct pvs_state {
+    sl_allocator alloc;
+    sl_scene scene;
+    pvs_config cfg;
+    sl_pvs pvs;
+    sl_viewcells cells;
+    uint32_t object_count;
+    uint32_t cell;              /* cell whose set is in `set`, or SL_NONE */
+    uint32_t *set;              /* object_count entries */
+    uint32_t set_count;
+    uint32_t *dyn;              /* ascending ids of dynamic objects */
+    uint32_t dyn_count;
+    uint32_t *scratch;          /* object_count entries */
+    uint32_t *tmp;              /* object_count entries */
+} pvs_state;
+
+static const char g_help[] =
+    "file=PATH (required): the .slpvs baked for this scene by `sightline pvs build` (no commas or spaces)\n"
+    "dynamic=frustum|pvs (default frustum): dynamic objects (cars) by frustum only, or from the baked set too\n"
+    "aggressive=BOOL (default false): accept a file baked by an aggressive method (gvs); the culler is then aggressive\n";
+
+/* A string option: the option reader has typed getters only, so this file records the key as
+ * known, marks it used and notes its effective value itself (the fields are documented in
+ * culler_internal.h). */
+static const char *opts_string(sl_opts *o, const char *key)
+{
+    bool known = false;
+    for (uint32_t i = 0; i < o->known_count; i++)
+        known |= strcmp(o->known[i], key) == 0;
+    if (!known && o->known_count < SL_OPTS_MAX_ENTRIES)
+        o->known[o->known_count++] = key;
+    for (uint32_t i = 0; i < o->count; i++)
+        if (strcmp(o->keys[i], key) == 0) {
+            o->used[i] = true;
+            size_t n = strlen(o->effective);
+            snprintf(o->effective + n, sizeof o->effective - n, "%s%s=%s", n ? "," : "", key, o->values[i]);
+            return o->values[i];
+        }
+    return NULL;
+}
+
+static sl_status pvs_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
+{
+    pvs_config *c = config;
+    const char *file = opts_string(o, "file");
+    static const char *const dyn_names[] = {"frustum", "pvs"};
+    sl_status st = sl_opts_enum(o, "dynamic", dyn_names, 2, 0, &c->dynamic, err);
+    if (st == SL_OK)
+        st = sl_opts_bool(o, "aggressive", false, &c->aggressive, err);
+    if (st != SL_OK)
+        return st;
+    if (!file) {
+        /* unknown keys are the more useful message when there are some */
+        if ((st = sl_opts_check_unused(o, err)) != SL_OK)
+            return st;
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "pvs: option file=PATH is required (bake a PVS with `sightline pvs build SCENE -o FILE.slpvs`)");
+    }
+    if (strlen(file) > PATH_MAX_CHARS)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "pvs: file name is too long");
+    snprintf(c->file, sizeof c->file, "%s", file);
+    /* baked sets of moving objects go stale: trusting them gives up the guarantee */
+    if (c->dynamic == 1 || c->aggressive)
+        *g = SL_AGGRESSIVE;
+    return SL_OK;
+}
+
+static void pvs_destroy(void *state)
+{
+    pvs_state *s = state;
+    if (!s)
+        return;
+    const sl_allocator *a = &s->alloc;
+    size_t n = (size_t)s->object_count + 1;
+    sl_pvs_destroy(s->pvs);
+    sl_free(a, s->set, n * sizeof(uint32_t));
+    sl_free(a, s->dyn, n * sizeof(uint32_t));
+    sl_free(a, s->scratch, n * sizeof(uint32_t));
+    sl_free(a, s->tmp, n * sizeof(uint32_t));
+    sl_free(a, s, sizeof *s);
+}
+
+static sl_status pvs_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
+{
+    pvs_state *s = sl_calloc(alloc, 1, sizeof *s);
+    if (!s)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory");
+    s->alloc = *alloc;
+    s->scene = scene;
+    s->cfg = *(const pvs_config *)config;
+    s->object_count = sl_scene_object_count(scene);
+    s->cell = SL_NONE;
+    sl_status st = sl_pvs_load(s->cfg.file, alloc, &s->pvs, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "pvs");
+        pvs_destroy(s);
+        return st;
+    }
+    sl_pvs_info info;
+    sl_pvs_get_info(s->pvs, &info);
+    if (info.object_count != s->object_count || info.scene_key != sl_pvs_scene_key(scene)) {
+        st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                     "pvs: %s was baked for another scene (%u objects, key %016llx; this scene has %u objects, key "
+                     "%016llx): bake it again for this scene",
+                     s->cfg.file, info.object_count, (unsigned long long)info.scene_key, s->object_count,
+                     (unsigned long long)sl_pvs_scene_key(scene));
+        pvs_destroy(s);
+        return st;
+    }
+    /* the culler's guarantee was fixed by its options: a file from an aggressive bake must be
+     * asked for explicitly */
+    const char *g = sl_pvs_meta(s->pvs, "guarantee");
+    if (!s->cfg.aggressive && (!g || strcmp(g, "conservative") != 0)) {
+        const char *m = sl_pvs_meta(s->pvs, "method");
+        st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                     "pvs: %s was baked by %s method %s: pass aggressive=true to use it (the culler is then aggressive)",
+                     s->cfg.file, g ? "the aggressive" : "an unknown", m ? m : "?");
+        pvs_destroy(s);
+        return st;
+    }
+    s->cells = sl_pvs_cells(s->pvs);
+    size_t n = (size_t)s->object_count + 1;
+    s->set = sl_alloc(alloc, n * sizeof(uint32_t));
+    s->dyn = sl_alloc(alloc, n * sizeof(uint32_t));
+    s->scratch = sl_alloc(alloc, n * sizeof(uint32_t));
+    s->tmp = sl_alloc(alloc, n * sizeof(uint32_t));
+    if (!s->set || !s->dyn || !s->scratch || !s->tmp) {
+        pvs_destroy(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory for %u objects", s->object_count);
+    }
+    const sl_object_rec *objs = sl_scene_objects(scene);
+    for (uint32_t i = 0; i < s->object_count; i++)
+        if (s->cfg.dynamic == 0 && (objs[i].flags & SL_OBJECT_DYNAMIC))
+            s->dyn[s->dyn_count++] = i;
+    *state = s;
+    return SL_OK;
+}
+
+/* Frustum-test candidates (ascending) into out (ascending); skip dynamic ones when they are
+ * handled separately. Returns the count. */
+static uint32_t frustum_filter(const pvs_state *s, const sl_frustum *fr, const uint32_t *cand, uint32_t n, uint32_t *out,
+                               bool skip_dynamic, uint64_t *tested)
+{
+    const sl_aabb *bounds = sl_scene_object_bounds_array(s->scene);
+    const sl_object_rec *objs = sl_scene_objects(s->scene);
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t id = cand[i];
+        if (skip_dynamic && (objs[id].flags & SL_OBJECT_DYNAMIC))
+            continue;
+        (*tested)++;
+        if (sl_frustum_test_aabb(fr, &bounds[id]) != 0)
+            out[k++] = id;
+    }
+    return k;
+}
+
+static sl_status pvs_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+                          sl_cull_stats *stats, sl_error *err)
+{
+    (void)capacity;
+    pvs_state *s = state;
+    double t0 = sl_now();
+    uint32_t cell = sl_viewcells_locate(s->cells, s->scene, cam->position);
+    stats->nodes_visited = 1;
+    if (cell != s->cell) {
+        s->cell = SL_NONE;
+        if (cell != SL_NONE) {
+            sl_status st = sl_pvs_cell_set(s->pvs, cell, s->set, s->object_count, &s->set_count, err);
+            if (st != SL_OK)
+                return st;
+        }
+        s->cell = cell;
+    }
+    double t1 = sl_now();
+    sl_frustum fr = sl_camera_frustum(cam);
+    bool skip_dyn = s->cfg.dynamic == 0;
+    uint32_t n;
+    if (cell == SL_NONE) {
+        /* outside every cell: every object is a candidate (ids are ascending by construction) */
+        for (uint32_t i = 0; i < s->object_count; i++)
+            s->scratch[i] = i;
+        n = frustum_filter(s, &fr, s->scratch, s->object_count, s->tmp, skip_dyn, &stats->objects_tested);
+    } else {
+        n = frustum_filter(s, &fr, s->set, s->set_count, s->tmp, skip_dyn, &stats->objects_tested);
+    }
+    uint32_t nd = skip_dyn ? frustum_filter(s, &fr, s->dyn, s->dyn_count, s->scratch, false, &stats->objects_tested) : 0;
+    /* merge the two ascending lists (disjoint: the set's dynamic objects were skipped) */
+    uint32_t i = 0, j = 0, k = 0;
+    while (i < n || j < nd) {
+        if (j >= nd || (i < n && s->tmp[i] < s->scratch[j]))
+            out[k++] = s->tmp[i++];
+        else
+            out[k++] = s->scratch[j++];
+    }
+    *count = k;
+    sl_cull_phase(stats, "lookup", sl_cull_ms(t0, t1));
+    sl_cull_phase(stats, "frustum", sl_cull_ms(t1, sl_now()));
+    return SL_OK;
+}
+
+const sl_cull_method sl_cull_method_pvs = {
+    .name = "pvs",
+    .summary = "precomputed visibility: the baked set of the eye's view cell, frustum-culled (Wonka 2001, ch. 5)",
+    .options_help = g_help,
+    .guarantee = SL_CONSERVATIVE,
+    .config_size = sizeof(pvs_config),
+    .configure = pvs_configure,
+    .create = pvs_create,
+    .cull = pvs_cull,
+    .scene_changed = NULL,
+    .destroy = pvs_destroy,
+};

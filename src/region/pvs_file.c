@@ -1,0 +1,844 @@
+/* The .slpvs file: writer, reader and decoder of per-cell visible sets. Byte layout and checks:
+ * docs/pvs.md ("The .slpvs format"); keep the two in step.
+ *
+ * Shape, after .slscene (docs/slscene-format.md): a 64-byte header, a table of 48-byte section
+ * entries, sections aligned to 64 bytes with an XXH3-64 checksum each. Sections:
+ *   PVSH  one 64-byte record: counts, keys, encoding
+ *   CELL  the view cells, 64-byte sl_viewcell records
+ *   SETS  per cell: set size, offset of its varint stream inside its block's decompressed bytes
+ *   BLKS  per block of block_cells cells: offset and size of its zstd frame in DATA, decompressed
+ *         size, XXH3-64 of the frame
+ *   DATA  the zstd frames, back to back
+ *   META  "key=value" lines (build method, options, timings)
+ * Neighbouring cells see much the same objects, so a block of consecutive cells compresses well,
+ * and decoding one cell costs one block (cached).
+ *
+ * Load maps the file and validates everything except DATA, whose frames are checked (checksum,
+ * exact decompressed size, varint stream of exactly the stated count, ids ascending and below the
+ * object count) when a block is first decoded; sl_pvs_verify checks DATA whole. No byte is trusted
+ * before it is checked: offsets and sizes are overflow-checked against the file, counts against
+ * the sections that hold them. */
+#include "pvs_internal.h"
+
+#include "scene/scene_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "the .slpvs reader maps little-endian records directly"
+#endif
+
+#define PVS_MAJOR 1u
+#define PVS_MINOR 0u
+#define PVS_HEADER 64u
+#define PVS_ENTRY 48u
+#define PVS_ALIGN 64u
+#define PVS_MAX_SECTIONS 64u
+#define PVS_BLOCK_CELLS 32u
+#define PVS_MAX_BLOCK_CELLS 4096u
+#define PVS_MAX_RAW (1u << 28) /* 256 MiB decoded per block: bounds what a small hostile file can make us allocate */
+#define PVS_ENCODING_VARINT_ZSTD 1u
+#define PVS_ZSTD_LEVEL 12
+#define PVS_HEAD_REC 64u
+#define PVS_SET_REC 8u
+#define PVS_BLOCK_REC 32u
+
+_Static_assert(sizeof(sl_viewcell) == 64, "sl_viewcell is the 64-byte CELL record");
+_Static_assert(offsetof(sl_viewcell, tri) == 8 && offsetof(sl_viewcell, z_min) == 32 &&
+                   offsetof(sl_viewcell, bounds) == 40,
+               "sl_viewcell field offsets are those of the CELL record");
+
+static const uint8_t k_magic[8] = {'S', 'L', 'P', 'V', 'S', 0, 0, 0};
+
+enum { H_MAGIC = 0, H_MAJOR = 8, H_MINOR = 12, H_FLAGS = 16, H_HEADER_SIZE = 20, H_SECTIONS = 24, H_ENTRY = 28,
+       H_TABLE = 32, H_FILE_SIZE = 40, H_TABLE_HASH = 48, H_HEADER_HASH = 56 };
+enum { E_TAG = 0, E_ELEM = 4, E_COUNT = 8, E_OFFSET = 16, E_SIZE = 24, E_HASH = 32, E_RESERVED = 40 };
+/* PVSH record */
+enum { P_CELLS = 0, P_OBJECTS = 4, P_BLOCK_CELLS = 8, P_BLOCKS = 12, P_SCENE_KEY = 16, P_CELLS_KEY = 24,
+       P_VISIBLE = 32, P_ENCODING = 40, P_MAX_RAW = 44, P_RESERVED = 48 };
+/* BLKS record */
+enum { B_OFFSET = 0, B_CSIZE = 8, B_RSIZE = 12, B_HASH = 16, B_RESERVED = 24 };
+
+enum { S_PVSH, S_CELL, S_SETS, S_BLKS, S_DATA, S_META, S_COUNT };
+static const struct {
+    char tag[5];
+    uint32_t elem;
+    bool required;
+} k_secs[S_COUNT] = {
+    {"PVSH", PVS_HEAD_REC, true}, {"CELL", 64, true},  {"SETS", PVS_SET_REC, true},
+    {"BLKS", PVS_BLOCK_REC, true}, {"DATA", 1, true}, {"META", 1, false},
+};
+
+static inline uint32_t rd32(const uint8_t *p)
+{
+    uint32_t v;
+    memcpy(&v, p, 4);
+    return v;
+}
+static inline uint64_t rd64(const uint8_t *p)
+{
+    uint64_t v;
+    memcpy(&v, p, 8);
+    return v;
+}
+static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
+static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, 8); }
+static inline uint64_t align_up(uint64_t v) { return (v + PVS_ALIGN - 1) & ~(uint64_t)(PVS_ALIGN - 1); }
+
+/* ---- zstd through the handle's allocator ---- */
+
+static void *zstd_alloc(void *user, size_t size)
+{
+    size_t total;
+    if (!sl_add_size(size, 16, &total))
+        return NULL;
+    uint8_t *p = sl_alloc(user, total);
+    if (!p)
+        return NULL;
+    memcpy(p, &total, sizeof total);
+    return p + 16;
+}
+
+static void zstd_free(void *user, void *ptr)
+{
+    if (!ptr)
+        return;
+    uint8_t *p = (uint8_t *)ptr - 16;
+    size_t total;
+    memcpy(&total, p, sizeof total);
+    sl_free(user, p, total);
+}
+
+ZSTD_customMem sl_zstd_mem(const sl_allocator *a)
+{
+    ZSTD_customMem m = {zstd_alloc, zstd_free, (void *)a};
+    return m;
+}
+
+/* ---- the scene key ---- */
+
+uint64_t sl_pvs_scene_key(sl_scene scene)
+{
+    if (!scene)
+        return 0;
+    const struct sl_scene_t *s = scene;
+    uint32_t n = sl_scene_object_count(scene);
+    uint64_t h = sl_hash64(&n, sizeof n, 0x534c505653ull);
+    const sl_object_rec *objs = sl_scene_objects(s);
+    const sl_mesh_rec *meshes = sl_scene_meshes(s);
+    const sl_aabb *bounds = sl_scene_object_bounds_array(scene);
+    for (uint32_t i = 0; i < n; i++) {
+        /* dynamic objects move: their boxes are not part of what the PVS depends on */
+        struct {
+            uint32_t mesh, kind, flags, triangles;
+            sl_aabb box;
+        } rec;
+        memset(&rec, 0, sizeof rec);
+        rec.mesh = objs[i].mesh;
+        rec.kind = objs[i].kind;
+        rec.flags = objs[i].flags;
+        rec.triangles = meshes[objs[i].mesh].triangle_count;
+        if (!(objs[i].flags & SL_OBJECT_DYNAMIC))
+            rec.box = bounds[i];
+        h = sl_hash64(&rec, sizeof rec, h);
+    }
+    uint32_t nf = sl_scene_footprint_count(scene);
+    for (uint32_t i = 0; i < nf; i++) {
+        sl_footprint_view f = sl_scene_footprint(scene, i);
+        float z[2] = {f.base_z, f.roof_z};
+        h = sl_hash64(z, sizeof z, h);
+        h = sl_hash64(f.xy, (size_t)f.vertex_count * 2 * sizeof(float), h);
+    }
+    return h;
+}
+
+/* ============================================================================================
+ * Writer
+ * ============================================================================================ */
+
+typedef struct wsec {
+    const void *data;
+    uint64_t count, size, offset, hash;
+} wsec;
+
+sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
+                       const uint64_t *offsets, const uint32_t *ids, const char *meta, sl_error *err)
+{
+    if (!path || !cells || !offsets)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write: path, cells and offsets must not be NULL");
+    uint32_t nc = sl_viewcells_count(cells);
+    const sl_allocator *a = &cells->alloc;
+    if (offsets[0] != 0)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write: offsets[0] is %llu, not 0",
+                       (unsigned long long)offsets[0]);
+    uint64_t total = offsets[nc];
+    if (total && !ids)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write: ids is NULL");
+    for (uint32_t c = 0; c < nc; c++) {
+        if (offsets[c + 1] < offsets[c] || offsets[c + 1] - offsets[c] > object_count)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write: cell %u: bad set range", c);
+        for (uint64_t k = offsets[c]; k < offsets[c + 1]; k++)
+            if (ids[k] >= object_count || (k > offsets[c] && ids[k] <= ids[k - 1]))
+                return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                               "sl_pvs_write: cell %u: entry %llu (object %u) is out of range or out of order", c,
+                               (unsigned long long)(k - offsets[c]), ids[k]);
+    }
+    size_t meta_len = meta ? strlen(meta) : 0;
+    uint32_t nb = (nc + PVS_BLOCK_CELLS - 1) / PVS_BLOCK_CELLS;
+    sl_status st = SL_OK;
+    uint8_t head_rec[PVS_HEAD_REC];
+    uint8_t *sets = sl_calloc(a, (size_t)nc + 1, PVS_SET_REC);
+    uint8_t *blks = sl_calloc(a, (size_t)nb + 1, PVS_BLOCK_REC);
+    sl_array data = {0}; /* uint8 */
+    uint8_t *raw = NULL;
+    size_t raw_cap = 0;
+    ZSTD_CCtx *cctx = ZSTD_createCCtx_advanced(sl_zstd_mem(a));
+    if (!sets || !blks || !cctx) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory writing %s", path);
+        goto done;
+    }
+    uint32_t max_raw = 0;
+    for (uint32_t b = 0; b < nb && st == SL_OK; b++) {
+        uint32_t c0 = b * PVS_BLOCK_CELLS, c1 = SL_MIN(nc, c0 + PVS_BLOCK_CELLS);
+        uint64_t need = 5 * (offsets[c1] - offsets[c0]);
+        if (need > PVS_MAX_RAW) {
+            st = sl_fail(err, SL_ERROR_LIMIT, "pvs: block %u of %s is too large (%llu bytes)", b, path,
+                         (unsigned long long)need);
+            break;
+        }
+        if (need + 1 > raw_cap) {
+            uint8_t *p = sl_realloc(a, raw, raw_cap, (size_t)need + 1);
+            if (!p) {
+                st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory writing %s", path);
+                break;
+            }
+            raw = p;
+            raw_cap = (size_t)need + 1;
+        }
+        size_t at = 0;
+        for (uint32_t c = c0; c < c1; c++) {
+            uint32_t n = (uint32_t)(offsets[c + 1] - offsets[c]);
+            wr32(sets + (size_t)c * PVS_SET_REC, n);
+            wr32(sets + (size_t)c * PVS_SET_REC + 4, (uint32_t)at);
+            at += sl_pvs_encode(ids + offsets[c], n, raw + at);
+        }
+        size_t bound = ZSTD_compressBound(at);
+        size_t start = data.count;
+        if (!sl_array_reserve(a, &data, 1, bound)) {
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory writing %s", path);
+            break;
+        }
+        size_t cs = ZSTD_compressCCtx(cctx, (uint8_t *)data.data + start, bound, raw, at, PVS_ZSTD_LEVEL);
+        if (ZSTD_isError(cs)) {
+            st = sl_fail(err, SL_ERROR_INTERNAL, "pvs: zstd failed on block %u: %s", b, ZSTD_getErrorName(cs));
+            break;
+        }
+        data.count += cs;
+        uint8_t *br = blks + (size_t)b * PVS_BLOCK_REC;
+        wr64(br + B_OFFSET, start);
+        wr32(br + B_CSIZE, (uint32_t)cs);
+        wr32(br + B_RSIZE, (uint32_t)at);
+        wr64(br + B_HASH, sl_hash64((uint8_t *)data.data + start, cs, 0));
+        max_raw = SL_MAX(max_raw, (uint32_t)at);
+    }
+    if (st != SL_OK)
+        goto done;
+    memset(head_rec, 0, sizeof head_rec);
+    wr32(head_rec + P_CELLS, nc);
+    wr32(head_rec + P_OBJECTS, object_count);
+    wr32(head_rec + P_BLOCK_CELLS, PVS_BLOCK_CELLS);
+    wr32(head_rec + P_BLOCKS, nb);
+    wr64(head_rec + P_SCENE_KEY, scene_key);
+    wr64(head_rec + P_CELLS_KEY, sl_viewcells_key(cells));
+    wr64(head_rec + P_VISIBLE, total);
+    wr32(head_rec + P_ENCODING, PVS_ENCODING_VARINT_ZSTD);
+    wr32(head_rec + P_MAX_RAW, max_raw);
+
+    wsec secs[S_COUNT] = {
+        {head_rec, 1, PVS_HEAD_REC, 0, 0},
+        {sl_viewcells_data(cells), nc, (uint64_t)nc * 64, 0, 0},
+        {sets, nc, (uint64_t)nc * PVS_SET_REC, 0, 0},
+        {blks, nb, (uint64_t)nb * PVS_BLOCK_REC, 0, 0},
+        {data.data, data.count, data.count, 0, 0},
+        {meta, meta_len, meta_len, 0, 0},
+    };
+    uint64_t at = align_up(PVS_HEADER + (uint64_t)S_COUNT * PVS_ENTRY);
+    uint8_t table[S_COUNT * PVS_ENTRY];
+    memset(table, 0, sizeof table);
+    for (int i = 0; i < S_COUNT; i++) {
+        secs[i].offset = at;
+        secs[i].hash = sl_hash64(secs[i].size ? secs[i].data : "", (size_t)secs[i].size, 0);
+        at = align_up(at + secs[i].size);
+        uint8_t *e = table + i * PVS_ENTRY;
+        memcpy(e + E_TAG, k_secs[i].tag, 4);
+        wr32(e + E_ELEM, k_secs[i].elem);
+        wr64(e + E_COUNT, secs[i].count);
+        wr64(e + E_OFFSET, secs[i].offset);
+        wr64(e + E_SIZE, secs[i].size);
+        wr64(e + E_HASH, secs[i].hash);
+    }
+    uint64_t file_size = at;
+    uint8_t head[PVS_HEADER];
+    memset(head, 0, sizeof head);
+    memcpy(head + H_MAGIC, k_magic, 8);
+    wr32(head + H_MAJOR, PVS_MAJOR);
+    wr32(head + H_MINOR, PVS_MINOR);
+    wr32(head + H_FLAGS, 0);
+    wr32(head + H_HEADER_SIZE, PVS_HEADER);
+    wr32(head + H_SECTIONS, S_COUNT);
+    wr32(head + H_ENTRY, PVS_ENTRY);
+    wr64(head + H_TABLE, PVS_HEADER);
+    wr64(head + H_FILE_SIZE, file_size);
+    wr64(head + H_TABLE_HASH, sl_hash64(table, sizeof table, 0));
+    wr64(head + H_HEADER_HASH, sl_hash64(head, H_HEADER_HASH, 0));
+
+    sl_atomic_file f;
+    if ((st = sl_atomic_open(a, path, &f, err)) != SL_OK)
+        goto done;
+    static const uint8_t zeros[PVS_ALIGN] = {0};
+    sl_atomic_write(&f, head, sizeof head);
+    sl_atomic_write(&f, table, sizeof table);
+    uint64_t pos = PVS_HEADER + sizeof table;
+    for (int i = 0; i < S_COUNT; i++) {
+        sl_atomic_write(&f, zeros, (size_t)(secs[i].offset - pos));
+        if (secs[i].size)
+            sl_atomic_write(&f, secs[i].data, (size_t)secs[i].size);
+        pos = secs[i].offset + secs[i].size;
+    }
+    sl_atomic_write(&f, zeros, (size_t)(file_size - pos));
+    st = sl_atomic_commit(&f, err);
+done:
+    ZSTD_freeCCtx(cctx);
+    sl_free(a, raw, raw_cap);
+    sl_array_free(a, &data, 1);
+    sl_free(a, sets, ((size_t)nc + 1) * PVS_SET_REC);
+    sl_free(a, blks, ((size_t)nb + 1) * PVS_BLOCK_REC);
+    return st;
+}
+
+/* ============================================================================================
+ * Reader
+ * ============================================================================================ */
+
+struct sl_pvs_t {
+    sl_allocator alloc;
+    char *name;
+    sl_mapping map;             /* when mapped */
+    uint8_t *owned;             /* when loaded from memory */
+    size_t owned_size;
+    const uint8_t *bytes;
+    uint64_t size;
+    uint32_t minor;
+    uint64_t off[S_COUNT], len[S_COUNT], hash[S_COUNT];
+    uint32_t cell_count, object_count, block_cells, block_count, max_raw;
+    uint64_t scene_key, cells_key, visible_total;
+    const uint8_t *sets, *blks, *data;
+    sl_viewcells cells;
+    char *meta;                 /* NUL-terminated copy */
+    char *meta_lines;           /* the same with '\n' replaced by NUL */
+    size_t meta_size;
+    /* decoding cache */
+    ZSTD_DCtx *dctx;
+    uint8_t *block;             /* max_raw bytes (at least 1) */
+    uint32_t cached;            /* block held in `block`, or SL_NONE */
+    uint8_t *checked;           /* per block: checksum verified */
+};
+
+/* Format an error naming the file and offset. */
+#define FAIL_AT(err, p, offset, ...)                                                                                  \
+    fail_at(err, (p)->name, (uint64_t)(offset), __VA_ARGS__)
+
+static sl_status fail_at(sl_error *err, const char *name, uint64_t offset, const char *fmt, ...) SL_PRINTF(4, 5);
+static sl_status fail_at(sl_error *err, const char *name, uint64_t offset, const char *fmt, ...)
+{
+    char msg[400];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return sl_fail(err, SL_ERROR_FORMAT, "%s: offset %llu: %s", name, (unsigned long long)offset, msg);
+}
+
+void sl_pvs_destroy(sl_pvs p)
+{
+    if (!p)
+        return;
+    const sl_allocator *a = &p->alloc;
+    sl_viewcells_destroy(p->cells);
+    ZSTD_freeDCtx(p->dctx);
+    sl_free(a, p->block, (size_t)p->max_raw + 1);
+    sl_free(a, p->checked, (size_t)p->block_count + 1);
+    sl_free(a, p->meta, p->meta_size + 1);
+    sl_free(a, p->meta_lines, p->meta_size + 1);
+    sl_file_unmap(&p->map);
+    sl_free(a, p->owned, p->owned_size);
+    sl_strfree(a, p->name);
+    sl_free(a, p, sizeof *p);
+}
+
+static bool zero_bytes(const uint8_t *p, uint64_t n)
+{
+    for (uint64_t i = 0; i < n; i++)
+        if (p[i])
+            return false;
+    return true;
+}
+
+/* Header and section table. */
+static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
+{
+    const uint8_t *b = p->bytes;
+    if (p->size < PVS_HEADER)
+        return FAIL_AT(err, p, 0, "file of %llu bytes is shorter than the 64-byte header", (unsigned long long)p->size);
+    if (memcmp(b + H_MAGIC, k_magic, 8) != 0)
+        return FAIL_AT(err, p, 0, "not a .slpvs file (bad magic)");
+    uint32_t major = rd32(b + H_MAJOR), minor = rd32(b + H_MINOR);
+    if (major == 0)
+        return FAIL_AT(err, p, H_MAJOR, "format version 0.%u does not exist", minor);
+    if (major > PVS_MAJOR)
+        return sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: format version %u.%u is newer than this reader (%u.%u): upgrade Sightline",
+                       p->name, major, minor, PVS_MAJOR, PVS_MINOR);
+    uint64_t hh = sl_hash64(b, H_HEADER_HASH, 0);
+    if (hh != rd64(b + H_HEADER_HASH))
+        return FAIL_AT(err, p, H_HEADER_HASH, "header checksum mismatch (stored %016llx, computed %016llx)",
+                       (unsigned long long)rd64(b + H_HEADER_HASH), (unsigned long long)hh);
+    p->minor = minor;
+    uint32_t header_size = rd32(b + H_HEADER_SIZE), nsec = rd32(b + H_SECTIONS), entry = rd32(b + H_ENTRY);
+    uint64_t table = rd64(b + H_TABLE), fsize = rd64(b + H_FILE_SIZE);
+    if (rd32(b + H_FLAGS) != 0 && minor <= PVS_MINOR)
+        return FAIL_AT(err, p, H_FLAGS, "unknown flags %08x", rd32(b + H_FLAGS));
+    if (header_size < PVS_HEADER || header_size > 4096)
+        return FAIL_AT(err, p, H_HEADER_SIZE, "header size %u is outside 64..4096", header_size);
+    if (entry < PVS_ENTRY || entry > 4096)
+        return FAIL_AT(err, p, H_ENTRY, "section entry size %u is outside 48..4096", entry);
+    if (nsec > PVS_MAX_SECTIONS)
+        return FAIL_AT(err, p, H_SECTIONS, "%u sections (at most %u)", nsec, PVS_MAX_SECTIONS);
+    if (fsize != p->size)
+        return FAIL_AT(err, p, H_FILE_SIZE, "header says %llu bytes but the file has %llu (truncated or extended)",
+                       (unsigned long long)fsize, (unsigned long long)p->size);
+    uint64_t tsize = (uint64_t)nsec * entry;
+    if (table < header_size || table > p->size || tsize > p->size - table)
+        return FAIL_AT(err, p, H_TABLE, "section table at %llu (%llu bytes) lies outside the file",
+                       (unsigned long long)table, (unsigned long long)tsize);
+    uint64_t th = sl_hash64(b + table, (size_t)tsize, 0);
+    if (th != rd64(b + H_TABLE_HASH))
+        return FAIL_AT(err, p, table, "section table checksum mismatch (stored %016llx, computed %016llx)",
+                       (unsigned long long)rd64(b + H_TABLE_HASH), (unsigned long long)th);
+    bool seen[S_COUNT] = {false};
+    /* sections sorted by offset, to check they neither overlap nor leave non-zero gaps */
+    uint64_t spans[PVS_MAX_SECTIONS][2];
+    uint32_t nspans = 0;
+    for (uint32_t i = 0; i < nsec; i++) {
+        const uint8_t *e = b + table + (uint64_t)i * entry;
+        uint64_t eo = table + (uint64_t)i * entry;
+        char tag[5] = {(char)e[0], (char)e[1], (char)e[2], (char)e[3], 0};
+        for (int k = 0; k < 4; k++)
+            if (tag[k] < 0x20 || tag[k] > 0x7e)
+                tag[k] = '?';
+        uint32_t elem = rd32(e + E_ELEM);
+        uint64_t count = rd64(e + E_COUNT), off = rd64(e + E_OFFSET), size = rd64(e + E_SIZE);
+        if (rd64(e + E_RESERVED) != 0)
+            return FAIL_AT(err, p, eo + E_RESERVED, "section '%s': reserved field is not zero", tag);
+        if (off % PVS_ALIGN || off < table + tsize || off > p->size || size > p->size - off)
+            return FAIL_AT(err, p, eo + E_OFFSET, "section '%s' at %llu (%llu bytes) is misaligned or outside the file",
+                           tag, (unsigned long long)off, (unsigned long long)size);
+        if (elem == 0 || count > UINT64_MAX / elem || count * elem != size)
+            return FAIL_AT(err, p, eo + E_SIZE, "section '%s': %llu elements of %u bytes do not make %llu bytes", tag,
+                           (unsigned long long)count, elem, (unsigned long long)size);
+        int k = -1;
+        for (int s = 0; s < S_COUNT; s++)
+            if (memcmp(e + E_TAG, k_secs[s].tag, 4) == 0)
+                k = s;
+        if (k < 0) {
+            if (minor <= PVS_MINOR)
+                return FAIL_AT(err, p, eo, "unknown section '%s' in a version %u.%u file", tag, major, minor);
+        } else {
+            if (seen[k])
+                return FAIL_AT(err, p, eo, "section '%s' appears twice", tag);
+            if (elem != k_secs[k].elem)
+                return FAIL_AT(err, p, eo + E_ELEM, "section '%s' has %u-byte elements, expected %u", tag, elem,
+                               k_secs[k].elem);
+            seen[k] = true;
+            p->off[k] = off;
+            p->len[k] = size;
+            p->hash[k] = rd64(e + E_HASH);
+            /* DATA is checked block by block (or by sl_pvs_verify); everything else now */
+            if (k != S_DATA) {
+                uint64_t h = sl_hash64(b + off, (size_t)size, 0);
+                if (h != p->hash[k])
+                    return FAIL_AT(err, p, off, "section '%s': checksum mismatch (stored %016llx, computed %016llx)", tag,
+                                   (unsigned long long)p->hash[k], (unsigned long long)h);
+            }
+        }
+        spans[nspans][0] = off;
+        spans[nspans][1] = off + size;
+        nspans++;
+    }
+    for (int s = 0; s < S_COUNT; s++)
+        if (k_secs[s].required && !seen[s])
+            return FAIL_AT(err, p, table, "required section '%s' is missing", k_secs[s].tag);
+    /* insertion sort of at most 64 spans, then overlap and padding checks */
+    for (uint32_t i = 1; i < nspans; i++)
+        for (uint32_t j = i; j > 0 && spans[j][0] < spans[j - 1][0]; j--) {
+            uint64_t t0 = spans[j][0], t1 = spans[j][1];
+            spans[j][0] = spans[j - 1][0], spans[j][1] = spans[j - 1][1];
+            spans[j - 1][0] = t0, spans[j - 1][1] = t1;
+        }
+    uint64_t end = table + tsize;
+    if (!zero_bytes(b + PVS_HEADER, header_size - PVS_HEADER) && minor <= PVS_MINOR)
+        return FAIL_AT(err, p, PVS_HEADER, "header padding is not zero");
+    for (uint32_t i = 0; i < nspans; i++) {
+        if (spans[i][0] < end)
+            return FAIL_AT(err, p, spans[i][0], "sections overlap");
+        if (!zero_bytes(b + end, spans[i][0] - end))
+            return FAIL_AT(err, p, end, "padding before the section at %llu is not zero", (unsigned long long)spans[i][0]);
+        end = spans[i][1];
+    }
+    if (!zero_bytes(b + end, p->size - end))
+        return FAIL_AT(err, p, end, "padding at the end of the file is not zero");
+    return SL_OK;
+}
+
+/* PVSH, CELL, SETS, BLKS, META: counts, ranges and cross references. */
+static sl_status read_tables(struct sl_pvs_t *p, sl_error *err)
+{
+    const uint8_t *b = p->bytes;
+    if (p->len[S_PVSH] != PVS_HEAD_REC)
+        return FAIL_AT(err, p, p->off[S_PVSH], "section 'PVSH' must hold exactly one record");
+    const uint8_t *h = b + p->off[S_PVSH];
+    uint64_t ho = p->off[S_PVSH];
+    p->cell_count = rd32(h + P_CELLS);
+    p->object_count = rd32(h + P_OBJECTS);
+    p->block_cells = rd32(h + P_BLOCK_CELLS);
+    p->block_count = rd32(h + P_BLOCKS);
+    p->scene_key = rd64(h + P_SCENE_KEY);
+    p->cells_key = rd64(h + P_CELLS_KEY);
+    p->visible_total = rd64(h + P_VISIBLE);
+    p->max_raw = rd32(h + P_MAX_RAW);
+    if (rd32(h + P_ENCODING) != PVS_ENCODING_VARINT_ZSTD)
+        return FAIL_AT(err, p, ho + P_ENCODING, "unknown set encoding %u", rd32(h + P_ENCODING));
+    if (!zero_bytes(h + P_RESERVED, PVS_HEAD_REC - P_RESERVED))
+        return FAIL_AT(err, p, ho + P_RESERVED, "reserved bytes of 'PVSH' are not zero");
+    if (p->object_count == UINT32_MAX)
+        return FAIL_AT(err, p, ho + P_OBJECTS, "object count %u is out of range", p->object_count);
+    if (p->block_cells == 0 || p->block_cells > PVS_MAX_BLOCK_CELLS)
+        return FAIL_AT(err, p, ho + P_BLOCK_CELLS, "%u cells per block is outside 1..%u", p->block_cells,
+                       PVS_MAX_BLOCK_CELLS);
+    uint64_t want_blocks = ((uint64_t)p->cell_count + p->block_cells - 1) / p->block_cells;
+    if (p->block_count != want_blocks)
+        return FAIL_AT(err, p, ho + P_BLOCKS, "%u blocks for %u cells of %u per block (expected %llu)", p->block_count,
+                       p->cell_count, p->block_cells, (unsigned long long)want_blocks);
+    if (p->max_raw > PVS_MAX_RAW)
+        return FAIL_AT(err, p, ho + P_MAX_RAW, "largest block of %u bytes exceeds %u", p->max_raw, PVS_MAX_RAW);
+    if (p->len[S_CELL] != (uint64_t)p->cell_count * 64)
+        return FAIL_AT(err, p, p->off[S_CELL], "section 'CELL' holds %llu bytes, not %u cells",
+                       (unsigned long long)p->len[S_CELL], p->cell_count);
+    if (p->len[S_SETS] != (uint64_t)p->cell_count * PVS_SET_REC)
+        return FAIL_AT(err, p, p->off[S_SETS], "section 'SETS' holds %llu bytes, not %u cells",
+                       (unsigned long long)p->len[S_SETS], p->cell_count);
+    if (p->len[S_BLKS] != (uint64_t)p->block_count * PVS_BLOCK_REC)
+        return FAIL_AT(err, p, p->off[S_BLKS], "section 'BLKS' holds %llu bytes, not %u blocks",
+                       (unsigned long long)p->len[S_BLKS], p->block_count);
+    p->sets = b + p->off[S_SETS];
+    p->blks = b + p->off[S_BLKS];
+    p->data = b + p->off[S_DATA];
+    /* blocks: contiguous frames covering DATA exactly; the largest decoded size is stated exactly */
+    uint64_t at = 0;
+    uint32_t largest = 0;
+    for (uint32_t k = 0; k < p->block_count; k++) {
+        const uint8_t *r = p->blks + (uint64_t)k * PVS_BLOCK_REC;
+        uint64_t ro = p->off[S_BLKS] + (uint64_t)k * PVS_BLOCK_REC;
+        uint64_t off = rd64(r + B_OFFSET);
+        uint32_t cs = rd32(r + B_CSIZE), rs = rd32(r + B_RSIZE);
+        if (off != at || cs == 0 || cs > p->len[S_DATA] - at)
+            return FAIL_AT(err, p, ro, "block %u: frame at %llu (%u bytes) does not follow the previous one inside 'DATA'",
+                           k, (unsigned long long)off, cs);
+        if (rs > p->max_raw)
+            return FAIL_AT(err, p, ro + B_RSIZE, "block %u: %u decoded bytes exceed the stated largest %u", k, rs,
+                           p->max_raw);
+        if (rd64(r + B_RESERVED) != 0)
+            return FAIL_AT(err, p, ro + B_RESERVED, "block %u: reserved field is not zero", k);
+        unsigned long long fcs = ZSTD_getFrameContentSize(p->data + off, cs);
+        if (fcs != rs)
+            return FAIL_AT(err, p, p->off[S_DATA] + off, "block %u: the zstd frame %s, the table says %u bytes", k,
+                           fcs == ZSTD_CONTENTSIZE_ERROR ? "is not a zstd frame" : "states another decoded size", rs);
+        largest = SL_MAX(largest, rs);
+        at += cs;
+    }
+    if (largest != p->max_raw)
+        return FAIL_AT(err, p, ho + P_MAX_RAW, "largest block stated as %u bytes, the blocks say %u", p->max_raw, largest);
+    if (at != p->len[S_DATA])
+        return FAIL_AT(err, p, p->off[S_DATA], "blocks cover %llu of the %llu bytes of 'DATA'", (unsigned long long)at,
+                       (unsigned long long)p->len[S_DATA]);
+    /* sets: per block, streams in cell order from 0, each with room for its ids */
+    uint64_t total = 0;
+    for (uint32_t c = 0; c < p->cell_count; c++) {
+        uint64_t so = p->off[S_SETS] + (uint64_t)c * PVS_SET_REC;
+        uint32_t n = rd32(p->sets + (uint64_t)c * PVS_SET_REC), o = rd32(p->sets + (uint64_t)c * PVS_SET_REC + 4);
+        uint32_t blk = c / p->block_cells;
+        uint32_t rs = rd32(p->blks + (uint64_t)blk * PVS_BLOCK_REC + B_RSIZE);
+        bool first = c % p->block_cells == 0;
+        bool last = c + 1 == p->cell_count || (c + 1) % p->block_cells == 0;
+        uint32_t end = last ? rs : rd32(p->sets + (uint64_t)(c + 1) * PVS_SET_REC + 4);
+        if (n > p->object_count)
+            return FAIL_AT(err, p, so, "cell %u: %u visible objects of %u", c, n, p->object_count);
+        if ((first && o != 0) || o > end || end > rs)
+            return FAIL_AT(err, p, so + 4, "cell %u: stream [%u, %u) is not inside its block's %u bytes in order", c, o,
+                           end, rs);
+        if ((uint64_t)end - o < n || (uint64_t)end - o > 5ull * n)
+            return FAIL_AT(err, p, so, "cell %u: %u ids cannot take %u bytes", c, n, end - o);
+        total += n;
+    }
+    if (total != p->visible_total)
+        return FAIL_AT(err, p, ho + P_VISIBLE, "sets hold %llu ids, the header says %llu", (unsigned long long)total,
+                       (unsigned long long)p->visible_total);
+    /* META: text without NUL */
+    const uint8_t *m = b + p->off[S_META];
+    for (uint64_t i = 0; i < p->len[S_META]; i++)
+        if (m[i] == 0)
+            return FAIL_AT(err, p, p->off[S_META] + i, "metadata holds a NUL byte");
+    p->meta_size = (size_t)p->len[S_META];
+    p->meta = sl_alloc(&p->alloc, p->meta_size + 1);
+    p->meta_lines = sl_alloc(&p->alloc, p->meta_size + 1);
+    if (!p->meta || !p->meta_lines)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", p->name);
+    memcpy(p->meta, m, p->meta_size);
+    p->meta[p->meta_size] = 0;
+    for (size_t i = 0; i <= p->meta_size; i++)
+        p->meta_lines[i] = p->meta[i] == '\n' ? 0 : p->meta[i];
+    /* cells (the records are validated and copied) */
+    sl_status st = sl_viewcells_create((const sl_viewcell *)(b + p->off[S_CELL]), p->cell_count, &p->alloc, &p->cells,
+                                       err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "%s: section 'CELL' at offset %llu", p->name, (unsigned long long)p->off[S_CELL]);
+        return st;
+    }
+    if (sl_viewcells_key(p->cells) != p->cells_key)
+        return FAIL_AT(err, p, ho + P_CELLS_KEY, "the cells' key does not match the header");
+    /* the block buffer is allocated at the first decode */
+    p->checked = sl_calloc(&p->alloc, (size_t)p->block_count + 1, 1);
+    p->dctx = ZSTD_createDCtx_advanced(sl_zstd_mem(&p->alloc));
+    if (!p->checked || !p->dctx)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", p->name);
+    p->cached = SL_NONE;
+    return SL_OK;
+}
+
+static sl_status open_common(struct sl_pvs_t *p, sl_pvs *out, sl_error *err)
+{
+    sl_status st = read_structure(p, err);
+    if (st == SL_OK)
+        st = read_tables(p, err);
+    if (st != SL_OK) {
+        sl_pvs_destroy(p);
+        return st;
+    }
+    *out = p;
+    return SL_OK;
+}
+
+static struct sl_pvs_t *new_pvs(const sl_allocator *alloc, const char *name)
+{
+    alloc = sl_alloc_or_default(alloc);
+    struct sl_pvs_t *p = sl_calloc(alloc, 1, sizeof *p);
+    if (!p)
+        return NULL;
+    p->alloc = *alloc;
+    p->name = sl_strdup(alloc, name);
+    if (!p->name) {
+        sl_free(alloc, p, sizeof *p);
+        return NULL;
+    }
+    p->cached = SL_NONE;
+    return p;
+}
+
+sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
+{
+    if (!path || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_load: path and out must not be NULL");
+    *out = NULL;
+    struct sl_pvs_t *p = new_pvs(alloc, path);
+    if (!p)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    sl_status st = sl_file_map(path, &p->map, err);
+    if (st != SL_OK) {
+        sl_pvs_destroy(p);
+        return st;
+    }
+    p->bytes = p->map.data;
+    p->size = p->map.size;
+    return open_common(p, out, err);
+}
+
+sl_status sl_pvs_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc, sl_pvs *out,
+                             sl_error *err)
+{
+    if ((!data && size) || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_load_memory: data and out must not be NULL");
+    *out = NULL;
+    struct sl_pvs_t *p = new_pvs(alloc, name ? name : "(memory)");
+    if (!p)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory");
+    /* a 64-byte aligned copy: the CELL records are read in place */
+    p->owned_size = size ? size : 1;
+    p->owned = sl_alloc_aligned(&p->alloc, p->owned_size, PVS_ALIGN);
+    if (!p->owned) {
+        p->owned_size = 0;
+        sl_pvs_destroy(p);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory for %zu bytes", size);
+    }
+    if (size)
+        memcpy(p->owned, data, size);
+    p->bytes = p->owned;
+    p->size = size;
+    return open_common(p, out, err);
+}
+
+/* ---- queries ---- */
+
+void sl_pvs_get_info(sl_pvs p, sl_pvs_info *info)
+{
+    if (!info)
+        return;
+    memset(info, 0, sizeof *info);
+    if (!p)
+        return;
+    info->version_major = PVS_MAJOR;
+    info->version_minor = p->minor;
+    info->cell_count = p->cell_count;
+    info->object_count = p->object_count;
+    info->block_cells = p->block_cells;
+    info->block_count = p->block_count;
+    info->scene_key = p->scene_key;
+    info->cells_key = p->cells_key;
+    info->visible_total = p->visible_total;
+    info->file_size = p->size;
+    info->data_bytes = p->len[S_DATA];
+    info->min_visible = p->cell_count ? UINT32_MAX : 0;
+    double culled = 0;
+    for (uint32_t c = 0; c < p->cell_count; c++) {
+        uint32_t n = rd32(p->sets + (uint64_t)c * PVS_SET_REC);
+        info->min_visible = SL_MIN(info->min_visible, n);
+        info->max_visible = SL_MAX(info->max_visible, n);
+        culled += p->object_count ? 1.0 - (double)n / p->object_count : 0.0;
+    }
+    for (uint32_t k = 0; k < p->block_count; k++)
+        info->raw_bytes += rd32(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_RSIZE);
+    info->mean_visible = p->cell_count ? (double)p->visible_total / p->cell_count : 0;
+    info->mean_culled = p->cell_count ? culled / p->cell_count : 0;
+}
+
+sl_viewcells sl_pvs_cells(sl_pvs p) { return p ? p->cells : NULL; }
+
+const char *sl_pvs_meta_text(sl_pvs p) { return p ? p->meta : ""; }
+
+const char *sl_pvs_meta(sl_pvs p, const char *key)
+{
+    if (!p || !key || !*key)
+        return NULL;
+    /* lines holds the metadata with every '\n' turned into NUL: each line is a C string */
+    size_t klen = strlen(key);
+    for (size_t at = 0; at < p->meta_size;) {
+        const char *line = p->meta_lines + at;
+        size_t len = strlen(line);
+        if (len > klen && memcmp(line, key, klen) == 0 && line[klen] == '=')
+            return line + klen + 1;
+        at += len + 1;
+    }
+    return NULL;
+}
+
+uint32_t sl_pvs_cell_count(sl_pvs p, uint32_t cell)
+{
+    if (!p || cell >= p->cell_count)
+        return 0;
+    return rd32(p->sets + (uint64_t)cell * PVS_SET_REC);
+}
+
+/* Decompress block k into the cache, checking its checksum on first use. */
+static sl_status load_block(struct sl_pvs_t *p, uint32_t k, sl_error *err)
+{
+    if (p->cached == k)
+        return SL_OK;
+    p->cached = SL_NONE;
+    if (!p->block) {
+        p->block = sl_alloc(&p->alloc, (size_t)p->max_raw + 1);
+        if (!p->block)
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for a block of %u bytes", p->name, p->max_raw);
+    }
+    const uint8_t *r = p->blks + (uint64_t)k * PVS_BLOCK_REC;
+    uint64_t off = rd64(r + B_OFFSET);
+    uint32_t cs = rd32(r + B_CSIZE), rs = rd32(r + B_RSIZE);
+    const uint8_t *frame = p->data + off;
+    if (!p->checked[k]) {
+        uint64_t h = sl_hash64(frame, cs, 0);
+        if (h != rd64(r + B_HASH))
+            return FAIL_AT(err, p, p->off[S_DATA] + off, "block %u: checksum mismatch (stored %016llx, computed %016llx)",
+                           k, (unsigned long long)rd64(r + B_HASH), (unsigned long long)h);
+    }
+    size_t got = ZSTD_decompressDCtx(p->dctx, p->block, (size_t)p->max_raw + 1, frame, cs);
+    if (ZSTD_isError(got) || got != rs)
+        return FAIL_AT(err, p, p->off[S_DATA] + off, "block %u: the zstd frame %s (%zu bytes, expected %u)", k,
+                       ZSTD_isError(got) ? ZSTD_getErrorName(got) : "decodes to the wrong size",
+                       ZSTD_isError(got) ? (size_t)0 : got, rs);
+    p->checked[k] = 1;
+    p->cached = k;
+    return SL_OK;
+}
+
+sl_status sl_pvs_cell_set(sl_pvs p, uint32_t cell, uint32_t *out_ids, uint32_t capacity, uint32_t *count, sl_error *err)
+{
+    if (count)
+        *count = 0;
+    if (!p || !count || (!out_ids && capacity))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_cell_set: pvs and count must not be NULL");
+    if (cell >= p->cell_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: cell %u does not exist (%u cells)", p->name, cell,
+                       p->cell_count);
+    uint32_t n = rd32(p->sets + (uint64_t)cell * PVS_SET_REC), o = rd32(p->sets + (uint64_t)cell * PVS_SET_REC + 4);
+    if (n > capacity)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: cell %u holds %u objects, capacity is %u", p->name, cell, n,
+                       capacity);
+    uint32_t k = cell / p->block_cells;
+    sl_status st = load_block(p, k, err);
+    if (st != SL_OK)
+        return st;
+    uint32_t rs = rd32(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_RSIZE);
+    bool last = cell + 1 == p->cell_count || (cell + 1) % p->block_cells == 0;
+    uint32_t end = last ? rs : rd32(p->sets + (uint64_t)(cell + 1) * PVS_SET_REC + 4);
+    if (!sl_pvs_decode(p->block + o, p->block + end, n, p->object_count, out_ids))
+        return FAIL_AT(err, p, p->off[S_DATA] + rd64(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_OFFSET),
+                       "cell %u: its set (%u ids, bytes %u..%u of block %u) is malformed", cell, n, o, end, k);
+    *count = n;
+    return SL_OK;
+}
+
+sl_status sl_pvs_verify(sl_pvs p, sl_error *err)
+{
+    if (!p)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_verify: pvs is NULL");
+    uint64_t h = sl_hash64(p->bytes + p->off[S_DATA], (size_t)p->len[S_DATA], 0);
+    if (h != p->hash[S_DATA])
+        return FAIL_AT(err, p, p->off[S_DATA], "section 'DATA': checksum mismatch (stored %016llx, computed %016llx)",
+                       (unsigned long long)p->hash[S_DATA], (unsigned long long)h);
+    uint32_t cap = 0;
+    for (uint32_t c = 0; c < p->cell_count; c++)
+        cap = SL_MAX(cap, sl_pvs_cell_count(p, c));
+    uint32_t *ids = sl_alloc(&p->alloc, ((size_t)cap + 1) * sizeof(uint32_t));
+    if (!ids)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", p->name);
+    sl_status st = SL_OK;
+    for (uint32_t c = 0; c < p->cell_count && st == SL_OK; c++) {
+        uint32_t n;
+        /* force the checksum of every block to be checked again */
+        if (c % p->block_cells == 0) {
+            p->checked[c / p->block_cells] = 0;
+            p->cached = SL_NONE;
+        }
+        st = sl_pvs_cell_set(p, c, ids, cap, &n, err);
+    }
+    sl_free(&p->alloc, ids, ((size_t)cap + 1) * sizeof(uint32_t));
+    return st;
+}

@@ -1,0 +1,144 @@
+/* Internal pieces of the PVS layer shared by the file code, the bake drivers (threads, MPI) and
+ * the baking methods: the method table, set encoding, the zstd allocator bridge. */
+#ifndef SL_PVS_INTERNAL_H
+#define SL_PVS_INTERNAL_H
+
+#include "sightline/pvs.h"
+#include "region_internal.h"
+#include "cull/culler_internal.h" /* sl_opts: the key=value option reader shared with the cullers */
+
+#define ZSTD_STATIC_LINKING_ONLY /* ZSTD_customMem: zstd allocates through the handle's allocator */
+#include <zstd.h>
+
+/* ---- baking methods ----
+ * A method is src/region/method_<name>.c defining `const sl_pvs_method sl_pvs_method_<name>` plus
+ * one line X(<name>) in SL_PVS_METHODS (pvs_methods.c). Life of a bake:
+ *   configure(opts) -> prepare(scene, cells, config) -> shared state (read-only afterwards)
+ *   per thread: worker_create(shared) -> { cell(worker, i) }* -> worker_destroy
+ *   release(shared)
+ * cell() must be a pure function of (scene, cells, config, i): the same set whatever thread,
+ * process or order computes it — the bake's byte-identical output rests on this. */
+typedef struct sl_pvs_cell_result {
+    uint32_t *ids;              /* the method writes the set here, ascending (capacity: objects) */
+    uint32_t count;
+    uint64_t work;              /* method-specific effort counter (pixels, rays ...) for reports */
+} sl_pvs_cell_result;
+
+typedef struct sl_pvs_method {
+    const char *name;
+    const char *summary;
+    const char *options_help;
+    sl_cull_guarantee guarantee;
+    size_t config_size;
+    /* Read every option the method understands into config (zeroed, config_size bytes). */
+    sl_status (*configure)(sl_opts *opts, void *config, sl_error *err);
+    /* Scene-wide preparation (occluder shrinking, acceleration structures). *removed receives the
+     * number of occluders that vanished (reported). alloc is never NULL. */
+    sl_status (*prepare)(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
+                         void **shared, uint64_t *removed, sl_error *err);
+    sl_status (*worker_create)(void *shared, void **worker, sl_error *err);
+    sl_status (*cell)(void *worker, uint32_t cell, sl_pvs_cell_result *out, sl_error *err);
+    void (*worker_destroy)(void *worker);
+    void (*release)(void *shared);
+    /* Optional: a sentence the user should read about these options (a bound not met ...), or
+     * nothing (buf[0] = 0). */
+    void (*notice)(const void *config, char *buf, size_t size);
+} sl_pvs_method;
+
+uint32_t sl_pvs_registry_count(void);
+const sl_pvs_method *sl_pvs_registry_get(uint32_t index);
+/* Find a method by name (NULL: the default "sample"); the message lists the methods. */
+sl_status sl_pvs_registry_find(const char *name, const sl_pvs_method **out, sl_error *err);
+/* Parse and configure a method's options; *config is allocated with a (config_size bytes, at least
+ * 1) and must be freed with sl_free(a, *config, max(config_size, 1)). The effective options
+ * ("key=value,...") are copied to effective (SL_OPTS_MAX_CHARS + 1 bytes) when not NULL. */
+sl_status sl_pvs_method_configure(const sl_pvs_method *m, const char *options, const sl_allocator *a, void **config,
+                                  char *effective, sl_error *err);
+
+/* ---- set encoding: a strictly ascending id list as LEB128 varints of the gaps ----
+ * first value = id[0], then id[k] - id[k-1] - 1. At most 5 bytes per id. */
+static inline size_t sl_pvs_encode(const uint32_t *ids, uint32_t n, uint8_t *out)
+{
+    size_t at = 0;
+    uint32_t prev = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        uint32_t v = k == 0 ? ids[0] : ids[k] - prev - 1;
+        prev = ids[k];
+        while (v >= 0x80) {
+            out[at++] = (uint8_t)(v | 0x80);
+            v >>= 7;
+        }
+        out[at++] = (uint8_t)v;
+    }
+    return at;
+}
+
+/* Decode exactly n ids from bytes [p, end); false when the stream is malformed, does not end
+ * exactly at `end`, overflows, or yields an id >= limit. */
+static inline bool sl_pvs_decode(const uint8_t *p, const uint8_t *end, uint32_t n, uint32_t limit, uint32_t *ids)
+{
+    uint64_t prev = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        uint64_t v = 0;
+        for (int shift = 0;; shift += 7) {
+            if (p >= end || shift > 28)
+                return false;
+            uint8_t b = *p++;
+            v |= (uint64_t)(b & 0x7f) << shift;
+            if (!(b & 0x80))
+                break;
+        }
+        uint64_t id = k == 0 ? v : prev + 1 + v;
+        if (id >= limit)
+            return false;
+        ids[k] = (uint32_t)id;
+        prev = id;
+    }
+    return p == end;
+}
+
+/* zstd allocation through an sl_allocator (the size is kept in front of each block). */
+ZSTD_customMem sl_zstd_mem(const sl_allocator *a);
+
+/* ---- the bake: what the thread and MPI drivers share (pvs_build.c) ----
+ * begin configures and prepares the method; on the writing process it also opens the checkpoint
+ * journal (resuming from it when asked). store records a finished cell (encoded in memory, appended
+ * to the journal). finish writes the .slpvs in cell order and removes the journal. */
+typedef struct sl_bake {
+    const sl_allocator *a;
+    sl_scene scene;
+    sl_viewcells cells;
+    const sl_pvs_method *method;
+    void *config;
+    char effective[SL_OPTS_MAX_CHARS + 1];
+    void *shared;
+    uint64_t removed;
+    uint32_t cell_count, object_count;
+    uint64_t key;               /* what the journal must match: scene, cells, method, options */
+    bool writer;
+    /* results, per cell (writer only) */
+    uint8_t **enc;
+    uint32_t *enc_size, *counts;
+    uint32_t *scratch;          /* object_count ids: decoding checks */
+    uint8_t *done;
+    uint32_t done_count, resumed, baked;
+    double cell_seconds, max_cell_seconds;
+    /* journal (writer only) */
+    int fd;
+    char *journal;
+    double last_sync;
+} sl_bake;
+
+sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const char *output,
+                        const sl_pvs_build_options *opt, bool writer, sl_error *err);
+sl_status sl_bake_store(sl_bake *b, uint32_t cell, const uint32_t *ids, uint32_t count, double seconds,
+                        sl_error *err);
+/* Store a cell already encoded (from the journal or another process): the bytes must decode to
+ * exactly `count` ascending ids below the object count; journal: append it to the journal. */
+sl_status sl_bake_store_encoded(sl_bake *b, uint32_t cell, const uint8_t *bytes, uint32_t size, uint32_t count,
+                                double seconds, bool journal, sl_error *err);
+sl_status sl_bake_finish(sl_bake *b, const char *output, const sl_pvs_build_options *opt, sl_error *err);
+void sl_bake_stats(const sl_bake *b, sl_pvs_build_stats *out);
+void sl_bake_end(sl_bake *b);
+
+#endif

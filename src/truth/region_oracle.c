@@ -1,0 +1,493 @@
+/* The region oracle: which objects are visible from anywhere in a view cell? Estimated by dense
+ * sampling — every sample point renders a cube map with the exact point oracle (oracle.c) and the
+ * union of the visible sets is the answer. It is a LOWER BOUND of the exact from-region set: what
+ * is visible only from between the samples, or only through a gap thinner than a cube-map pixel,
+ * is not found. Conservative PVS methods are held to it: every object it finds must be in their
+ * set (docs/pvs.md, "Verification").
+ *
+ * Samples (deterministic functions of the options, the cell and the seed):
+ *  - the cell's vertices, and points along every edge at most edge_spacing apart (for a prism the
+ *    top edges are where the thesis samples: section 5.3 of Wonka's thesis);
+ *  - face_samples random points on the boundary faces (area-weighted);
+ *  - interior_samples random points inside.
+ * Every point is pulled 1 mm towards the cell's centre, so that a point never sits exactly on a
+ * wall that bounds the cell (a camera on a wall's plane sees along both of its sides), and lifted
+ * to at least 0.1 m above the terrain. The points are then shuffled, so that the last 10% rendered
+ * is a fair random subset: the number of objects it adds first is the convergence figure.
+ *
+ * CLUSTER cells (Quake III) sample the boxes of the cluster's leaves instead (corners, centres,
+ * random points), keeping the points the map's BSP puts in a leaf of the cluster. */
+#include "sightline/region.h"
+#include "sightline/truth.h"
+
+#include "region/region_internal.h"
+#include "scene/scene_internal.h"
+
+#include <math.h>
+
+#define DEFAULT_FACE 256u
+#define DEFAULT_SPACING 1.0f
+#define DEFAULT_FACE_SAMPLES 24u
+#define DEFAULT_INTERIOR 24u
+#define DEFAULT_MAX_SAMPLES 4096u
+#define HARD_MAX_SAMPLES 65536u
+#define INSET 1e-3f
+#define GROUND_CLEARANCE 0.1f
+
+struct sl_region_oracle_t {
+    sl_allocator alloc;
+    sl_scene scene;
+    sl_region_oracle_options opt;
+    sl_oracle oracle;
+    uint32_t object_count;      /* entries of max_pixels and first (objects + 1) */
+    uint32_t *max_pixels;       /* per object, during a query */
+    uint32_t *first;            /* per object: first sample that saw it, SL_NONE */
+    sl_array points;            /* sl_vec3 */
+    sl_array visible;           /* uint32 */
+    sl_array out_pixels;        /* uint32 */
+    sl_array out_first;         /* uint32 */
+};
+
+sl_status sl_region_oracle_create(sl_scene scene, const sl_region_oracle_options *opt, const sl_allocator *alloc,
+                                  sl_region_oracle *out, sl_error *err)
+{
+    if (!scene || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_region_oracle_create: scene and out must not be NULL");
+    *out = NULL;
+    sl_region_oracle_options o;
+    if (opt)
+        o = *opt;
+    else
+        memset(&o, 0, sizeof o);
+    if (!o.face_size)
+        o.face_size = DEFAULT_FACE;
+    if (o.edge_spacing == 0)
+        o.edge_spacing = DEFAULT_SPACING;
+    if (!o.max_samples)
+        o.max_samples = DEFAULT_MAX_SAMPLES;
+    if (o.near_plane == 0)
+        o.near_plane = 0.05f;
+    if (!o.threads)
+        o.threads = 2;
+    /* zero means "default" for the sample counts only when the whole struct was defaulted */
+    if (!opt) {
+        o.face_samples = DEFAULT_FACE_SAMPLES;
+        o.interior_samples = DEFAULT_INTERIOR;
+    }
+    if (!isfinite(o.edge_spacing) || !(o.edge_spacing >= 0.001f))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "region oracle: edge_spacing %g must be at least 0.001 m",
+                       (double)o.edge_spacing);
+    if (o.max_samples > HARD_MAX_SAMPLES)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "region oracle: max_samples %u is above %u", o.max_samples,
+                       HARD_MAX_SAMPLES);
+    if (!isfinite(o.near_plane) || !(o.near_plane > 0) || !isfinite(o.far_plane) || o.far_plane < 0 ||
+        (o.far_plane > 0 && !(o.far_plane > o.near_plane)))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "region oracle: near %g and far %g must satisfy 0 < near < far",
+                       (double)o.near_plane, (double)o.far_plane);
+    if (o.far_plane == 0) {
+        sl_aabb b = sl_scene_bounds(scene);
+        double d = sl_aabb_is_empty(&b) ? 1.0
+                                        : hypot(hypot((double)b.max.x - b.min.x, (double)b.max.y - b.min.y),
+                                                (double)b.max.z - b.min.z);
+        o.far_plane = (float)fmax(2.0 * d, 10.0 * o.near_plane);
+    }
+    alloc = sl_alloc_or_default(alloc);
+    struct sl_region_oracle_t *r = sl_calloc(alloc, 1, sizeof *r);
+    if (!r)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory");
+    r->alloc = *alloc;
+    r->scene = scene;
+    r->opt = o;
+    sl_oracle_options po = sl_oracle_default_options();
+    po.threads = o.threads;
+    sl_status st = sl_oracle_create(scene, &po, alloc, &r->oracle, err);
+    if (st != SL_OK) {
+        sl_free(alloc, r, sizeof *r);
+        return st;
+    }
+    *out = r;
+    return SL_OK;
+}
+
+void sl_region_oracle_destroy(sl_region_oracle r)
+{
+    if (!r)
+        return;
+    const sl_allocator *a = &r->alloc;
+    sl_oracle_destroy(r->oracle);
+    sl_free(a, r->max_pixels, (size_t)r->object_count * sizeof(uint32_t));
+    sl_free(a, r->first, (size_t)r->object_count * sizeof(uint32_t));
+    sl_array_free(a, &r->points, sizeof(sl_vec3));
+    sl_array_free(a, &r->visible, sizeof(uint32_t));
+    sl_array_free(a, &r->out_pixels, sizeof(uint32_t));
+    sl_array_free(a, &r->out_first, sizeof(uint32_t));
+    sl_free(a, r, sizeof *r);
+}
+
+/* ---- sample points ---- */
+
+typedef struct sampler {
+    struct sl_region_oracle_t *r;
+    sl_rng rng;
+    sl_vec3 centre;
+    bool oom;
+} sampler;
+
+static void put(sampler *s, sl_vec3 p)
+{
+    /* pull towards the centre by INSET (never past it), keep clear of the terrain */
+    double dx = (double)s->centre.x - p.x, dy = (double)s->centre.y - p.y, dz = (double)s->centre.z - p.z;
+    double d = sqrt(dx * dx + dy * dy + dz * dz);
+    if (d > 0) {
+        double k = fmin(1.0, INSET / d);
+        p.x = (float)(p.x + k * dx);
+        p.y = (float)(p.y + k * dy);
+        p.z = (float)(p.z + k * dz);
+    }
+    float g = sl_scene_ground_height(s->r->scene, p.x, p.y) + GROUND_CLEARANCE;
+    sl_terrain_view tv;
+    if (sl_scene_terrain(s->r->scene, &tv) && p.z < g)
+        p.z = g;
+    if (!sl_array_push(&s->r->alloc, &s->r->points, sizeof p, &p, 1))
+        s->oom = true;
+}
+
+static sl_vec3 lerp3(sl_vec3 a, sl_vec3 b, float t)
+{
+    return (sl_vec3){a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), a.z + t * (b.z - a.z)};
+}
+
+static float dist3(sl_vec3 a, sl_vec3 b)
+{
+    return (float)sqrt(((double)b.x - a.x) * ((double)b.x - a.x) + ((double)b.y - a.y) * ((double)b.y - a.y) +
+                       ((double)b.z - a.z) * ((double)b.z - a.z));
+}
+
+/* Points strictly inside segment ab, at most `spacing` apart. */
+static void edge_points(sampler *s, sl_vec3 a, sl_vec3 b, float spacing)
+{
+    float len = dist3(a, b);
+    uint32_t n = (uint32_t)fminf(ceilf(len / spacing), 1e6f);
+    for (uint32_t i = 1; i < n; i++)
+        put(s, lerp3(a, b, (float)i / (float)n));
+}
+
+/* A uniform point in triangle abc. */
+static sl_vec3 in_triangle(sl_rng *g, sl_vec3 a, sl_vec3 b, sl_vec3 c)
+{
+    float u = sl_rng_float(g), v = sl_rng_float(g);
+    if (u + v > 1) {
+        u = 1 - u;
+        v = 1 - v;
+    }
+    return (sl_vec3){a.x + u * (b.x - a.x) + v * (c.x - a.x), a.y + u * (b.y - a.y) + v * (c.y - a.y),
+                     a.z + u * (b.z - a.z) + v * (c.z - a.z)};
+}
+
+/* A convex polyhedron given as vertices, edges and quad/triangle faces. */
+typedef struct poly {
+    sl_vec3 v[8];
+    int nv;
+    int e[12][2];
+    int ne;
+    int f[6][4]; /* f[k][3] < 0: a triangle */
+    int nf;
+} poly;
+
+static void prism_poly(const sl_viewcell *c, poly *p)
+{
+    static const int edges[9][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5}, {5, 3}, {0, 3}, {1, 4}, {2, 5}};
+    static const int faces[5][4] = {{0, 1, 2, -1}, {3, 4, 5, -1}, {0, 1, 4, 3}, {1, 2, 5, 4}, {2, 0, 3, 5}};
+    memset(p, 0, sizeof *p);
+    for (int k = 0; k < 3; k++) {
+        p->v[k] = (sl_vec3){c->tri[k].x, c->tri[k].y, c->z_min};
+        p->v[k + 3] = (sl_vec3){c->tri[k].x, c->tri[k].y, c->z_max};
+    }
+    p->nv = 6;
+    memcpy(p->e, edges, sizeof edges);
+    p->ne = 9;
+    memcpy(p->f, faces, sizeof faces);
+    p->nf = 5;
+}
+
+static void box_poly(const sl_aabb *b, poly *p)
+{
+    static const int edges[12][2] = {{0, 1}, {2, 3}, {4, 5}, {6, 7}, {0, 2}, {1, 3},
+                                     {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+    static const int faces[6][4] = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+    memset(p, 0, sizeof *p);
+    for (int i = 0; i < 8; i++)
+        p->v[i] = (sl_vec3){(i & 1) ? b->max.x : b->min.x, (i & 2) ? b->max.y : b->min.y,
+                            (i & 4) ? b->max.z : b->min.z};
+    p->nv = 8;
+    memcpy(p->e, edges, sizeof edges);
+    p->ne = 12;
+    memcpy(p->f, faces, sizeof faces);
+    p->nf = 6;
+}
+
+static double tri_area(sl_vec3 a, sl_vec3 b, sl_vec3 c)
+{
+    double e1[3] = {(double)b.x - a.x, (double)b.y - a.y, (double)b.z - a.z};
+    double e2[3] = {(double)c.x - a.x, (double)c.y - a.y, (double)c.z - a.z};
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    return 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+}
+
+/* Sample a convex polyhedron: vertices, edges, faces, interior. */
+static void sample_poly(sampler *s, const poly *p, bool prism)
+{
+    const sl_region_oracle_options *o = &s->r->opt;
+    double total_edge = 0;
+    for (int k = 0; k < p->ne; k++)
+        total_edge += dist3(p->v[p->e[k][0]], p->v[p->e[k][1]]);
+    uint32_t fixed = (uint32_t)p->nv + o->face_samples + o->interior_samples;
+    float spacing = o->edge_spacing;
+    if (o->max_samples > fixed) {
+        /* widen the spacing so that the edge points fit the cap */
+        double room = (double)(o->max_samples - fixed);
+        if (total_edge / spacing > room)
+            spacing = (float)(total_edge / fmax(room, 1.0)) * 1.0001f;
+    } else {
+        spacing = (float)fmax(total_edge, 1.0);
+    }
+    for (int k = 0; k < p->nv; k++)
+        put(s, p->v[k]);
+    for (int k = 0; k < p->ne; k++)
+        edge_points(s, p->v[p->e[k][0]], p->v[p->e[k][1]], spacing);
+    /* faces split into triangles, chosen by area */
+    sl_vec3 tris[12][3];
+    double area[12], sum = 0;
+    int nt = 0;
+    for (int f = 0; f < p->nf; f++) {
+        const int *q = p->f[f];
+        tris[nt][0] = p->v[q[0]], tris[nt][1] = p->v[q[1]], tris[nt][2] = p->v[q[2]];
+        area[nt] = tri_area(tris[nt][0], tris[nt][1], tris[nt][2]);
+        sum += area[nt++];
+        if (q[3] >= 0) {
+            tris[nt][0] = p->v[q[0]], tris[nt][1] = p->v[q[2]], tris[nt][2] = p->v[q[3]];
+            area[nt] = tri_area(tris[nt][0], tris[nt][1], tris[nt][2]);
+            sum += area[nt++];
+        }
+    }
+    for (uint32_t i = 0; i < o->face_samples && sum > 0; i++) {
+        double pick = sl_rng_double(&s->rng) * sum;
+        int t = 0;
+        while (t < nt - 1 && pick >= area[t]) {
+            pick -= area[t];
+            t++;
+        }
+        put(s, in_triangle(&s->rng, tris[t][0], tris[t][1], tris[t][2]));
+    }
+    for (uint32_t i = 0; i < o->interior_samples; i++) {
+        sl_vec3 q;
+        if (prism) {
+            q = in_triangle(&s->rng, p->v[0], p->v[1], p->v[2]);
+            q.z = p->v[0].z + sl_rng_float(&s->rng) * (p->v[3].z - p->v[0].z);
+        } else {
+            q = (sl_vec3){p->v[0].x + sl_rng_float(&s->rng) * (p->v[7].x - p->v[0].x),
+                          p->v[0].y + sl_rng_float(&s->rng) * (p->v[7].y - p->v[0].y),
+                          p->v[0].z + sl_rng_float(&s->rng) * (p->v[7].z - p->v[0].z)};
+        }
+        put(s, q);
+    }
+}
+
+/* Put p when the map's BSP puts it in `cluster`. */
+static void put_in_cluster(sampler *s, sl_viewcells cells, uint32_t cell, sl_vec3 p)
+{
+    if (sl_viewcell_contains(cells, s->r->scene, cell, p))
+        put(s, p);
+}
+
+static void sample_cluster(sampler *s, sl_viewcells cells, uint32_t cell)
+{
+    const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
+    const sl_region_oracle_options *o = &s->r->opt;
+    sl_bsp_view bsp;
+    if (!sl_scene_bsp(s->r->scene, &bsp))
+        return;
+    double vol_sum = 0;
+    for (uint32_t l = 0; l < bsp.leaf_count; l++)
+        if (bsp.leaves[l].cluster == c->cluster) {
+            const sl_aabb *b = &bsp.leaves[l].bounds;
+            vol_sum += fmax(1e-6, ((double)b->max.x - b->min.x) * ((double)b->max.y - b->min.y) *
+                                      ((double)b->max.z - b->min.z));
+        }
+    uint32_t budget = o->face_samples + o->interior_samples;
+    for (uint32_t l = 0; l < bsp.leaf_count && !s->oom; l++) {
+        if (bsp.leaves[l].cluster != c->cluster)
+            continue;
+        const sl_aabb *b = &bsp.leaves[l].bounds;
+        /* corners pulled 1% inwards, and the centre */
+        sl_vec3 ctr = {0.5f * (b->min.x + b->max.x), 0.5f * (b->min.y + b->max.y), 0.5f * (b->min.z + b->max.z)};
+        put_in_cluster(s, cells, cell, ctr);
+        for (int i = 0; i < 8; i++) {
+            sl_vec3 v = {(i & 1) ? b->max.x : b->min.x, (i & 2) ? b->max.y : b->min.y, (i & 4) ? b->max.z : b->min.z};
+            put_in_cluster(s, cells, cell, lerp3(v, ctr, 0.01f));
+        }
+        double vol = fmax(1e-6, ((double)b->max.x - b->min.x) * ((double)b->max.y - b->min.y) *
+                                    ((double)b->max.z - b->min.z));
+        uint32_t n = (uint32_t)ceil(budget * vol / vol_sum);
+        /* random tries; points outside the cluster (solid, other leaves) are dropped */
+        for (uint32_t i = 0; i < 4 * n; i++) {
+            sl_vec3 q = {b->min.x + sl_rng_float(&s->rng) * (b->max.x - b->min.x),
+                         b->min.y + sl_rng_float(&s->rng) * (b->max.y - b->min.y),
+                         b->min.z + sl_rng_float(&s->rng) * (b->max.z - b->min.z)};
+            put_in_cluster(s, cells, cell, q);
+        }
+    }
+}
+
+sl_status sl_region_oracle_points(sl_region_oracle r, sl_viewcells cells, uint32_t cell, const sl_vec3 **points,
+                                  uint32_t *count, sl_error *err)
+{
+    if (!r || !cells || !points || !count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_region_oracle_points: arguments must not be NULL");
+    *points = NULL;
+    *count = 0;
+    if (cell >= sl_viewcells_count(cells))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "region oracle: cell %u does not exist (%u cells)", cell,
+                       sl_viewcells_count(cells));
+    const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
+    sampler s;
+    memset(&s, 0, sizeof s);
+    s.r = r;
+    sl_rng_seed(&s.rng, r->opt.seed, 0x9e3779b97f4a7c15ull ^ cell);
+    r->points.count = 0;
+    poly p;
+    if (c->shape == SL_CELL_PRISM) {
+        prism_poly(c, &p);
+        s.centre = (sl_vec3){(c->tri[0].x + c->tri[1].x + c->tri[2].x) / 3, (c->tri[0].y + c->tri[1].y + c->tri[2].y) / 3,
+                             0.5f * (c->z_min + c->z_max)};
+        sample_poly(&s, &p, true);
+    } else if (c->shape == SL_CELL_BOX) {
+        box_poly(&c->bounds, &p);
+        s.centre = (sl_vec3){0.5f * (c->bounds.min.x + c->bounds.max.x), 0.5f * (c->bounds.min.y + c->bounds.max.y),
+                             0.5f * (c->bounds.min.z + c->bounds.max.z)};
+        sample_poly(&s, &p, false);
+    } else {
+        /* leaf samples are already inside: no pull */
+        s.centre = (sl_vec3){NAN, NAN, NAN};
+        sample_cluster(&s, cells, cell);
+    }
+    if (s.oom)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory for the sample points");
+    /* Fisher-Yates: a random interleaving, so that every tenth of the order is a fair subset */
+    sl_vec3 *pts = r->points.data;
+    uint32_t n = (uint32_t)r->points.count;
+    for (uint32_t i = n; i > 1; i--) {
+        uint32_t j = sl_rng_below(&s.rng, i);
+        sl_vec3 t = pts[i - 1];
+        pts[i - 1] = pts[j];
+        pts[j] = t;
+    }
+    if (n > r->opt.max_samples)
+        n = r->opt.max_samples;
+    *points = pts;
+    *count = n;
+    return SL_OK;
+}
+
+/* Render every point and gather the union. */
+static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts, uint32_t n, sl_region_visibility *out,
+                               sl_error *err)
+{
+    double t0 = sl_now();
+    memset(out, 0, sizeof *out);
+    uint32_t no = sl_scene_object_count(r->scene);
+    if (r->object_count < (size_t)no + 1) {
+        /* object_count holds the entries allocated (objects + 1, so never 0) */
+        sl_free(&r->alloc, r->max_pixels, (size_t)r->object_count * sizeof(uint32_t));
+        sl_free(&r->alloc, r->first, (size_t)r->object_count * sizeof(uint32_t));
+        r->object_count = 0;
+        r->max_pixels = sl_alloc(&r->alloc, ((size_t)no + 1) * sizeof(uint32_t));
+        r->first = sl_alloc(&r->alloc, ((size_t)no + 1) * sizeof(uint32_t));
+        if (!r->max_pixels || !r->first) {
+            sl_free(&r->alloc, r->max_pixels, ((size_t)no + 1) * sizeof(uint32_t));
+            sl_free(&r->alloc, r->first, ((size_t)no + 1) * sizeof(uint32_t));
+            r->max_pixels = r->first = NULL;
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory for %u objects", no);
+        }
+        r->object_count = no + 1;
+    }
+    for (uint32_t i = 0; i < no; i++) {
+        r->max_pixels[i] = 0;
+        r->first[i] = SL_NONE;
+    }
+    r->visible.count = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        sl_oracle_frame f;
+        sl_status st = sl_oracle_render_cube(r->oracle, pts[k], r->opt.face_size, r->opt.near_plane, r->opt.far_plane,
+                                             &f, err);
+        if (st != SL_OK) {
+            sl_error_prefix(err, "region oracle, sample %u of %u at (%g, %g, %g)", k, n, (double)pts[k].x,
+                            (double)pts[k].y, (double)pts[k].z);
+            return st;
+        }
+        for (uint32_t i = 0; i < f.visible_count; i++) {
+            uint32_t id = f.visible[i];
+            if (r->first[id] == SL_NONE) {
+                r->first[id] = k;
+                if (!sl_array_push(&r->alloc, &r->visible, sizeof id, &id, 1))
+                    return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory");
+            }
+            r->max_pixels[id] = SL_MAX(r->max_pixels[id], f.pixels[i]);
+        }
+    }
+    /* ascending ids: mark and sweep over the object range (the set is small, the range bounded) */
+    size_t nv = r->visible.count;
+    r->visible.count = 0;
+    r->out_pixels.count = 0;
+    r->out_first.count = 0;
+    if (!sl_array_reserve(&r->alloc, &r->out_pixels, sizeof(uint32_t), nv) ||
+        !sl_array_reserve(&r->alloc, &r->out_first, sizeof(uint32_t), nv))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory");
+    uint32_t tail = n - n / 10; /* samples k >= tail form the last tenth */
+    uint32_t added = 0;
+    for (uint32_t id = 0; id < no; id++) {
+        if (r->first[id] == SL_NONE)
+            continue;
+        SL_AT(r->visible, uint32_t, r->visible.count++) = id;
+        SL_AT(r->out_pixels, uint32_t, r->out_pixels.count++) = r->max_pixels[id];
+        SL_AT(r->out_first, uint32_t, r->out_first.count++) = r->first[id];
+        if (n >= 10 && r->first[id] >= tail)
+            added++;
+    }
+    out->sample_count = n;
+    out->visible_count = (uint32_t)r->visible.count;
+    out->visible = r->visible.data;
+    out->max_pixels = r->out_pixels.data;
+    out->first_sample = r->out_first.data;
+    out->added_last_tenth = added;
+    out->ms = (sl_now() - t0) * 1000.0;
+    return SL_OK;
+}
+
+sl_status sl_region_oracle_cell(sl_region_oracle r, sl_viewcells cells, uint32_t cell, sl_region_visibility *out,
+                                sl_error *err)
+{
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_region_oracle_cell: out must not be NULL");
+    memset(out, 0, sizeof *out);
+    const sl_vec3 *pts;
+    uint32_t n;
+    sl_status st = sl_region_oracle_points(r, cells, cell, &pts, &n, err);
+    if (st != SL_OK)
+        return st;
+    if (n == 0)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "region oracle: cell %u yields no sample point", cell);
+    return render_points(r, pts, n, out, err);
+}
+
+sl_status sl_region_oracle_points_visible(sl_region_oracle r, const sl_vec3 *points, uint32_t count,
+                                          sl_region_visibility *out, sl_error *err)
+{
+    if (!r || !out || (count && !points))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_region_oracle_points_visible: arguments must not be NULL");
+    memset(out, 0, sizeof *out);
+    for (uint32_t i = 0; i < count; i++)
+        if (!sl_finite3(&points[i].x))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "region oracle: point %u is not finite", i);
+    return render_points(r, points, count, out, err);
+}

@@ -1,0 +1,439 @@
+/* Baking PVSs: the three occluder-fusion cases of Wonka's thesis (figure 5.2: connected occluders,
+ * overlapping umbrae, disjoint umbrae with overlapping penumbrae) are culled by the sample method
+ * and the oracle agrees nothing visible is lost; an object seen through a gap is kept; the bake
+ * is byte-identical with 1 and 2 threads; a stopped bake resumes to the same bytes, also from a
+ * torn journal; a journal of another bake is refused; the pvs culler keeps every object the point
+ * oracle sees; the tiny city has zero misses against the region oracle. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include "core/sl_core.h"
+#include "sightline/cull.h"
+#include "sightline/gen.h"
+#include "sightline/pvs.h"
+#include "sightline/region.h"
+#include "sightline/truth.h"
+#include "support/counting_alloc.h"
+
+static char g_dir[256];
+
+static void path_of(char *buf, size_t n, const char *name) { snprintf(buf, n, "%s/%s", g_dir, name); }
+
+/* A closed box object (CLOSED_CONVEX: the oracle skips its back faces, as a renderer would). */
+static uint32_t add_box(sl_scene s, float x0, float y0, float z0, float x1, float y1, float z1, uint32_t kind)
+{
+    sl_error err;
+    float p[24];
+    for (int i = 0; i < 8; i++) {
+        p[3 * i] = (i & 1) ? x1 : x0;
+        p[3 * i + 1] = (i & 2) ? y1 : y0;
+        p[3 * i + 2] = (i & 4) ? z1 : z0;
+    }
+    static const uint32_t idx[36] = {0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1,
+                                     2, 3, 7, 2, 7, 6, 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5};
+    sl_mesh_desc md = {p, NULL, 8, idx, 12};
+    uint32_t mesh, obj;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, kind, SL_OBJECT_CLOSED_CONVEX};
+    assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
+    return obj;
+}
+
+/* A building: a box object and its footprint. */
+static uint32_t add_building(sl_scene s, float x0, float y0, float x1, float y1, float h)
+{
+    sl_error err;
+    uint32_t obj = add_box(s, x0, y0, 0, x1, y1, h, SL_KIND_BUILDING);
+    float xy[8] = {x0, y0, x1, y0, x1, y1, x0, y1};
+    sl_footprint_desc fd = {xy, 4, 0, h, obj};
+    assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
+    return obj;
+}
+
+static sl_viewcells one_box_cell(float x0, float y0, float x1, float y1)
+{
+    sl_viewcell c;
+    memset(&c, 0, sizeof c);
+    c.shape = SL_CELL_BOX;
+    c.cluster = -1;
+    c.z_min = 1;
+    c.z_max = 2;
+    c.bounds = (sl_aabb){{x0, y0, 1}, {x1, y1, 2}};
+    sl_viewcells vc;
+    sl_error err;
+    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
+    return vc;
+}
+
+static bool in_set(const uint32_t *ids, uint32_t n, uint32_t id)
+{
+    for (uint32_t i = 0; i < n; i++)
+        if (ids[i] == id)
+            return true;
+    return false;
+}
+
+/* Bake cell 0 with sample and check it against the region oracle: returns whether `target` is in
+ * the set. */
+static bool bake_and_check(sl_scene s, sl_viewcells vc, uint32_t target, const char *opts)
+{
+    sl_error err;
+    uint32_t n = sl_scene_object_count(s), count;
+    uint32_t *ids = malloc(n * sizeof *ids);
+    assert_int_equal(sl_pvs_bake_cell(s, vc, 0, "sample", opts, ids, n, &count, &err), SL_OK);
+    bool san = getenv("SL_SANITIZED") != NULL; /* the sanitizer build is several times slower */
+    sl_region_oracle_options oo = {0};
+    oo.face_size = san ? 128 : 192;
+    oo.edge_spacing = san ? 0.5f : 0.25f;
+    oo.face_samples = san ? 12 : 32;
+    oo.interior_samples = san ? 12 : 32;
+    sl_region_oracle ro;
+    assert_int_equal(sl_region_oracle_create(s, &oo, NULL, &ro, &err), SL_OK);
+    sl_region_visibility v;
+    assert_int_equal(sl_region_oracle_cell(ro, vc, 0, &v, &err), SL_OK);
+    for (uint32_t i = 0; i < v.visible_count; i++)
+        if (!in_set(ids, count, v.visible[i]))
+            fail_msg("object %u is visible (%u pixels) but not in the PVS", v.visible[i], v.max_pixels[i]);
+    bool oracle_sees = false;
+    for (uint32_t i = 0; i < v.visible_count; i++)
+        oracle_sees |= v.visible[i] == target;
+    bool r = in_set(ids, count, target);
+    /* a target the method culls must be one the oracle cannot see */
+    assert_true(r || !oracle_sees);
+    sl_region_oracle_destroy(ro);
+    free(ids);
+    return r;
+}
+
+/* The view cell: x, y in [-1, 1], eyes 1 to 2 m up. Occluders 20 m tall, at y = 10 and 15. */
+static void test_fusion(void **state)
+{
+    (void)state;
+    const char *opts = "eps=0.5,cell=0.5,map=64";
+    sl_error err;
+    sl_viewcells vc = one_box_cell(-1, -1, 1, 1);
+
+    /* (a) connected occluders: two buildings sharing a wall at x = 0; the target behind the joint is
+     * hidden by neither alone, by their union yes (merge=true shrinks them as one block) */
+    sl_scene s;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_building(s, -12, 10, 0, 12, 20);
+    add_building(s, 0, 10, 12, 12, 18);
+    uint32_t t = add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
+    assert_false(bake_and_check(s, vc, t, opts));
+    /* shrunk one by one, a 2 eps gap opens at the joint and the target shows through it */
+    assert_true(bake_and_check(s, vc, t, "eps=0.5,cell=0.5,map=64,merge=false"));
+    sl_scene_destroy(s);
+
+    /* (b) overlapping umbrae: A (x < 2, y = 10) and B (x > -2, y = 15); each hides part of the wide
+     * target from the whole cell and their umbrae overlap */
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_building(s, -40, 10, 2, 12, 20);
+    add_building(s, -2, 15, 40, 17, 20);
+    t = add_box(s, -6, 30, 0, 10, 31, 3, SL_KIND_OTHER);
+    assert_false(bake_and_check(s, vc, t, opts));
+    sl_scene_destroy(s);
+
+    /* (c) disjoint umbrae, overlapping penumbrae: A (x < 1, y = 10) and B (x > -1.5, y = 15); from
+     * every point of the cell the two shadows meet over the target, but no part of the target
+     * near x = 1..4 is in A's umbra and none near x = -5..-2 in B's */
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_building(s, -40, 10, 1, 12, 20);
+    add_building(s, -1.5f, 15, 40, 17, 20);
+    t = add_box(s, -5, 30, 0, 4, 31, 3, SL_KIND_OTHER);
+    assert_false(bake_and_check(s, vc, t, opts));
+    sl_scene_destroy(s);
+
+    /* control: a real 2 m gap between the occluders lets the target be seen, and it is kept */
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_building(s, -40, 10, -1, 12, 20);
+    add_building(s, 1, 10, 40, 12, 20);
+    t = add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
+    assert_true(bake_and_check(s, vc, t, opts));
+    /* and a thin wall (0.6 m < 2 eps) vanishes under shrinking: nothing behind it is culled */
+    sl_scene_destroy(s);
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_building(s, -40, 10, 40, 10.6f, 20);
+    t = add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
+    assert_true(bake_and_check(s, vc, t, opts));
+    sl_shrunk sh;
+    assert_int_equal(sl_shrink_footprints(s, 0.5f, SL_SHRINK_CYLINDER, true, NULL, &sh, &err), SL_OK);
+    const uint32_t *gone;
+    assert_int_equal(sl_shrunk_vanished(sh, &gone), 1);
+    assert_int_equal(gone[0], 0);
+    sl_shrunk_destroy(sh);
+    sl_scene_destroy(s);
+    sl_viewcells_destroy(vc);
+}
+
+static uint8_t *read_file(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    uint8_t *b = malloc((size_t)n + 1);
+    assert_int_equal(fread(b, 1, (size_t)n, f), (size_t)n);
+    fclose(f);
+    *size = (size_t)n;
+    return b;
+}
+
+static void assert_same_file(const char *a, const char *b)
+{
+    size_t na, nb;
+    uint8_t *x = read_file(a, &na), *y = read_file(b, &nb);
+    assert_int_equal(na, nb);
+    assert_memory_equal(x, y, na);
+    free(x);
+    free(y);
+}
+
+/* The tiny city with coarse street cells. */
+static void tiny(sl_scene *s, sl_viewcells *vc, float edge)
+{
+    sl_error err;
+    sl_city_options o = sl_city_defaults(SL_CITY_TINY);
+    assert_int_equal(sl_gen_city(&o, NULL, s, &err), SL_OK);
+    sl_viewcell_options vo = {0};
+    vo.max_edge = edge;
+    assert_int_equal(sl_viewcells_from_streets(*s, &vo, vc, &err), SL_OK);
+}
+
+static void test_threads_resume(void **state)
+{
+    (void)state;
+    sl_test_counter cnt = {0};
+    sl_allocator a = sl_test_counting_allocator(&cnt);
+    sl_scene s;
+    sl_viewcells vc;
+    tiny(&s, &vc, 60);
+    sl_error err;
+    char one[300], two[300], part[300], ckpt[320];
+    path_of(one, sizeof one, "one.slpvs");
+    path_of(two, sizeof two, "two.slpvs");
+    path_of(part, sizeof part, "part.slpvs");
+    snprintf(ckpt, sizeof ckpt, "%s.ckpt", part);
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    bo.method_options = "map=128";
+    bo.alloc = &a;
+    bo.threads = 1;
+    sl_pvs_build_stats st;
+    assert_int_equal(sl_pvs_build(s, vc, one, &bo, &st, &err), SL_OK);
+    assert_int_equal(st.cells, sl_viewcells_count(vc));
+    assert_int_equal(st.cells_baked, st.cells);
+    assert_string_equal(st.method, "sample");
+    assert_int_equal(st.notice[0], 0); /* eps 1.5 >= 2 * sqrt(2) / 2 */
+    assert_int_equal(access(one, F_OK), 0);
+    /* the counting allocator is not thread-safe: the default one for two threads */
+    bo.threads = 2;
+    bo.alloc = NULL;
+    assert_int_equal(sl_pvs_build(s, vc, two, &bo, &st, &err), SL_OK);
+    assert_same_file(one, two);
+    bo.alloc = &a;
+    bo.threads = 1;
+
+    /* stop after 5 cells: the journal stays, the output does not exist */
+    bo.stop_after = 5;
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_ERROR_CANCELLED);
+    assert_non_null(strstr(err.message, "resume"));
+    assert_int_equal(access(part, F_OK), -1);
+    assert_int_equal(access(ckpt, F_OK), 0);
+    /* a fresh bake does not silently throw the journal away */
+    bo.stop_after = 0;
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "--resume"));
+    /* another bake's journal is refused */
+    bo.resume = true;
+    bo.method_options = "map=128,eps=2";
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "another bake"));
+    /* tear the last record, then resume: same bytes as the uninterrupted bake */
+    bo.method_options = "map=128";
+    size_t jn;
+    uint8_t *j = read_file(ckpt, &jn);
+    assert_int_equal(truncate(ckpt, (off_t)jn - 3), 0);
+    free(j);
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_OK);
+    assert_true(st.cells_resumed >= 4 && st.cells_resumed <= 6);
+    assert_int_equal(st.cells_resumed + st.cells_baked, st.cells);
+    assert_same_file(one, part);
+    assert_int_equal(access(ckpt, F_OK), -1);
+    assert_int_equal(cnt.live, 0);
+
+    /* unknown method and option */
+    bo.resume = false;
+    bo.method = "nope";
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_ERROR_NOT_FOUND);
+    bo.method = "sample";
+    bo.method_options = "espilon=2";
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "espilon"));
+    assert_int_equal(sl_pvs_method_check_options("sample", "eps=0.1,cell=2", &err), SL_OK);
+    /* a small eps is allowed but noticed */
+    bo.method_options = "eps=0.5,cell=2,map=128";
+    bo.stop_after = 1;
+    assert_int_equal(sl_pvs_build(s, vc, part, &bo, &st, &err), SL_ERROR_CANCELLED);
+    assert_non_null(strstr(st.notice, "below"));
+    unlink(ckpt);
+    assert_int_equal(cnt.live, 0);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
+/* The pvs culler on the tiny city: cameras at random street points keep every object the point
+ * oracle sees; an eye outside every cell falls back to frustum culling; bad options are refused. */
+static void test_culler(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_viewcells vc;
+    tiny(&s, &vc, 60);
+    sl_error err;
+    char file[300], opt[400];
+    path_of(file, sizeof file, "culler.slpvs");
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    bo.method_options = "map=128";
+    assert_int_equal(sl_pvs_build(s, vc, file, &bo, NULL, &err), SL_OK);
+    snprintf(opt, sizeof opt, "file=%s", file);
+    sl_culler c;
+    assert_int_equal(sl_culler_create("pvs", s, opt, NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_guarantee(c), SL_CONSERVATIVE);
+    assert_non_null(strstr(sl_culler_options(c), "dynamic=frustum"));
+    sl_oracle o;
+    sl_oracle_options oo = sl_oracle_default_options();
+    oo.width = 256;
+    oo.height = 192;
+    assert_int_equal(sl_oracle_create(s, &oo, NULL, &o, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), count;
+    uint32_t *ids = malloc(n * sizeof *ids);
+    sl_rng r;
+    sl_rng_seed(&r, 5, 0);
+    const sl_viewcell *cells = sl_viewcells_data(vc);
+    uint32_t in_cell = 0;
+    for (int k = 0; k < 24; k++) {
+        const sl_viewcell *cl = &cells[sl_rng_below(&r, sl_viewcells_count(vc))];
+        sl_camera cam = sl_camera_default();
+        cam.position = (sl_vec3){(cl->tri[0].x + cl->tri[1].x + cl->tri[2].x) / 3,
+                                 (cl->tri[0].y + cl->tri[1].y + cl->tri[2].y) / 3, 1.7f};
+        cam.yaw = sl_rng_range(&r, -3.14f, 3.14f);
+        cam.width = 256;
+        cam.height = 192;
+        if (k == 23)
+            cam.position.z = 50; /* above every cell */
+        in_cell += sl_viewcells_locate(vc, NULL, cam.position) != SL_NONE;
+        assert_int_equal(sl_culler_cull(c, &cam, ids, n, &count, &err), SL_OK);
+        sl_oracle_frame f;
+        assert_int_equal(sl_oracle_render(o, &cam, &f, &err), SL_OK);
+        sl_cull_metrics m;
+        assert_int_equal(sl_metrics_compare(s, &f, ids, count, &m, NULL, NULL, 0, &err), SL_OK);
+        assert_int_equal(m.missed_count, 0);
+    }
+    assert_int_equal(in_cell, 23);
+    sl_oracle_destroy(o);
+    sl_culler_destroy(c);
+    free(ids);
+
+    assert_int_equal(sl_culler_create("pvs", s, "", NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "file=PATH is required"));
+    assert_int_equal(sl_culler_create("pvs", s, "file=/no/such.slpvs", NULL, &c, &err), SL_ERROR_NOT_FOUND);
+    snprintf(opt, sizeof opt, "file=%s,dynamic=maybe", file);
+    assert_int_equal(sl_culler_create("pvs", s, opt, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    snprintf(opt, sizeof opt, "file=%s,dynamic=pvs", file);
+    assert_int_equal(sl_culler_create("pvs", s, opt, NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_guarantee(c), SL_AGGRESSIVE);
+    sl_culler_destroy(c);
+    /* another scene is refused */
+    sl_scene other;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    co.seed = 2;
+    assert_int_equal(sl_gen_city(&co, NULL, &other, &err), SL_OK);
+    snprintf(opt, sizeof opt, "file=%s", file);
+    assert_int_equal(sl_culler_create("pvs", other, opt, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "another scene"));
+    sl_scene_destroy(other);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
+/* Zero misses against the region oracle on every cell of the tiny city (coarse cells). */
+static void test_tiny_city_oracle(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_viewcells vc;
+    tiny(&s, &vc, 40);
+    sl_error err;
+    char file[300];
+    path_of(file, sizeof file, "tiny.slpvs");
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    assert_int_equal(sl_pvs_build(s, vc, file, &bo, NULL, &err), SL_OK);
+    sl_pvs p;
+    assert_int_equal(sl_pvs_load(file, NULL, &p, &err), SL_OK);
+    sl_region_oracle_options oo = {0};
+    oo.face_size = 96;
+    oo.edge_spacing = 4;
+    oo.face_samples = 6;
+    oo.interior_samples = 6;
+    sl_region_oracle ro;
+    assert_int_equal(sl_region_oracle_create(s, &oo, NULL, &ro, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), count, nc = sl_viewcells_count(vc);
+    uint32_t *ids = malloc(n * sizeof *ids);
+    uint32_t step = getenv("SL_SANITIZED") ? 12 : 3; /* a third of the cells: the test stays short */
+    uint64_t total = 0, visible = 0;
+    for (uint32_t c = 0; c < nc; c += step) {
+        assert_int_equal(sl_pvs_cell_set(p, c, ids, n, &count, &err), SL_OK);
+        sl_region_visibility v;
+        assert_int_equal(sl_region_oracle_cell(ro, vc, c, &v, &err), SL_OK);
+        for (uint32_t i = 0; i < v.visible_count; i++)
+            if (!in_set(ids, count, v.visible[i]))
+                fail_msg("cell %u: object %u is visible (%u pixels) but not in the PVS", c, v.visible[i],
+                         v.max_pixels[i]);
+        total += count;
+        visible += v.visible_count;
+    }
+    /* the set is not trivially everything */
+    assert_true(total < (uint64_t)n * ((nc + step - 1) / step));
+    assert_true(visible <= total);
+    free(ids);
+    sl_region_oracle_destroy(ro);
+    sl_pvs_destroy(p);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(g_dir, sizeof g_dir, "%s/test_pvs_build.XXXXXX", SL_BINARY_DIR);
+    return mkdtemp(g_dir) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    char cmd[400];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_fusion),
+        cmocka_unit_test(test_threads_resume),
+        cmocka_unit_test(test_culler),
+        cmocka_unit_test(test_tiny_city_oracle),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
