@@ -20,6 +20,8 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "sightline/urban.h"
+
 #define DEG (M_PI / 180.0)
 
 /* What a mode sees of the current frame. The oracle has rendered the frame (view 0) before any
@@ -67,6 +69,11 @@ static sl_status write_overdraw(render_ctx *ctx, const char *file, sl_error *err
     return st == SL_OK ? sl_image_write_overdraw(&v, file, NULL, NULL, err) : st;
 }
 
+static sl_status write_cullmap(render_ctx *ctx, const char *file, sl_error *err)
+{
+    return sl_cullmap_render_png(ctx->scene, &ctx->camera, NULL, file, err);
+}
+
 /* The image kinds, in the order they are written. */
 static const render_mode modes[] = {
     {"id", true, false, "object-id buffer, each object in its own colour (sl_id_color), black = nothing", NULL, NULL,
@@ -75,6 +82,10 @@ static const render_mode modes[] = {
      write_depth},
     {"overdraw", true, true, "depth complexity: fragments per pixel on a colour ramp, 0 black, the image's max yellow",
      NULL, NULL, write_overdraw},
+    {"cullmap", false, false,
+     "the viewpoint's cull map from above: occluder-shadow heights over the city, visible footprints, the frustum "
+     "(cullmap method; 2.5D scenes with footprints)",
+     NULL, NULL, write_cullmap},
 };
 #define MODE_COUNT (sizeof modes / sizeof modes[0])
 

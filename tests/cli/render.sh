@@ -97,4 +97,8 @@ expect 0 "$SL" render city:tiny --path "$tmp/p.txt" --frames 3 --width 50 --heig
 [ "$(png_size "$tmp/path1/frame-00003-depth.png")" = "50x40" ] || fail "--width with --path"
 expect 1 "$SL" render city:tiny --path "$tmp/p.txt" --frames 7: --out "$tmp/path2"
 has "beyond" "$tmp/err"
+# the cull map of a viewpoint (cullmap method), written only when asked for
+expect 0 "$SL" render city:tiny --camera "0,0,1.7,45,0,0" --cullmap --out "$tmp/cm"
+is_png "$tmp/cm/frame-00000-cullmap.png"
+[ ! -e "$tmp/cm/frame-00000-id.png" ] || fail "--cullmap alone also wrote the id image"
 echo "PASS"
