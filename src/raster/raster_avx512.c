@@ -1,10 +1,11 @@
 /* AVX-512 kernels of the occlusion rasterizer (F, BW, VL, DQ). The front end, the small-triangle
- * setup, the row spans and the queries are the 8-lane code of raster_simd8.h and raster_batch8.h;
- * the tile loops take two adjacent tiles per 512-bit register (lanes 0-7 the left tile's
- * subtiles, 8-15 the right one's), with mask registers instead of blends, and triangles two tiles
- * wide two tile rows per register of spans (raster_narrow). Bit-identical to raster_scalar.c (same
- * exact coverage, same float operations in the same order, contraction off); run only when the
- * CPU reports all four extensions. */
+ * setup (its double arithmetic on 512-bit registers), the general kernel and the queries are the
+ * code of raster_simd8.h and raster_batch8.h compiled for this target. The small-triangle kernels
+ * take two adjacent tiles per 512-bit register (lanes 0-7 the left tile's subtiles, 8-15 the right
+ * one's), with mask registers instead of blends; triangles two tiles wide take two tile rows per
+ * register of spans (raster_narrow). Bit-identical to raster_scalar.c (same exact coverage, same
+ * float operations in the same order, contraction off); run only when the CPU reports all four
+ * extensions. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #elif defined(__GNUC__)
@@ -55,193 +56,14 @@ AVX512 static inline void merge_pair(__m512i c, __m512 z, uint32_t *mp, sl_rt_ti
     store_pair(dp, za, zm);
 }
 
-/* merge_pair with every subtile fully covered: a nearer subtile takes z in za and zm and loses its
- * mask, with masked stores (nothing else to read). */
-AVX512 static inline void merge_pair_full(__m512 z, uint32_t *mp, sl_rt_tile_depth *dp)
-{
-    __m512 za = _mm512_shuffle_f32x4(_mm512_load_ps(dp[0].za), _mm512_load_ps(dp[1].za), 0x44);
-    __mmask16 act = _mm512_cmp_ps_mask(z, za, _CMP_GT_OQ);
-    _mm512_mask_storeu_epi32(mp, act, _mm512_setzero_si512());
-    /* tile 0: za then zm from lanes 0-7, tile 1 from lanes 8-15 */
-    __m512 z0 = _mm512_shuffle_f32x4(z, z, 0x44), z1 = _mm512_shuffle_f32x4(z, z, 0xEE);
-    unsigned a0 = act & 0xFFu, a1 = act >> 8;
-    _mm512_mask_store_ps(dp[0].za, (__mmask16)(a0 | a0 << 8), z0);
-    _mm512_mask_store_ps(dp[1].za, (__mmask16)(a1 | a1 << 8), z1);
-}
-
-/* merge_full_tile on one tile with AVX-512 masked stores: a nearer subtile takes z in za and zm
- * (one store over the tile's depth line) and loses its mask. */
-AVX512 static inline void merge_full_one(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
-{
-    __mmask8 act = _mm256_cmp_ps_mask(z, _mm256_load_ps(dp->za), _CMP_GT_OQ);
-    __m512 z2 = _mm512_insertf32x8(_mm512_castps256_ps512(z), z, 1);
-    _mm512_mask_store_ps(dp->za, (__mmask16)(act | (unsigned)act << 8), z2);
-    _mm256_mask_store_epi32(mp, act, _mm256_setzero_si256());
-}
-
-AVX512 static inline __m512 pair_depth(float z0, float zdx, float zrow, int32_t dx, __m512 off2, __m512 zclamp2);
-AVX512 static inline __m512i pair_masks(__m512i xl2, __m512i xr2, int32_t x, __m512i ctl2);
-
-/* The general kernel (any triangle sl_rt_setup produces): exact stepped thresholds, then the tiles
- * of each tile row two at a time. The next tile row's spans and tile range are computed before the
- * current row's tiles: the loop's exit is mispredicted at the end of most rows, and the work
- * issued before it then need not be redone. */
-AVX512 static inline __attribute__((always_inline)) void general_rows(const sl_rt_target *tg, const sl_rt_tri *t,
-                                                                      int32_t tx0, int32_t tx1, int32_t ty0,
-                                                                      int32_t ty1, bool phases)
-{
-    const __m256i ctl = transpose_ctl();
-    const __m512i ctl2 = _mm512_broadcast_i64x4(ctl);
-    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
-    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(off), off, 1);
-    const __m512 zclamp2 = _mm512_set1_ps(t->zclamp);
-    const float z0 = t->z0, zdx = t->zdx, zdy = t->zdy;
-    const int32_t x_ref = t->x_ref, y_ref = t->y_ref;
-    uint32_t *const mask = tg->mask;
-    sl_rt_tile_depth *const depth = tg->depth;
-    const size_t tiles_x = (size_t)tg->tiles_x;
-    vdda dda;
-    vdda_init(&dda, t, ty0 * SL_RT_TILE_H);
-    __m256i xl, xr;
-    int32_t ta = 0, tb = 0, ia = 0, ib = 0;
-    vdda_spans(&dda, t, ty0 * SL_RT_TILE_H, &xl, &xr);
-    bool any = span_tiles(xl, xr, tx0, tx1, &ta, &tb, &ia, &ib);
-    for (int32_t ty = ty0; ty < ty1; ty++) {
-        __m256i nxl = xl, nxr = xr;
-        int32_t nta = 0, ntb = 0, nia = 0, nib = 0;
-        bool nany = false;
-        if (ty + 1 < ty1) {
-            vdda_spans(&dda, t, (ty + 1) * SL_RT_TILE_H, &nxl, &nxr);
-            nany = span_tiles(nxl, nxr, tx0, tx1, &nta, &ntb, &nia, &nib);
-            __asm__("" : "+x"(nxl), "+x"(nxr), "+r"(nta), "+r"(ntb), "+r"(nia), "+r"(nib), "+r"(nany));
-        }
-        if (any) {
-            float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
-            size_t row = (size_t)ty * tiles_x;
-            const __m512i xl2 = _mm512_broadcast_i64x4(xl), xr2 = _mm512_broadcast_i64x4(xr);
-            int32_t ea = ia < ib ? ia : tb, eb = ia < ib ? ib : tb, tx = ta;
-            /* with enough full tiles: partial tiles on the left in pairs (the second may be a full
-             * one), the full ones with masked stores, the partial ones on the right in pairs; else
-             * one loop of pairs (fewer mispredicted loop exits) */
-            if (!phases || eb - ea < 6)
-                ea = eb = ta;
-            for (; tx < eb; tx += 2) {
-                if (tx >= ea && tx + 1 < eb)
-                    break;
-                size_t ti = row + (size_t)tx;
-                int32_t x = tx * SL_RT_TILE_W;
-                if (tx + 1 >= tx1) {
-                    float zt = (z0 + zdx * (float)(x - x_ref)) + zrow;
-                    __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
-                    merge_tile(_mm256_shuffle_epi8(row_masks(xl, xr, x), ctl), z, mask + ti * SL_RT_SUBTILES,
-                               &depth[ti]);
-                    tx++;
-                    break;
-                }
-                merge_pair(pair_masks(xl2, xr2, x, ctl2), pair_depth(z0, zdx, zrow, x - x_ref, off2, zclamp2),
-                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
-            }
-            for (; tx + 1 < eb; tx += 2) {
-                size_t ti = row + (size_t)tx;
-                merge_pair_full(pair_depth(z0, zdx, zrow, tx * SL_RT_TILE_W - x_ref, off2, zclamp2),
-                                mask + ti * SL_RT_SUBTILES, &depth[ti]);
-            }
-            for (; tx < tb; tx += 2) {
-                size_t ti = row + (size_t)tx;
-                int32_t x = tx * SL_RT_TILE_W;
-                if (tx + 1 >= tx1) {
-                    float zt = (z0 + zdx * (float)(x - x_ref)) + zrow;
-                    __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
-                    merge_tile(_mm256_shuffle_epi8(row_masks(xl, xr, x), ctl), z, mask + ti * SL_RT_SUBTILES,
-                               &depth[ti]);
-                    break;
-                }
-                merge_pair(pair_masks(xl2, xr2, x, ctl2), pair_depth(z0, zdx, zrow, x - x_ref, off2, zclamp2),
-                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
-            }
-        }
-        xl = nxl, xr = nxr, ta = nta, tb = ntb, ia = nia, ib = nib, any = nany;
-    }
-}
-
-/* Wide triangles (12 tiles and more) take the three loops for rows with enough full tiles; the
- * others one loop of pairs, which mispredicts less. Two copies of the loops, each compiled for
- * its case. */
-AVX512 static __attribute__((noinline)) void general_wide(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0,
-                                                          int32_t tx1, int32_t ty0, int32_t ty1)
-{
-    general_rows(tg, t, tx0, tx1, ty0, ty1, true);
-}
-
-/* The general kernel for triangles narrower than 12 tiles: two tile rows per step, over the union of
- * their tile ranges (a tile a row does not reach has no coverage: its merge changes nothing), so
- * one loop exit (mispredicted at most rows' ends) serves two rows and each step has two
- * independent merges. The next two rows are computed before the current ones' tiles. */
-AVX512 static __attribute__((noinline)) void general_narrow(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0,
-                                                            int32_t tx1, int32_t ty0, int32_t ty1)
-{
-    const __m256i ctl = transpose_ctl();
-    const __m512i ctl2 = _mm512_broadcast_i64x4(ctl);
-    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
-    const __m512 off2 = _mm512_insertf32x8(_mm512_castps256_ps512(off), off, 1);
-    const __m512 zclamp2 = _mm512_set1_ps(t->zclamp);
-    const float z0 = t->z0, zdx = t->zdx, zdy = t->zdy;
-    const int32_t x_ref = t->x_ref, y_ref = t->y_ref;
-    uint32_t *const mask = tg->mask;
-    sl_rt_tile_depth *const depth = tg->depth;
-    const size_t tiles_x = (size_t)tg->tiles_x;
-    vdda dda;
-    vdda_init(&dda, t, ty0 * SL_RT_TILE_H);
-    grow g0, g1;
-    grow_at(&dda, t, ty0, ty1, tx0, tx1, &g0);
-    grow_at(&dda, t, ty0 + 1, ty1, tx0, tx1, &g1);
-    for (int32_t ty = ty0; ty < ty1; ty += 2) {
-        grow n0, n1;
-        grow_at(&dda, t, ty + 2, ty1, tx0, tx1, &n0);
-        grow_at(&dda, t, ty + 3, ty1, tx0, tx1, &n1);
-        if (g0.any || g1.any) {
-            int32_t ta = g0.any ? g0.ta : g1.ta, tb = g0.any ? g0.tb : g1.tb;
-            if (g0.any && g1.any)
-                ta = sl_rt_mini(g0.ta, g1.ta), tb = sl_rt_maxi(g0.tb, g1.tb);
-            bool two = ty + 1 < ty1;
-            float zr0 = zdy * (float)(ty * SL_RT_TILE_H - y_ref), zr1 = zdy * (float)((ty + 1) * SL_RT_TILE_H - y_ref);
-            size_t row = (size_t)ty * tiles_x;
-            const __m512i xl0 = _mm512_broadcast_i64x4(g0.xl), xr0 = _mm512_broadcast_i64x4(g0.xr);
-            const __m512i xl1 = _mm512_broadcast_i64x4(g1.xl), xr1 = _mm512_broadcast_i64x4(g1.xr);
-            for (int32_t tx = ta; tx < tb; tx += 2) {
-                size_t ti = row + (size_t)tx;
-                int32_t x = tx * SL_RT_TILE_W;
-                if (tx + 1 >= tx1) {
-                    /* the last tile of the caller's range alone */
-                    __m256 za = _mm256_set1_ps((z0 + zdx * (float)(x - x_ref)) + zr0);
-                    merge_tile(_mm256_shuffle_epi8(row_masks(g0.xl, g0.xr, x), ctl),
-                               _mm256_max_ps(_mm256_add_ps(za, off), zclamp), mask + ti * SL_RT_SUBTILES, &depth[ti]);
-                    if (two) {
-                        __m256 zb = _mm256_set1_ps((z0 + zdx * (float)(x - x_ref)) + zr1);
-                        merge_tile(_mm256_shuffle_epi8(row_masks(g1.xl, g1.xr, x), ctl),
-                                   _mm256_max_ps(_mm256_add_ps(zb, off), zclamp),
-                                   mask + (ti + tiles_x) * SL_RT_SUBTILES, &depth[ti + tiles_x]);
-                    }
-                    break;
-                }
-                merge_pair(pair_masks(xl0, xr0, x, ctl2), pair_depth(z0, zdx, zr0, x - x_ref, off2, zclamp2),
-                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
-                if (two)
-                    merge_pair(pair_masks(xl1, xr1, x, ctl2), pair_depth(z0, zdx, zr1, x - x_ref, off2, zclamp2),
-                               mask + (ti + tiles_x) * SL_RT_SUBTILES, &depth[ti + tiles_x]);
-            }
-        }
-        g0 = n0, g1 = n1;
-    }
-}
-
+/* The general kernel (any triangle sl_rt_setup produces): raster_simd8.h's general_ymm, one tile
+ * per 256-bit register. Measured against two tiles per 512-bit register (with two tile rows per
+ * step, or masked stores for full tiles), it is faster here: its fully covered tiles take the
+ * short merge, and the pair version's interleaving shuffles cost more than they save. */
 AVX512 static void raster_avx512(const sl_rt_target *tg, const sl_rt_tri *t, int32_t tx0, int32_t tx1, int32_t ty0,
                                  int32_t ty1)
 {
-    if (tx1 - tx0 >= 12)
-        general_wide(tg, t, tx0, tx1, ty0, ty1);
-    else
-        general_narrow(tg, t, tx0, tx1, ty0, ty1);
+    general_ymm(tg, t, tx0, tx1, ty0, ty1);
 }
 
 /* Depths of the pair of tiles starting at pixel column x: lanes 0-7 the left tile's subtiles, 8-15
@@ -310,8 +132,6 @@ AVX512 static inline __attribute__((always_inline)) void raster_small(const sl_r
     }
 }
 
-/* Set up prims in groups of 8; small ones take raster_small, each loaded (with its first tile row)
- * before the previous one is rasterized, the others the reference setup and the general kernel. */
 /* A triangle at most two tiles wide whose pair of tile columns lies in the caller's range: two tile
  * rows at a time, their 16 pixel rows' spans in one register per edge, then one pair of tiles per
  * tile row, without a branch inside (a row or tile past the triangle has no coverage: its merge

@@ -774,3 +774,46 @@ SL_RT_T static inline __attribute__((always_inline)) void raster_cols(const sl_r
         }
     }
 }
+
+/* A small triangle of any width: its float thresholds, then each tile row's tiles one per 256-bit
+ * register, each tile column's z0 + zdx*(float)(x - x_ref) computed once; rows are computed one
+ * ahead (see raster_simd8.h's general_ymm). */
+SL_RT_T static inline __attribute__((always_inline)) void raster_small_ymm(const sl_rt_target *tg, small_tri *t)
+{
+    const __m256i ctl = transpose_ctl();
+    const float zdy = t->zdy;
+    const int32_t y_ref = t->y_ref, ox = t->ox;
+    uint32_t *const mask = tg->mask;
+    sl_rt_tile_depth *const depth = tg->depth;
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    /* each tile column's z0 + zdx*(float)(x - x_ref), as in raster_avx2 */
+    float zcol[SL_RT_MAX_DIM / SL_RT_TILE_W + 8];
+    {
+        const __m256 z0 = _mm256_set1_ps(t->z0), zdx = _mm256_set1_ps(t->zdx);
+        __m256i xv = _mm256_add_epi32(_mm256_set1_epi32(t->tx0 * SL_RT_TILE_W - t->x_ref),
+                                      _mm256_setr_epi32(0, 32, 64, 96, 128, 160, 192, 224));
+        for (int32_t c = 0; c < t->tx1 - t->tx0; c += 8) {
+            _mm256_storeu_ps(zcol + c, _mm256_add_ps(z0, _mm256_mul_ps(zdx, _mm256_cvtepi32_ps(xv))));
+            xv = _mm256_add_epi32(xv, _mm256_set1_epi32(8 * SL_RT_TILE_W));
+        }
+    }
+    const float *zc = zcol - t->tx0;
+    small_row cur;
+    small_row_at(t, t->ty0, &cur);
+    for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
+        small_row nxt = cur;
+        if (ty + 1 < t->ty1)
+            small_row_at(t, ty + 1, &nxt);
+        if (cur.any) {
+            float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
+            size_t row = (size_t)ty * tiles_x;
+            for (int32_t tx = cur.ta; tx < cur.tb; tx++) {
+                size_t ti = row + (size_t)tx;
+                __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zc[tx] + zrow), t->off), t->zclamp);
+                merge_tile(_mm256_shuffle_epi8(row_masks(cur.xl, cur.xr, tx * SL_RT_TILE_W - ox), ctl), z,
+                           mask + ti * SL_RT_SUBTILES, &depth[ti]);
+            }
+        }
+        cur = nxt;
+    }
+}

@@ -268,6 +268,70 @@ SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_de
     _mm256_store_ps(dp->zm, _mm256_blendv_ps(_mm256_load_ps(dp->zm), z, act));
 }
 
+/* One tile with partial coverage: zc = the tile column's z0 + zdx*(float)(x - x_ref). */
+SL_RT_T static inline __attribute__((always_inline)) void partial_tile(uint32_t *mask, sl_rt_tile_depth *depth,
+                                                                     __m256i xl, __m256i xr, size_t row, int32_t tx,
+                                                                     float zc, float zrow, __m256 off, __m256 zclamp,
+                                                                     __m256i ctl)
+{
+    size_t ti = row + (size_t)tx;
+    __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zc + zrow), off), zclamp);
+    merge_tile(_mm256_shuffle_epi8(row_masks(xl, xr, tx * SL_RT_TILE_W), ctl), z, mask + ti * SL_RT_SUBTILES,
+               &depth[ti]);
+}
+
+/* The general kernel (any triangle sl_rt_setup produces): exact stepped thresholds, then per tile
+ * row the partial tiles on the left, the fully covered ones, the partial ones on the right. The
+ * next tile row's spans are computed before the current row's tiles (see raster_avx512.c's general kernels), and
+ * each tile column's z0 + zdx*(float)(x - x_ref) once per triangle. */
+SL_RT_T static inline __attribute__((always_inline)) void general_ymm(const sl_rt_target *tg, const sl_rt_tri *t,
+                                                                       int32_t tx0, int32_t tx1, int32_t ty0,
+                                                                       int32_t ty1)
+{
+    const __m256i ctl = transpose_ctl();
+    const __m256 off = _mm256_loadu_ps(t->off), zclamp = _mm256_set1_ps(t->zclamp);
+    const float zdy = t->zdy;
+    const int32_t y_ref = t->y_ref;
+    uint32_t *const mask = tg->mask;
+    sl_rt_tile_depth *const depth = tg->depth;
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    /* zcol[tx - tx0] = z0 + zdx*(float)(32*tx - x_ref), 8 columns at a time (tx1 - tx0 <= 256) */
+    float zcol[SL_RT_MAX_DIM / SL_RT_TILE_W + 8];
+    {
+        const __m256 z0 = _mm256_set1_ps(t->z0), zdx = _mm256_set1_ps(t->zdx);
+        __m256i xv = _mm256_add_epi32(_mm256_set1_epi32(tx0 * SL_RT_TILE_W - t->x_ref),
+                                      _mm256_setr_epi32(0, 32, 64, 96, 128, 160, 192, 224));
+        for (int32_t c = 0; c < tx1 - tx0; c += 8) {
+            _mm256_storeu_ps(zcol + c, _mm256_add_ps(z0, _mm256_mul_ps(zdx, _mm256_cvtepi32_ps(xv))));
+            xv = _mm256_add_epi32(xv, _mm256_set1_epi32(8 * SL_RT_TILE_W));
+        }
+    }
+    const float *zc = zcol - tx0;
+    vdda dda;
+    vdda_init(&dda, t, ty0 * SL_RT_TILE_H);
+    grow g;
+    grow_at(&dda, t, ty0, ty1, tx0, tx1, &g);
+    for (int32_t ty = ty0; ty < ty1; ty++) {
+        grow n;
+        grow_at(&dda, t, ty + 1, ty1, tx0, tx1, &n);
+        if (g.any) {
+            float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
+            size_t row = (size_t)ty * tiles_x;
+            int32_t ea = g.ia < g.ib ? g.ia : g.tb, eb = g.ia < g.ib ? g.ib : g.tb, tx = g.ta;
+            for (; tx < ea; tx++)
+                partial_tile(mask, depth, g.xl, g.xr, row, tx, zc[tx], zrow, off, zclamp, ctl);
+            for (; tx < eb; tx++) {
+                size_t ti = row + (size_t)tx;
+                merge_full_tile(_mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zc[tx] + zrow), off), zclamp),
+                                mask + ti * SL_RT_SUBTILES, &depth[ti]);
+            }
+            for (; tx < g.tb; tx++)
+                partial_tile(mask, depth, g.xl, g.xr, row, tx, zc[tx], zrow, off, zclamp, ctl);
+        }
+        g = n;
+    }
+}
+
 /* Lanes where the subtile hides depth z under coverage c (sl_rt_subtile_hides). */
 SL_RT_T static inline int hides_mask(__m256i c, __m256 z, const uint32_t *mp, const sl_rt_tile_depth *dp)
 {
