@@ -16,6 +16,7 @@
 #include "core/sl_core.h"
 #include "scene/pk3.h"
 #include "sightline/import.h"
+#include "sightline/region.h"
 #include "support/counting_alloc.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
@@ -113,11 +114,13 @@ static uint8_t *bspw_finish(bspw *w, size_t *size)
  *  face 5: polygon, water shader, leaves 0 and 1            -> object 2 (owned by leaf 0)
  *  face 6: polygon, wall shader, in no leaf                 -> object 5 (world left-overs, occluder)
  *  face 7: polygon, wall shader, brush model 1 (a door)     -> object 6 (not an occluder)
- * with_vis: 2 clusters, rows of 1 byte: cluster 0 sees {0}, cluster 1 sees {0, 1}. */
-static uint8_t *tiny_map(size_t *size, bool with_vis)
+ * with_vis: 2 clusters, rows of 1 byte: cluster 0 sees {0}, cluster 1 sees {0, 1}.
+ * model_leaf: a third leaf that no node reaches, cluster field 0, referencing face 7 (the door),
+ * as q3map writes one for every brush model. */
+static uint8_t *tiny_map_ex(size_t *size, bool with_vis, bool model_leaf)
 {
     bspw w = {0};
-    const char *ents = "{\n\"classname\" \"worldspawn\"\n\"message\" \"Tiny test map\"\n}\n"
+    const char *ents = "{\n\"classname\" \"worldspawn\"\n\"message\" \"Tiny test map\"\n\"_farplanedist\" \"1024\"\n}\n"
                        "{\n\"classname\" \"info_player_deathmatch\"\n\"origin\" \"32 0 16\"\n}\n"
                        "{\n\"origin\" \"-64 0 16\"\n\"classname\" \"info_player_start\"\n}\n"
                        "{\n\"classname\" \"func_door\"\n\"model\" \"*1\"\n}\n";
@@ -130,8 +133,10 @@ static uint8_t *tiny_map(size_t *size, bool with_vis)
     node(&w, 0, -1, -2);
     leaf(&w, 0, 0, 128, 0, 3, 0, 0);
     leaf(&w, 1, -128, 0, 3, 4, 0, 1);
-    int32_t lf[] = {0, 4, 5, 1, 2, 3, 5};
-    for (size_t i = 0; i < SL_COUNTOF(lf); i++)
+    if (model_leaf)
+        leaf(&w, 0, -512, -256, 7, 1, 0, 0);
+    int32_t lf[] = {0, 4, 5, 1, 2, 3, 5, 7};
+    for (size_t i = 0; i < SL_COUNTOF(lf) - !model_leaf; i++)
         put_i(&w, L_LFF, lf[i]);
     put_i(&w, L_LFB, 0);
     int32_t brush[3] = {0, 1, 0}, side[2] = {1, 0};
@@ -183,6 +188,8 @@ static uint8_t *tiny_map(size_t *size, bool with_vis)
     }
     return bspw_finish(&w, size);
 }
+
+static uint8_t *tiny_map(size_t *size, bool with_vis) { return tiny_map_ex(size, with_vis, false); }
 
 /* Byte offset of record i of lump k in a map. */
 static size_t lump_at(const uint8_t *map, int k, size_t rec, size_t i)
@@ -294,6 +301,7 @@ static void test_tiny_map(void **state)
     assert_string_equal(sl_scene_meta(s, "q3.spawn_count"), "2");
     assert_string_equal(sl_scene_meta(s, "q3.sky_objects"), "1");
     assert_string_equal(sl_scene_meta(s, "q3.title"), "Tiny test map");
+    assert_string_equal(sl_scene_meta(s, "q3.farplanedist"), "32.0000"); /* 1024 units */
     assert_string_equal(sl_scene_meta(s, "q3.entities"), "4");
     assert_string_equal(sl_scene_meta(s, "q3.patches"), "1");
     assert_string_equal(sl_scene_meta(s, "q3.clusters"), "2");
@@ -346,6 +354,47 @@ static void test_tiny_map(void **state)
 }
 
 /* Nodes out of pre-order are renumbered so that children follow parents; a cycle is an error. */
+/* A leaf the world's tree does not reach (q3map writes one per brush model, cluster field 0) is
+ * in no cluster and lists no object: the door is in no leaf (always drawn), the map's PVS does not
+ * tie it to cluster 0, and cluster 0's view cell does not grow to the model's leaf box. */
+static void test_model_leaf(void **state)
+{
+    (void)state;
+    size_t size;
+    uint8_t *map = tiny_map_ex(&size, true, true);
+    sl_scene s;
+    sl_error err;
+    sl_status st = sl_import_q3bsp_memory(map, size, "maps/tiny.bsp", NULL, NULL, &s, &err);
+    if (st != SL_OK)
+        fail_msg("%s", err.message);
+    sl_bsp_view b;
+    assert_true(sl_scene_bsp(s, &b));
+    assert_int_equal(b.leaf_count, 3);
+    assert_int_equal(b.leaves[0].cluster, 0);
+    assert_int_equal(b.leaves[1].cluster, 1);
+    assert_int_equal(b.leaves[2].cluster, -1);
+    assert_int_equal(b.leaves[2].object_count, 0);
+    for (uint32_t k = 0; k < b.leaf_object_count; k++)
+        assert_int_not_equal(b.leaf_objects[k], 6); /* the door */
+    /* the reachable leaves keep their lists: leaf 0 {floor, sky, water}, leaf 1 {water, patch, mesh} */
+    assert_int_equal(b.leaves[0].object_count, 3);
+    assert_int_equal(b.leaves[1].object_count, 3);
+    sl_scene_stats stats;
+    sl_scene_get_stats(s, &stats);
+    assert_int_equal(stats.object_count, 7);
+    assert_false(sl_scene_object(s, 6).flags & SL_OBJECT_OCCLUDER);
+    sl_viewcells vc;
+    assert_int_equal(sl_viewcells_from_bsp(s, NULL, &vc, &err), SL_OK);
+    assert_int_equal(sl_viewcells_count(vc), 2);
+    const sl_viewcell *c0 = &sl_viewcells_data(vc)[0];
+    assert_int_equal(c0->cluster, 0);
+    assert_float_equal(c0->bounds.min.x, 0.0f, 1e-6f); /* leaf 0 alone: x from 0 to 4 m */
+    assert_float_equal(c0->bounds.max.x, 4.0f, 1e-6f);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+    free(map);
+}
+
 static void test_node_renumbering(void **state)
 {
     (void)state;
@@ -747,6 +796,7 @@ static void test_openarena_pvs(void **state)
     assert_int_equal(b.cluster_count, (uint32_t)nvec);
     assert_int_equal(b.cluster_bytes, (uint32_t)sz);
     assert_memory_equal(b.pvs, vis + 8, (size_t)nvec * (size_t)sz);
+    assert_null(sl_scene_meta(s, "q3.farplanedist")); /* oa_dm1 sets no vis far plane */
     sl_scene_stats a, c;
     sl_scene_get_stats(s, &a);
     sl_scene_get_stats(t, &c);
@@ -939,6 +989,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_tiny_map),          cmocka_unit_test(test_node_renumbering),
+        cmocka_unit_test(test_model_leaf),
         cmocka_unit_test(test_tiny_hostile),      cmocka_unit_test(test_pk3),
         cmocka_unit_test(test_openarena_maps),    cmocka_unit_test(test_openarena_pvs),
         cmocka_unit_test(test_openarena_split),

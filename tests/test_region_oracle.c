@@ -1,7 +1,9 @@
 /* The region oracle on a hand-built scene whose answer is known: a wall hides a box from the whole
  * cell, a second box peeks past the wall's end from one corner of the cell only, a third stands
  * in the open. Sample points lie in the cell, are deterministic, and the convergence figure is
- * reported; BSP clusters sample inside their leaves; bad arguments are refused. */
+ * reported; BSP clusters sample inside their leaves; bad arguments are refused; a point next to a
+ * wall does not look through it (per-sample near plane) and a point on it is skipped; sight lines
+ * through a BSP's solid leaves do not count. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -217,12 +219,102 @@ static void test_cluster_samples(void **state)
     sl_scene_destroy(s);
 }
 
+/* A sample point next to a wall must not look through it: the cube faces' near plane (5 cm by
+ * default) would clip a wall nearer than that away, and the room behind the wall would show
+ * (Quake III walls are single brushes between rooms; this made the maps' own PVS look wrong).
+ * The oracle shrinks the near plane below half the eye's distance to the nearest triangle. */
+static void test_near_wall(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    /* a closed room x in [0, 10], and a box in the next room behind the wall x = 10 */
+    uint32_t room = add_box(s, (sl_vec3){0, -5, 0}, (sl_vec3){10, 5, 4});
+    uint32_t behind = add_box(s, (sl_vec3){12, -1, 1}, (sl_vec3){14, 1, 3});
+    /* a wall of an instanced mesh (a transform) between the room and a second box */
+    float p[12] = {0, -5, 0, 0, 5, 0, 0, 5, 4, 0, -5, 4};
+    uint32_t idx[6] = {0, 1, 2, 0, 2, 3}, mesh, wall2;
+    sl_mesh_desc md = {p, NULL, 4, idx, 2};
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_affine xf = sl_affine_identity();
+    xf.m[3] = -20; /* translated to x = -20 (row-major 3x4: translation in m[3], m[7], m[11]) */
+    sl_object_desc od = {mesh, &xf, 0xffffffffu, SL_KIND_OTHER, 0};
+    assert_int_equal(sl_scene_add_object(s, &od, &wall2, &err), SL_OK);
+    uint32_t beyond = add_box(s, (sl_vec3){-24, -1, 1}, (sl_vec3){-22, 1, 3});
+    assert_true(sl_scene_object_bounds(s, wall2).max.x < -19.9f);
+    sl_region_oracle_options o = {0};
+    o.face_size = 64;
+    sl_region_oracle ro;
+    assert_int_equal(sl_region_oracle_create(s, &o, NULL, &ro, &err), SL_OK);
+    sl_region_visibility v;
+    /* 1 mm, 1 cm and 4 cm from the room's wall; 2 mm from the translated wall */
+    sl_vec3 near_pts[4] = {{9.999f, 0, 2}, {9.99f, 0.5f, 2}, {9.96f, -0.5f, 2.5f}, {-19.998f, 0, 2}};
+    for (uint32_t i = 0; i < 4; i++) {
+        assert_int_equal(sl_region_oracle_points_visible(ro, &near_pts[i], 1, &v, &err), SL_OK);
+        assert_false(has(&v, i < 3 ? behind : beyond));
+        assert_true(has(&v, i < 3 ? room : wall2));
+    }
+    /* a point on the wall's plane cannot be rendered without looking through it: it is skipped */
+    sl_vec3 on_wall[2] = {{10, 0, 2}, {9.5f, 0, 2}};
+    assert_int_equal(sl_region_oracle_points_visible(ro, on_wall, 2, &v, &err), SL_OK);
+    assert_int_equal(v.sample_count, 1);
+    assert_false(has(&v, behind));
+    assert_true(has(&v, room));
+    assert_int_equal(v.first_sample[0], 0);
+    /* the control: from outside, past the wall, both show */
+    sl_vec3 outside[2] = {{11, 0, 2}, {-21, 0, 2}};
+    assert_int_equal(sl_region_oracle_points_visible(ro, outside, 2, &v, &err), SL_OK);
+    assert_true(has(&v, behind) && has(&v, beyond));
+    sl_region_oracle_destroy(ro);
+    sl_scene_destroy(s);
+}
+
+/* Quake III's opaque volumes are its brushes, and their faces are not all drawn (caulk): a sight
+ * line through a leaf without a cluster must not count, or the oracle would see through the
+ * undrawn sides. Leaves along x: [0, 8] open (cluster 0), [-2, 0) solid with nothing drawn,
+ * below -2 open (cluster 1) holding a box. The control makes the middle leaf open. */
+static void test_open_space(void **state)
+{
+    (void)state;
+    for (int open_middle = 0; open_middle < 2; open_middle++) {
+        sl_scene s;
+        sl_error err;
+        assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+        uint32_t box = add_box(s, (sl_vec3){-6, -1, -1}, (sl_vec3){-4, 1, 1});
+        sl_plane planes[2] = {{1, 0, 0, 0}, {1, 0, 0, 2}};
+        sl_bsp_node nodes[2] = {{0, {-1, 1}, {{-8, -8, -8}, {8, 8, 8}}}, {1, {-2, -3}, {{-8, -8, -8}, {0, 8, 8}}}};
+        sl_bsp_leaf leaves[3] = {{0, 0, {{0, -8, -8}, {8, 8, 8}}, 0, 0},
+                                 {open_middle ? 2 : -1, 0, {{-2, -8, -8}, {0, 8, 8}}, 0, 0},
+                                 {1, 0, {{-8, -8, -8}, {-2, 8, 8}}, 0, 1}};
+        uint32_t lo[1] = {box};
+        uint8_t pvs[3] = {0x7, 0x7, 0x7};
+        sl_bsp_desc bd = {planes, 2, nodes, 2, leaves, 3, lo, 1, 3, 1, pvs};
+        assert_int_equal(sl_scene_set_bsp(s, &bd, &err), SL_OK);
+        sl_region_oracle_options o = {0};
+        o.face_size = 32;
+        o.far_plane = 100; /* the default (twice the scene's diagonal) would not reach across */
+        sl_region_oracle ro;
+        assert_int_equal(sl_region_oracle_create(s, &o, NULL, &ro, &err), SL_OK);
+        sl_vec3 p[2] = {{4, 0, 0}, {-7, 0, 0}}; /* open space on either side */
+        sl_region_visibility v;
+        assert_int_equal(sl_region_oracle_points_visible(ro, &p[0], 1, &v, &err), SL_OK);
+        assert_int_equal(has(&v, box), open_middle == 1);
+        assert_int_equal(sl_region_oracle_points_visible(ro, &p[1], 1, &v, &err), SL_OK);
+        assert_true(has(&v, box)); /* in its own open leaf: seen */
+        sl_region_oracle_destroy(ro);
+        sl_scene_destroy(s);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_wall_scene),
         cmocka_unit_test(test_cap_and_options),
         cmocka_unit_test(test_cluster_samples),
+        cmocka_unit_test(test_near_wall),
+        cmocka_unit_test(test_open_space),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

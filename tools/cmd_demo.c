@@ -4,11 +4,13 @@
  * images, plots and the summary tables) into a folder. Methods appear in it as they land in the
  * registry. Exits 1 when a conservative method dropped a visible object. */
 #include "cli.h"
+#include "pvs_cli.h"
 
 #include "core/sl_core.h"
 #include "sightline/bench.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
+#include "sightline/region.h"
 #include "sightline/truth.h"
 #include "truth/plot.h"
 
@@ -18,12 +20,15 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #define DEMO_WALK_FRAMES 600
 #define DEMO_WALK_FPS 5.0f
 #define DEMO_FLY_VIEWS 24
 #define QUICK_WALK_FRAMES 40
 #define QUICK_FLY_VIEWS 4
+#define DEMO_PVS_METHOD "adjustable"
+#define DEMO_PVS_RADIUS 2.0f
 
 static void usage(FILE *out)
 {
@@ -31,8 +36,9 @@ static void usage(FILE *out)
             "usage: sightline demo [--preset small] [--seed N] [--out DIR] [--frames N] [--quick] [--json]\n\n"
             "Generate the default city, run a street-level walkthrough (%u frames at %g fps: a 1.4 m/s walk\n"
             "sampled every %.2f m) and %u random flyover views with every registered culling method (one\n"
-            "that cannot run with its default options, like pvs without a baked file, is named as not run),\n"
-            "judge every frame with the exact point oracle, and write a report into DIR: report.html\n"
+            "that cannot run with its default options is named as not run; the pvs culler gets a PVS baked\n"
+            "for the street cells along the walk, walk.slpvs, with the %s method), judge every frame\n"
+            "with the exact point oracle, and write a report into DIR: report.html\n"
             "and report.md with the summary tables, what each method is, the scene's statistics, a rendered\n"
             "frame (ids, depth, overdraw), top-down visibility maps and plots, plus the raw per-frame\n"
             "frames.csv / frames.json and the walk's path file (walk.txt) to replay with `sightline bench`.\n"
@@ -52,7 +58,7 @@ static void usage(FILE *out)
             "  sightline demo\n"
             "  sightline demo --preset tiny --quick --out /tmp/demo\n"
             "  sightline demo --preset vienna --frames 300 --out vienna-demo\n",
-            DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, DEMO_WALK_FRAMES,
+            DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, DEMO_PVS_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
 }
 
@@ -192,7 +198,8 @@ static void html_summary(report *r, sl_bench b)
 }
 
 static void write_report_body(report *r, sl_scene scene, const char *label, sl_bench *benches, uint32_t nb,
-                              const sl_bench_skip *skipped, uint32_t nskipped, const char *frame_images[3], uint32_t frame_index, uint64_t violations,
+                              const sl_bench_skip *skipped, uint32_t nskipped, const char *pvs_note,
+                              const char *frame_images[3], uint32_t frame_index, uint64_t violations,
                               const char *preset, uint64_t seed, double seconds)
 {
     char text[2048], g1[48], g2[48], g3[48];
@@ -267,6 +274,8 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     }
     put(&r->md, "\n");
     put(&r->html, "</table>\n");
+    if (pvs_note[0])
+        put_para(r, pvs_note);
     for (uint32_t i = 0; i < nskipped; i++) {
         snprintf(text, sizeof text, "Not run: %s, which needs an option the demo cannot choose for it: %s",
                  skipped[i].name, skipped[i].reason);
@@ -343,6 +352,59 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
              preset, (unsigned long long)seed, preset, (unsigned long long)seed);
     put_para(r, text);
     put(&r->html, "</body></html>\n");
+}
+
+/* ---- the pvs culler's file ---- */
+
+/* What the demo baked for the pvs culler. */
+typedef struct demo_pvs {
+    char options[4500];         /* "file=DIR/walk.slpvs" */
+    uint32_t cells;
+    double seconds, culled;
+} demo_pvs;
+
+/* Bake the PVS of the street cells within DEMO_PVS_RADIUS of the walk's cameras into
+ * DIR/walk.slpvs, so that the pvs culler runs in the demo. Elsewhere (the flyover) the culler
+ * finds no cell and culls by the frustum, as it does for any eye in no cell. When the culler cannot
+ * take the file's path, nothing is baked and *why says so (SL_OK); a failed bake is an error. */
+static sl_status demo_bake_pvs(sl_scene scene, sl_path walk, const char *out_dir, const sl_progress *prog, demo_pvs *dp,
+                               char *why, size_t why_cap, sl_error *err)
+{
+    memset(dp, 0, sizeof dp[0]);
+    why[0] = 0;
+    char file[4400];
+    snprintf(file, sizeof file, "%s/walk.slpvs", out_dir);
+    /* the culler's options are "key=value,...": its file name cannot hold a comma or a space */
+    if (strpbrk(file, ", \t\n=")) {
+        snprintf(why, why_cap, "the output folder's path holds a comma, '=' or a space, which the pvs culler's "
+                               "file= option cannot take");
+        return SL_OK;
+    }
+    double t0 = sl_now();
+    sl_viewcells all = NULL, near = NULL;
+    sl_status st = sl_viewcells_from_streets(scene, NULL, &all, err);
+    if (st == SL_OK)
+        st = cli_viewcells_along(all, walk, DEMO_PVS_RADIUS, &near, err);
+    sl_viewcells_destroy(all);
+    if (st == SL_OK) {
+        /* a journal left by an interrupted demo belongs to this output: start afresh */
+        char journal[4500];
+        snprintf(journal, sizeof journal, "%s.ckpt", file);
+        unlink(journal);
+        sl_pvs_build_options bo;
+        memset(&bo, 0, sizeof bo);
+        bo.method = DEMO_PVS_METHOD;
+        bo.progress = *prog;
+        sl_pvs_build_stats stats;
+        st = sl_pvs_build(scene, near, file, &bo, &stats, err);
+        dp->cells = stats.cells;
+        dp->culled = stats.mean_culled;
+    }
+    sl_viewcells_destroy(near);
+    dp->seconds = sl_now() - t0;
+    if (st == SL_OK)
+        snprintf(dp->options, sizeof dp->options, "file=%s", file);
+    return st;
 }
 
 /* ---- the command ---- */
@@ -427,8 +489,6 @@ int sl_cmd_demo(int argc, char **argv)
     uint32_t nskipped = 0;
     uint32_t nm = sl_bench_registered_methods(specs, SL_BENCH_MAX_METHODS, skipped, SL_BENCH_MAX_METHODS, &nskipped);
     nskipped = SL_MIN(nskipped, SL_BENCH_MAX_METHODS);
-    for (uint32_t i = 0; i < nskipped && !json; i++)
-        fprintf(stderr, "sightline demo: not running %s: %s\n", skipped[i].name, skipped[i].reason);
 
     sl_path walk = NULL, fly = NULL;
     sl_bench benches[2] = {NULL, NULL};
@@ -448,6 +508,40 @@ int sl_cmd_demo(int argc, char **argv)
     snprintf(path, sizeof path, "%s/walk.txt", out_dir);
     if (!status && sl_path_save(walk, path, &err) != SL_OK)
         status = cli_fail(cmd, &err);
+    /* the pvs culler: bake the cells along the walk, then run it with the others */
+    demo_pvs dp;
+    char pvs_note[1024] = "", why[512] = "";
+    memset(&dp, 0, sizeof dp);
+    if (!status) {
+        if (!json && !quiet)
+            fprintf(stderr, "sightline demo: baking the PVS of the street cells along the walk (%s)...\n",
+                    DEMO_PVS_METHOD);
+        if (demo_bake_pvs(scene, walk, out_dir, &prog, &dp, why, sizeof why, &err) != SL_OK)
+            status = cli_fail(cmd, &err);
+        cli_progress_done(&ps);
+    }
+    if (!status && dp.options[0] && nm < SL_BENCH_MAX_METHODS) {
+        specs[nm++] = (sl_bench_method_spec){"pvs", dp.options};
+        /* it runs after all: take it off the list of methods not run */
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < nskipped; i++)
+            if (strcmp(skipped[i].name, "pvs") != 0)
+                skipped[k++] = skipped[i];
+        nskipped = k;
+        snprintf(pvs_note, sizeof pvs_note,
+                 "pvs runs on walk.slpvs, baked for this demo: the %u street cells within %g m of the walk's "
+                 "cameras, method %s, %.1f s, %.1f%% of the objects culled per cell on average. Where the eye is "
+                 "in none of them (the flyover) the pvs culler falls back to frustum culling.",
+                 dp.cells, (double)DEMO_PVS_RADIUS, DEMO_PVS_METHOD, dp.seconds, 100.0 * dp.culled);
+        if (!json && !quiet)
+            fprintf(stderr, "sightline demo: walk.slpvs: %u cells in %.1f s\n", dp.cells, dp.seconds);
+    } else if (!status && why[0]) {
+        for (uint32_t i = 0; i < nskipped; i++)
+            if (!strcmp(skipped[i].name, "pvs"))
+                snprintf(skipped[i].reason, sizeof skipped[i].reason, "%s", why);
+    }
+    for (uint32_t i = 0; i < nskipped && !json && !status; i++)
+        fprintf(stderr, "sightline demo: not running %s: %s\n", skipped[i].name, skipped[i].reason);
     static const char *set_names[2] = {"walk", "flyover"};
     for (uint32_t k = 0; k < 2 && !status; k++) {
         char set_label[160];
@@ -532,7 +626,7 @@ int sl_cmd_demo(int argc, char **argv)
             sl_atomic_abort(&r.md);
             status = cli_fail(cmd, &err);
         } else {
-            write_report_body(&r, scene, label, benches, nb, skipped, nskipped, frame_images, frame_index,
+            write_report_body(&r, scene, label, benches, nb, skipped, nskipped, pvs_note, frame_images, frame_index,
                               violations, sl_city_preset_name(preset), seed, sl_now() - t0);
             if (ferror(r.md.fp))
                 r.md.failed = true;
@@ -558,6 +652,10 @@ int sl_cmd_demo(int argc, char **argv)
             cli_json_string(&j, "report", path);
             cli_json_double(&j, "seconds", seconds);
             cli_json_uint(&j, "violations", violations);
+            if (dp.options[0]) {
+                cli_json_uint(&j, "pvs_cells", dp.cells);
+                cli_json_double(&j, "pvs_bake_seconds", dp.seconds);
+            }
             cli_json_array_begin(&j, "skipped");
             for (uint32_t i = 0; i < nskipped; i++) {
                 cli_json_object_begin(&j, NULL);

@@ -1,8 +1,12 @@
 /* `sightline pvs`: bake, inspect, query and verify precomputed from-region visibility (.slpvs).
  * The format is in docs/pvs.md; the library calls in include/sightline/pvs.h and region.h. */
 #include "cli.h"
+#include "pvs_cli.h"
+
+#include "core/sl_core.h"
 
 #include "sightline/gen.h"
+#include "sightline/path.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/scene.h"
@@ -49,7 +53,11 @@ static void usage_build(FILE *out)
             "                    largest box (16)\n"
             "  --eye-min H       lowest eye above the ground (1.0 m)\n"
             "  --eye-max H       highest eye above the ground (2.0 m)\n"
-            "  --volume X0,Y0,Z0,X1,Y1,Z1   adaptive: the navigable box\n\n"
+            "  --volume X0,Y0,Z0,X1,Y1,Z1   adaptive: the navigable box\n"
+            "  --along PATH      only the cells whose bounds come within --radius of a camera of the path\n"
+            "                    file (docs/paths.md): a PVS for one walk; elsewhere the pvs culler finds\n"
+            "                    no cell and falls back to frustum culling\n"
+            "  --radius M        with --along: distance from the cameras (default 2 m)\n\n"
             "method:\n"
             "  --method NAME     baking method (default sample); available:\n");
     for (uint32_t i = 0; i < sl_pvs_method_count(); i++) {
@@ -83,6 +91,7 @@ static void usage_build(FILE *out)
             "  sightline pvs build city.slscene -o city.slpvs\n"
             "  sightline pvs build --city tiny -o tiny.slpvs --cell-size 8 --options eps=1,cell=1\n"
             "  mpiexec -n 2 sightline pvs build city.slscene -o city.slpvs --threads 1\n"
+            "  sightline pvs build --city small --along walk.txt --method adjustable -o walk.slpvs\n"
             "  sightline pvs build oa_dm1.pk3 --map oa_dm1 --cells bsp --method adjustable -o dm1.slpvs\n");
 }
 
@@ -119,7 +128,9 @@ static void usage_verify(FILE *out)
             "it and hold the sets to the region oracle (dense cube-map sampling of each cell, a lower\n"
             "bound of the exact visible set): every object the oracle sees must be in the cell's set.\n"
             "Misses are listed with the cell and the object, and make the exit status 1. For Quake III\n"
-            "cluster cells the map's own PVS is checked the same way and the sizes compared.\n\n"
+            "cluster cells the map's own PVS is checked the same way and the sizes compared; objects\n"
+            "farther from the cell than the map's vis far plane (_farplanedist, fog maps) are told apart\n"
+            "and do not fail a mappvs file, and clusters without a point to sample are skipped.\n\n"
             "options:\n"
             "  --scene SCENE   the scene the PVS was baked for; --city PRESET [--seed N] generates it\n"
             "  --map NAME      map inside a .pk3\n"
@@ -171,7 +182,45 @@ static bool parse_floats(cli_args *a, const char *name, const char *text, float 
     return true;
 }
 
+/* Distance between two boxes (0 when they meet). */
+static double box_gap(const sl_aabb *a, const sl_aabb *b)
+{
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        double lo = fmax((&a->min.x)[k], (&b->min.x)[k]), hi = fmin((&a->max.x)[k], (&b->max.x)[k]);
+        if (lo > hi)
+            d2 += (lo - hi) * (lo - hi);
+    }
+    return sqrt(d2);
+}
+
 /* ---- build ---- */
+
+sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, sl_error *err)
+{
+    *out = NULL;
+    uint32_t nc = sl_viewcells_count(cells), np = sl_path_count(path);
+    const sl_viewcell *vc = sl_viewcells_data(cells);
+    const sl_pose *poses = sl_path_poses(path);
+    sl_viewcell *keep = malloc(((size_t)nc + 1) * sizeof *keep);
+    if (!keep)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "cells along the path: out of memory");
+    uint32_t n = 0;
+    for (uint32_t c = 0; c < nc; c++)
+        for (uint32_t i = 0; i < np; i++) {
+            sl_aabb eye = {poses[i].position, poses[i].position};
+            if (box_gap(&vc[c].bounds, &eye) <= radius) {
+                keep[n++] = vc[c];
+                break;
+            }
+        }
+    sl_status st = n ? sl_viewcells_create(keep, n, NULL, out, err)
+                     : sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                               "no view cell lies within %g m of the path's %u cameras (a path of another scene?)",
+                               (double)radius, np);
+    free(keep);
+    return st;
+}
 
 static int run_build(int argc, char **argv)
 {
@@ -179,6 +228,8 @@ static int run_build(int argc, char **argv)
     cli_args_init(&a, argc, argv);
     a.cmd = "pvs build";
     const char *name, *val, *scene_path = NULL, *output = NULL, *cells_kind = NULL, *map = NULL, *city = NULL;
+    const char *along = NULL;
+    float radius = 2.0f;
     sl_pvs_build_options bo;
     memset(&bo, 0, sizeof bo);
     sl_viewcell_options vo;
@@ -210,6 +261,10 @@ static int run_build(int argc, char **argv)
             cli_parse_float(&a, name, cli_value(&a, name, val), &vo.eye_max);
         } else if (!strcmp(name, "volume")) {
             has_volume = parse_floats(&a, name, cli_value(&a, name, val), volume, 6);
+        } else if (!strcmp(name, "along")) {
+            along = cli_value(&a, name, val);
+        } else if (!strcmp(name, "radius")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &radius);
         } else if (!strcmp(name, "method")) {
             bo.method = cli_value(&a, name, val);
         } else if (!strcmp(name, "options")) {
@@ -252,6 +307,10 @@ static int run_build(int argc, char **argv)
         cli_error(a.cmd, "--cells: '%s' is not streets, grid, bsp or adaptive", cells_kind);
         return 2;
     }
+    if (!(radius >= 0) || !isfinite(radius)) {
+        cli_error(a.cmd, "--radius must be a finite distance >= 0");
+        return 2;
+    }
     if (cells_kind && !strcmp(cells_kind, "adaptive") && !has_volume) {
         cli_error(a.cmd, "--cells adaptive needs --volume X0,Y0,Z0,X1,Y1,Z1");
         return 2;
@@ -290,7 +349,18 @@ static int run_build(int argc, char **argv)
         sl_aabb box = {{volume[0], volume[1], volume[2]}, {volume[3], volume[4], volume[5]}};
         st = sl_viewcells_adaptive(scene, &box, SL_NONE, &vo, &cells, &err);
     }
+    if (st == SL_OK && along) {
+        sl_path path = NULL;
+        sl_viewcells near = NULL;
+        st = sl_path_load(along, NULL, &path, &err);
+        if (st == SL_OK)
+            st = cli_viewcells_along(cells, path, radius, &near, &err);
+        sl_path_destroy(path);
+        sl_viewcells_destroy(cells);
+        cells = near;
+    }
     if (st != SL_OK) {
+        sl_viewcells_destroy(cells);
         sl_scene_destroy(scene);
         return cli_fail(a.cmd, &err);
     }
@@ -299,7 +369,7 @@ static int run_build(int argc, char **argv)
     int rank = 0;
     if (mpi) {
         bo.progress = cli_progress(&ps, true); /* the MPI driver reports nothing per cell */
-        st = sl_pvs_build_mpi(scene, cells, output, &bo, &stats, &rank, &err);
+        st = cli_pvs_build_mpi(scene, cells, output, &bo, &stats, &rank, &err);
     } else {
         bo.progress = cli_progress(&ps, quiet || json);
         st = sl_pvs_build(scene, cells, output, &bo, &stats, &err);
@@ -753,20 +823,37 @@ static int run_verify(int argc, char **argv)
     bool bsp = sl_viewcells_data(cells)[0].shape == SL_CELL_CLUSTER;
     uint64_t misses = 0, bsp_misses = 0, oracle_total = 0, set_total = 0, bsp_total = 0, added_total = 0;
     uint32_t checked = 0, cells_with_miss = 0;
+    /* A Quake III map compiled with "_farplanedist" (fog maps) has a PVS that drops clusters beyond
+     * that distance by design (q3map2's vis compares portal distances, less their radii, with it):
+     * a miss whose object lies farther than that from the whole cell is told apart, and does not
+     * fail a file that holds the map's own PVS. */
+    const char *far_meta = bsp ? sl_scene_meta(scene, "q3.farplanedist") : NULL;
+    double far_plane = far_meta ? strtod(far_meta, NULL) : 0;
+    const char *file_method = sl_pvs_meta(p, "method");
+    bool file_is_map = file_method && !strcmp(file_method, "mappvs");
+    uint64_t misses_far = 0, bsp_misses_far = 0;
+    uint32_t unsampled = 0;
     double over_sum = 0;
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
     /* misses kept for the JSON report (the first 10000) */
     typedef struct miss {
         uint32_t cell, object, pixels;
-        bool in_pvs, in_map;
+        bool in_pvs, in_map, beyond_far;
     } miss;
     size_t miss_cap = 10000, miss_n = 0;
     miss *list = json ? malloc(miss_cap * sizeof *list) : NULL;
     for (uint32_t i = 0; i < ncheck; i++) {
         uint32_t c = order[i];
-        uint32_t n;
+        uint32_t n, npts = 0;
+        const sl_vec3 *pts;
         sl_region_visibility v;
+        if (sl_region_oracle_points(ro, cells, c, &pts, &npts, &err) == SL_OK && npts == 0) {
+            /* a cluster whose leaves hold no point the BSP puts back in it (a leaf without volume):
+             * no viewer can stand there, and there is nothing to sample */
+            unsampled++;
+            continue;
+        }
         if (sl_pvs_cell_set(p, c, set, no, &n, &err) != SL_OK || sl_region_oracle_cell(ro, cells, c, &v, &err) != SL_OK) {
             cli_progress_done(&ps);
             rc = cli_fail(a.cmd, &err);
@@ -778,19 +865,28 @@ static int run_verify(int argc, char **argv)
             uint32_t id = v.visible[k];
             bool in_set = contains(set, n, id);
             bool in_bsp = !bsp || contains(bset, nb, id);
+            bool beyond = false;
+            if ((!in_set || !in_bsp) && far_plane > 0) {
+                sl_aabb ob = sl_scene_object_bounds(scene, id);
+                beyond = box_gap(&sl_viewcells_data(cells)[c].bounds, &ob) > far_plane;
+            }
             if (!in_set) {
                 misses++;
-                cell_miss++;
+                misses_far += beyond && file_is_map;
+                cell_miss += !(beyond && file_is_map);
             }
-            if (!in_bsp)
+            if (!in_bsp) {
                 bsp_misses++;
+                bsp_misses_far += beyond;
+            }
             if (!in_set || !in_bsp) {
                 if (json) {
                     if (list && miss_n < miss_cap)
-                        list[miss_n++] = (miss){c, id, v.max_pixels[k], in_set, in_bsp};
+                        list[miss_n++] = (miss){c, id, v.max_pixels[k], in_set, in_bsp, beyond};
                 } else {
-                    fprintf(stderr, "MISS: cell %u, object %u (%u pixels at most): %s%s\n", c, id, v.max_pixels[k],
-                            in_set ? "" : "not in the PVS", !in_bsp ? (in_set ? "not in the map's PVS" : ", nor in the map's PVS") : "");
+                    fprintf(stderr, "MISS: cell %u, object %u (%u pixels at most): %s%s%s\n", c, id, v.max_pixels[k],
+                            in_set ? "" : "not in the PVS", !in_bsp ? (in_set ? "not in the map's PVS" : ", nor in the map's PVS") : "",
+                            beyond ? " (farther than the map's vis far plane)" : "");
                 }
             }
         }
@@ -806,7 +902,7 @@ static int run_verify(int argc, char **argv)
     }
     cli_progress_done(&ps);
     sl_region_oracle_destroy(ro);
-    if (rc == 0 && misses > 0)
+    if (rc == 0 && misses > misses_far)
         rc = 1;
     double over = checked ? over_sum / checked : 0;
     if (json) {
@@ -816,6 +912,7 @@ static int run_verify(int argc, char **argv)
         cli_json_bool(&j, "valid", true);
         cli_json_uint(&j, "cells", nc);
         cli_json_uint(&j, "checked", checked);
+        cli_json_uint(&j, "unsampled", unsampled);
         cli_json_uint(&j, "misses", misses);
         cli_json_uint(&j, "cells_with_misses", cells_with_miss);
         cli_json_double(&j, "oracle_visible_mean", checked ? (double)oracle_total / checked : 0);
@@ -825,6 +922,9 @@ static int run_verify(int argc, char **argv)
         if (bsp) {
             cli_json_double(&j, "map_pvs_visible_mean", checked ? (double)bsp_total / checked : 0);
             cli_json_uint(&j, "map_pvs_misses", bsp_misses);
+            cli_json_double(&j, "map_far_plane", far_plane);
+            cli_json_uint(&j, "map_pvs_misses_beyond_far_plane", bsp_misses_far);
+            cli_json_uint(&j, "misses_beyond_far_plane", misses_far);
         }
         cli_json_array_begin(&j, "missed");
         for (size_t m = 0; m < miss_n; m++) {
@@ -834,13 +934,20 @@ static int run_verify(int argc, char **argv)
             cli_json_uint(&j, "pixels", list[m].pixels);
             cli_json_bool(&j, "in_pvs", list[m].in_pvs);
             cli_json_bool(&j, "in_map_pvs", list[m].in_map);
+            cli_json_bool(&j, "beyond_far_plane", list[m].beyond_far);
             cli_json_object_end(&j);
         }
         cli_json_array_end(&j);
         cli_json_end(&j);
     } else {
-        printf("%s: checksums and sets ok; %u of %u cells held to the region oracle: %llu missed objects in %u cells\n",
-               file, checked, nc, (unsigned long long)misses, cells_with_miss);
+        printf("%s: checksums and sets ok; %u of %u cells held to the region oracle: %llu missed objects in %u cells",
+               file, checked, nc, (unsigned long long)(misses - misses_far), cells_with_miss);
+        if (misses_far)
+            printf(" (and %llu beyond the map's vis far plane)", (unsigned long long)misses_far);
+        printf("\n");
+        if (unsampled)
+            printf("  %u chosen cells were skipped: no sample point lies in them (BSP leaves without volume)\n",
+                   unsampled);
         printf("  mean per cell: oracle %.1f, PVS %.1f objects (over-estimation %.2fx); oracle convergence: %.2f "
                "objects first seen in the last 10%% of samples\n",
                checked ? (double)oracle_total / checked : 0, checked ? (double)set_total / checked : 0, over,
@@ -850,6 +957,11 @@ static int run_verify(int argc, char **argv)
                    "missing from it\n",
                    checked ? (double)bsp_total / checked : 0, set_total ? (double)bsp_total / set_total : 0,
                    (unsigned long long)bsp_misses);
+        if (far_plane > 0)
+            printf("  the map's vis far plane (_farplanedist) is %.1f m: %llu of the map PVS's misses lie beyond it "
+                   "(dropped by design)%s\n",
+                   far_plane, (unsigned long long)bsp_misses_far,
+                   file_is_map ? "; they do not fail this mappvs file" : "");
     }
     free(list);
     free(order), free(set), free(bset), free(mark);

@@ -13,8 +13,8 @@
  *    sampling, "gvs", plugs in the same way).
  * sl_pvs_method_count/info list them with their options (docs/pvs.md).
  *
- * The bake distributes cells over OpenMP threads (sl_pvs_build) or MPI processes
- * (sl_pvs_build_mpi); each cell's set is a function of the scene, the cells and the options only,
+ * The bake distributes cells over OpenMP threads (sl_pvs_build; the `sightline pvs build` command
+ * also spans MPI processes under mpiexec, without the library needing MPI); each cell's set is a function of the scene, the cells and the options only,
  * and the file is written in cell order, so the output is byte-identical whatever the thread or
  * process count. A checkpoint journal makes an interrupted bake resumable without recomputing or
  * losing finished cells.
@@ -144,14 +144,6 @@ typedef struct sl_pvs_build_stats {
 /* Bake the PVS of `cells` for `scene` with a method and write it to `output`. stats may be NULL. */
 SL_API sl_status sl_pvs_build(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
                               sl_pvs_build_stats *stats, sl_error *err);
-/* The same across the processes of an MPI job (mpiexec -n N): every process calls it with the
- * same scene, cells and options; process 0 hands out cells dynamically, gathers the sets, keeps
- * the journal and writes the file. Initialises MPI if needed and finalises it if it did.
- * SL_ERROR_UNSUPPORTED when Sightline was built without MPI. *rank (may be NULL) receives the
- * process's rank. */
-SL_API sl_status sl_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output,
-                                  const sl_pvs_build_options *opt, sl_pvs_build_stats *stats, int *rank,
-                                  sl_error *err);
 /* Bake one cell into ids (capacity >= object count), for tests and tools; method and options as
  * for sl_pvs_build. Slow when repeated: prefer sl_pvs_build. */
 SL_API sl_status sl_pvs_bake_cell(sl_scene scene, sl_viewcells cells, uint32_t cell, const char *method,

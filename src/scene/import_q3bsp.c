@@ -13,11 +13,14 @@
  *    units are scaled by 1/32 m (Quake III is Z-up already); triangles are turned counter-clockwise
  *    seen from the front, Sightline's convention (Quake III's meshverts are clockwise);
  *  - objects: each face belongs to exactly one object. Faces of brush entities (models 1..) form
- *    their own objects; every other face belongs to the first leaf (lowest index) that references
- *    it, or to the world's left-over group when no leaf does. A group is cut by class (opaque
- *    solid / sky / other) and then split spatially into objects of about split_triangles;
- *  - BSP: planes, nodes, leaves, the per-leaf object lists and the map's own cluster PVS, as-is;
- *  - metadata: source, map name, counts, spawn points ("q3.spawns", metres).
+ *    their own objects; every other face belongs to the first leaf (lowest index) of the world's
+ *    tree that references it, or to the world's left-over group when no leaf does. A group is cut
+ *    by class (opaque solid / sky / other) and then split spatially into objects of about
+ *    split_triangles;
+ *  - BSP: planes, nodes, leaves, the per-leaf object lists and the map's own cluster PVS, as-is,
+ *    except the leaves the world's tree does not reach (q3map's brush-model leaves): no cluster,
+ *    no objects (q3_mark_world_leaves);
+ *  - metadata: source, map name, counts, spawn points ("q3.spawns", metres), the vis far plane.
  */
 #include "pk3.h"
 #include "scene_internal.h"
@@ -131,6 +134,8 @@ typedef struct q3_ctx {
     /* per drawvert: the last face (stamp) that used it and its index in that face's output, so a
      * face emits only the vertices its meshverts use, in O(meshverts) */
     uint32_t *stamp, *remap;
+    /* per leaf: 1 when the world's tree (node 0 down) reaches it; see q3_mark_world_leaves */
+    uint8_t *world_leaf;
 } q3_ctx;
 
 /* ---- little-endian record readers (records may sit at any alignment) ---- */
@@ -477,6 +482,52 @@ static sl_status q3_check_leaves(q3_ctx *c, uint32_t *cluster_count)
 
 /* ---- nodes ---- */
 
+/* Marks the leaves the world's tree reaches from node 0 (without nodes: leaf 0, where a point
+ * lookup lands). q3map also writes one leaf per brush model (doors, platforms: models 1 and up),
+ * which no node references and whose cluster field is left at 0 although they are in no cluster;
+ * taken at face value they would tie the brush models' faces to cluster 0, so that the map's PVS
+ * would hide a door from every cluster that does not see cluster 0, and would add the models'
+ * boxes to cluster 0's volume. Unreached leaves therefore get cluster -1 and no objects.
+ * Out-of-range children are skipped here (q3_convert_nodes reports them); each node is pushed
+ * once, so a cycle cannot loop and the stack holds at most n entries. */
+static sl_status q3_mark_world_leaves(q3_ctx *c)
+{
+    uint32_t n = c->count[Q3_NODES], nl = c->count[Q3_LEAVES];
+    c->world_leaf = sl_calloc(c->a, nl ? nl : 1, 1);
+    if (!c->world_leaf)
+        return q3_oom(c, "world leaves");
+    if (n == 0) {
+        if (nl)
+            c->world_leaf[0] = 1;
+        return SL_OK;
+    }
+    uint8_t *seen = sl_calloc(c->a, n, 1);
+    uint32_t *stack = sl_alloc(c->a, (size_t)n * sizeof *stack);
+    if (!seen || !stack) {
+        sl_free(c->a, seen, n);
+        sl_free(c->a, stack, (size_t)n * sizeof *stack);
+        return q3_oom(c, "world leaves");
+    }
+    size_t top = 0;
+    stack[top++] = 0;
+    seen[0] = 1;
+    while (top) {
+        const uint8_t *r = rec(c, Q3_NODES, stack[--top]);
+        for (int k = 0; k < 2; k++) {
+            int32_t ch = rd_i32(r + 4 + 4 * k);
+            if (ch >= 0 && (uint32_t)ch < n && !seen[ch]) {
+                seen[ch] = 1;
+                stack[top++] = (uint32_t)ch;
+            } else if (ch < 0 && (uint64_t)(-(int64_t)ch - 1) < nl) {
+                c->world_leaf[-(int64_t)ch - 1] = 1;
+            }
+        }
+    }
+    sl_free(c->a, seen, n);
+    sl_free(c->a, stack, (size_t)n * sizeof *stack);
+    return SL_OK;
+}
+
 /* Converts the nodes. Sightline wants every child node index above its parent's (so a descent
  * always terminates); q3map writes nodes in pre-order, which satisfies that, but any other order
  * is renumbered here in pre-order from the root. Nodes unreachable from the root are dropped; a
@@ -819,6 +870,8 @@ static sl_status q3_build_objects(q3_ctx *c)
                 c->faces[f].source = nl + m;
     }
     for (uint32_t l = 0; l < nl; l++) {
+        if (!c->world_leaf[l])
+            continue;
         const uint8_t *r = rec(c, Q3_LEAVES, l);
         int32_t f0 = rd_i32(r + 32), fn = rd_i32(r + 36);
         for (int32_t k = f0; k < f0 + fn; k++) {
@@ -895,7 +948,7 @@ static sl_status q3_set_bsp(q3_ctx *c, uint32_t cluster_count)
     for (uint32_t l = 0; l < nl; l++) {
         const uint8_t *r = rec(c, Q3_LEAVES, l);
         sl_bsp_leaf *leaf = &leaves[l];
-        leaf->cluster = rd_i32(r);
+        leaf->cluster = c->world_leaf[l] ? rd_i32(r) : -1;
         leaf->area = rd_i32(r + 4);
         leaf->bounds.min = (sl_vec3){(float)rd_i32(r + 8) * c->scale, (float)rd_i32(r + 12) * c->scale,
                                      (float)rd_i32(r + 16) * c->scale};
@@ -903,7 +956,7 @@ static sl_status q3_set_bsp(q3_ctx *c, uint32_t cluster_count)
                                      (float)rd_i32(r + 28) * c->scale};
         /* the objects holding any face this leaf references, sorted and deduplicated */
         size_t first = lo.count;
-        int32_t f0 = rd_i32(r + 32), fn = rd_i32(r + 36);
+        int32_t f0 = rd_i32(r + 32), fn = c->world_leaf[l] ? rd_i32(r + 36) : 0;
         for (int32_t k = f0; k < f0 + fn; k++) {
             uint32_t obj = c->faces[rd_i32(rec(c, Q3_LEAFFACES, (uint32_t)k))].object;
             if (obj != SL_NONE && !sl_array_push(c->a, &lo, sizeof(uint32_t), &obj, 1)) {
@@ -1040,23 +1093,25 @@ static bool q3_is_spawn(const char *classname)
     return false;
 }
 
-/* Read the entity text for spawn points (appended to *spawns as "x y z;...", metres) and the
- * worldspawn message. The entity text is informative only: reading stops quietly at the first
- * malformed token, keeping what came before. */
+/* Read the entity text for spawn points (appended to *spawns as "x y z;...", metres), the
+ * worldspawn message and its "_farplanedist" (q3map2's vis drops clusters farther than that, for
+ * maps whose fog hides them: *farplane in units, 0 without). The entity text is informative only:
+ * reading stops quietly at the first malformed token, keeping what came before. */
 static sl_status q3_read_entities(q3_ctx *c, sl_array *spawns, uint32_t *spawn_count, uint32_t *entity_count,
-                                  char *title, size_t title_cap)
+                                  char *title, size_t title_cap, double *farplane)
 {
     const char *p = (const char *)c->lump[Q3_ENTITIES], *end = p + c->count[Q3_ENTITIES];
-    char tok[256], key[256], classname[64] = "", origin[128] = "", message[256] = "";
+    char tok[256], key[256], classname[64] = "", origin[128] = "", message[256] = "", far[64] = "";
     bool in_entity = false;
     *spawn_count = *entity_count = 0;
+    *farplane = 0;
     title[0] = 0;
     while (q3_entity_token(&p, end, tok, sizeof tok)) {
         if (!in_entity) {
             if (strcmp(tok, "{") != 0)
                 break;
             in_entity = true;
-            classname[0] = origin[0] = message[0] = 0;
+            classname[0] = origin[0] = message[0] = far[0] = 0;
             continue;
         }
         if (strcmp(tok, "}") == 0) {
@@ -1077,6 +1132,9 @@ static sl_status q3_read_entities(q3_ctx *c, sl_array *spawns, uint32_t *spawn_c
             }
             if (strcasecmp(classname, "worldspawn") == 0 && message[0] && !title[0])
                 q3_copy(title, title_cap, message);
+            s = far;
+            if (strcasecmp(classname, "worldspawn") == 0 && q3_parse_number(&s, &v[0]) && v[0] > 0 && v[0] < 1e9)
+                *farplane = v[0];
             continue;
         }
         if (tok[0] == '{' && !tok[1])
@@ -1090,6 +1148,8 @@ static sl_status q3_read_entities(q3_ctx *c, sl_array *spawns, uint32_t *spawn_c
             q3_copy(origin, sizeof origin, tok);
         else if (strcasecmp(key, "message") == 0)
             q3_copy(message, sizeof message, tok);
+        else if (strcasecmp(key, "_farplanedist") == 0)
+            q3_copy(far, sizeof far, tok);
     }
     /* titles sometimes carry line breaks or control bytes */
     for (char *t = title; *t; t++)
@@ -1116,7 +1176,8 @@ static sl_status q3_set_metadata(q3_ctx *c, uint32_t cluster_count)
     sl_array spawns = {0};
     uint32_t spawn_count, entity_count;
     char title[256];
-    sl_status st = q3_read_entities(c, &spawns, &spawn_count, &entity_count, title, sizeof title);
+    double farplane;
+    sl_status st = q3_read_entities(c, &spawns, &spawn_count, &entity_count, title, sizeof title, &farplane);
     if (st != SL_OK)
         goto done;
     char nul = 0;
@@ -1157,6 +1218,8 @@ static sl_status q3_set_metadata(q3_ctx *c, uint32_t cluster_count)
         goto done;
     if (title[0])
         st = sl_scene_set_meta(c->scene, "q3.title", title, c->err);
+    if (st == SL_OK && farplane > 0)
+        st = q3_meta(c, "q3.farplanedist", "%.4f", farplane * c->scale);
 done:
     sl_array_free(c->a, &spawns, 1);
     return st;
@@ -1177,7 +1240,8 @@ static sl_status q3_import(q3_ctx *c)
     uint32_t cluster_count = 0;
     if ((st = q3_read_header(c)) != SL_OK || (st = q3_read_shaders(c)) != SL_OK || (st = q3_check_planes(c)) != SL_OK ||
         (st = q3_check_drawverts(c)) != SL_OK || (st = q3_read_faces(c)) != SL_OK || (st = q3_check_refs(c)) != SL_OK ||
-        (st = q3_check_vis(c)) != SL_OK || (st = q3_check_leaves(c, &cluster_count)) != SL_OK)
+        (st = q3_check_vis(c)) != SL_OK || (st = q3_check_leaves(c, &cluster_count)) != SL_OK ||
+        (st = q3_mark_world_leaves(c)) != SL_OK)
         return st;
     if (!sl_progress_report(c->progress, "q3 objects", 0, 1))
         return sl_fail(c->err, SL_ERROR_CANCELLED, "%s: cancelled", c->name);
@@ -1227,6 +1291,7 @@ sl_status sl_q3bsp_import_memory_limited(const void *data, size_t size, const ch
     sl_array_free(c.a, &c.sky_list, 1);
     sl_free(c.a, c.stamp, (size_t)(c.count[Q3_DRAWVERTS] ? c.count[Q3_DRAWVERTS] : 1) * sizeof *c.stamp);
     sl_free(c.a, c.remap, (size_t)(c.count[Q3_DRAWVERTS] ? c.count[Q3_DRAWVERTS] : 1) * sizeof *c.remap);
+    sl_free(c.a, c.world_leaf, c.count[Q3_LEAVES] ? c.count[Q3_LEAVES] : 1);
     if (st != SL_OK) {
         sl_scene_destroy(c.scene);
         return st;

@@ -12,7 +12,9 @@
  *  - interior_samples random points inside.
  * Every point is pulled 1 mm towards the cell's centre, so that a point never sits exactly on a
  * wall that bounds the cell (a camera on a wall's plane sees along both of its sides), and lifted
- * to at least 0.1 m above the terrain. The points are then shuffled, so that the last 10% rendered
+ * to at least 0.1 m above the terrain. Each point renders with a near plane below half its
+ * distance to the nearest triangle (sample_near), so that no wall is clipped away in front of
+ * it; a point touching a surface is skipped. The points are then shuffled, so that the last 10% rendered
  * is a fair random subset: the number of objects it adds first is the convergence figure.
  *
  * CLUSTER cells (Quake III) sample the boxes of the cluster's leaves instead (corners, centres,
@@ -33,6 +35,7 @@
 #define HARD_MAX_SAMPLES 65536u
 #define INSET 1e-3f
 #define GROUND_CLEARANCE 0.1f
+#define OPEN_BIT 0x80000000u
 
 struct sl_region_oracle_t {
     sl_allocator alloc;
@@ -42,6 +45,7 @@ struct sl_region_oracle_t {
     uint32_t object_count;      /* entries of max_pixels and first (objects + 1) */
     uint32_t *max_pixels;       /* per object, during a query */
     uint32_t *first;            /* per object: first sample that saw it, SL_NONE */
+    uint32_t *sample_pixels;    /* per object: pixels of the current sample in open space (BSP) */
     sl_array points;            /* sl_vec3 */
     sl_array visible;           /* uint32 */
     sl_array out_pixels;        /* uint32 */
@@ -117,6 +121,7 @@ void sl_region_oracle_destroy(sl_region_oracle r)
     sl_oracle_destroy(r->oracle);
     sl_free(a, r->max_pixels, (size_t)r->object_count * sizeof(uint32_t));
     sl_free(a, r->first, (size_t)r->object_count * sizeof(uint32_t));
+    sl_free(a, r->sample_pixels, (size_t)r->object_count * sizeof(uint32_t));
     sl_array_free(a, &r->points, sizeof(sl_vec3));
     sl_array_free(a, &r->visible, sizeof(uint32_t));
     sl_array_free(a, &r->out_pixels, sizeof(uint32_t));
@@ -389,6 +394,214 @@ sl_status sl_region_oracle_points(sl_region_oracle r, sl_viewcells cells, uint32
     return SL_OK;
 }
 
+/* ---- the near plane of each sample ---- */
+
+/* Squared distance from p to triangle abc (the closest-point regions of Ericson, "Real-Time
+ * Collision Detection", 5.1.5), in double. */
+static double tri_dist2(const double p[3], const double a[3], const double b[3], const double c[3])
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3], q[3];
+    for (int k = 0; k < 3; k++) {
+        ab[k] = b[k] - a[k], ac[k] = c[k] - a[k];
+        ap[k] = p[k] - a[k], bp[k] = p[k] - b[k], cp[k] = p[k] - c[k];
+    }
+#define DOT3(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
+    double d1 = DOT3(ab, ap), d2 = DOT3(ac, ap), d3 = DOT3(ab, bp), d4 = DOT3(ac, bp);
+    double d5 = DOT3(ab, cp), d6 = DOT3(ac, cp);
+#undef DOT3
+    double va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
+    double u, v; /* q = a + u ab + v ac */
+    if (d1 <= 0 && d2 <= 0)
+        u = 0, v = 0;
+    else if (d3 >= 0 && d4 <= d3)
+        u = 1, v = 0;
+    else if (d6 >= 0 && d5 <= d6)
+        u = 0, v = 1;
+    else if (vc <= 0 && d1 >= 0 && d3 <= 0)
+        u = d1 / (d1 - d3), v = 0;
+    else if (vb <= 0 && d2 >= 0 && d6 <= 0)
+        u = 0, v = d2 / (d2 - d6);
+    else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        u = 1 - w, v = w;
+    } else {
+        double den = va + vb + vc;
+        if (!(den > 0)) /* a degenerate triangle covers no pixel: it hides nothing when clipped */
+            return INFINITY;
+        u = vb / den, v = vc / den;
+    }
+    double d2sum = 0;
+    for (int k = 0; k < 3; k++) {
+        q[k] = p[k] - (a[k] + u * ab[k] + v * ac[k]);
+        d2sum += q[k] * q[k];
+    }
+    return d2sum;
+}
+
+/* Distance from p to the nearest triangle of the scene, or `limit` when none is nearer. Objects
+ * are rejected by their world boxes first, triangles by their own boxes. */
+static double clearance(const struct sl_region_oracle_t *r, sl_vec3 p, double limit)
+{
+    const struct sl_scene_t *s = r->scene;
+    const sl_aabb *boxes = sl_scene_object_bounds_array(r->scene);
+    const sl_object_rec *objs = sl_scene_objects(s);
+    const sl_mesh_rec *meshes = sl_scene_meshes(s);
+    const sl_affine *xfs = sl_scene_transforms(s);
+    const float *pos = sl_scene_positions(s);
+    const uint32_t *idx = sl_scene_indices(s);
+    const double pp[3] = {p.x, p.y, p.z};
+    double best2 = limit * limit;
+    uint32_t no = sl_scene_object_count(r->scene);
+    for (uint32_t o = 0; o < no; o++) {
+        const sl_aabb *b = &boxes[o];
+        double bd2 = 0;
+        for (int k = 0; k < 3; k++) {
+            double lo = (&b->min.x)[k], hi = (&b->max.x)[k];
+            double e = pp[k] < lo ? lo - pp[k] : pp[k] > hi ? pp[k] - hi : 0;
+            bd2 += e * e;
+        }
+        if (!(bd2 < best2))
+            continue;
+        const sl_mesh_rec *m = &meshes[objs[o].mesh];
+        const sl_affine *xf = objs[o].transform == SL_NONE ? NULL : &xfs[objs[o].transform];
+        const float *mp = pos + 3 * m->first_vertex;
+        const uint32_t *mi = idx + m->first_index;
+        for (uint32_t t = 0; t < m->triangle_count; t++) {
+            double v[3][3];
+            for (int j = 0; j < 3; j++) {
+                sl_vec3 w = {mp[3 * (size_t)mi[3 * t + j]], mp[3 * (size_t)mi[3 * t + j] + 1],
+                             mp[3 * (size_t)mi[3 * t + j] + 2]};
+                if (xf)
+                    w = sl_affine_point(xf, w);
+                v[j][0] = w.x, v[j][1] = w.y, v[j][2] = w.z;
+            }
+            double td2 = 0; /* the triangle's box first */
+            for (int k = 0; k < 3; k++) {
+                double lo = fmin(v[0][k], fmin(v[1][k], v[2][k])), hi = fmax(v[0][k], fmax(v[1][k], v[2][k]));
+                double e = pp[k] < lo ? lo - pp[k] : pp[k] > hi ? pp[k] - hi : 0;
+                td2 += e * e;
+            }
+            if (td2 < best2)
+                best2 = fmin(best2, tri_dist2(pp, v[0], v[1], v[2]));
+        }
+    }
+    return sqrt(best2);
+}
+
+/* The near plane for an eye at p, or 0 when p cannot be rendered soundly. A cube face clips away
+ * everything nearer than its near plane, up to near*sqrt(3) from the eye at the face's corners:
+ * an eye closer than that to a wall would look through it and see what lies behind (Quake III
+ * walls are single brushes between rooms: this made the maps' own PVS look non-conservative).
+ * So the near plane is half the distance to the nearest triangle when that is below the
+ * configured one. It has a floor that keeps the projection's depth order sound: the cube's view
+ * matrix is single precision, and its translation rounds by about an ulp of the eye's
+ * coordinates, which must stay small against the near distance. An eye nearer a surface than
+ * two floors (60 micrometres at 100 m from the origin; a point on a face) is skipped: dropping a
+ * sample keeps the oracle a lower bound, looking through the face would not. */
+static float sample_near(const struct sl_region_oracle_t *r, sl_vec3 p)
+{
+    float big = fmaxf(fabsf(p.x), fmaxf(fabsf(p.y), fabsf(p.z)));
+    float floor_near = fmaxf(1e-6f, 4.0f * (nextafterf(big, INFINITY) - big));
+    float want = r->opt.near_plane;
+    if (floor_near >= want)
+        return want; /* coordinates so large that nothing finer is sound: the configured plane */
+    double d = clearance(r, p, (double)want * 2.0);
+    float n = (float)fmin((double)want, 0.5 * d);
+    return n >= floor_near ? n : 0.0f;
+}
+
+/* ---- Quake III maps: sight lines through the map's solid space ---- */
+
+/* Whether the segment p0-p1 stays in leaves with a cluster (the open space of a Quake III map)
+ * below BSP node `node`. The side rule is sl_scene_bsp_find_leaf's (front when d >= 0). */
+static bool segment_open(const sl_bsp_view *bsp, int32_t node, const double p0[3], const double p1[3])
+{
+    while (node >= 0) {
+        const sl_bsp_node *nd = &bsp->nodes[node];
+        const sl_plane *pl = &bsp->planes[nd->plane];
+        double d0 = pl->a * p0[0] + pl->b * p0[1] + pl->c * p0[2] + pl->d;
+        double d1 = pl->a * p1[0] + pl->b * p1[1] + pl->c * p1[2] + pl->d;
+        if ((d0 >= 0) == (d1 >= 0)) {
+            node = nd->children[d0 >= 0 ? 0 : 1];
+            continue;
+        }
+        double t = d0 / (d0 - d1), mid[3];
+        for (int k = 0; k < 3; k++)
+            mid[k] = p0[k] + t * (p1[k] - p0[k]);
+        return segment_open(bsp, nd->children[d0 >= 0 ? 0 : 1], p0, mid) &&
+               segment_open(bsp, nd->children[d0 >= 0 ? 1 : 0], mid, p1);
+    }
+    return bsp->leaves[-(node + 1)].cluster >= 0;
+}
+
+/* Per object of the last cube map: its pixels when at least one of them is seen through the map's
+ * open space, else 0, into r->sample_pixels (entries of objects not in the frame stay 0).
+ *
+ * Why: the oracle draws the map's drawn faces, but Quake III's opaque volumes are its brushes, and
+ * many brush faces are never drawn: "caulk" on the sides a player is not meant to see (wall tops
+ * far above the floor, faces behind patches, the outside of the hull). From a sample point high
+ * in a cluster, a sight line can slip past a drawn face into such a brush and out of its undrawn
+ * far side, and the oracle would report what lies beyond — while the map's own PVS, computed
+ * against the brushes, rightly hides it (ctf_compromise: a wall top caulked at 15 m seen from
+ * 32 m). A pixel therefore counts only when the segment from the eye to just before its surface
+ * (backed off 2 mm, or 0.01%) crosses no leaf without a cluster. Surfaces of the structural
+ * brushes lie on leaf boundaries, detail brushes and patches inside open leaves; both are
+ * reached through open space. Once a pixel of an object is found open, its other pixels are
+ * counted without tracing: the set is exact, the pixel count an upper bound (it is informative).
+ * The cube faces' axes are read from the view matrices (exact signed unit rows), the depth from
+ * the reversed depth buffer. */
+static sl_status open_pixels(struct sl_region_oracle_t *r, const sl_bsp_view *bsp, sl_vec3 eye, float n,
+                             const sl_oracle_frame *f, sl_error *err)
+{
+    for (uint32_t i = 0; i < f->visible_count; i++)
+        r->sample_pixels[f->visible[i]] = 0;
+    const double fr = r->opt.far_plane, nr = n;
+    const double a = (fr + nr) / (nr - fr), b = 2.0 * fr * nr / (nr - fr);
+    const double e[3] = {eye.x, eye.y, eye.z};
+    for (uint32_t face = 0; face < 6; face++) {
+        sl_oracle_view v;
+        sl_status st = sl_oracle_get_view(r->oracle, face, &v, err);
+        if (st != SL_OK)
+            return st;
+        const float *m = v.view_proj.m; /* column-major: rows 0, 1 and 3 are right, up, forward */
+        const double rt[3] = {m[0], m[4], m[8]}, up[3] = {m[1], m[5], m[9]}, fw[3] = {m[3], m[7], m[11]};
+        for (uint32_t y = 0; y < v.height; y++)
+            for (uint32_t x = 0; x < v.width; x++) {
+                size_t i = (size_t)y * v.width + x;
+                uint32_t id = v.ids[i];
+                if (id == SL_NONE || id >= r->object_count)
+                    continue;
+                uint32_t *cnt = &r->sample_pixels[id];
+                (*cnt)++; /* low 31 bits: pixels; the top bit: one of them is open */
+                if (*cnt & OPEN_BIT)
+                    continue;
+                /* d = (1 + a + b / z) / 2 with z < 0 the eye-space depth */
+                double den = 2.0 * v.depth[i] - 1.0 - a;
+                double t = den > 0 ? -b / den : fr;
+                double u = 2.0 * (x + 0.5) / v.width - 1.0, w = 1.0 - 2.0 * (y + 0.5) / v.height;
+                double dir[3], len2 = 0;
+                for (int k = 0; k < 3; k++) {
+                    dir[k] = t * (fw[k] + u * rt[k] + w * up[k]);
+                    len2 += dir[k] * dir[k];
+                }
+                double keep = 1.0 - fmax(1e-4, 2e-3 / fmax(sqrt(len2), 1e-9)), end[3];
+                if (keep <= 0) { /* the surface is within 2 mm: nothing lies between */
+                    *cnt |= OPEN_BIT;
+                    continue;
+                }
+                for (int k = 0; k < 3; k++)
+                    end[k] = e[k] + keep * dir[k];
+                if (segment_open(bsp, 0, e, end))
+                    *cnt |= OPEN_BIT;
+            }
+    }
+    for (uint32_t i = 0; i < f->visible_count; i++) {
+        uint32_t *cnt = &r->sample_pixels[f->visible[i]];
+        *cnt = (*cnt & OPEN_BIT) ? *cnt & ~OPEN_BIT : 0;
+    }
+    return SL_OK;
+}
+
 /* Render every point and gather the union. */
 static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts, uint32_t n, sl_region_visibility *out,
                                sl_error *err)
@@ -400,13 +613,16 @@ static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts,
         /* object_count holds the entries allocated (objects + 1, so never 0) */
         sl_free(&r->alloc, r->max_pixels, (size_t)r->object_count * sizeof(uint32_t));
         sl_free(&r->alloc, r->first, (size_t)r->object_count * sizeof(uint32_t));
+        sl_free(&r->alloc, r->sample_pixels, (size_t)r->object_count * sizeof(uint32_t));
         r->object_count = 0;
         r->max_pixels = sl_alloc(&r->alloc, ((size_t)no + 1) * sizeof(uint32_t));
         r->first = sl_alloc(&r->alloc, ((size_t)no + 1) * sizeof(uint32_t));
-        if (!r->max_pixels || !r->first) {
+        r->sample_pixels = sl_calloc(&r->alloc, (size_t)no + 1, sizeof(uint32_t));
+        if (!r->max_pixels || !r->first || !r->sample_pixels) {
             sl_free(&r->alloc, r->max_pixels, ((size_t)no + 1) * sizeof(uint32_t));
             sl_free(&r->alloc, r->first, ((size_t)no + 1) * sizeof(uint32_t));
-            r->max_pixels = r->first = NULL;
+            sl_free(&r->alloc, r->sample_pixels, ((size_t)no + 1) * sizeof(uint32_t));
+            r->max_pixels = r->first = r->sample_pixels = NULL;
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory for %u objects", no);
         }
         r->object_count = no + 1;
@@ -416,25 +632,40 @@ static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts,
         r->first[i] = SL_NONE;
     }
     r->visible.count = 0;
+    uint32_t rendered = 0; /* samples rendered: points touching a surface are skipped */
     for (uint32_t k = 0; k < n; k++) {
+        float near_plane = sample_near(r, pts[k]);
+        if (near_plane == 0)
+            continue;
         sl_oracle_frame f;
-        sl_status st = sl_oracle_render_cube(r->oracle, pts[k], r->opt.face_size, r->opt.near_plane, r->opt.far_plane,
-                                             &f, err);
+        sl_status st = sl_oracle_render_cube(r->oracle, pts[k], r->opt.face_size, near_plane, r->opt.far_plane, &f, err);
         if (st != SL_OK) {
             sl_error_prefix(err, "region oracle, sample %u of %u at (%g, %g, %g)", k, n, (double)pts[k].x,
                             (double)pts[k].y, (double)pts[k].z);
             return st;
         }
+        const uint32_t *px = f.pixels;
+        sl_bsp_view bsp;
+        if (sl_scene_bsp(r->scene, &bsp) && bsp.node_count > 0) {
+            st = open_pixels(r, &bsp, pts[k], near_plane, &f, err);
+            if (st != SL_OK)
+                return st;
+            px = r->sample_pixels;
+        }
         for (uint32_t i = 0; i < f.visible_count; i++) {
-            uint32_t id = f.visible[i];
+            uint32_t id = f.visible[i], pixels = px == f.pixels ? px[i] : px[id];
+            if (pixels == 0)
+                continue;
             if (r->first[id] == SL_NONE) {
-                r->first[id] = k;
+                r->first[id] = rendered;
                 if (!sl_array_push(&r->alloc, &r->visible, sizeof id, &id, 1))
                     return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "region oracle: out of memory");
             }
-            r->max_pixels[id] = SL_MAX(r->max_pixels[id], f.pixels[i]);
+            r->max_pixels[id] = SL_MAX(r->max_pixels[id], pixels);
         }
+        rendered++;
     }
+    n = rendered;
     /* ascending ids: mark and sweep over the object range (the set is small, the range bounded) */
     size_t nv = r->visible.count;
     r->visible.count = 0;

@@ -1,7 +1,8 @@
 #!/bin/bash
 # CLI test of `sightline demo`: help, usage errors, and a quick run on the tiny city: the report
-# (HTML and Markdown) exists, every image it references exists, the per-frame files are there, and
-# no conservative method missed anything. $1 is the sightline binary.
+# (HTML and Markdown) exists, every image it references exists, the per-frame files are there, the
+# pvs culler ran on the PVS the demo baked along the walk (walk.slpvs), and no conservative method
+# missed anything. $1 is the sightline binary.
 set -u
 SL="$1"
 tmp=$(mktemp -d)
@@ -39,12 +40,17 @@ expect 2 "$SL" demo extra-argument
 expect 0 "$SL" demo --preset tiny --quick $FRAMES --out "$tmp/d" --quiet
 has "Report: $tmp/d/report.html" "$tmp/out"
 has "city-tiny-1-walk" "$tmp/out"
-for f in report.html report.md frames.csv frames.json summary.md walk.txt; do
+for f in report.html report.md frames.csv frames.json summary.md walk.txt walk.slpvs; do
     [ -s "$tmp/d/$f" ] || fail "no $f"
 done
 has "Every conservative method kept every visible object" "$tmp/d/report.md"
 has "<h2>The methods</h2>" "$tmp/d/report.html"
 has "vfc" "$tmp/d/report.html"
+has "| pvs | conservative |" "$tmp/d/summary.md"
+has "pvs runs on walk.slpvs" "$tmp/d/report.md"
+grep -q "Not run: pvs" "$tmp/d/report.md" && fail "the report still names pvs as not run"
+[ ! -e "$tmp/d/walk.slpvs.ckpt" ] || fail "the PVS bake left its journal"
+"$SL" pvs verify "$tmp/d/walk.slpvs" >/dev/null 2>&1 || fail "walk.slpvs does not verify"
 # every image the reports reference exists next to them
 refs=$(grep -o 'src="[^"]*"' "$tmp/d/report.html" | sed 's/^src="//; s/"$//')
 [ -n "$refs" ] || fail "report.html references no images"
@@ -61,5 +67,9 @@ is_png "$tmp/d/frame-id.png"
 # shellcheck disable=SC2086
 expect 0 "$SL" demo --preset tiny --quick --frames 3 --out "$tmp/j" --json
 has '"violations":0' "$tmp/out"
+has '"pvs_cells":' "$tmp/out"
 has '"report":' "$tmp/out"
+# an output folder the pvs culler cannot name (a comma): pvs is reported as not run
+expect 0 "$SL" demo --preset tiny --quick --frames 2 --out "$tmp/a,b" --quiet
+has "Not run: pvs" "$tmp/a,b/report.md"
 echo "PASS"

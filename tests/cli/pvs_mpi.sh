@@ -2,8 +2,10 @@
 # CLI test of `sightline pvs`: help and usage errors; a bake of the tiny city with one process and
 # with two MPI processes (mpiexec -n 2) gives the same bytes; a bake stopped after a few cells
 # (--stop-after) and one killed with SIGKILL both resume (--resume) to the same bytes; info, query
-# and verify (checksums, and zero misses against the region oracle on a few cells); a corrupted
-# file is refused. $1 is the sightline binary; mpiexec comes from $SL_MPIEXEC or the PATH.
+# and verify (checksums, and zero misses against the region oracle on a few cells); a bake of the
+# cells along a camera path (--along) holds only those cells, and a point far from it is in none;
+# a corrupted file is refused. $1 is the sightline binary; mpiexec comes from $SL_MPIEXEC or the
+# PATH. Process 0 of an MPI bake bakes too: the 2-process bake exercises both of its roles.
 set -u
 SL="$1"
 MPIEXEC="${SL_MPIEXEC:-$(command -v mpiexec || true)}"
@@ -114,6 +116,29 @@ expect 0 "$SL" pvs verify "$tmp/one.slpvs" --city tiny --cells 3 --face-size 64 
 has '"misses":0' "$tmp/out"
 expect 1 "$SL" pvs verify "$tmp/one.slpvs" --city small --cells 1
 has "not baked for this scene" "$tmp/err"
+
+# ---- only the cells along a path ----
+cat >"$tmp/walk.txt" <<'PATH'
+# sightline-path 1
+0 0 0 1.7 0 0 0
+1 1 0 1.7 0 0 0
+PATH
+expect 2 "$SL" pvs build "${common[@]}" -o "$tmp/along.slpvs" --along "$tmp/walk.txt" --radius -1
+has "radius" "$tmp/err"
+expect 1 "$SL" pvs build "${common[@]}" -o "$tmp/along.slpvs" --along "$tmp/missing.txt"
+[ ! -e "$tmp/along.slpvs" ] || fail "a failed --along bake left an output file"
+expect 0 "$SL" pvs build "${common[@]}" -o "$tmp/along.slpvs" --along "$tmp/walk.txt" --radius 30 --json
+all=$("$SL" pvs info "$tmp/one.slpvs" --json | grep -o '"cells":[0-9]*' | head -1 | cut -d: -f2)
+near=$(grep -o '"cells":[0-9]*' "$tmp/out" | head -1 | cut -d: -f2)
+[ -n "$near" ] && [ "$near" -gt 0 ] && [ "$near" -lt "$all" ] || fail "--along kept $near of $all cells"
+expect 0 "$SL" pvs query "$tmp/along.slpvs" --point 0.5,0,1.7 --json
+has '"cell":[0-9]' "$tmp/out"
+expect 0 "$SL" pvs query "$tmp/along.slpvs" --point 150,150,1.7 --json
+has '"cell":null' "$tmp/out"
+expect 1 "$SL" pvs build "${common[@]}" -o "$tmp/far.slpvs" --along "$tmp/walk.txt" --radius 0 --eye-min 50 --eye-max 60
+has "no view cell lies within" "$tmp/err"
+expect 0 "$SL" pvs verify "$tmp/along.slpvs" --city tiny --cells 2 --face-size 64 --spacing 4 --samples 4 --json
+has '"misses":0' "$tmp/out"
 
 # ---- a corrupted file is refused with the offset ----
 cp "$tmp/one.slpvs" "$tmp/bad.slpvs"

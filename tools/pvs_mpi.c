@@ -1,0 +1,524 @@
+/* Baking a PVS across the processes of an MPI job (MPICH): `mpiexec -n N sightline pvs build ...`.
+ * Part of the command, not of libsightline (tools/pvs_cli.h says why); it drives the library's
+ * bake (src/region/pvs_internal.h: sl_bake_*), the same one the thread driver uses.
+ *
+ * Every process loads the same scene, makes the same cells and prepares the method; the keys of
+ * the scene, the cells and the options are compared first so that a process started with other
+ * inputs stops the job with a clear message instead of poisoning it. Process 0 keeps the
+ * checkpoint journal (resuming from it when asked), stores every finished set (in the journal at
+ * once) and writes the file in cell order at the end — so the bytes are those of a one-process
+ * bake whatever N is.
+ *
+ * Process 0 bakes too. Its main thread serves the others (the only thread that calls MPI:
+ * MPI_THREAD_FUNNELED) while `threads` more OpenMP threads bake cells from the same queue, one at
+ * a time; the other processes bake chunks of as many cells as they have threads. The server polls
+ * for messages with short sleeps instead of a blocking probe (MPICH busy-waits in one), so it
+ * costs the bakers almost no core. With one process the thread driver (sl_pvs_build) runs.
+ *
+ * Messages (MPI_BYTE, tag 1 worker->master, tag 2 master->worker):
+ *   worker: u32 want (cells it can take next; 0: it stops), u32 status, char[256] message,
+ *           u32 count, then per finished cell: u32 cell, u32 ids, u32 bytes, f64 seconds, bytes
+ *   master: u32 n, then n cell numbers (n = 0: no more work)
+ * A process that dies takes the job down (mpiexec); the journal keeps every cell process 0 had
+ * stored, and `--resume` continues from there with any number of processes. */
+#include "pvs_cli.h"
+
+#include "region/pvs_internal.h"
+
+#include <math.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#ifndef SL_HAVE_MPI
+
+sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
+                            sl_pvs_build_stats *stats, int *rank, sl_error *err)
+{
+    (void)scene, (void)cells, (void)output, (void)opt;
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (rank)
+        *rank = 0;
+    return sl_fail(err, SL_ERROR_UNSUPPORTED, "pvs bake: this sightline command was built without MPI (install "
+                                              "libmpich-dev and reconfigure)");
+}
+
+#else
+
+#include <mpi.h>
+#include <omp.h>
+
+#define TAG_RESULT 1
+#define TAG_WORK 2
+#define MSG_HEAD (4 + 4 + 256 + 4)
+#define REC_HEAD (4 + 4 + 4 + 8)
+#define MAX_CHUNK 4096u
+
+static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
+static inline uint32_t rd32(const uint8_t *p)
+{
+    uint32_t v;
+    memcpy(&v, p, 4);
+    return v;
+}
+
+/* All processes agree on a status: the worst one wins, with its message from the lowest rank that
+ * has it. */
+static sl_status agree(sl_status st, sl_error *err, int rank)
+{
+    int mine = (int)st, worst = 0;
+    MPI_Allreduce(&mine, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (worst == SL_OK)
+        return SL_OK;
+    int who = mine == worst ? rank : INT32_MAX, first = 0;
+    MPI_Allreduce(&who, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    char msg[512];
+    memset(msg, 0, sizeof msg);
+    if (rank == first && err)
+        snprintf(msg, sizeof msg, "%s", err->message);
+    MPI_Bcast(msg, sizeof msg, MPI_CHAR, first, MPI_COMM_WORLD);
+    if (err && rank != first)
+        sl_fail(err, (sl_status)worst, "process %d: %s", first, msg);
+    return (sl_status)worst;
+}
+
+/* ---- process 0: the queue, the server and the local bakers ----
+ * Everything below `lock` is shared by the server thread and the baking threads and touched only
+ * inside the critical section sl_pvs_mpi. */
+
+enum { RUN = 0, STOP_ERROR = 1, STOP_CANCELLED = 2, STOP_AFTER = 3 };
+
+typedef struct master_run {
+    sl_bake *b;
+    const sl_progress *progress;
+    uint32_t stop_after;
+    uint32_t *todo, todo_count, next;
+    int stopping;               /* RUN or STOP_* */
+    sl_status st;
+    sl_error err;               /* the first failure */
+} master_run;
+
+/* Record the first failure and stop handing out cells (under the lock). */
+static void run_fail(master_run *r, sl_status st, const sl_error *e)
+{
+    if (r->stopping == RUN || r->stopping == STOP_AFTER) {
+        r->stopping = STOP_ERROR;
+        r->st = st;
+        r->err = *e;
+    }
+}
+
+/* Whether a finished cell is still stored: always, unless the bake failed or was cancelled (a cell
+ * that finishes after stop_after was reached is kept: nothing done is lost). Under the lock. */
+static bool run_keeps(const master_run *r) { return r->stopping == RUN || r->stopping == STOP_AFTER; }
+
+/* A cell was stored: count it, report progress, check stop_after (under the lock). */
+static void run_counted(master_run *r)
+{
+    sl_bake *b = r->b;
+    b->baked++;
+    if (r->stopping != RUN)
+        return;
+    if (!sl_progress_report(r->progress, "baking cells", b->done_count, b->cell_count))
+        r->stopping = STOP_CANCELLED;
+    else if (r->stop_after && b->baked >= r->stop_after && b->done_count < b->cell_count)
+        r->stopping = STOP_AFTER;
+}
+
+/* Up to `want` cells from the queue into out (under the lock). */
+static uint32_t run_take(master_run *r, uint32_t want, uint32_t *out)
+{
+    uint32_t n = 0;
+    while (r->stopping == RUN && n < want && r->next < r->todo_count)
+        out[n++] = r->todo[r->next++];
+    return n;
+}
+
+/* One result message of a worker: store its cells; the number of cells it wants next. */
+static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, int src)
+{
+    sl_error e;
+    if (size < MSG_HEAD) {
+        sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a short message", src);
+        run_fail(r, e.status, &e);
+        return 0;
+    }
+    uint32_t want = SL_MIN(rd32(buf), MAX_CHUNK);
+    uint32_t wst = rd32(buf + 4), count = rd32(buf + 264);
+    if (wst != SL_OK) {
+        char msg[257];
+        memcpy(msg, buf + 8, 256);
+        msg[256] = 0;
+        sl_fail(&e, (sl_status)wst, "process %d: %s", src, msg);
+        run_fail(r, (sl_status)wst, &e);
+    }
+    size_t at = MSG_HEAD;
+    for (uint32_t k = 0; k < count; k++) {
+        if (size - at < REC_HEAD) {
+            sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a truncated result", src);
+            run_fail(r, e.status, &e);
+            break;
+        }
+        uint32_t cell = rd32(buf + at), ids = rd32(buf + at + 4), bytes = rd32(buf + at + 8);
+        double secs;
+        memcpy(&secs, buf + at + 12, 8);
+        at += REC_HEAD;
+        if (bytes > size - at) {
+            sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a truncated set", src);
+            run_fail(r, e.status, &e);
+            break;
+        }
+        if (run_keeps(r)) {
+            sl_bake *b = r->b;
+            sl_status s2 = cell < b->cell_count && !b->done[cell]
+                               ? sl_bake_store_encoded(b, cell, buf + at, bytes, ids, secs, true, &e)
+                               : sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d returned cell %u twice", src, cell);
+            if (s2 != SL_OK)
+                run_fail(r, s2, &e);
+            else
+                run_counted(r);
+        }
+        at += bytes;
+    }
+    return want;
+}
+
+/* The server (process 0's main thread): answer every worker until each has been told to stop. */
+static void serve(master_run *r, int nproc)
+{
+    int active = nproc - 1;
+    uint8_t *buf = NULL;
+    size_t cap = 0;
+    uint8_t reply[4 + 4 * MAX_CHUNK];
+    uint32_t take[MAX_CHUNK];
+    while (active > 0) {
+        /* poll with short sleeps: a blocking probe busy-waits in MPICH and would take a core from
+         * the bakers for nothing */
+        MPI_Status ms;
+        for (int flag = 0;;) {
+            MPI_Iprobe(MPI_ANY_SOURCE, TAG_RESULT, MPI_COMM_WORLD, &flag, &ms);
+            if (flag)
+                break;
+            struct timespec ts = {0, 200000};
+            nanosleep(&ts, NULL);
+        }
+        int size = 0;
+        MPI_Get_count(&ms, MPI_BYTE, &size);
+        if ((size_t)size > cap) {
+            uint8_t *nb = sl_realloc(r->b->a, buf, cap, (size_t)size);
+            if (!nb) /* cannot even read the message: give up on the whole job */
+                MPI_Abort(MPI_COMM_WORLD, 2);
+            buf = nb;
+            cap = (size_t)size;
+        }
+        MPI_Recv(buf, size, MPI_BYTE, ms.MPI_SOURCE, TAG_RESULT, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        uint32_t n;
+#pragma omp critical(sl_pvs_mpi)
+        {
+            uint32_t want = serve_message(r, buf, (size_t)size, ms.MPI_SOURCE);
+            n = run_take(r, want, take);
+        }
+        wr32(reply, n);
+        for (uint32_t k = 0; k < n; k++)
+            wr32(reply + 4 + 4 * k, take[k]);
+        MPI_Send(reply, (int)(4 + 4 * n), MPI_BYTE, ms.MPI_SOURCE, TAG_WORK, MPI_COMM_WORLD);
+        if (n == 0)
+            active--;
+    }
+    sl_free(r->b->a, buf, cap);
+}
+
+/* A baking thread of process 0: cells from the shared queue, one at a time. */
+static void bake_local(master_run *r)
+{
+    sl_bake *b = r->b;
+    void *w = NULL;
+    sl_error e;
+    uint32_t *ids = sl_alloc(b->a, ((size_t)b->object_count + 1) * sizeof(uint32_t));
+    sl_status s = ids ? b->method->worker_create(b->shared, &w, &e)
+                      : sl_fail(&e, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+    if (s != SL_OK) {
+#pragma omp critical(sl_pvs_mpi)
+        run_fail(r, s, &e);
+    }
+    while (s == SL_OK) {
+        uint32_t cell, n;
+#pragma omp critical(sl_pvs_mpi)
+        n = run_take(r, 1, &cell);
+        if (n == 0)
+            break;
+        sl_pvs_cell_result res = {ids, 0, 0};
+        double c0 = sl_now();
+        sl_status cs = b->method->cell(w, cell, &res, &e);
+        double secs = sl_now() - c0;
+#pragma omp critical(sl_pvs_mpi)
+        {
+            if (cs == SL_OK && run_keeps(r)) {
+                cs = sl_bake_store(b, cell, ids, res.count, secs, &e);
+                if (cs == SL_OK)
+                    run_counted(r);
+            }
+            if (cs != SL_OK) {
+                sl_error_prefix(&e, "cell %u", cell);
+                run_fail(r, cs, &e);
+            }
+        }
+    }
+    if (w)
+        b->method->worker_destroy(w);
+    sl_free(b->a, ids, ((size_t)b->object_count + 1) * sizeof(uint32_t));
+}
+
+static sl_status master(sl_bake *b, const sl_pvs_build_options *opt, int nproc, int threads, sl_error *err)
+{
+    master_run r;
+    memset(&r, 0, sizeof r);
+    r.b = b;
+    r.progress = opt ? &opt->progress : NULL;
+    r.stop_after = opt ? opt->stop_after : 0;
+    r.todo = sl_alloc(b->a, ((size_t)b->cell_count + 1) * sizeof(uint32_t));
+    if (!r.todo)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+    for (uint32_t c = 0; c < b->cell_count; c++)
+        if (!b->done[c])
+            r.todo[r.todo_count++] = c;
+    /* thread 0 of the team is the calling (main) thread: it alone calls MPI */
+#pragma omp parallel num_threads(threads + 1)
+    {
+        if (omp_get_thread_num() == 0)
+            serve(&r, nproc);
+        else
+            bake_local(&r);
+    }
+    sl_free(b->a, r.todo, ((size_t)b->cell_count + 1) * sizeof(uint32_t));
+    if (r.stopping == STOP_ERROR) {
+        if (err)
+            *err = r.err;
+        return r.st;
+    }
+    if (r.stopping == STOP_CANCELLED)
+        return sl_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s", b->done_count,
+                       b->cell_count, b->journal);
+    if (r.stopping == STOP_AFTER)
+        return sl_fail(err, SL_ERROR_CANCELLED,
+                       "pvs bake: stopped after %u newly baked cells as asked (%u of %u done); resume from %s", b->baked,
+                       b->done_count, b->cell_count, b->journal);
+    return SL_OK;
+}
+
+/* ---- the other processes ---- */
+
+/* A finished cell of a worker's chunk, encoded. */
+typedef struct done_cell {
+    uint32_t cell, ids;
+    double seconds;
+    uint8_t *bytes;
+    uint32_t size;
+    sl_status st;
+    sl_error err;
+} done_cell;
+
+/* The message reporting a chunk (or the error) and asking for `want` more cells. */
+static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, sl_status st, const sl_error *err,
+                           const done_cell *res, uint32_t nres)
+{
+    out->count = 0;
+    uint8_t head[MSG_HEAD];
+    memset(head, 0, sizeof head);
+    wr32(head, st == SL_OK ? want : 0);
+    wr32(head + 4, (uint32_t)st);
+    if (st != SL_OK && err)
+        memcpy(head + 8, err->message, SL_MIN(sizeof err->message, (size_t)255));
+    wr32(head + 264, st == SL_OK ? nres : 0);
+    bool ok = sl_array_push(a, out, 1, head, sizeof head) != NULL;
+    for (uint32_t k = 0; k < nres && st == SL_OK && ok; k++) {
+        uint8_t rh[REC_HEAD];
+        wr32(rh, res[k].cell);
+        wr32(rh + 4, res[k].ids);
+        wr32(rh + 8, res[k].size);
+        memcpy(rh + 12, &res[k].seconds, 8);
+        ok = sl_array_push(a, out, 1, rh, sizeof rh) &&
+             (res[k].size == 0 || sl_array_push(a, out, 1, res[k].bytes, res[k].size));
+    }
+    return ok;
+}
+
+static sl_status worker(sl_bake *b, int threads, sl_error *err)
+{
+    const sl_allocator *a = b->a;
+    void **workers = sl_calloc(a, (size_t)threads, sizeof(void *));
+    uint32_t **ids = sl_calloc(a, (size_t)threads, sizeof(uint32_t *));
+    uint32_t *cells = sl_alloc(a, MAX_CHUNK * sizeof(uint32_t));
+    done_cell *res = sl_calloc(a, (size_t)threads, sizeof(done_cell));
+    sl_array out = {0}; /* the message under construction */
+    sl_status st = SL_OK;
+    if (!workers || !ids || !cells || !res)
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+    for (int t = 0; t < threads && st == SL_OK; t++) {
+        ids[t] = sl_alloc(a, ((size_t)b->object_count + 1) * sizeof(uint32_t));
+        if (!ids[t])
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+        else
+            st = b->method->worker_create(b->shared, &workers[t], err);
+    }
+    uint32_t nres = 0;
+    for (;;) {
+        /* report the last chunk (or the error) and ask for more */
+        bool ok = worker_message(a, &out, (uint32_t)threads, st, err, res, nres);
+        for (uint32_t k = 0; k < nres; k++) {
+            sl_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
+            res[k].bytes = NULL;
+        }
+        nres = 0;
+        if (!ok) {
+            /* tell the master with a bare header */
+            uint8_t bare[MSG_HEAD];
+            memset(bare, 0, sizeof bare);
+            wr32(bare + 4, SL_ERROR_OUT_OF_MEMORY);
+            snprintf((char *)bare + 8, 256, "out of memory for a result message");
+            MPI_Send(bare, MSG_HEAD, MPI_BYTE, 0, TAG_RESULT, MPI_COMM_WORLD);
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+        } else {
+            MPI_Send(out.data, (int)out.count, MPI_BYTE, 0, TAG_RESULT, MPI_COMM_WORLD);
+        }
+        uint8_t work[4 + 4 * MAX_CHUNK];
+        MPI_Status ms;
+        MPI_Recv(work, sizeof work, MPI_BYTE, 0, TAG_WORK, MPI_COMM_WORLD, &ms);
+        int got = 0;
+        MPI_Get_count(&ms, MPI_BYTE, &got);
+        uint32_t n = got >= 4 ? rd32(work) : 0;
+        if (n == 0 || (size_t)got < 4 + 4 * (size_t)n || n > (uint32_t)threads)
+            break;
+        for (uint32_t k = 0; k < n; k++)
+            cells[k] = rd32(work + 4 + 4 * k);
+#pragma omp parallel for num_threads(threads) schedule(static, 1)
+        for (uint32_t k = 0; k < n; k++) {
+            int t = omp_get_thread_num();
+            done_cell *d = &res[k];
+            d->cell = cells[k];
+            d->bytes = NULL;
+            d->st = SL_OK;
+            if (cells[k] >= b->cell_count) {
+                d->st = sl_fail(&d->err, SL_ERROR_INTERNAL, "pvs bake: the master sent cell %u of %u", cells[k],
+                                b->cell_count);
+                continue;
+            }
+            sl_pvs_cell_result r = {ids[t], 0, 0};
+            double c0 = sl_now();
+            d->st = b->method->cell(workers[t], cells[k], &r, &d->err);
+            d->seconds = sl_now() - c0;
+            if (d->st != SL_OK) {
+                sl_error_prefix(&d->err, "cell %u", cells[k]);
+                continue;
+            }
+            d->ids = r.count;
+            d->bytes = sl_alloc(a, (size_t)r.count * 5 + 1);
+            if (!d->bytes)
+                d->st = sl_fail(&d->err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory for cell %u", cells[k]);
+            else
+                d->size = (uint32_t)sl_pvs_encode(ids[t], r.count, d->bytes);
+        }
+        nres = n;
+        for (uint32_t k = 0; k < n; k++)
+            if (res[k].st != SL_OK && st == SL_OK) {
+                st = res[k].st;
+                if (err)
+                    *err = res[k].err;
+            }
+    }
+    for (uint32_t k = 0; res && k < (uint32_t)threads; k++)
+        sl_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
+    sl_free(a, res, (size_t)threads * sizeof(done_cell));
+    for (int t = 0; t < threads; t++) {
+        if (workers && workers[t])
+            b->method->worker_destroy(workers[t]);
+        if (ids)
+            sl_free(a, ids[t], ((size_t)b->object_count + 1) * sizeof(uint32_t));
+    }
+    sl_free(a, workers, (size_t)threads * sizeof(void *));
+    sl_free(a, ids, (size_t)threads * sizeof(uint32_t *));
+    sl_free(a, cells, MAX_CHUNK * sizeof(uint32_t));
+    sl_array_free(a, &out, 1);
+    return st;
+}
+
+sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
+                            sl_pvs_build_stats *stats, int *rank_out, sl_error *err)
+{
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (rank_out)
+        *rank_out = 0;
+    int inited = 0, finalized = 0;
+    MPI_Initialized(&inited);
+    MPI_Finalized(&finalized);
+    if (finalized)
+        return sl_fail(err, SL_ERROR_UNSUPPORTED, "pvs bake: MPI was already finalized in this process");
+    bool own = !inited;
+    int provided = MPI_THREAD_SINGLE;
+    if (own) {
+        if (MPI_Init_thread(NULL, NULL, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS)
+            return sl_fail(err, SL_ERROR_INTERNAL, "pvs bake: MPI_Init failed");
+    } else {
+        MPI_Query_thread(&provided);
+    }
+    int rank = 0, nproc = 1;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &nproc);
+    if (rank_out)
+        *rank_out = rank;
+    sl_status st;
+    if (nproc == 1) {
+        st = sl_pvs_build(scene, cells, output, opt, stats, err);
+        if (own)
+            MPI_Finalize();
+        return st;
+    }
+    double t0 = MPI_Wtime();
+    int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
+    threads = SL_MAX(1, SL_MIN(threads, (int)MAX_CHUNK));
+    /* without FUNNELED the MPI library may not tolerate other threads beside the one calling it:
+     * process 0 then only serves */
+    int local = provided >= MPI_THREAD_FUNNELED ? threads : 0;
+    sl_bake b;
+    st = sl_bake_begin(&b, scene, cells, output, opt, rank == 0, err);
+    st = agree(st, err, rank);
+    if (st == SL_OK) {
+        /* every process must bake the same thing: compare the bake keys */
+        uint64_t key = b.key, root = b.key;
+        MPI_Bcast(&root, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+        if (key != root)
+            st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                         "pvs bake: process %d has another scene, cells, method or options than process 0", rank);
+        st = agree(st, err, rank);
+    }
+    if (st == SL_OK)
+        st = rank == 0 ? master(&b, opt, nproc, local, err) : worker(&b, threads, err);
+    /* the master's verdict (and the file) is the job's; every process takes part */
+    if (rank == 0 && st == SL_OK)
+        st = sl_bake_finish(&b, output, opt, err);
+    int verdict = (int)st;
+    MPI_Bcast(&verdict, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    char msg[512];
+    memset(msg, 0, sizeof msg);
+    if (rank == 0 && verdict != SL_OK && err)
+        snprintf(msg, sizeof msg, "%s", err->message);
+    MPI_Bcast(msg, sizeof msg, MPI_CHAR, 0, MPI_COMM_WORLD);
+    if (rank != 0 && verdict != SL_OK && st == SL_OK)
+        st = sl_fail(err, (sl_status)verdict, "process 0: %s", msg);
+    if (stats) {
+        sl_bake_stats(&b, stats);
+        stats->processes = (uint32_t)nproc;
+        stats->threads = (uint32_t)threads;
+        stats->seconds = MPI_Wtime() - t0;
+        struct stat sb;
+        if (rank == 0 && st == SL_OK && stat(output, &sb) == 0)
+            stats->file_bytes = (uint64_t)sb.st_size;
+    }
+    sl_bake_end(&b);
+    if (own)
+        MPI_Finalize();
+    return st;
+}
+
+#endif
