@@ -32,6 +32,13 @@
 #include <math.h>
 #include <stdlib.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#define PLP_SSE 1
+#else
+#define PLP_SSE 0
+#endif
+
 #define PLP_MAX_DEPTH 12
 
 typedef struct plp_config {
@@ -58,11 +65,10 @@ typedef struct member {
     uint32_t object, tris;
 } member;
 
-typedef struct heap_entry {
-    float rho;
-    uint32_t cell;
-    uint32_t order;             /* FIFO among equal solidities */
-} heap_entry;
+/* The front is a binary min-heap of 64-bit keys: the solidity's float bits (non-negative, so they
+ * order like the floats) above the push counter (FIFO among equal solidities); the pushed cell is
+ * heap_cell[counter]. One integer compare per step instead of a float compare and a tie branch. */
+typedef uint64_t heap_key;
 
 typedef struct plp_state {
     sl_allocator alloc;
@@ -91,10 +97,11 @@ typedef struct plp_state {
     /* per frame */
     uint8_t *cstate;              /* 0 untouched, 1 queued, 2 projected, 3 hidden */
     float *rho;
-    heap_entry *heap;
+    heap_key *heap;
+    uint32_t *heap_cell;          /* per push (the key's low half): its cell */
     uint32_t heap_n, heap_cap, order;
     uint32_t *ostamp, frame_id;
-    uint32_t *hstamp;             /* per object: frame_id once it tested hidden this frame */
+    uint32_t *hstamp;             /* per object: frame_id once it tested hidden or outside this frame */
     uint32_t *seeds;              /* scratch of cell_count */
     uint32_t object_count;
     uint32_t *sort_scratch;
@@ -165,7 +172,8 @@ static void plp_destroy(void *state)
     sl_free(a, s->outside, (size_t)(s->dyn_object_count ? s->dyn_object_count : 1) * sizeof(uint32_t));
     sl_free(a, s->cstate, s->cell_count);
     sl_free(a, s->rho, (size_t)s->cell_count * sizeof(float));
-    sl_free(a, s->heap, (size_t)s->heap_cap * sizeof(heap_entry));
+    sl_free(a, s->heap, (size_t)s->heap_cap * sizeof(heap_key));
+    sl_free(a, s->heap_cell, (size_t)s->heap_cap * sizeof(uint32_t));
     sl_free(a, s->ostamp, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
     sl_free(a, s->hstamp, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
     sl_free(a, s->seeds, (size_t)s->cell_count * sizeof(uint32_t));
@@ -667,12 +675,14 @@ static sl_status plp_create(sl_scene scene, const void *config, const sl_allocat
         s->cstate = sl_alloc(alloc, nc);
         s->rho = sl_alloc(alloc, nc * sizeof(float));
         s->heap_cap = s->nb_total + 2 * s->cell_count + 1;
-        s->heap = sl_alloc(alloc, (size_t)s->heap_cap * sizeof(heap_entry));
+        s->heap = sl_alloc(alloc, (size_t)s->heap_cap * sizeof(heap_key));
+        s->heap_cell = sl_alloc(alloc, (size_t)s->heap_cap * sizeof(uint32_t));
         s->ostamp = sl_calloc(alloc, no, sizeof(uint32_t));
         s->hstamp = sl_calloc(alloc, no, sizeof(uint32_t));
         s->seeds = sl_alloc(alloc, nc * sizeof(uint32_t));
         s->sort_scratch = sl_alloc(alloc, no * sizeof(uint32_t));
-        if (!s->cstate || !s->rho || !s->heap || !s->ostamp || !s->hstamp || !s->seeds || !s->sort_scratch)
+        if (!s->cstate || !s->rho || !s->heap || !s->heap_cell || !s->ostamp || !s->hstamp || !s->seeds ||
+            !s->sort_scratch)
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", name_of(s));
     }
     if (st != SL_OK) {
@@ -692,40 +702,226 @@ static sl_status plp_scene_changed(void *state, sl_error *err)
 
 /* ---- per frame ---- */
 
-static inline bool heap_less(heap_entry a, heap_entry b) { return a.rho < b.rho || (a.rho == b.rho && a.order < b.order); }
-
+/* Solidities are finite and >= 0 (+0.0f folds a -0.0f into +0). */
 static void heap_push(plp_state *s, float rho, uint32_t cell)
 {
-    if (s->heap_n == s->heap_cap)
-        return; /* cannot happen: every push follows a strict decrease or a first visit */
-    heap_entry x = {rho, cell, s->order++};
+    if (s->order == s->heap_cap)
+        return; /* cannot happen: every push is a seed, or follows a first visit or a strict decrease
+                   through one of the nb_total neighbour links of a cell projected once */
+    union {
+        float f;
+        uint32_t u;
+    } bits = {rho + 0.0f};
+    s->heap_cell[s->order] = cell;
+    heap_key x = (heap_key)bits.u << 32 | s->order++;
     uint32_t i = s->heap_n++;
-    while (i > 0 && heap_less(x, s->heap[(i - 1) / 2])) {
+    while (i > 0 && x < s->heap[(i - 1) / 2]) {
         s->heap[i] = s->heap[(i - 1) / 2];
         i = (i - 1) / 2;
     }
     s->heap[i] = x;
 }
 
-static heap_entry heap_pop(plp_state *s)
+/* Pop the least key: its cell, and its solidity in *rho. */
+static uint32_t heap_pop(plp_state *s, float *rho)
 {
-    heap_entry top = s->heap[0], x = s->heap[--s->heap_n];
+    heap_key *h = s->heap, top = h[0], x = h[--s->heap_n];
     uint32_t i = 0, n = s->heap_n;
     for (;;) {
-        uint32_t l = 2 * i + 1, r = l + 1, m = i;
-        heap_entry mv = x;
-        if (l < n && heap_less(s->heap[l], mv))
-            m = l, mv = s->heap[l];
-        if (r < n && heap_less(s->heap[r], mv))
-            m = r;
-        if (m == i)
+        uint32_t l = 2 * i + 1;
+        if (l >= n)
             break;
-        s->heap[i] = s->heap[m];
-        i = m;
+        l += (l + 1 < n && h[l + 1] < h[l]) ? 1u : 0u; /* the lesser child, without a branch */
+        if (x <= h[l])
+            break;
+        h[i] = h[l];
+        i = l;
     }
-    if (n)
-        s->heap[i] = x;
-    return top;
+    h[i] = x;
+    union {
+        uint32_t u;
+        float f;
+    } bits = {(uint32_t)(top >> 32)};
+    *rho = bits.f;
+    return s->heap_cell[(uint32_t)top];
+}
+
+/* ---- box tests, four corners or planes per SSE register ----
+ * The completion phase projects thousands of cell and object boxes per frame, which made the
+ * scalar sl_occ_frustum_classify and sl_occ_project_box the largest costs of a cplp frame. These
+ * are the same computations with the corners (or planes) in SSE lanes, every lane doing the
+ * scalar code's float operations in its order, so the answers, rectangles and depths are the same
+ * bits (checked on every call of the test suite and a 300-frame walk while this was written;
+ * were a build to fuse multiply-adds in one and not the other, both would stay conservative: the
+ * rectangle's 1/64-pixel growth and the depth's 2^-20 nudge cover far more than a rounding).
+ * Without SSE2 the scalar functions are called. */
+typedef struct fast_view {
+#if PLP_SSE
+    __m128 col[4];              /* the world-to-clip matrix's columns */
+    __m128 pa[2][2], pb[2][2], pc[2][2], pd[2][2], nslack[2][2]; /* [all six | no near][lanes 0-3 | 4-7] */
+    __m128 hw, hh;
+#endif
+    int dummy;
+} fast_view;
+
+static void fast_view_init(fast_view *fv, const sl_occ_view *v)
+{
+#if PLP_SSE
+    for (int c = 0; c < 4; c++)
+        fv->col[c] = _mm_loadu_ps(v->vp.m + 4 * c);
+    for (int set = 0; set < 2; set++) {
+        float a[8] = {0}, b[8] = {0}, c[8] = {0}, d[8] = {0}, ns[8] = {0}; /* unused lanes: 0 < -0 is false */
+        for (int i = 0; i < 6; i++) {
+            if (set == 1 && i == 4)
+                continue; /* mask 0x2f: not the near plane */
+            const sl_plane *p = &v->fr.planes[i];
+            a[i] = p->a, b[i] = p->b, c[i] = p->c, d[i] = p->d, ns[i] = -v->slack[i];
+        }
+        for (int h = 0; h < 2; h++) {
+            fv->pa[set][h] = _mm_loadu_ps(a + 4 * h);
+            fv->pb[set][h] = _mm_loadu_ps(b + 4 * h);
+            fv->pc[set][h] = _mm_loadu_ps(c + 4 * h);
+            fv->pd[set][h] = _mm_loadu_ps(d + 4 * h);
+            fv->nslack[set][h] = _mm_loadu_ps(ns + 4 * h);
+        }
+    }
+    fv->hw = _mm_set1_ps(0.5f * (float)v->width);
+    fv->hh = _mm_set1_ps(0.5f * (float)v->height);
+#else
+    (void)v;
+#endif
+    fv->dummy = 0;
+}
+
+#if PLP_SSE
+static inline __m128 sel_ps(__m128 m, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
+static inline __m128 bcast_ps(__m128 v, int i)
+{
+    switch (i) {
+    case 0: return _mm_shuffle_ps(v, v, 0x00);
+    case 1: return _mm_shuffle_ps(v, v, 0x55);
+    case 2: return _mm_shuffle_ps(v, v, 0xaa);
+    default: return _mm_shuffle_ps(v, v, 0xff);
+    }
+}
+static inline float hmin_ps(__m128 v)
+{
+    v = _mm_min_ps(v, _mm_shuffle_ps(v, v, 0x4e));
+    return _mm_cvtss_f32(_mm_min_ps(v, _mm_shuffle_ps(v, v, 0xb1)));
+}
+static inline float hmax_ps(__m128 v)
+{
+    v = _mm_max_ps(v, _mm_shuffle_ps(v, v, 0x4e));
+    return _mm_cvtss_f32(_mm_max_ps(v, _mm_shuffle_ps(v, v, 0xb1)));
+}
+#endif
+
+/* sl_occ_frustum_classify(v, b, all ? 0x3f : 0x2f) >= 0. */
+static bool fast_in_planes(const fast_view *fv, const sl_occ_view *v, const sl_aabb *b, bool all)
+{
+#if PLP_SSE
+    (void)v;
+    const int set = all ? 0 : 1;
+    const __m128 zero = _mm_setzero_ps();
+    __m128 out = zero;
+    for (int h = 0; h < 2; h++) {
+        __m128 a = fv->pa[set][h], bb = fv->pb[set][h], c = fv->pc[set][h];
+        __m128 px = sel_ps(_mm_cmpge_ps(a, zero), _mm_set1_ps(b->max.x), _mm_set1_ps(b->min.x));
+        __m128 py = sel_ps(_mm_cmpge_ps(bb, zero), _mm_set1_ps(b->max.y), _mm_set1_ps(b->min.y));
+        __m128 pz = sel_ps(_mm_cmpge_ps(c, zero), _mm_set1_ps(b->max.z), _mm_set1_ps(b->min.z));
+        __m128 dot = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(a, px), _mm_mul_ps(bb, py)), _mm_mul_ps(c, pz)),
+                                fv->pd[set][h]);
+        out = _mm_or_ps(out, _mm_cmplt_ps(dot, fv->nslack[set][h]));
+    }
+    return _mm_movemask_ps(out) == 0;
+#else
+    (void)fv;
+    return sl_occ_frustum_classify(v, b, all ? 0x3fu : 0x2fu) >= 0;
+#endif
+}
+
+#if PLP_SSE
+/* floor of x clamped to [-2, n + 2] (exact there: truncation corrected below zero). */
+static inline int32_t floor_clamped(float x, int32_t n)
+{
+    x = x < -2.0f ? -2.0f : (x > (float)n + 2.0f ? (float)n + 2.0f : x);
+    int32_t t = (int32_t)x;
+    return (float)t > x ? t - 1 : t;
+}
+static inline int32_t clamp_i(int32_t x, int32_t n) { return x < 0 ? 0 : (x > n ? n : x); }
+#endif
+
+/* sl_occ_project_box(v, b, r), with r filled only for SL_OCC_RECT. */
+static int fast_project_box(const fast_view *fv, const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
+{
+#if PLP_SSE
+    /* clip = base + (k&1) ex + (k&2) ey + (k&4) ez for corner k: lanes 0-3 hold k = 0-3, lanes 4-7 k = 4-7 */
+    const __m128 zero = _mm_setzero_ps();
+    __m128 base = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(fv->col[0], _mm_set1_ps(b->min.x)),
+                                                   _mm_mul_ps(fv->col[1], _mm_set1_ps(b->min.y))),
+                                        _mm_mul_ps(fv->col[2], _mm_set1_ps(b->min.z))),
+                             fv->col[3]);
+    __m128 ex = _mm_mul_ps(fv->col[0], _mm_set1_ps(b->max.x - b->min.x));
+    __m128 ey = _mm_mul_ps(fv->col[1], _mm_set1_ps(b->max.y - b->min.y));
+    __m128 ez = _mm_mul_ps(fv->col[2], _mm_set1_ps(b->max.z - b->min.z));
+    const __m128 kx = _mm_castsi128_ps(_mm_setr_epi32(0, -1, 0, -1));
+    const __m128 ky = _mm_castsi128_ps(_mm_setr_epi32(0, 0, -1, -1));
+    __m128 c[4][2]; /* component, corner half */
+    for (int i = 0; i < 4; i++) {
+        __m128 t = _mm_add_ps(_mm_add_ps(bcast_ps(base, i), _mm_and_ps(kx, bcast_ps(ex, i))),
+                              _mm_and_ps(ky, bcast_ps(ey, i)));
+        c[i][0] = _mm_add_ps(t, zero);
+        c[i][1] = _mm_add_ps(t, bcast_ps(ez, i));
+    }
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    __m128 bad = zero, near = zero, o[6];
+    for (int h = 0; h < 2; h++) {
+        __m128 x = c[0][h], y = c[1][h], z = c[2][h], w = c[3][h], nw = _mm_xor_ps(w, sign);
+        __m128 fin = _mm_add_ps(_mm_add_ps(_mm_sub_ps(x, x), _mm_sub_ps(y, y)),
+                                _mm_add_ps(_mm_sub_ps(z, z), _mm_sub_ps(w, w))); /* NaN where one is not finite */
+        bad = _mm_or_ps(bad, _mm_cmpunord_ps(fin, fin));
+        __m128 zn = _mm_cmplt_ps(z, nw);
+        near = _mm_or_ps(near, _mm_or_ps(zn, _mm_cmplt_ps(w, _mm_set1_ps(1e-5f))));
+        __m128 oc[6] = {_mm_cmplt_ps(x, nw), _mm_cmpgt_ps(x, w), _mm_cmplt_ps(y, nw),
+                        _mm_cmpgt_ps(y, w), zn, _mm_cmpgt_ps(z, w)};
+        for (int p = 0; p < 6; p++)
+            o[p] = h ? _mm_and_ps(o[p], oc[p]) : oc[p];
+    }
+    if (_mm_movemask_ps(bad))
+        return SL_OCC_NEAR;
+    for (int p = 0; p < 6; p++)
+        if (_mm_movemask_ps(o[p]) == 15)
+            return SL_OCC_OUT;
+    if (_mm_movemask_ps(near))
+        return SL_OCC_NEAR;
+    __m128 sx[2], sy[2], d[2];
+    for (int h = 0; h < 2; h++) {
+        __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), c[3][h]);
+        sx[h] = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(c[0][h], inv), fv->hw), fv->hw);
+        sy[h] = _mm_sub_ps(fv->hh, _mm_mul_ps(_mm_mul_ps(c[1][h], inv), fv->hh));
+        d[h] = v->ortho ? _mm_mul_ps(_mm_set1_ps(0.5f), _mm_sub_ps(_mm_set1_ps(1.0f), _mm_mul_ps(c[2][h], inv))) : inv;
+    }
+    /* no lane is NaN (finite coordinates, w >= 1e-5), so the order of the reductions is immaterial */
+    float minx = hmin_ps(_mm_min_ps(sx[0], sx[1])), maxx = hmax_ps(_mm_max_ps(sx[0], sx[1]));
+    float miny = hmin_ps(_mm_min_ps(sy[0], sy[1])), maxy = hmax_ps(_mm_max_ps(sy[0], sy[1]));
+    float dn = hmax_ps(_mm_max_ps(d[0], d[1]));
+    if (!isfinite(minx) || !isfinite(maxx) || !isfinite(miny) || !isfinite(maxy) || !isfinite(dn))
+        return SL_OCC_NEAR;
+    /* the pixels touched, grown by 1/64 pixel, clamped to the screen (as sl_occ_project_box) */
+    const float eps = 1.0f / 64.0f;
+    int32_t w = (int32_t)v->width, hgt = (int32_t)v->height;
+    r->x0 = clamp_i(floor_clamped(minx - eps, w), w);
+    r->x1 = clamp_i(floor_clamped(maxx + eps, w) + 1, w);
+    r->y0 = clamp_i(floor_clamped(miny - eps, hgt), hgt);
+    r->y1 = clamp_i(floor_clamped(maxy + eps, hgt) + 1, hgt);
+    if (r->x0 >= r->x1 || r->y0 >= r->y1)
+        return SL_OCC_OUT;
+    r->dnear = dn + fabsf(dn) * (1.0f / 1048576.0f);
+    return SL_OCC_RECT;
+#else
+    (void)fv;
+    return sl_occ_project_box(v, b, r);
+#endif
 }
 
 typedef struct frame {
@@ -734,20 +930,21 @@ typedef struct frame {
     uint32_t *out, k;
     uint64_t tris;
     bool test_objects;          /* the conservative phase tests each object first */
+    fast_view fv;
 } frame;
 
 /* Is a box in the view pyramid? Perspective: side and far planes only (the cells between the eye
  * and the near plane carry rays too); orthographic: all six. */
-static bool in_view(const sl_occ_view *v, const sl_aabb *b)
+static bool in_view(const frame *f, const sl_aabb *b)
 {
-    return sl_occ_frustum_classify(v, b, v->ortho ? 0x3fu : 0x2fu) >= 0;
+    return fast_in_planes(&f->fv, f->v, b, f->v->ortho);
 }
 
 /* Does the rasterizer show any part of box b? (visible, crossing the near plane, or unknown) */
 static bool box_visible(frame *f, const sl_aabb *b)
 {
     sl_occ_rect r;
-    int k = sl_occ_project_box(f->v, b, &r);
+    int k = fast_project_box(&f->fv, f->v, b, &r);
     if (k == SL_OCC_NEAR)
         return true;
     if (k == SL_OCC_OUT)
@@ -761,8 +958,10 @@ static void report(frame *f, uint32_t o)
     if (s->ostamp[o] == s->frame_id || s->hstamp[o] == s->frame_id)
         return;
     const sl_aabb *ob = &sl_scene_object_bounds_array(s->scene)[o];
-    if (sl_occ_frustum_classify(f->v, ob, 0x3f) < 0)
-        return; /* outside the view: never drawn (not stamped: another cell may list it, same answer) */
+    if (!fast_in_planes(&f->fv, f->v, ob, true)) {
+        s->hstamp[o] = s->frame_id; /* outside the view: never drawn, whichever cell lists it again */
+        return;
+    }
     if (f->test_objects) {
         s->object_tests++;
         if (!box_visible(f, ob)) {
@@ -820,7 +1019,7 @@ static void expand(frame *f, uint32_t c)
         uint8_t st = s->cstate[b];
         if (st >= 2)
             continue;
-        if (st == 0 && !in_view(f->v, &s->cells[b].box)) {
+        if (st == 0 && !in_view(f, &s->cells[b].box)) {
             s->cstate[b] = 3;
             continue;
         }
@@ -834,8 +1033,9 @@ static void expand(frame *f, uint32_t c)
 }
 
 /* Seed cells: the eye's cell, or the boundary and near-rectangle cells (see the file comment). */
-static uint32_t seed(plp_state *s, const sl_occ_view *v)
+static uint32_t seed(plp_state *s, const frame *f)
 {
+    const sl_occ_view *v = f->v;
     uint32_t n = 0;
     uint32_t eye = v->ortho ? SL_NONE : find_leaf(s, v->eye);
     if (eye != SL_NONE) {
@@ -843,7 +1043,7 @@ static uint32_t seed(plp_state *s, const sl_occ_view *v)
         return n;
     }
     for (uint32_t c = 0; c < s->cell_count; c++)
-        if (s->cells[c].boundary && in_view(v, &s->cells[c].box))
+        if (s->cells[c].boundary && in_view(f, &s->cells[c].box))
             s->seeds[n++] = c;
     if (v->ortho) {
         /* the near rectangle: the cells its box meets */
@@ -879,8 +1079,9 @@ static sl_status plp_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     s->heap_n = 0;
     s->order = 0;
     s->cells_projected = s->cell_tests = s->object_tests = 0;
-    frame f = {s, &v, out, 0, 0, false};
-    uint32_t ns = seed(s, &v);
+    frame f = {.s = s, .v = &v, .out = out};
+    fast_view_init(&f.fv, &v);
+    uint32_t ns = seed(s, &f);
     for (uint32_t i = 0; i < ns; i++) {
         uint32_t c = s->seeds[i];
         if (s->cstate[c] == 0) {
@@ -891,27 +1092,29 @@ static sl_status plp_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     }
     /* 1. PLP: the least solid cell first, until the budget */
     while (s->heap_n && f.tris < s->cfg.c.budget) {
-        heap_entry e = heap_pop(s);
-        if (s->cstate[e.cell] != 1 || e.rho != s->rho[e.cell])
+        float rho;
+        uint32_t c = heap_pop(s, &rho);
+        if (s->cstate[c] != 1 || rho != s->rho[c])
             continue; /* projected already, or a stale entry */
-        project(&f, e.cell);
-        expand(&f, e.cell);
+        project(&f, c);
+        expand(&f, c);
     }
     double t1 = sl_now();
     /* 2. cPLP: test the remaining front; project what is visible until the front is empty */
     if (s->cfg.conservative) {
         f.test_objects = true;
         while (s->heap_n) {
-            heap_entry e = heap_pop(s);
-            if (s->cstate[e.cell] != 1 || e.rho != s->rho[e.cell])
+            float rho;
+            uint32_t c = heap_pop(s, &rho);
+            if (s->cstate[c] != 1 || rho != s->rho[c])
                 continue;
             s->cell_tests++;
-            if (!box_visible(&f, &s->cells[e.cell].box)) {
-                s->cstate[e.cell] = 3;
+            if (!box_visible(&f, &s->cells[c].box)) {
+                s->cstate[c] = 3;
                 continue;
             }
-            project(&f, e.cell);
-            expand(&f, e.cell);
+            project(&f, c);
+            expand(&f, c);
         }
     }
     /* moving objects beyond the octree: reported (plp) or tested (cplp) on their own */

@@ -1,9 +1,10 @@
 /* AVX-512 kernels of the occlusion rasterizer (F, BW, VL, DQ). The front end, the small-triangle
  * setup (its double arithmetic on 512-bit registers), the general kernel and the queries are the
- * code of raster_simd8.h and raster_batch8.h compiled for this target. The small-triangle kernels
- * take two adjacent tiles per 512-bit register (lanes 0-7 the left tile's subtiles, 8-15 the right
- * one's), with mask registers instead of blends; triangles two tiles wide take two tile rows per
- * register of spans (raster_narrow). Bit-identical to raster_scalar.c (same exact coverage, same
+ * code of raster_simd8.h, raster_batch.h and raster_small8.h compiled for this target. The
+ * small-triangle kernels take two adjacent tiles per 512-bit register (lanes 0-7 the left tile's
+ * subtiles, 8-15 the right one's), with mask registers instead of blends; triangles two tiles wide
+ * take two tile rows per register of spans (raster_narrow), three tiles wide a pair and a single
+ * tile per tile row (raster_cols with SL_RT_PAIR_COLS). Bit-identical to raster_scalar.c (same exact coverage, same
  * float operations in the same order, contraction off); run only when the CPU reports all four
  * extensions. */
 #if defined(__clang__)
@@ -18,9 +19,11 @@
 #define AVX512 __attribute__((target("avx2,avx512f,avx512bw,avx512vl,avx512dq")))
 #define SL_RT_T AVX512
 #define SL_RT_NAME(n) n##_avx512
+#define SL_RT_W 8
 #include "raster/raster_simd8.h"
-#define SL_RT_D8_512 1 /* raster_batch8.h's double arithmetic on 512-bit registers */
-#include "raster/raster_batch8.h"
+#define SL_RT_D8_512 1 /* raster_lanes.h's doubles on 512-bit registers */
+#include "raster/raster_lanes.h"
+#include "raster/raster_batch.h"
 
 /* za of two tiles in one register from their depth blocks (za[8] then zm[8] each), and back. */
 AVX512 static inline void load_pair(const sl_rt_tile_depth *dp, __m512 *za, __m512 *zm)
@@ -88,7 +91,10 @@ AVX512 static inline __m512i pair_masks(__m512i xl2, __m512i xr2, int32_t x, __m
     return _mm512_shuffle_epi8(_mm512_andnot_si512(_mm512_sllv_epi32(ones, hi), _mm512_sllv_epi32(ones, lo)), ctl2);
 }
 
-/* A small triangle (raster_batch8.h): float thresholds, then the tiles of each tile row two at a
+#define SL_RT_PAIR_COLS 1 /* raster_cols merges the first two of three tiles as a pair */
+#include "raster/raster_small8.h"
+
+/* A small triangle (raster_batch.h): float thresholds, then the tiles of each tile row two at a
  * time. A pair may reach one tile past the triangle (no coverage there: its merge changes
  * nothing) but never past the caller's range tx_end. Rows are computed one ahead, as in the
  * general kernel. */
@@ -193,8 +199,8 @@ AVX512 static void render_avx512(const sl_rt_target *tg, int mode, const sl_rt_p
 {
     for (uint32_t i = 0; i < n; i += 8) {
         uint32_t k = n - i < 8 ? n - i : 8;
-        small8 s;
-        unsigned empty, small = setup8(p + i, k, mode, &s, &empty);
+        small_lanes s;
+        unsigned empty, small = setup_lanes(p + i, k, mode, &s, &empty);
         for (uint32_t l = 0; l < k; l++) {
             if (small >> l & 1) {
                 small_tri st;

@@ -32,6 +32,16 @@
 #define SL_RT_SNAP_LIMIT 16300.0f /* |pixel coordinate| bound after clipping: keeps |X| < 2^22 */
 #define SL_RT_BIG (1 << 30)    /* "no bound" for column thresholds */
 
+/* Fixed-count loops over lanes, corners and edges in the SIMD kernels are unrolled, so that their
+ * vectors stay in registers (GCC does not peel them at -O2). */
+#if defined(__clang__)
+#define SL_RT_UNROLL _Pragma("clang loop unroll(full)")
+#elif defined(__GNUC__)
+#define SL_RT_UNROLL _Pragma("GCC unroll 8")
+#else
+#define SL_RT_UNROLL
+#endif
+
 /* Coverage rules for set-up triangles. OUTER is the query rule: every pixel whose square may meet
  * the unsnapped triangle. */
 enum { SL_RT_CENTER = 0, SL_RT_INNER = 1, SL_RT_OUTER = 2 };

@@ -1,8 +1,8 @@
 /* The scalar front end of the occlusion rasterizer and the reference setup: vertex transform,
  * rejection of bad input, homogeneous clipping (near plane, w > epsilon, x/y guard band), snapping
  * to 1/256 pixel and the exact edge and conservative depth-plane setup of sl_rt_tri
- * (raster_internal.h). The AVX2 and AVX-512 paths run batched copies of the front end and of the
- * depth-plane setup (raster_batch8.h) that repeat these operations exactly, and clip through this
+ * (raster_internal.h). The SIMD paths run batched copies of the front end and of the
+ * depth-plane setup (raster_batch.h) that repeat these operations exactly, and clip through this
  * code; that, exact coverage and an identical float sequence in the kernels make every path's
  * buffer bit-identical. */
 #if defined(__clang__)

@@ -11,16 +11,6 @@
 #include <immintrin.h>
 #include <math.h>
 
-/* Fixed-count loops over lanes, corners and edges are unrolled, so that their vectors stay in
- * registers (GCC does not peel them at -O2). */
-#if defined(__clang__)
-#define SL_RT_UNROLL _Pragma("clang loop unroll(full)")
-#elif defined(__GNUC__)
-#define SL_RT_UNROLL _Pragma("GCC unroll 8")
-#else
-#define SL_RT_UNROLL
-#endif
-
 /* Byte shuffle turning rows (lane r, byte c) into subtiles (lane c, byte r) within each half. */
 SL_RT_T static inline __m256i transpose_ctl(void)
 {

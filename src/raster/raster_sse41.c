@@ -1,7 +1,10 @@
 /* SSE4.1 kernels of the occlusion rasterizer: raster_avx2.c's algorithm on 128-bit registers, one
  * register per half tile (pixel rows 0-3 / 4-7, subtiles 0-3 / 4-7). SSE has no per-lane shift,
- * so the masks ~0 << n come from 2^n built in a float's exponent. Bit-identical to the scalar
- * reference; run only when __builtin_cpu_supports("sse4.1"). */
+ * so the masks ~0 << n come from 2^n built in a float's exponent. The front end and the
+ * small-triangle setup are raster_batch.h's, 4 triangles per register; small triangles then take
+ * raster_cols4 (one to three tiles wide) or raster_small4, the others the reference setup and the
+ * general kernel raster_sse41 (a division per tile row). Bit-identical to the scalar reference;
+ * run only when __builtin_cpu_supports("sse4.1"). */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #elif defined(__GNUC__)
@@ -14,6 +17,11 @@
 #include <immintrin.h>
 
 #define SSE41 __attribute__((target("sse4.1")))
+#define SL_RT_T SSE41
+#define SL_RT_NAME(n) n##_sse41
+#define SL_RT_W 4
+#include "raster/raster_lanes.h"
+#include "raster/raster_batch.h"
 
 SSE41 static inline __m128i transpose_ctl(void)
 {
@@ -122,13 +130,15 @@ SSE41 static inline __m128i row_masks(__m128i xl, __m128i xr, __m128i xo)
     return _mm_andnot_si128(ones_from(hi), ones_from(lo));
 }
 
-/* sl_rt_merge on 4 subtiles. */
-SSE41 static inline void merge4(__m128i c, __m128 z, uint32_t *mp, float *zap, float *zmp)
+/* sl_rt_merge on 4 subtiles; with `skip`, returns early when no subtile gets nearer (worth it where
+ * that is common: the general kernel's partial tiles), else branch-free like raster_simd8.h's. */
+SSE41 static inline __attribute__((always_inline)) void merge4_to(__m128i c, __m128 z, uint32_t *mp, float *zap,
+                                                                 float *zmp, bool skip)
 {
     const __m128i zero = _mm_setzero_si128(), ones = _mm_set1_epi32(-1);
     __m128 za = _mm_load_ps(zap);
     __m128i act = _mm_andnot_si128(_mm_cmpeq_epi32(c, zero), _mm_castps_si128(_mm_cmpgt_ps(z, za)));
-    if (_mm_testz_si128(act, act))
+    if (skip && _mm_testz_si128(act, act))
         return;
     __m128i m = _mm_load_si128((const __m128i *)mp);
     __m128 zm = _mm_load_ps(zmp);
@@ -143,6 +153,11 @@ SSE41 static inline void merge4(__m128i c, __m128 z, uint32_t *mp, float *zap, f
     _mm_store_si128((__m128i *)mp, m);
     _mm_store_ps(zap, za);
     _mm_store_ps(zmp, zm);
+}
+
+SSE41 static inline void merge4(__m128i c, __m128 z, uint32_t *mp, float *zap, float *zmp)
+{
+    merge4_to(c, z, mp, zap, zmp, true);
 }
 
 /* merge4 with full coverage: the old mask lies inside it, so every nearer subtile takes z. */
@@ -267,13 +282,172 @@ SSE41 static bool rect_sse41(const sl_rt_target *tg, int32_t x0, int32_t y0, int
     return true;
 }
 
-static void render_sse41(const sl_rt_target *tg, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0, int32_t tx1,
-                         int32_t ty0, int32_t ty1)
+/* A small triangle of lane l of raster_batch.h's setup_lanes: float thresholds (exact, see
+ * raster_batch.h), the rows of a tile row in two registers (rows 0-3 and 4-7). */
+typedef struct small_tri4 {
+    __m128 n[3][2], s8[3], dd[3]; /* n: numerators of the rows of the current tile row */
+    __m128 cap, cl, cr, off[2], zclamp;
+    float z0, zdx, zdy;
+    int32_t ox, x_ref, y_ref, row0, row1;
+    int32_t tx0, tx1, ty0, ty1; /* tile bounds, clipped to the caller's */
+} small_tri4;
+
+/* As raster_small8.h's small_load, for lane l. False when the triangle misses the tile range. */
+SSE41 static inline bool small_load4(const small_lanes *s, int l, int32_t tx0, int32_t tx1, int32_t ty0, int32_t ty1,
+                                     small_tri4 *o)
 {
-    sl_rt_render_each(raster_sse41, tg, mode, p, n, tx0, tx1, ty0, ty1);
+    int32_t tb[4];
+    if (!small_tiles(s, l, tx0, tx1, ty0, ty1, tb))
+        return false;
+    o->tx0 = tb[0], o->tx1 = tb[1], o->ty0 = tb[2], o->ty1 = tb[3];
+    o->ox = s->ox[l];
+    o->row0 = s->row0[l], o->row1 = s->row1[l];
+    o->x_ref = s->col0[l], o->y_ref = s->row0[l];
+    const __m128 ramp[2] = {_mm_setr_ps(0, 1, 2, 3), _mm_setr_ps(4, 5, 6, 7)};
+    __m128 jr = _mm_set1_ps((float)(o->ty0 * SL_RT_TILE_H - s->oy[l]));
+    for (int e = 0; e < 3; e++) {
+        /* (n0 + jr*s) + r*s at the first tile row: integers below 2^24, every operation exact */
+        __m128 st = _mm_set1_ps(s->s[e][l]), nj = _mm_add_ps(_mm_set1_ps(s->n0[e][l]), _mm_mul_ps(jr, st));
+        for (int h = 0; h < 2; h++)
+            o->n[e][h] = _mm_add_ps(nj, _mm_mul_ps(ramp[h], st));
+        o->s8[e] = _mm_mul_ps(st, _mm_set1_ps(8.0f));
+        o->dd[e] = _mm_set1_ps(s->dd[e][l]);
+    }
+    o->cap = _mm_set1_ps(s->cap[l]);
+    o->cl = _mm_set1_ps(s->cl[l]);
+    o->cr = _mm_set1_ps(s->cr[l]);
+    o->z0 = s->z0[l], o->zdx = s->zdx[l], o->zdy = s->zdy[l];
+    o->zclamp = _mm_set1_ps(s->zclamp[l]);
+    /* off[k] = zdx*((float)(8*(k&3)) + offx) + zdy*((float)(4*(k>>2)) + offy), as sl_rt_setup */
+    __m128 kx = _mm_add_ps(_mm_setr_ps(0, 8, 16, 24), _mm_set1_ps(s->offx[l]));
+    for (int h = 0; h < 2; h++) {
+        __m128 ky = _mm_add_ps(_mm_set1_ps(4.0f * (float)h), _mm_set1_ps(s->offy[l]));
+        o->off[h] = _mm_add_ps(_mm_mul_ps(_mm_set1_ps(o->zdx), kx), _mm_mul_ps(_mm_set1_ps(o->zdy), ky));
+    }
+    return true;
+}
+
+/* Spans [xl[h], xr[h]) relative to ox of the rows of tile row ty (emptied outside [row0, row1));
+ * then steps the numerators to the next tile row. */
+SSE41 static inline void small_spans4(small_tri4 *t, int32_t ty, __m128i xl[2], __m128i xr[2])
+{
+    bool partial = ty * SL_RT_TILE_H < t->row0 || ty * SL_RT_TILE_H + SL_RT_TILE_H > t->row1;
+    for (int h = 0; h < 2; h++) {
+        __m128 t0 = _mm_ceil_ps(_mm_div_ps(t->n[0][h], t->dd[0]));
+        __m128 t1 = _mm_ceil_ps(_mm_div_ps(t->n[1][h], t->dd[1]));
+        __m128 t2 = _mm_ceil_ps(_mm_div_ps(t->n[2][h], t->dd[2]));
+        for (int e = 0; e < 3; e++)
+            t->n[e][h] = _mm_add_ps(t->n[e][h], t->s8[e]);
+        __m128 l = _mm_max_ps(_mm_max_ps(t->cl, t0), _mm_min_ps(t2, t->cap));
+        __m128 r = _mm_min_ps(_mm_min_ps(t->cr, t1), _mm_max_ps(t2, t->cap));
+        if (partial) {
+            __m128 j = _mm_add_ps(_mm_set1_ps((float)(ty * SL_RT_TILE_H + 4 * h)), _mm_setr_ps(0, 1, 2, 3));
+            __m128 valid = _mm_and_ps(_mm_cmpge_ps(j, _mm_set1_ps((float)t->row0)),
+                                      _mm_cmplt_ps(j, _mm_set1_ps((float)t->row1)));
+            r = _mm_blendv_ps(_mm_set1_ps((float)-SL_RT_BIG), r, valid);
+        }
+        xl[h] = _mm_cvttps_epi32(l);
+        xr[h] = _mm_cvttps_epi32(r);
+    }
+}
+
+/* Rasterize a small triangle: per tile row its spans, the tiles they touch, and per tile the
+ * row masks and the merge of each half. */
+SSE41 static void raster_small4(const sl_rt_target *tg, small_tri4 *t)
+{
+    const __m128i ctl = transpose_ctl();
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
+        __m128i xl[2], xr[2];
+        small_spans4(t, ty, xl, xr);
+        int32_t ta = t->tx0, tb = t->tx1;
+        if (tb - ta > 2) {
+            /* the tiles this tile row's spans touch (spans relative to ox) */
+            __m128i n0 = _mm_cmpgt_epi32(xr[0], xl[0]), n1 = _mm_cmpgt_epi32(xr[1], xl[1]);
+            if (_mm_testz_si128(_mm_or_si128(n0, n1), _mm_or_si128(n0, n1)))
+                continue;
+            const __m128i big = _mm_set1_epi32(SL_RT_BIG), nbig = _mm_set1_epi32(-SL_RT_BIG);
+            int32_t lo = hmin4(_mm_min_epi32(_mm_blendv_epi8(big, xl[0], n0), _mm_blendv_epi8(big, xl[1], n1))) + t->ox;
+            int32_t hi = hmax4(_mm_max_epi32(_mm_blendv_epi8(nbig, xr[0], n0), _mm_blendv_epi8(nbig, xr[1], n1))) + t->ox;
+            ta = sl_rt_maxi(ta, lo >> 5);
+            tb = sl_rt_mini(tb, ((hi - 1) >> 5) + 1);
+        }
+        float zrow = t->zdy * (float)(ty * SL_RT_TILE_H - t->y_ref);
+        size_t row = (size_t)ty * tiles_x;
+        for (int32_t tx = ta; tx < tb; tx++) {
+            int32_t x = tx * SL_RT_TILE_W;
+            __m128i xo = _mm_set1_epi32(x - t->ox);
+            __m128i r0 = row_masks(xl[0], xr[0], xo), r1 = row_masks(xl[1], xr[1], xo);
+            size_t ti = row + (size_t)tx;
+            __m128 zt = _mm_set1_ps((t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow);
+            uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
+            sl_rt_tile_depth *dp = &tg->depth[ti];
+            merge4(_mm_shuffle_epi8(r0, ctl), _mm_max_ps(_mm_add_ps(zt, t->off[0]), t->zclamp), mp, dp->za, dp->zm);
+            merge4(_mm_shuffle_epi8(r1, ctl), _mm_max_ps(_mm_add_ps(zt, t->off[1]), t->zclamp), mp + 4, dp->za + 4,
+                   dp->zm + 4);
+        }
+    }
+}
+
+/* A small triangle one to three tiles wide (cols, a constant; the tiles inside the caller's range):
+ * each tile row merges exactly cols tiles without a branch (a tile the row does not reach has no
+ * coverage: its merge changes nothing), as raster_small8.h's raster_cols. */
+SSE41 static inline __attribute__((always_inline)) void raster_cols4(const sl_rt_target *tg, small_tri4 *t, int cols)
+{
+    const __m128i ctl = transpose_ctl();
+    const int32_t x = t->tx0 * SL_RT_TILE_W;
+    float zt[3];
+    for (int c = 0; c < cols; c++)
+        zt[c] = t->z0 + t->zdx * (float)(x + c * SL_RT_TILE_W - t->x_ref);
+    const size_t tiles_x = (size_t)tg->tiles_x;
+    size_t ti = (size_t)t->ty0 * tiles_x + (size_t)t->tx0;
+    for (int32_t ty = t->ty0; ty < t->ty1; ty++, ti += tiles_x) {
+        __m128i xl[2], xr[2];
+        small_spans4(t, ty, xl, xr);
+        float zrow = t->zdy * (float)(ty * SL_RT_TILE_H - t->y_ref);
+        for (int c = 0; c < cols; c++) {
+            __m128i xo = _mm_set1_epi32(x + c * SL_RT_TILE_W - t->ox);
+            __m128 z = _mm_set1_ps(zt[c] + zrow);
+            uint32_t *mp = tg->mask + (ti + (size_t)c) * SL_RT_SUBTILES;
+            sl_rt_tile_depth *dp = &tg->depth[ti + (size_t)c];
+            merge4_to(_mm_shuffle_epi8(row_masks(xl[0], xr[0], xo), ctl), _mm_max_ps(_mm_add_ps(z, t->off[0]), t->zclamp),
+                      mp, dp->za, dp->zm, false);
+            merge4_to(_mm_shuffle_epi8(row_masks(xl[1], xr[1], xo), ctl), _mm_max_ps(_mm_add_ps(z, t->off[1]), t->zclamp),
+                      mp + 4, dp->za + 4, dp->zm + 4, false);
+        }
+    }
+}
+
+/* Set up prims in groups of 4: small ones take raster_cols4 or raster_small4 (by width), the others the reference setup and
+ * the general kernel. */
+SSE41 static void render_sse41(const sl_rt_target *tg, int mode, const sl_rt_prim *p, uint32_t n, int32_t tx0,
+                               int32_t tx1, int32_t ty0, int32_t ty1)
+{
+    for (uint32_t i = 0; i < n; i += SL_RT_W) {
+        uint32_t k = n - i < SL_RT_W ? n - i : SL_RT_W;
+        small_lanes s;
+        unsigned empty, small = setup_lanes(p + i, k, mode, &s, &empty);
+        for (uint32_t l = 0; l < k; l++) {
+            if (small >> l & 1) {
+                small_tri4 st;
+                if (!small_load4(&s, (int)l, tx0, tx1, ty0, ty1, &st))
+                    continue;
+                if (st.tx1 - st.tx0 == 1)
+                    raster_cols4(tg, &st, 1);
+                else if (st.tx1 - st.tx0 == 2)
+                    raster_cols4(tg, &st, 2);
+                else if (st.tx1 - st.tx0 == 3)
+                    raster_cols4(tg, &st, 3);
+                else
+                    raster_small4(tg, &st);
+            } else if (!(empty >> l & 1)) {
+                sl_rt_render_each(raster_sse41, tg, mode, p + i + l, 1, tx0, tx1, ty0, ty1);
+            }
+        }
+    }
 }
 
 const sl_rt_kernels sl_rt_kernels_sse41 = {SL_RASTER_ISA_SSE41, raster_sse41, query_sse41, rect_sse41,
-                                           sl_rt_front_prims, render_sse41};
+                                           front_sse41, render_sse41};
 
 #endif
