@@ -31,7 +31,8 @@
 #define MAX_METHODS 24
 
 static const char *const g_default_methods[] = {
-    "vfc", "hzb", "hzb:threads=1", "hzb:all_objects=true", "hom", "hom:depth=zbuffer", "hom:threshold=0.9",
+    "vfc", "hzb", "hzb:threads=1", "hzb:far_layer=false", "hzb:all_objects=true", "hom", "hom:depth=zbuffer",
+    "hom:threshold=0.9",
     "lazygrid", "lazygrid:threads=1", "lazygrid-z", "busygrid", "frusta", "plp", "cplp"};
 
 typedef struct method {

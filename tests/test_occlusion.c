@@ -276,6 +276,127 @@ static void test_wall_every_method(void **state)
     }
 }
 
+/* ---- objects tested by their own triangles ---- */
+
+/* A thin sliver behind the wall whose box reaches past the wall's end: the box test keeps it, the
+ * pixel-centre test of its triangles (sample_tris) drops it, and so does the outward-conservative
+ * mesh test (mesh_test); the oracle agrees it is hidden. In hzb and the lazy grids. */
+static void test_sampled_mesh_test(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    uint32_t wall = add_building(s, 20, -30, 22, 10, 15);
+    /* from (60, -10) to (100, 45), 1 to 2 m high: inside the wall's shadow wedge (angles -56 to 27
+     * degrees from the eye), its box's corner (60, 45) at 37 degrees is not; the box's rectangle
+     * holds some 700 pixels */
+    const float p[12] = {60, -10, 1, 100, 45, 1, 100, 45, 2, 60, -10, 2};
+    const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+    sl_mesh_desc md = {p, NULL, 4, idx, 2};
+    uint32_t mesh, sliver;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0};
+    assert_int_equal(sl_scene_add_object(s, &od, &sliver, &err), SL_OK);
+    sl_camera cam = wall_camera(320, 240);
+    sl_oracle o;
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+    assert_true(contains(fr.visible, fr.visible_count, wall));
+    assert_false(contains(fr.visible, fr.visible_count, sliver));
+    sl_oracle_destroy(o);
+    static const struct {
+        const char *method, *options;
+        bool dropped;
+    } cases[] = {
+        {"hzb", "mesh_test=0,sample_tris=0", false},
+        {"hzb", "mesh_test=0,sample_px=1024", true},
+        {"hzb", "mesh_test=0,sample_px=4", false}, /* the box's rectangle is larger */
+        {"hzb", "sample_tris=0", true},
+        {"hzb", NULL, true},
+        {"lazygrid", "mesh_test=0,sample_tris=0", false},
+        {"lazygrid", "mesh_test=0,sample_px=1024", true},
+        {"lazygrid-z", "mesh_test=0,sample_px=1024", true},
+        {"busygrid", "mesh_test=0,sample_px=1024", true},
+        {"busygrid", NULL, true},
+    };
+    for (size_t i = 0; i < SL_COUNTOF(cases); i++) {
+        sl_culler c;
+        assert_int_equal(sl_culler_create(cases[i].method, s, cases[i].options, NULL, &c, &err), SL_OK);
+        uint32_t out[4], k = cull(c, &cam, out, 4);
+        assert_true(contains(out, k, wall));
+        if (contains(out, k, sliver) == cases[i].dropped)
+            fail_msg("%s %s: the sliver was %s", cases[i].method, cases[i].options ? cases[i].options : "",
+                     cases[i].dropped ? "kept" : "dropped");
+        sl_culler_destroy(c);
+    }
+    sl_scene_destroy(s);
+}
+
+/* Poles far thinner than a pixel in an empty field: the pixel-centre test drops the ones whose
+ * triangles come within 1/32 pixel of no pixel centre (most of them), never one the oracle sees,
+ * and keeps every one when turned off. */
+static void test_sampled_subpixel(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    sl_rng rng;
+    sl_rng_seed(&rng, 7, 1);
+    const uint32_t n = 200;
+    for (uint32_t i = 0; i < n; i++) {
+        float x = 100.0f + 300.0f * sl_rng_float(&rng), y = (sl_rng_float(&rng) - 0.5f) * 0.8f * x;
+        add_box(s, (sl_vec3){x, y, 0}, (sl_vec3){x + 0.02f, y + 0.02f, 3}, SL_KIND_LAMP, 0, NULL);
+    }
+    sl_camera cam = wall_camera(320, 240);
+    sl_oracle o;
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+    uint32_t out[256];
+    static const char *const methods[] = {"hzb", "lazygrid", "lazygrid-z"};
+    for (size_t m = 0; m < SL_COUNTOF(methods); m++) {
+        sl_culler c;
+        assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &c, &err), SL_OK);
+        uint32_t k = cull(c, &cam, out, 256);
+        for (uint32_t i = 0; i < fr.visible_count; i++)
+            if (!contains(out, k, fr.visible[i]))
+                fail_msg("%s dropped pole %u, which the oracle sees", methods[m], fr.visible[i]);
+        if (k > n / 2)
+            fail_msg("%s kept %u of %u sub-pixel poles (the oracle sees %u)", methods[m], k, n, fr.visible_count);
+        sl_culler_destroy(c);
+        assert_int_equal(sl_culler_create(methods[m], s, "sample_tris=0,mesh_test=0", NULL, &c, &err), SL_OK);
+        uint32_t in_view = cull(c, &cam, out, 256);
+        assert_true(in_view > k);
+        sl_culler_destroy(c);
+    }
+    sl_oracle_destroy(o);
+    sl_scene_destroy(s);
+}
+
+/* The city generator flags its props (trees, lamps, cars) as occluders, and cars stay dynamic. */
+static void test_city_props_occlude(void **state)
+{
+    (void)state;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+    uint32_t props = 0;
+    for (uint32_t i = 0; i < sl_scene_object_count(s); i++) {
+        sl_object_view v = sl_scene_object(s, i);
+        if (v.kind != SL_KIND_TREE && v.kind != SL_KIND_LAMP && v.kind != SL_KIND_CAR)
+            continue;
+        props++;
+        assert_true(v.flags & SL_OBJECT_OCCLUDER);
+        assert_int_equal((v.flags & SL_OBJECT_DYNAMIC) != 0, v.kind == SL_KIND_CAR);
+    }
+    assert_true(props > 0);
+    sl_scene_destroy(s);
+}
+
 /* A moving occluder (an OCCLUDER mesh without footprint, flagged DYNAMIC) hides a box and a
  * car only while it stands in front of them; once it (and the car) moved, both are kept again,
  * and hidden again when everything is back. */
@@ -368,6 +489,19 @@ static void test_options(void **state)
     assert_int_equal(sl_cull_method_check_options("cplp", "budget=0,leaf_tris=64", &err), SL_OK);
     assert_int_equal(sl_cull_method_check_options("plp", "leaf_tris=8", &err), SL_ERROR_INVALID_ARGUMENT);
     assert_int_equal(sl_cull_method_check_options("hzb", "dump=/tmp/a,record=/tmp/b,debug_frame=3", &err), SL_OK);
+    /* the string getter: absent is NULL (reported as none), present points into the text, and the
+     * key counts as known */
+    sl_opts o;
+    const char *v;
+    assert_int_equal(sl_opts_parse(&o, "test", "dump=/tmp/x,other=1", &err), SL_OK);
+    assert_int_equal(sl_opts_string(&o, "record", &v, &err), SL_OK);
+    assert_null(v);
+    assert_int_equal(sl_opts_string(&o, "dump", &v, &err), SL_OK);
+    assert_string_equal(v, "/tmp/x");
+    assert_string_equal(o.effective, "record=none,dump=/tmp/x");
+    assert_int_equal(sl_opts_check_unused(&o, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "other"));
+    assert_non_null(strstr(err.message, "dump"));
     /* guarantees */
     wall_scene w = wall_scene_make();
     sl_culler c;
@@ -652,6 +786,8 @@ int main(void)
         cmocka_unit_test(test_moved_building),    cmocka_unit_test(test_options),
         cmocka_unit_test(test_no_allocation),     cmocka_unit_test(test_degenerate_scenes),
         cmocka_unit_test(test_lazy_equals_busy),  cmocka_unit_test(test_dump_record_replay),
+        cmocka_unit_test(test_sampled_mesh_test), cmocka_unit_test(test_sampled_subpixel),
+        cmocka_unit_test(test_city_props_occlude),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -182,6 +182,15 @@ sl_status sl_opts_bool(sl_opts *o, const char *key, bool def, bool *out, sl_erro
     return SL_OK;
 }
 
+sl_status sl_opts_string(sl_opts *o, const char *key, const char **out, sl_error *err)
+{
+    (void)err;
+    *out = lookup(o, key);
+    /* the report string keeps at most 127 characters of a value (record) */
+    record(o, key, "%s", *out ? *out : "none");
+    return SL_OK;
+}
+
 sl_status sl_opts_enum(sl_opts *o, const char *key, const char *const *names, uint32_t count, uint32_t def,
                        uint32_t *out, sl_error *err)
 {

@@ -53,6 +53,10 @@ sl_status sl_opts_bool(sl_opts *o, const char *key, bool def, bool *out, sl_erro
 sl_status sl_opts_enum(sl_opts *o, const char *key, const char *const *names, uint32_t count, uint32_t def,
                        uint32_t *out, sl_error *err);
 
+/* A string value (copy it: it points into o's text); *out is NULL when the key is absent, which
+ * is recorded as "none". Values cannot hold commas or white space (the separators). */
+sl_status sl_opts_string(sl_opts *o, const char *key, const char **out, sl_error *err);
+
 /* After configure: fail naming the first key no getter asked for, with the valid keys. */
 sl_status sl_opts_check_unused(const sl_opts *o, sl_error *err);
 

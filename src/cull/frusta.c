@@ -41,20 +41,11 @@ typedef struct face_pick {
 } face_pick;
 
 typedef struct frusta_state {
-    sl_allocator alloc;
-    sl_scene scene;
+    sl_occ_base b;              /* BVH, proxies, selection buffers */
     frusta_config cfg;
-    sl_bvh bvh;
-    float *node_area;
-    uint32_t node_slots;
-    sl_occ_set *occ;
-    sl_occ_pick *heap, *picks;
-    uint32_t pick_cap;
     face_pick *faces;           /* candidate faces of the frame */
     uint32_t face_cap;
     shadow *sh;
-    uint32_t object_count;
-    uint32_t *sort_scratch;
 } frusta_state;
 
 static const char g_help[] =
@@ -82,31 +73,11 @@ static void frusta_destroy(void *state)
     frusta_state *s = state;
     if (!s)
         return;
-    const sl_allocator *a = &s->alloc;
-    sl_bvh_destroy(s->bvh);
-    sl_free(a, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
-    sl_occ_set_destroy(s->occ);
-    size_t pc = s->pick_cap ? s->pick_cap : 1;
-    sl_free(a, s->heap, pc * sizeof(sl_occ_pick));
-    sl_free(a, s->picks, pc * sizeof(sl_occ_pick));
-    sl_free(a, s->faces, (size_t)(s->face_cap ? s->face_cap : 1) * sizeof(face_pick));
-    sl_free(a, s->sh, (size_t)s->cfg.frusta * sizeof(shadow));
-    sl_free(a, s->sort_scratch, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
-    sl_free(a, s, sizeof *s);
-}
-
-static sl_status refresh_node_areas(frusta_state *s, sl_error *err)
-{
-    uint32_t n = s->bvh->node_slots;
-    if (n != s->node_slots) {
-        sl_free(&s->alloc, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
-        s->node_area = sl_alloc(&s->alloc, (size_t)(n ? n : 1) * sizeof(float));
-        s->node_slots = s->node_area ? n : 0;
-        if (!s->node_area)
-            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "frusta: out of memory for %u node areas", n);
-    }
-    sl_occ_node_areas(s->occ, s->bvh, s->node_area);
-    return SL_OK;
+    sl_allocator a = s->b.alloc;
+    sl_free(&a, s->faces, (size_t)(s->face_cap ? s->face_cap : 1) * sizeof(face_pick));
+    sl_free(&a, s->sh, (size_t)s->cfg.frusta * sizeof(shadow));
+    sl_occ_base_free(&s->b);
+    sl_free(&a, s, sizeof *s);
 }
 
 static sl_status frusta_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state,
@@ -115,37 +86,21 @@ static sl_status frusta_create(sl_scene scene, const void *config, const sl_allo
     frusta_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "frusta: out of memory");
-    s->alloc = *alloc;
-    s->scene = scene;
     s->cfg = *(const frusta_config *)config;
-    s->object_count = sl_scene_object_count(scene);
-    sl_bvh_options bo = {0};
-    bo.max_leaf_size = s->cfg.c.leaf_size;
-    bo.alloc = alloc;
-    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, true, 16};
-    sl_status st = sl_bvh_build(scene, &bo, &s->bvh, err);
-    if (st == SL_OK)
-        st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
-    if (st == SL_OK)
-        st = refresh_node_areas(s, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, "frusta", &s->cfg.c, true, 16, true, alloc, err);
     if (st != SL_OK) {
-        sl_error_prefix(err, "frusta");
-        frusta_destroy(s);
+        sl_free(alloc, s, sizeof *s);
         return st;
     }
-    s->pick_cap = s->cfg.c.occluders;
-    size_t pc = s->pick_cap ? s->pick_cap : 1;
     /* the faces of the chosen proxies: at most the largest face count of a proxy, times the picks */
+    const sl_occ_set *o = s->b.occ;
     uint32_t maxf = 1;
-    for (uint32_t p = 0; p < s->occ->proxy_count; p++)
-        maxf = SL_MAX(maxf, s->occ->proxies[p].face_count);
-    s->face_cap = (uint32_t)SL_MIN((uint64_t)maxf * pc, (uint64_t)s->occ->face_count + 1);
-    s->heap = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
-    s->picks = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
+    for (uint32_t p = 0; p < o->proxy_count; p++)
+        maxf = SL_MAX(maxf, o->proxies[p].face_count);
+    s->face_cap = (uint32_t)SL_MIN((uint64_t)maxf * s->b.pick_cap, (uint64_t)o->face_count + 1);
     s->faces = sl_alloc(alloc, (size_t)s->face_cap * sizeof(face_pick));
     s->sh = sl_alloc(alloc, (size_t)s->cfg.frusta * sizeof(shadow));
-    s->sort_scratch = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
-    if (!s->heap || !s->picks || !s->faces || !s->sh || !s->sort_scratch) {
+    if (!s->faces || !s->sh) {
         frusta_destroy(s);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "frusta: out of memory");
     }
@@ -156,17 +111,7 @@ static sl_status frusta_create(sl_scene scene, const void *config, const sl_allo
 static sl_status frusta_scene_changed(void *state, sl_error *err)
 {
     frusta_state *s = state;
-    sl_status st = sl_bvh_refit(s->bvh, s->scene, err);
-    if (st == SL_OK)
-        st = sl_bvh_rebuild_if_degraded(s->bvh, s->scene, 0, NULL, err);
-    if (st == SL_OK)
-        st = refresh_node_areas(s, err);
-    if (st != SL_OK) {
-        sl_error_prefix(err, "frusta");
-        return st;
-    }
-    sl_occ_set_scene_changed(s->occ);
-    return SL_OK;
+    return sl_occ_base_scene_changed(&s->b, err);
 }
 
 /* Coorg-Teller quality of one face (positive when it faces the eye). */
@@ -357,6 +302,22 @@ static void sort_faces(face_pick *a, uint32_t n)
     }
 }
 
+/* The walk's question (sl_occ_walk): boxes against the frame's shadow frusta; every object
+ * reached is reported. */
+typedef struct walk_ctx {
+    const frusta_state *s;
+    uint32_t ns;
+    const sl_occ_view *v;
+    uint64_t tests;
+} walk_ctx;
+
+static bool skip(void *ctx, uint32_t slot, const sl_aabb *box)
+{
+    (void)slot;
+    walk_ctx *f = ctx;
+    return shadowed(f->s, f->ns, box, f->v, &f->tests);
+}
+
 static sl_status frusta_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
                              sl_cull_stats *stats, sl_error *err)
 {
@@ -366,15 +327,14 @@ static sl_status frusta_cull(void *state, const sl_camera *cam, uint32_t *out, u
     double t0 = sl_now();
     sl_occ_view v;
     sl_occ_view_init(&v, cam);
-    uint32_t np = sl_occ_select(s->occ, &v, s->bvh, s->node_area, s->cfg.c.occluders, s->cfg.c.budget,
-                                s->cfg.c.min_quality, s->heap, s->picks, &stats->nodes_visited);
+    uint32_t np = sl_occ_base_select(&s->b, &v, &s->cfg.c, &stats->nodes_visited);
     /* rank the chosen proxies' faces */
     uint32_t nf = 0;
     for (uint32_t i = 0; i < np; i++) {
-        const sl_occ_proxy *p = &s->occ->proxies[s->picks[i].proxy];
+        const sl_occ_proxy *p = &s->b.occ->proxies[s->b.picks[i].proxy];
         for (uint32_t j = 0; j < p->face_count && nf < s->face_cap; j++) {
             uint32_t fi = p->face_first + j;
-            float q = face_quality(&s->occ->faces[fi], &v);
+            float q = face_quality(&s->b.occ->faces[fi], &v);
             if (q > 0)
                 s->faces[nf++] = (face_pick){fi, q};
         }
@@ -382,48 +342,17 @@ static sl_status frusta_cull(void *state, const sl_camera *cam, uint32_t *out, u
     sort_faces(s->faces, nf);
     uint32_t ns = 0;
     for (uint32_t i = 0; i < nf && ns < s->cfg.frusta; i++)
-        if (make_shadow(s->occ, &s->occ->faces[s->faces[i].face], &v, &s->sh[ns]))
+        if (make_shadow(s->b.occ, &s->b.occ->faces[s->faces[i].face], &v, &s->sh[ns]))
             ns++;
     double t1 = sl_now();
-    const struct sl_bvh_t *b = s->bvh;
-    const float e[3] = {v.eye.x, v.eye.y, v.eye.z};
-    uint32_t k = 0;
-    uint64_t visited = 0, tested = 0, otests = 0;
-    if (b->node_slots) {
-        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
-        for (;;) {
-            const sl_bvh_node *n = &b->nodes[ni];
-            visited++;
-            int r = mask ? sl_occ_frustum_classify(&v, &n->box, mask) : 0;
-            if (r >= 0 && !shadowed(s, ns, &n->box, &v, &otests)) {
-                if (n->count == 0) {
-                    bool right = sl_bvh_right_first(b->nodes, n, e);
-                    stack[sp] = n->first + (right ? 0 : 1);
-                    masks[sp] = (uint32_t)r;
-                    sp++;
-                    ni = n->first + (right ? 1 : 0);
-                    mask = (uint32_t)r;
-                    continue;
-                }
-                for (uint32_t j = n->first; j < n->first + n->count; j++) {
-                    tested++;
-                    const sl_aabb *ob = &b->object_bounds[j];
-                    if (r && sl_occ_frustum_classify(&v, ob, (uint32_t)r) < 0)
-                        continue;
-                    if (n->count > 1 && shadowed(s, ns, ob, &v, &otests))
-                        continue;
-                    out[k++] = b->objects[j];
-                }
-            }
-            if (sp == 0)
-                break;
-            sp--;
-            ni = stack[sp];
-            mask = masks[sp];
-        }
-    }
+    walk_ctx f = {s, ns, &v, 0};
+    sl_occ_walk w = {skip, NULL, &f, out, 0};
+    uint64_t tested = 0;
+    uint64_t visited = sl_occ_walk_bvh(s->b.bvh, &v, &w, &tested);
+    uint32_t k = w.count;
+    uint64_t otests = f.tests;
     double t2 = sl_now();
-    sl_cull_sort_ids(out, k, s->sort_scratch);
+    sl_cull_sort_ids(out, k, s->b.sort_scratch);
     double t3 = sl_now();
     stats->nodes_visited += visited;
     stats->objects_tested = tested;

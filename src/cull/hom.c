@@ -23,8 +23,6 @@
 
 #include <math.h>
 
-#define MAX_LEVELS 24
-
 typedef struct hom_config {
     sl_occ_common c;
     float threshold;
@@ -33,25 +31,10 @@ typedef struct hom_config {
 } hom_config;
 
 typedef struct hom_state {
-    sl_allocator alloc;
-    sl_scene scene;
+    sl_occ_base b;             /* BVH, proxies, selection buffers */
     hom_config cfg;
-    sl_bvh bvh;
-    float *node_area;
-    uint32_t node_slots;
-    sl_occ_set *occ;
     sl_occ_raster r;
-    sl_occ_pick *heap, *picks;
-    uint32_t *pick_ids, pick_cap;
-    uint32_t object_count;
-    uint32_t *sort_scratch;
-    /* opacity pyramid */
-    float *pyr;
-    size_t pyr_cap;
-    uint32_t levels, lw[MAX_LEVELS], lh[MAX_LEVELS];
-    size_t loff[MAX_LEVELS];
-    const float *level_ptr[MAX_LEVELS];
-    uint32_t pyr_w, pyr_h;
+    sl_occ_pyramid pyr;        /* opacity pyramid */
     /* depth estimation buffer */
     float *deb;
     uint32_t dw, dh;
@@ -91,33 +74,12 @@ static void hom_destroy(void *state)
     hom_state *s = state;
     if (!s)
         return;
-    const sl_allocator *a = &s->alloc;
-    sl_bvh_destroy(s->bvh);
-    sl_free(a, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
+    sl_allocator a = s->b.alloc;
     sl_occ_raster_free(&s->r);
-    sl_occ_set_destroy(s->occ);
-    size_t pc = s->pick_cap ? s->pick_cap : 1;
-    sl_free(a, s->heap, pc * sizeof(sl_occ_pick));
-    sl_free(a, s->picks, pc * sizeof(sl_occ_pick));
-    sl_free(a, s->pick_ids, pc * sizeof(uint32_t));
-    sl_free(a, s->sort_scratch, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
-    sl_free(a, s->pyr, s->pyr_cap * sizeof(float));
-    sl_free(a, s->deb, s->deb_cap * sizeof(float));
-    sl_free(a, s, sizeof *s);
-}
-
-static sl_status refresh_node_areas(hom_state *s, sl_error *err)
-{
-    uint32_t n = s->bvh->node_slots;
-    if (n != s->node_slots) {
-        sl_free(&s->alloc, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
-        s->node_area = sl_alloc(&s->alloc, (size_t)(n ? n : 1) * sizeof(float));
-        s->node_slots = s->node_area ? n : 0;
-        if (!s->node_area)
-            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory for %u node areas", n);
-    }
-    sl_occ_node_areas(s->occ, s->bvh, s->node_area);
-    return SL_OK;
+    sl_occ_pyramid_free(&s->pyr, &a);
+    sl_free(&a, s->deb, s->deb_cap * sizeof(float));
+    sl_occ_base_free(&s->b);
+    sl_free(&a, s, sizeof *s);
 }
 
 static sl_status hom_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
@@ -125,35 +87,16 @@ static sl_status hom_create(sl_scene scene, const void *config, const sl_allocat
     hom_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory");
-    s->alloc = *alloc;
-    s->scene = scene;
     s->cfg = *(const hom_config *)config;
-    s->object_count = sl_scene_object_count(scene);
-    sl_bvh_options bo = {0};
-    bo.max_leaf_size = s->cfg.c.leaf_size;
-    bo.alloc = alloc;
-    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, true, 0};
-    sl_status st = sl_bvh_build(scene, &bo, &s->bvh, err);
-    if (st == SL_OK)
-        st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
-    if (st == SL_OK)
-        st = refresh_node_areas(s, err);
-    if (st == SL_OK)
-        st = sl_occ_raster_init(&s->r, &s->cfg.c, s->occ, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, "hom", &s->cfg.c, true, 0, true, alloc, err);
     if (st != SL_OK) {
+        sl_free(alloc, s, sizeof *s);
+        return st;
+    }
+    if ((st = sl_occ_raster_init(&s->r, &s->cfg.c, s->b.occ, alloc, err)) != SL_OK) {
         sl_error_prefix(err, "hom");
         hom_destroy(s);
         return st;
-    }
-    s->pick_cap = s->cfg.c.occluders;
-    size_t pc = s->pick_cap ? s->pick_cap : 1;
-    s->heap = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
-    s->picks = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
-    s->pick_ids = sl_alloc(alloc, pc * sizeof(uint32_t));
-    s->sort_scratch = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
-    if (!s->heap || !s->picks || !s->pick_ids || !s->sort_scratch) {
-        hom_destroy(s);
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory");
     }
     *state = s;
     return SL_OK;
@@ -162,54 +105,24 @@ static sl_status hom_create(sl_scene scene, const void *config, const sl_allocat
 static sl_status hom_scene_changed(void *state, sl_error *err)
 {
     hom_state *s = state;
-    sl_status st = sl_bvh_refit(s->bvh, s->scene, err);
-    if (st == SL_OK)
-        st = sl_bvh_rebuild_if_degraded(s->bvh, s->scene, 0, NULL, err);
-    if (st == SL_OK)
-        st = refresh_node_areas(s, err);
-    if (st != SL_OK) {
-        sl_error_prefix(err, "hom");
-        return st;
-    }
-    sl_occ_set_scene_changed(s->occ);
-    return SL_OK;
+    return sl_occ_base_scene_changed(&s->b, err);
 }
 
+/* The pyramid and the DEB for a w x h screen (allocates only when the resolution changes). */
 static sl_status size_buffers(hom_state *s, uint32_t w, uint32_t h, sl_error *err)
 {
-    if (s->pyr && s->pyr_w == w && s->pyr_h == h)
-        return SL_OK;
-    uint32_t tx, ty;
-    sl_raster_get_size(s->r.ctx, NULL, NULL, &tx, &ty);
-    uint32_t lw = tx * 4, lh = ty * 2;
-    size_t total = 0;
-    s->levels = 0;
-    for (;;) {
-        s->lw[s->levels] = lw;
-        s->lh[s->levels] = lh;
-        s->loff[s->levels] = total;
-        total += (size_t)lw * lh;
-        s->levels++;
-        if ((lw == 1 && lh == 1) || s->levels == MAX_LEVELS)
-            break;
-        lw = (lw + 1) / 2;
-        lh = (lh + 1) / 2;
-    }
-    sl_free(&s->alloc, s->pyr, s->pyr_cap * sizeof(float));
-    s->pyr = sl_alloc(&s->alloc, total * sizeof(float));
-    s->pyr_cap = s->pyr ? total : 0;
+    bool resized;
+    sl_status st = sl_occ_pyramid_size(&s->pyr, &s->b.alloc, s->r.ctx, w, h, &resized, err);
+    if (st != SL_OK || (!resized && s->deb))
+        return st;
     s->dw = (w + s->cfg.deb - 1) / s->cfg.deb;
     s->dh = (h + s->cfg.deb - 1) / s->cfg.deb;
     size_t dn = (size_t)s->dw * s->dh;
-    sl_free(&s->alloc, s->deb, s->deb_cap * sizeof(float));
-    s->deb = sl_alloc(&s->alloc, dn * sizeof(float));
+    sl_free(&s->b.alloc, s->deb, s->deb_cap * sizeof(float));
+    s->deb = sl_alloc(&s->b.alloc, dn * sizeof(float));
     s->deb_cap = s->deb ? dn : 0;
-    if (!s->pyr || !s->deb)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory for the occlusion maps");
-    for (uint32_t i = 0; i < s->levels; i++)
-        s->level_ptr[i] = s->pyr + s->loff[i];
-    s->pyr_w = w;
-    s->pyr_h = h;
+    if (!s->deb)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for the depth estimation buffer");
     return SL_OK;
 }
 
@@ -217,14 +130,15 @@ static sl_status size_buffers(hom_state *s, uint32_t w, uint32_t h, sl_error *er
  * children that exist. */
 static void build_pyramid(hom_state *s)
 {
-    size_t n0 = (size_t)s->lw[0] * s->lh[0];
-    (void)sl_raster_read_subtile_depth(s->r.ctx, s->pyr, n0, NULL);
+    sl_occ_pyramid *p = &s->pyr;
+    size_t n0 = (size_t)p->lw[0] * p->lh[0];
+    sl_occ_pyramid_read_base(p, s->r.ctx);
     for (size_t i = 0; i < n0; i++)
-        s->pyr[i] = s->pyr[i] > 0.0f ? 1.0f : 0.0f;
-    for (uint32_t l = 1; l < s->levels; l++) {
-        const float *src = s->pyr + s->loff[l - 1];
-        float *dst = s->pyr + s->loff[l];
-        uint32_t sw = s->lw[l - 1], sh = s->lh[l - 1], w = s->lw[l], h = s->lh[l];
+        p->data[i] = p->data[i] > 0.0f ? 1.0f : 0.0f;
+    for (uint32_t l = 1; l < p->levels; l++) {
+        const float *src = p->data + p->loff[l - 1];
+        float *dst = p->data + p->loff[l];
+        uint32_t sw = p->lw[l - 1], sh = p->lh[l - 1], w = p->lw[l], h = p->lh[l];
         for (uint32_t y = 0; y < h; y++)
             for (uint32_t x = 0; x < w; x++) {
                 float sum = 0;
@@ -350,7 +264,7 @@ static void build_deb(hom_state *s, const sl_occ_view *v, const uint32_t *proxie
     size_t dn = (size_t)s->dw * s->dh;
     for (size_t i = 0; i < dn; i++)
         s->deb[i] = INFINITY;
-    const sl_occ_set *o = s->occ;
+    const sl_occ_set *o = s->b.occ;
     for (uint32_t i = 0; i < n; i++) {
         const sl_occ_proxy *pr = &o->proxies[proxies[i]];
         sl_occ_rect r;
@@ -412,14 +326,15 @@ static bool overlap_covered(hom_state *s, const sl_occ_rect *r)
 {
     uint32_t sx0 = (uint32_t)r->x0 >> 3, sx1 = (uint32_t)(r->x1 - 1) >> 3;
     uint32_t sy0 = (uint32_t)r->y0 >> 2, sy1 = (uint32_t)(r->y1 - 1) >> 2;
+    const sl_occ_pyramid *p = &s->pyr;
     uint32_t l = 0;
-    while (l + 1 < s->levels && ((sx1 >> l) - (sx0 >> l) > 1 || (sy1 >> l) - (sy0 >> l) > 1))
+    while (l + 1 < p->levels && ((sx1 >> l) - (sx0 >> l) > 1 || (sy1 >> l) - (sy0 >> l) > 1))
         l++;
     /* explicit stack of (level, x, y) entries to examine */
     struct {
         uint8_t l;
         uint32_t x, y;
-    } stack[4 * MAX_LEVELS + 8];
+    } stack[4 * SL_OCC_MAX_LEVELS + 8];
     uint32_t sp = 0;
     for (uint32_t y = sy0 >> l; y <= sy1 >> l; y++)
         for (uint32_t x = sx0 >> l; x <= sx1 >> l; x++) {
@@ -433,7 +348,7 @@ static bool overlap_covered(hom_state *s, const sl_occ_rect *r)
         sp--;
         uint32_t L = stack[sp].l, x = stack[sp].x, y = stack[sp].y;
         s->overlap_reads++;
-        float o = s->pyr[s->loff[L] + (size_t)y * s->lw[L] + x];
+        float o = p->data[p->loff[L] + (size_t)y * p->lw[L] + x];
         if (o >= t)
             continue;
         if (L == 0 || o <= 0.0f)
@@ -442,7 +357,7 @@ static bool overlap_covered(hom_state *s, const sl_occ_rect *r)
         for (uint32_t dy = 0; dy < 2; dy++)
             for (uint32_t dx = 0; dx < 2; dx++) {
                 uint32_t cx = 2 * x + dx, cy = 2 * y + dy;
-                if (cx >= s->lw[L - 1] || cy >= s->lh[L - 1])
+                if (cx >= p->lw[L - 1] || cy >= p->lh[L - 1])
                     continue;
                 if (cx < (sx0 >> (L - 1)) || cx > (sx1 >> (L - 1)) || cy < (sy0 >> (L - 1)) || cy > (sy1 >> (L - 1)))
                     continue;
@@ -477,6 +392,20 @@ static bool occluded(hom_state *s, const sl_occ_view *v, const sl_aabb *b, sl_cu
     return true;
 }
 
+/* The walk's question (sl_occ_walk): boxes through the maps; every object reached is reported. */
+typedef struct walk_ctx {
+    hom_state *s;
+    const sl_occ_view *v;
+    sl_cull_stats *st;
+} walk_ctx;
+
+static bool skip(void *ctx, uint32_t slot, const sl_aabb *box)
+{
+    (void)slot;
+    walk_ctx *f = ctx;
+    return occluded(f->s, f->v, box, f->st);
+}
+
 static sl_status hom_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
@@ -493,54 +422,19 @@ static sl_status hom_cull(void *state, const sl_camera *cam, uint32_t *out, uint
         return st;
     }
     s->overlap_reads = 0;
-    uint32_t np = sl_occ_select(s->occ, &v, s->bvh, s->node_area, s->cfg.c.occluders, s->cfg.c.budget,
-                                s->cfg.c.min_quality, s->heap, s->picks, &stats->nodes_visited);
-    for (uint32_t i = 0; i < np; i++)
-        s->pick_ids[i] = s->picks[i].proxy;
+    uint32_t np = sl_occ_base_select(&s->b, &v, &s->cfg.c, &stats->nodes_visited);
     double t1 = sl_now();
-    sl_occ_raster_render(&s->r, s->occ, &v, s->pick_ids, np);
+    sl_occ_raster_render(&s->r, s->b.occ, &v, s->b.pick_ids, np);
     build_pyramid(s);
-    build_deb(s, &v, s->pick_ids, np);
+    build_deb(s, &v, s->b.pick_ids, np);
     double t2 = sl_now();
-    const struct sl_bvh_t *b = s->bvh;
-    const float e[3] = {v.eye.x, v.eye.y, v.eye.z};
-    uint32_t k = 0;
-    uint64_t visited = 0, tested = 0;
-    if (b->node_slots) {
-        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
-        for (;;) {
-            const sl_bvh_node *n = &b->nodes[ni];
-            visited++;
-            int r = mask ? sl_occ_frustum_classify(&v, &n->box, mask) : 0;
-            if (r >= 0 && !occluded(s, &v, &n->box, stats)) {
-                if (n->count == 0) {
-                    bool right = sl_bvh_right_first(b->nodes, n, e);
-                    stack[sp] = n->first + (right ? 0 : 1);
-                    masks[sp] = (uint32_t)r;
-                    sp++;
-                    ni = n->first + (right ? 1 : 0);
-                    mask = (uint32_t)r;
-                    continue;
-                }
-                for (uint32_t j = n->first; j < n->first + n->count; j++) {
-                    tested++;
-                    const sl_aabb *ob = &b->object_bounds[j];
-                    if (r && sl_occ_frustum_classify(&v, ob, (uint32_t)r) < 0)
-                        continue;
-                    if (n->count > 1 && occluded(s, &v, ob, stats))
-                        continue;
-                    out[k++] = b->objects[j];
-                }
-            }
-            if (sp == 0)
-                break;
-            sp--;
-            ni = stack[sp];
-            mask = masks[sp];
-        }
-    }
+    walk_ctx f = {s, &v, stats};
+    sl_occ_walk w = {skip, NULL, &f, out, 0};
+    uint64_t tested = 0;
+    uint64_t visited = sl_occ_walk_bvh(s->b.bvh, &v, &w, &tested);
+    uint32_t k = w.count;
     double t3 = sl_now();
-    sl_cull_sort_ids(out, k, s->sort_scratch);
+    sl_cull_sort_ids(out, k, s->b.sort_scratch);
     double t4 = sl_now();
     stats->nodes_visited += visited;
     stats->objects_tested = tested;
@@ -551,7 +445,7 @@ static sl_status hom_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     sl_cull_phase(stats, "traverse", sl_cull_ms(t2, t3));
     sl_cull_phase(stats, "sort", sl_cull_ms(t3, t4));
     *count = k;
-    sl_occ_levels lv = {s->levels, s->level_ptr, s->lw, s->lh, true};
+    sl_occ_levels lv = sl_occ_pyramid_levels(&s->pyr, true);
     if ((st = sl_occ_raster_end(&s->r, &lv, err)) != SL_OK)
         sl_error_prefix(err, "hom");
     return st;

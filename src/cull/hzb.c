@@ -15,52 +15,38 @@
  *     (front-to-back order makes the objects found first the best occluders); the pyramid is
  *     rebuilt after every `refresh` such occluders. A stale pyramid is still conservative: every
  *     state of the buffer during a frame bounds the depth of occluders that stay valid all frame.
- *     Objects of at most `mesh_test` triangles whose box looks visible are tested by their own
- *     triangles. Visible proxies of quality below min_quality (small, mostly far) go to a second
- *     buffer (`far_layer`): merged into the main one, their far depths would dilute the partial
- *     layers the rasterizer keeps along near silhouettes; a box hidden in either buffer is hidden
- *     (each holds valid occluders only).
+ *     An object whose box looks visible is then tested by its own triangles (sl_occ_object_hidden):
+ *     rasterized outward-conservatively (at most `mesh_test` triangles), then sampled at the pixel
+ *     centres the oracle samples (at most `sample_tris` triangles, box rectangle of at most
+ *     `sample_px` pixels), which drops objects hidden behind occluders that do not cover their
+ *     whole box and objects that cover no pixel centre at all (far lamps, trees, cars). Visible
+ *     proxies of quality below min_quality (small, mostly far) go to a second buffer
+ *     (`far_layer`): merged into the main one, their far depths would dilute the partial layers
+ *     the rasterizer keeps along near silhouettes; a box (or a sampled pixel) hidden in either
+ *     buffer is hidden (each holds valid occluders only).
  * Conservative: proxies lie inside their objects (occluders.h), the rasterizer never writes a
  * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner. */
 #include "occluders.h"
 
 #include <math.h>
 
-#define MAX_LEVELS 24
-
 typedef struct hzb_config {
     sl_occ_common c;
     bool pyramid;
     bool render_visible;
     uint32_t refresh;
-    uint32_t mesh_test;
+    sl_occ_mesh_tests mt;
     bool far_layer;
     float far_quality;
 } hzb_config;
 
 typedef struct hzb_state {
-    sl_allocator alloc;
-    sl_scene scene;
+    sl_occ_base b;               /* BVH, proxies, selection buffers */
     hzb_config cfg;
-    sl_bvh bvh;
-    float *node_area;
-    uint32_t node_slots;
-    sl_occ_set *occ;
     sl_occ_raster r;
     sl_occ_raster far;           /* far layer: visible proxies of low quality (far_layer) */
-    sl_occ_pick *heap, *picks;
-    uint32_t *pick_ids;
-    uint32_t pick_cap;
-    uint32_t object_count;
-    uint32_t *sort_scratch;
-    /* the pyramid: level i is lw[i] x lh[i] floats at pyr + loff[i] */
-    float *pyr;
-    size_t pyr_cap;
-    uint32_t levels, lw[MAX_LEVELS], lh[MAX_LEVELS];
-    size_t loff[MAX_LEVELS];
-    uint32_t pyr_w, pyr_h;       /* screen size the pyramid was sized for */
+    sl_occ_pyramid pyr;          /* the max-depth pyramid */
     bool pyr_valid;
-    const float *level_ptr[MAX_LEVELS];
 } hzb_state;
 
 static const char g_help[] =
@@ -75,11 +61,10 @@ static const char g_help[] =
     "render_visible=BOOL (default true): render the proxies of objects found visible as occluders\n"
     "refresh=0..100000 (default 16): rebuild the pyramid after this many occluders found during the "
     "traversal (0: only after the selected occluders)\n"
-    "mesh_test=0..100000 (default 64): test an object whose box looks visible by its own triangles when it "
-    "has at most this many (0: boxes only)\n"
+    SL_OCC_HELP_MESH_TESTS
     "far_layer=BOOL (default true): render visible proxies below min_quality into a second buffer; a box "
     "hidden in either buffer is hidden\n"
-    "far_quality=NUMBER (default 0.00001): least quality (sr) of a far-layer occluder\n" SL_OCC_HELP_DEBUG;
+    "far_quality=NUMBER (default 0): least quality (sr) of a far-layer occluder\n" SL_OCC_HELP_DEBUG;
 
 static sl_status hzb_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
@@ -91,9 +76,9 @@ static sl_status hzb_configure(sl_opts *o, void *config, sl_cull_guarantee *g, s
         (st = sl_opts_bool(o, "pyramid", true, &c->pyramid, err)) != SL_OK ||
         (st = sl_opts_bool(o, "render_visible", true, &c->render_visible, err)) != SL_OK ||
         (st = sl_opts_u32(o, "refresh", 16, 0, 100000, &c->refresh, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "mesh_test", 64, 0, 100000, &c->mesh_test, err)) != SL_OK ||
+        (st = sl_occ_configure_mesh_tests(o, &c->mt, err)) != SL_OK ||
         (st = sl_opts_bool(o, "far_layer", true, &c->far_layer, err)) != SL_OK ||
-        (st = sl_opts_float(o, "far_quality", 0.00001f, 0.0f, 100.0f, &c->far_quality, err)) != SL_OK)
+        (st = sl_opts_float(o, "far_quality", 0.0f, 0.0f, 100.0f, &c->far_quality, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -103,33 +88,12 @@ static void hzb_destroy(void *state)
     hzb_state *s = state;
     if (!s)
         return;
-    const sl_allocator *a = &s->alloc;
-    sl_bvh_destroy(s->bvh);
-    sl_free(a, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
+    sl_allocator a = s->b.alloc;
     sl_occ_raster_free(&s->r);
     sl_occ_raster_free(&s->far);
-    sl_occ_set_destroy(s->occ);
-    sl_free(a, s->heap, (size_t)(s->pick_cap ? s->pick_cap : 1) * sizeof(sl_occ_pick));
-    sl_free(a, s->picks, (size_t)(s->pick_cap ? s->pick_cap : 1) * sizeof(sl_occ_pick));
-    sl_free(a, s->pick_ids, (size_t)(s->pick_cap ? s->pick_cap : 1) * sizeof(uint32_t));
-    sl_free(a, s->sort_scratch, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
-    sl_free(a, s->pyr, s->pyr_cap * sizeof(float));
-    sl_free(a, s, sizeof *s);
-}
-
-/* (Re)size the per-node areas to the tree and fill them. */
-static sl_status refresh_node_areas(hzb_state *s, sl_error *err)
-{
-    uint32_t n = s->bvh->node_slots;
-    if (n != s->node_slots) {
-        sl_free(&s->alloc, s->node_area, (size_t)(s->node_slots ? s->node_slots : 1) * sizeof(float));
-        s->node_area = sl_alloc(&s->alloc, (size_t)(n ? n : 1) * sizeof(float));
-        s->node_slots = s->node_area ? n : 0;
-        if (!s->node_area)
-            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hzb: out of memory for %u node areas", n);
-    }
-    sl_occ_node_areas(s->occ, s->bvh, s->node_area);
-    return SL_OK;
+    sl_occ_pyramid_free(&s->pyr, &a);
+    sl_occ_base_free(&s->b);
+    sl_free(&a, s, sizeof *s);
 }
 
 static sl_status hzb_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
@@ -137,44 +101,26 @@ static sl_status hzb_create(sl_scene scene, const void *config, const sl_allocat
     hzb_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hzb: out of memory");
-    s->alloc = *alloc;
-    s->scene = scene;
     s->cfg = *(const hzb_config *)config;
     if (s->cfg.c.dump)
         s->cfg.c.dump = s->cfg.c.dump_buf;
     if (s->cfg.c.record)
         s->cfg.c.record = s->cfg.c.record_buf;
-    s->object_count = sl_scene_object_count(scene);
-    sl_bvh_options bo = {0};
-    bo.max_leaf_size = s->cfg.c.leaf_size;
-    bo.alloc = alloc;
-    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, false, 0};
-    sl_status st = sl_bvh_build(scene, &bo, &s->bvh, err);
-    if (st == SL_OK)
-        st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
-    if (st == SL_OK)
-        st = refresh_node_areas(s, err);
-    if (st == SL_OK)
-        st = sl_occ_raster_init(&s->r, &s->cfg.c, s->occ, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, "hzb", &s->cfg.c, false, 0, true, alloc, err);
+    if (st != SL_OK) {
+        sl_free(alloc, s, sizeof *s);
+        return st;
+    }
+    st = sl_occ_raster_init(&s->r, &s->cfg.c, s->b.occ, alloc, err);
     if (st == SL_OK && s->cfg.far_layer) {
         sl_occ_common fc = s->cfg.c;
         fc.dump = fc.record = NULL; /* the debugging outputs show the main layer */
-        st = sl_occ_raster_init(&s->far, &fc, s->occ, alloc, err);
+        st = sl_occ_raster_init(&s->far, &fc, s->b.occ, alloc, err);
     }
     if (st != SL_OK) {
         sl_error_prefix(err, "hzb");
         hzb_destroy(s);
         return st;
-    }
-    s->pick_cap = s->cfg.c.occluders;
-    size_t pc = s->pick_cap ? s->pick_cap : 1;
-    s->heap = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
-    s->picks = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
-    s->pick_ids = sl_alloc(alloc, pc * sizeof(uint32_t));
-    s->sort_scratch = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
-    if (!s->heap || !s->picks || !s->pick_ids || !s->sort_scratch) {
-        hzb_destroy(s);
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hzb: out of memory");
     }
     *state = s;
     return SL_OK;
@@ -183,60 +129,18 @@ static sl_status hzb_create(sl_scene scene, const void *config, const sl_allocat
 static sl_status hzb_scene_changed(void *state, sl_error *err)
 {
     hzb_state *s = state;
-    sl_status st = sl_bvh_refit(s->bvh, s->scene, err);
-    if (st == SL_OK)
-        st = sl_bvh_rebuild_if_degraded(s->bvh, s->scene, 0, NULL, err);
-    if (st == SL_OK)
-        st = refresh_node_areas(s, err);
-    if (st != SL_OK) {
-        sl_error_prefix(err, "hzb");
-        return st;
-    }
-    sl_occ_set_scene_changed(s->occ);
-    return SL_OK;
-}
-
-/* Size the pyramid for a w x h screen (allocates only when the resolution changes). */
-static sl_status size_pyramid(hzb_state *s, uint32_t w, uint32_t h, sl_error *err)
-{
-    if (s->pyr && s->pyr_w == w && s->pyr_h == h)
-        return SL_OK;
-    uint32_t tx, ty;
-    sl_raster_get_size(s->r.ctx, NULL, NULL, &tx, &ty);
-    uint32_t lw = tx * 4, lh = ty * 2;
-    size_t total = 0;
-    s->levels = 0;
-    for (;;) {
-        s->lw[s->levels] = lw;
-        s->lh[s->levels] = lh;
-        s->loff[s->levels] = total;
-        total += (size_t)lw * lh;
-        s->levels++;
-        if ((lw == 1 && lh == 1) || s->levels == MAX_LEVELS)
-            break;
-        lw = (lw + 1) / 2;
-        lh = (lh + 1) / 2;
-    }
-    sl_free(&s->alloc, s->pyr, s->pyr_cap * sizeof(float));
-    s->pyr = sl_alloc(&s->alloc, total * sizeof(float));
-    s->pyr_cap = s->pyr ? total : 0;
-    if (!s->pyr)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hzb: out of memory for a %zu-entry pyramid", total);
-    for (uint32_t i = 0; i < s->levels; i++)
-        s->level_ptr[i] = s->pyr + s->loff[i];
-    s->pyr_w = w;
-    s->pyr_h = h;
-    return SL_OK;
+    return sl_occ_base_scene_changed(&s->b, err);
 }
 
 /* Rebuild the pyramid from the buffer: each entry the farthest (smallest) depth below it. */
 static void build_pyramid(hzb_state *s)
 {
-    (void)sl_raster_read_subtile_depth(s->r.ctx, s->pyr, (size_t)s->lw[0] * s->lh[0], NULL);
-    for (uint32_t l = 1; l < s->levels; l++) {
-        const float *src = s->pyr + s->loff[l - 1];
-        float *dst = s->pyr + s->loff[l];
-        uint32_t sw = s->lw[l - 1], sh = s->lh[l - 1], w = s->lw[l], h = s->lh[l];
+    sl_occ_pyramid *p = &s->pyr;
+    sl_occ_pyramid_read_base(p, s->r.ctx);
+    for (uint32_t l = 1; l < p->levels; l++) {
+        const float *src = p->data + p->loff[l - 1];
+        float *dst = p->data + p->loff[l];
+        uint32_t sw = p->lw[l - 1], sh = p->lh[l - 1], w = p->lw[l], h = p->lh[l];
         for (uint32_t y = 0; y < h; y++) {
             const float *r0 = src + (size_t)(2 * y) * sw, *r1 = 2 * y + 1 < sh ? r0 + sw : r0;
             for (uint32_t x = 0; x < w; x++) {
@@ -255,11 +159,12 @@ static bool pyramid_hides(const hzb_state *s, const sl_occ_rect *r)
 {
     uint32_t sx0 = (uint32_t)r->x0 >> 3, sx1 = (uint32_t)(r->x1 - 1) >> 3;
     uint32_t sy0 = (uint32_t)r->y0 >> 2, sy1 = (uint32_t)(r->y1 - 1) >> 2;
+    const sl_occ_pyramid *py = &s->pyr;
     uint32_t l = 0;
-    while (l + 1 < s->levels && ((sx1 >> l) - (sx0 >> l) > 1 || (sy1 >> l) - (sy0 >> l) > 1))
+    while (l + 1 < py->levels && ((sx1 >> l) - (sx0 >> l) > 1 || (sy1 >> l) - (sy0 >> l) > 1))
         l++;
-    const float *p = s->pyr + s->loff[l];
-    uint32_t w = s->lw[l];
+    const float *p = py->data + py->loff[l];
+    uint32_t w = py->lw[l];
     for (uint32_t y = sy0 >> l; y <= sy1 >> l; y++)
         for (uint32_t x = sx0 >> l; x <= sx1 >> l; x++)
             if (!(r->dnear < p[(size_t)y * w + x]))
@@ -272,6 +177,7 @@ typedef struct frame_ctx {
     const sl_occ_view *v;
     sl_cull_stats *st;
     uint32_t since_refresh;
+    uint32_t *out, k;           /* objects found visible */
 } frame_ctx;
 
 /* True when box b is hidden (or off screen). */
@@ -297,22 +203,45 @@ static bool occluded(frame_ctx *f, const sl_aabb *b)
 static void maybe_render(frame_ctx *f, uint32_t object)
 {
     hzb_state *s = f->s;
-    uint32_t p = s->occ->object_proxy[object];
-    if (p == SL_NONE || sl_occ_raster_rendered(&s->r, p) || !sl_occ_usable(s->occ, p, f->v))
+    const sl_occ_set *o = s->b.occ;
+    uint32_t p = o->object_proxy[object];
+    if (p == SL_NONE || sl_occ_raster_rendered(&s->r, p) || !sl_occ_usable(o, p, f->v))
         return;
-    float q = sl_occ_quality(s->occ, p, f->v);
+    float q = sl_occ_quality(o, p, f->v);
     if (q < s->cfg.c.min_quality) {
         /* small (mostly far) occluders: merged into the main layer their far depths would dilute
          * the partial layers along near silhouettes; they go to the far layer */
         if (s->cfg.far_layer && q >= s->cfg.far_quality && !sl_occ_raster_rendered(&s->far, p))
-            sl_occ_raster_render(&s->far, s->occ, f->v, &p, 1);
+            sl_occ_raster_render(&s->far, o, f->v, &p, 1);
         return;
     }
-    sl_occ_raster_render(&s->r, s->occ, f->v, &p, 1);
+    sl_occ_raster_render(&s->r, o, f->v, &p, 1);
     if (s->cfg.pyramid && s->cfg.refresh && ++f->since_refresh >= s->cfg.refresh) {
         build_pyramid(s);
         f->since_refresh = 0;
     }
+}
+
+/* The walk's questions (sl_occ_walk). */
+static bool skip(void *ctx, uint32_t slot, const sl_aabb *box)
+{
+    (void)slot;
+    return occluded(ctx, box);
+}
+
+/* An object whose box looks visible: reported unless its own triangles are hidden, and rendered as
+ * an occluder. */
+static void visit(void *ctx, uint32_t id, const sl_aabb *box)
+{
+    frame_ctx *f = ctx;
+    hzb_state *s = f->s;
+    sl_occ_raster *layers[2] = {&s->r, &s->far};
+    if (sl_occ_object_hidden(layers, s->cfg.far_layer ? 2 : 1, s->b.scene, f->v, id, box, &s->cfg.mt,
+                             &f->st->occlusion_tests))
+        return;
+    f->out[f->k++] = id;
+    if (f->s->cfg.render_visible)
+        maybe_render(f, id);
 }
 
 static sl_status hzb_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
@@ -327,77 +256,27 @@ static sl_status hzb_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     if (st == SL_OK && s->cfg.far_layer)
         st = sl_occ_raster_begin(&s->far, &v, err);
     if (st == SL_OK && s->cfg.pyramid)
-        st = size_pyramid(s, v.width, v.height, err);
+        st = sl_occ_pyramid_size(&s->pyr, &s->b.alloc, s->r.ctx, v.width, v.height, NULL, err);
     if (st != SL_OK) {
         sl_error_prefix(err, "hzb");
         return st;
     }
     s->pyr_valid = false;
     /* 1. the chosen occluders */
-    uint32_t np = sl_occ_select(s->occ, &v, s->bvh, s->node_area, s->cfg.c.occluders, s->cfg.c.budget,
-                                s->cfg.c.min_quality, s->heap, s->picks, &stats->nodes_visited);
-    for (uint32_t i = 0; i < np; i++)
-        s->pick_ids[i] = s->picks[i].proxy;
+    uint32_t np = sl_occ_base_select(&s->b, &v, &s->cfg.c, &stats->nodes_visited);
     double t1 = sl_now();
-    sl_occ_raster_render(&s->r, s->occ, &v, s->pick_ids, np);
+    sl_occ_raster_render(&s->r, s->b.occ, &v, s->b.pick_ids, np);
     if (s->cfg.pyramid)
         build_pyramid(s);
     double t2 = sl_now();
     /* 2. front-to-back traversal */
-    frame_ctx f = {s, &v, stats, 0};
-    const struct sl_bvh_t *b = s->bvh;
-    const float e[3] = {v.eye.x, v.eye.y, v.eye.z};
-    uint32_t k = 0;
-    uint64_t visited = 0, tested = 0;
-    const sl_object_rec *objects = sl_scene_objects(s->scene);
-    const sl_mesh_rec *meshes = sl_scene_meshes(s->scene);
-    if (b->node_slots) {
-        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
-        for (;;) {
-            const sl_bvh_node *n = &b->nodes[ni];
-            visited++;
-            int r = mask ? sl_occ_frustum_classify(&v, &n->box, mask) : 0;
-            if (r >= 0 && !occluded(&f, &n->box)) {
-                if (n->count == 0) {
-                    bool right = sl_bvh_right_first(b->nodes, n, e);
-                    stack[sp] = n->first + (right ? 0 : 1);
-                    masks[sp] = (uint32_t)r;
-                    sp++;
-                    ni = n->first + (right ? 1 : 0);
-                    mask = (uint32_t)r;
-                    continue;
-                }
-                for (uint32_t j = n->first; j < n->first + n->count; j++) {
-                    tested++;
-                    const sl_aabb *ob = &b->object_bounds[j];
-                    if (r && sl_occ_frustum_classify(&v, ob, (uint32_t)r) < 0)
-                        continue;
-                    if (n->count > 1 && occluded(&f, ob))
-                        continue;
-                    uint32_t id = b->objects[j];
-                    /* a small mesh whose box looks visible: its own triangles may still be hidden */
-                    if (s->cfg.mesh_test && meshes[objects[id].mesh].triangle_count <= s->cfg.mesh_test &&
-                        !sl_occ_point_in_box(v.eye, ob, 0.0f)) {
-                        stats->occlusion_tests++;
-                        if (sl_occ_raster_test_object(&s->r, s->scene, &v, id) != SL_RASTER_VISIBLE ||
-                            (s->cfg.far_layer && s->far.occluders_rendered &&
-                             sl_occ_raster_test_object(&s->far, s->scene, &v, id) != SL_RASTER_VISIBLE))
-                            continue;
-                    }
-                    out[k++] = id;
-                    if (s->cfg.render_visible)
-                        maybe_render(&f, id);
-                }
-            }
-            if (sp == 0)
-                break;
-            sp--;
-            ni = stack[sp];
-            mask = masks[sp];
-        }
-    }
+    frame_ctx f = {s, &v, stats, 0, out, 0};
+    sl_occ_walk w = {skip, visit, &f, NULL, 0};
+    uint64_t tested = 0;
+    uint64_t visited = sl_occ_walk_bvh(s->b.bvh, &v, &w, &tested);
+    uint32_t k = f.k;
     double t3 = sl_now();
-    sl_cull_sort_ids(out, k, s->sort_scratch);
+    sl_cull_sort_ids(out, k, s->b.sort_scratch);
     double t4 = sl_now();
     stats->nodes_visited += visited;
     stats->objects_tested = tested;
@@ -410,7 +289,7 @@ static sl_status hzb_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     *count = k;
     if (s->cfg.far_layer)
         (void)sl_occ_raster_end(&s->far, NULL, NULL); /* counts the frame; it has no debug outputs */
-    sl_occ_levels lv = {s->cfg.pyramid ? s->levels : 0, s->level_ptr, s->lw, s->lh, false};
+    sl_occ_levels lv = sl_occ_pyramid_levels(&s->pyr, false);
     if ((st = sl_occ_raster_end(&s->r, s->cfg.pyramid && s->pyr_valid ? &lv : NULL, err)) != SL_OK)
         sl_error_prefix(err, "hzb");
     return st;

@@ -23,6 +23,9 @@
  *              that bound. The lazy update recomputes the bound of an outdated internal cell by
  *              bisecting test_rect over the depth's float bits (every bound it finds is proven by a
  *              query, so it never exceeds the truth). One priority list by nearest depth suffices.
+ * An object whose box passes is also tested by its own triangles (sl_occ_object_hidden: options
+ * mesh_test, sample_tris, sample_px, as in hzb) before it is reported and drawn; the rasterizer
+ * holds true depths in every variant, so that depth test is valid at any point of the traversal.
  * Per frame, `queries` counts the cell-level pixel queries (what the paper's Fig. 8 reports) and
  * `pixel_queries` the pixels they read. Conservative. */
 #include "occluders.h"
@@ -35,6 +38,7 @@ typedef struct lg_config {
     sl_occ_common c;
     uint32_t variant;
     uint32_t cell;
+    sl_occ_mesh_tests mt;       /* an object whose box passes may still be hidden by its triangles */
 } lg_config;
 
 enum { CELL_FREE = 0, CELL_PARTIAL = 1, CELL_OUTDATED = 2 };
@@ -52,15 +56,10 @@ typedef struct lg_heap {
 } lg_heap;
 
 typedef struct lg_state {
-    sl_allocator alloc;
-    sl_scene scene;
+    sl_occ_base b;                /* BVH, proxies (no selection) */
     lg_config cfg;
-    sl_bvh bvh;
-    sl_occ_set *occ;
     sl_occ_raster r;
     lg_heap test, draw;
-    uint32_t object_count;
-    uint32_t *sort_scratch;
     /* the grid */
     uint32_t gw, gh, grid_cap, sw, sh;
     uint8_t *state, *full, *outdated;
@@ -75,7 +74,7 @@ static const char g_help[] =
     "min_quality=NUMBER (default 0.0005): least Coorg-Teller quality (sr) of a visible object drawn as an occluder\n"
     "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
     "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n"
-    "leaf_size=1..16 (default 4): most objects per BVH leaf\n" SL_OCC_HELP_DEBUG;
+    "leaf_size=1..16 (default 4): most objects per BVH leaf\n" SL_OCC_HELP_MESH_TESTS SL_OCC_HELP_DEBUG;
 
 static sl_status configure(sl_opts *o, lg_config *c, lg_variant v, sl_error *err)
 {
@@ -83,7 +82,8 @@ static sl_status configure(sl_opts *o, lg_config *c, lg_variant v, sl_error *err
     c->variant = v;
     if ((st = sl_opts_u32(o, "cell", 32, 8, 512, &c->cell, err)) != SL_OK ||
         (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG, 0, 0, &c->c, err)) != SL_OK ||
-        (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->c.min_quality, err)) != SL_OK)
+        (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->c.min_quality, err)) != SL_OK ||
+        (st = sl_occ_configure_mesh_tests(o, &c->mt, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -106,7 +106,7 @@ static sl_status busy_configure(sl_opts *o, void *config, sl_cull_guarantee *g, 
 
 static void free_grid(lg_state *s)
 {
-    const sl_allocator *a = &s->alloc;
+    const sl_allocator *a = &s->b.alloc;
     size_t n = s->grid_cap;
     sl_free(a, s->state, n);
     sl_free(a, s->full, n);
@@ -125,63 +125,55 @@ static void lg_destroy(void *state)
     lg_state *s = state;
     if (!s)
         return;
-    const sl_allocator *a = &s->alloc;
-    sl_bvh_destroy(s->bvh);
+    sl_allocator a = s->b.alloc;
     sl_occ_raster_free(&s->r);
-    sl_occ_set_destroy(s->occ);
-    sl_free(a, s->test.a, (size_t)(s->test.cap ? s->test.cap : 1) * sizeof(lg_item));
-    sl_free(a, s->draw.a, (size_t)(s->draw.cap ? s->draw.cap : 1) * sizeof(lg_item));
-    sl_free(a, s->sort_scratch, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
+    sl_free(&a, s->test.a, (size_t)(s->test.cap ? s->test.cap : 1) * sizeof(lg_item));
+    sl_free(&a, s->draw.a, (size_t)(s->draw.cap ? s->draw.cap : 1) * sizeof(lg_item));
     free_grid(s);
-    sl_free(a, s, sizeof *s);
+    sl_occ_base_free(&s->b);
+    sl_free(&a, s, sizeof *s);
 }
 
 /* Heaps hold every node slot and object once at most. */
 static sl_status size_heaps(lg_state *s, sl_error *err)
 {
-    uint32_t need = s->bvh->node_slots + s->object_count + 1;
+    uint32_t need = s->b.bvh->node_slots + s->b.object_count + 1;
     if (s->test.cap >= need)
         return SL_OK;
-    sl_free(&s->alloc, s->test.a, (size_t)(s->test.cap ? s->test.cap : 1) * sizeof(lg_item));
-    s->test.a = sl_alloc(&s->alloc, (size_t)need * sizeof(lg_item));
+    sl_free(&s->b.alloc, s->test.a, (size_t)(s->test.cap ? s->test.cap : 1) * sizeof(lg_item));
+    s->test.a = sl_alloc(&s->b.alloc, (size_t)need * sizeof(lg_item));
     s->test.cap = s->test.a ? need : 0;
     if (!s->test.a)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for the test list");
     return SL_OK;
 }
 
+static const char *const g_names[] = {"lazygrid", "lazygrid-z", "busygrid"};
+
 static sl_status lg_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
 {
     lg_state *s = sl_calloc(alloc, 1, sizeof *s);
     const lg_config *cfg = config;
-    static const char *const names[] = {"lazygrid", "lazygrid-z", "busygrid"};
     if (!s)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", names[cfg->variant]);
-    s->alloc = *alloc;
-    s->scene = scene;
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", g_names[cfg->variant]);
     s->cfg = *cfg;
-    s->object_count = sl_scene_object_count(scene);
-    sl_bvh_options bo = {0};
-    bo.max_leaf_size = s->cfg.c.leaf_size;
-    bo.alloc = alloc;
-    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, false, 0};
-    sl_status st = sl_bvh_build(scene, &bo, &s->bvh, err);
-    if (st == SL_OK)
-        st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
-    if (st == SL_OK)
-        st = sl_occ_raster_init(&s->r, &s->cfg.c, s->occ, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, g_names[cfg->variant], &s->cfg.c, false, 0, false, alloc, err);
+    if (st != SL_OK) {
+        sl_free(alloc, s, sizeof *s);
+        return st;
+    }
+    st = sl_occ_raster_init(&s->r, &s->cfg.c, s->b.occ, alloc, err);
     if (st == SL_OK)
         st = size_heaps(s, err);
     if (st == SL_OK) {
-        size_t n = s->object_count ? s->object_count : 1;
+        size_t n = s->b.object_count ? s->b.object_count : 1;
         s->draw.a = sl_alloc(alloc, n * sizeof(lg_item));
         s->draw.cap = s->draw.a ? (uint32_t)n : 0;
-        s->sort_scratch = sl_alloc(alloc, n * sizeof(uint32_t));
-        if (!s->draw.a || !s->sort_scratch)
+        if (!s->draw.a)
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory");
     }
     if (st != SL_OK) {
-        sl_error_prefix(err, "%s", names[cfg->variant]);
+        sl_error_prefix(err, "%s", g_names[cfg->variant]);
         lg_destroy(s);
         return st;
     }
@@ -192,15 +184,10 @@ static sl_status lg_create(sl_scene scene, const void *config, const sl_allocato
 static sl_status lg_scene_changed(void *state, sl_error *err)
 {
     lg_state *s = state;
-    sl_status st = sl_bvh_refit(s->bvh, s->scene, err);
-    if (st == SL_OK)
-        st = sl_bvh_rebuild_if_degraded(s->bvh, s->scene, 0, NULL, err);
-    if (st == SL_OK)
-        st = size_heaps(s, err);
-    if (st != SL_OK)
-        return st;
-    sl_occ_set_scene_changed(s->occ);
-    return SL_OK;
+    sl_status st = sl_occ_base_scene_changed(&s->b, err);
+    if (st == SL_OK && (st = size_heaps(s, err)) != SL_OK)
+        sl_error_prefix(err, "%s", g_names[s->cfg.variant]);
+    return st;
 }
 
 /* ---- heaps (min by key; ties by item for determinism) ---- */
@@ -247,7 +234,7 @@ static sl_status size_grid(lg_state *s, uint32_t w, uint32_t h, sl_error *err)
     size_t n = (size_t)gw * gh;
     if (n > s->grid_cap) {
         free_grid(s);
-        const sl_allocator *a = &s->alloc;
+        const sl_allocator *a = &s->b.alloc;
         s->state = sl_alloc(a, n);
         s->full = sl_alloc(a, n);
         s->outdated = sl_alloc(a, n);
@@ -449,12 +436,12 @@ static void mark_drawn(lg_state *s, const sl_occ_rect *r)
 /* Draw object `id`'s proxy (if it has a usable one of sufficient quality). */
 static void draw(lg_state *s, const sl_occ_view *v, uint32_t id)
 {
-    uint32_t p = s->occ->object_proxy[id];
-    if (p == SL_NONE || !sl_occ_usable(s->occ, p, v) || sl_occ_quality(s->occ, p, v) < s->cfg.c.min_quality)
+    uint32_t p = s->b.occ->object_proxy[id];
+    if (p == SL_NONE || !sl_occ_usable(s->b.occ, p, v) || sl_occ_quality(s->b.occ, p, v) < s->cfg.c.min_quality)
         return;
-    if (!sl_occ_raster_render(&s->r, s->occ, v, &p, 1))
+    if (!sl_occ_raster_render(&s->r, s->b.occ, v, &p, 1))
         return;
-    sl_aabb b = sl_occ_proxy_box(s->occ, &s->occ->proxies[p]);
+    sl_aabb b = sl_occ_proxy_box(s->b.occ, &s->b.occ->proxies[p]);
     sl_occ_rect r;
     int k = sl_occ_project_box(v, &b, &r);
     if (k == SL_OCC_OUT)
@@ -464,8 +451,8 @@ static void draw(lg_state *s, const sl_occ_view *v, uint32_t id)
 
 static bool drawable(const lg_state *s, const sl_occ_view *v, uint32_t id)
 {
-    uint32_t p = s->occ->object_proxy[id];
-    return p != SL_NONE && sl_occ_usable(s->occ, p, v) && sl_occ_quality(s->occ, p, v) >= s->cfg.c.min_quality;
+    uint32_t p = s->b.occ->object_proxy[id];
+    return p != SL_NONE && sl_occ_usable(s->b.occ, p, v) && sl_occ_quality(s->b.occ, p, v) >= s->cfg.c.min_quality;
 }
 
 static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
@@ -473,7 +460,6 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
 {
     (void)capacity;
     lg_state *s = state;
-    static const char *const names[] = {"lazygrid", "lazygrid-z", "busygrid"};
     double t0 = sl_now();
     sl_occ_view v;
     sl_occ_view_init(&v, cam);
@@ -481,11 +467,11 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
     if (st == SL_OK)
         st = size_grid(s, v.width, v.height, err);
     if (st != SL_OK) {
-        sl_error_prefix(err, "%s", names[s->cfg.variant]);
+        sl_error_prefix(err, "%s", g_names[s->cfg.variant]);
         return st;
     }
     s->cell_queries = 0;
-    const struct sl_bvh_t *b = s->bvh;
+    const struct sl_bvh_t *b = s->b.bvh;
     uint32_t k = 0;
     uint64_t visited = 0, tested = 0, otests = 0;
     s->test.n = s->draw.n = 0;
@@ -524,6 +510,11 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
         }
         if (is_object) {
             uint32_t id = b->objects[slot];
+            /* the rasterizer holds true depths whatever the variant: a depth test of the object's
+             * own triangles is valid at any point of the traversal */
+            sl_occ_raster *layer = &s->r;
+            if (pk == SL_OCC_RECT && sl_occ_object_hidden(&layer, 1, s->b.scene, &v, id, box, &s->cfg.mt, &otests))
+                continue;
             out[k++] = id;
             if (obuf) {
                 if (drawable(s, &v, id)) {
@@ -552,7 +543,7 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
         }
     }
     double t1 = sl_now();
-    sl_cull_sort_ids(out, k, s->sort_scratch);
+    sl_cull_sort_ids(out, k, s->b.sort_scratch);
     double t2 = sl_now();
     stats->nodes_visited = visited;
     stats->objects_tested = tested;
@@ -569,7 +560,7 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
     uint32_t gw[1] = {s->gw}, gh[1] = {s->gh};
     size_t cells = (size_t)s->gw * s->gh;
     if (s->r.dump && s->r.frame == s->r.debug_frame) {
-        s->dump_grid = sl_alloc(&s->alloc, (cells ? cells : 1) * sizeof(float));
+        s->dump_grid = sl_alloc(&s->b.alloc, (cells ? cells : 1) * sizeof(float));
         if (s->dump_grid) {
             for (size_t i = 0; i < cells; i++)
                 s->dump_grid[i] = s->cfg.variant == LG_Z ? s->bmin[i]
@@ -582,10 +573,10 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
         }
     }
     st = sl_occ_raster_end(&s->r, lv.count ? &lv : NULL, err);
-    sl_free(&s->alloc, s->dump_grid, (cells ? cells : 1) * sizeof(float));
+    sl_free(&s->b.alloc, s->dump_grid, (cells ? cells : 1) * sizeof(float));
     s->dump_grid = NULL;
     if (st != SL_OK)
-        sl_error_prefix(err, "%s", names[s->cfg.variant]);
+        sl_error_prefix(err, "%s", g_names[s->cfg.variant]);
     return st;
 }
 

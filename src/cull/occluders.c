@@ -48,6 +48,52 @@ int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mas
     return (int)out;
 }
 
+uint64_t sl_occ_walk_bvh(const struct sl_bvh_t *bvh, const sl_occ_view *v, sl_occ_walk *w,
+                         uint64_t *objects_tested)
+{
+    uint64_t visited = 0, tested = 0;
+    const float e[3] = {v->eye.x, v->eye.y, v->eye.z};
+    if (bvh->node_slots) {
+        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
+        for (;;) {
+            const sl_bvh_node *n = &bvh->nodes[ni];
+            visited++;
+            int r = mask ? sl_occ_frustum_classify(v, &n->box, mask) : 0;
+            if (r >= 0 && !(w->skip && w->skip(w->ctx, ni, &n->box))) {
+                if (n->count == 0) {
+                    bool right = sl_bvh_right_first(bvh->nodes, n, e);
+                    stack[sp] = n->first + (right ? 0 : 1);
+                    masks[sp] = (uint32_t)r;
+                    sp++;
+                    ni = n->first + (right ? 1 : 0);
+                    mask = (uint32_t)r;
+                    continue;
+                }
+                for (uint32_t j = n->first; j < n->first + n->count; j++) {
+                    tested++;
+                    const sl_aabb *ob = &bvh->object_bounds[j];
+                    if (r && sl_occ_frustum_classify(v, ob, (uint32_t)r) < 0)
+                        continue;
+                    if (n->count > 1 && w->skip && w->skip(w->ctx, SL_NONE, ob))
+                        continue;
+                    if (w->visit)
+                        w->visit(w->ctx, bvh->objects[j], ob);
+                    else
+                        w->out[w->count++] = bvh->objects[j];
+                }
+            }
+            if (sp == 0)
+                break;
+            sp--;
+            ni = stack[sp];
+            mask = masks[sp];
+        }
+    }
+    if (objects_tested)
+        *objects_tested += tested;
+    return visited;
+}
+
 /* Pixel range [lo, hi) of every pixel an interval [a, b] touches, grown by 1/64 pixel and clamped
  * to [0, n] (the rasterizer's own rule for box queries). */
 static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
@@ -121,25 +167,6 @@ int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
 
 /* ---- options ---- */
 
-sl_status sl_occ_opts_string(sl_opts *o, const char *key, const char **out, sl_error *err)
-{
-    (void)err;
-    *out = NULL;
-    bool known = false;
-    for (uint32_t i = 0; i < o->known_count; i++)
-        known |= strcmp(o->known[i], key) == 0;
-    if (!known && o->known_count < SL_OPTS_MAX_ENTRIES)
-        o->known[o->known_count++] = key;
-    for (uint32_t i = 0; i < o->count; i++)
-        if (strcmp(o->keys[i], key) == 0) {
-            o->used[i] = true;
-            *out = o->values[i];
-        }
-    size_t n = strlen(o->effective);
-    snprintf(o->effective + n, sizeof o->effective - n, "%s%s=%s", n ? "," : "", key, *out ? *out : "none");
-    return SL_OK;
-}
-
 sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occluders, uint32_t def_budget,
                                   sl_occ_common *c, sl_error *err)
 {
@@ -165,8 +192,8 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
         return st;
     if (which & SL_OCC_OPT_DEBUG) {
         const char *d, *r;
-        if ((st = sl_occ_opts_string(o, "dump", &d, err)) != SL_OK ||
-            (st = sl_occ_opts_string(o, "record", &r, err)) != SL_OK ||
+        if ((st = sl_opts_string(o, "dump", &d, err)) != SL_OK ||
+            (st = sl_opts_string(o, "record", &r, err)) != SL_OK ||
             (st = sl_opts_u32(o, "debug_frame", 0, 0, UINT32_MAX, &c->debug_frame, err)) != SL_OK)
             return st;
         if ((d && strlen(d) >= sizeof c->dump_buf - 16) || (r && strlen(r) >= sizeof c->record_buf))
@@ -180,6 +207,164 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
         c->record = r ? c->record_buf : NULL;
     }
     return SL_OK;
+}
+
+sl_status sl_occ_configure_mesh_tests(sl_opts *o, sl_occ_mesh_tests *t, sl_error *err)
+{
+    sl_status st;
+    if ((st = sl_opts_u32(o, "mesh_test", 64, 0, 100000, &t->mesh_test, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "sample_tris", 64, 0, 1000000, &t->sample_tris, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "sample_px", 256, 0, SL_OCC_SAMPLED_MAX_PX, &t->sample_px, err)) != SL_OK)
+        return st;
+    return SL_OK;
+}
+
+/* ---- the base of every method ---- */
+
+static size_t at_least_one(size_t n) { return n ? n : 1; }
+
+void sl_occ_base_free(sl_occ_base *b)
+{
+    const sl_allocator *a = &b->alloc;
+    sl_bvh_destroy(b->bvh);
+    sl_occ_set_destroy(b->occ);
+    sl_free(a, b->node_area, at_least_one(b->node_slots) * sizeof(float));
+    sl_free(a, b->heap, at_least_one(b->pick_cap) * sizeof(sl_occ_pick));
+    sl_free(a, b->picks, at_least_one(b->pick_cap) * sizeof(sl_occ_pick));
+    sl_free(a, b->pick_ids, at_least_one(b->pick_cap) * sizeof(uint32_t));
+    sl_free(a, b->sort_scratch, at_least_one(b->object_count) * sizeof(uint32_t));
+    memset(b, 0, sizeof *b);
+}
+
+/* (Re)size the per-node areas to the tree and fill them (selecting methods only). */
+static sl_status base_node_areas(sl_occ_base *b, sl_error *err)
+{
+    if (!b->pick_cap)
+        return SL_OK;
+    uint32_t n = b->bvh->node_slots;
+    if (n != b->node_slots || !b->node_area) {
+        sl_free(&b->alloc, b->node_area, at_least_one(b->node_slots) * sizeof(float));
+        b->node_area = sl_alloc(&b->alloc, at_least_one(n) * sizeof(float));
+        b->node_slots = b->node_area ? n : 0;
+        if (!b->node_area)
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for %u node areas", n);
+    }
+    sl_occ_node_areas(b->occ, b->bvh, b->node_area);
+    return SL_OK;
+}
+
+sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, const sl_occ_common *c, bool faces,
+                           uint32_t mesh_faces, bool select, const sl_allocator *alloc, sl_error *err)
+{
+    memset(b, 0, sizeof *b);
+    b->alloc = *alloc;
+    b->scene = scene;
+    b->method = method;
+    b->object_count = sl_scene_object_count(scene);
+    sl_bvh_options bo = {0};
+    bo.max_leaf_size = c->leaf_size;
+    bo.alloc = alloc;
+    sl_occ_options oo = {c->inset, c->all_objects, faces, mesh_faces};
+    sl_status st = sl_bvh_build(scene, &bo, &b->bvh, err);
+    if (st == SL_OK)
+        st = sl_occ_set_create(scene, &oo, alloc, &b->occ, err);
+    if (st == SL_OK) {
+        b->sort_scratch = sl_alloc(alloc, at_least_one(b->object_count) * sizeof(uint32_t));
+        if (select) {
+            /* pick_cap is set only with every pick buffer, so that free sizes them right */
+            size_t pc = at_least_one(c->occluders);
+            b->heap = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
+            b->picks = sl_alloc(alloc, pc * sizeof(sl_occ_pick));
+            b->pick_ids = sl_alloc(alloc, pc * sizeof(uint32_t));
+            b->pick_cap = (uint32_t)pc;
+        }
+        if (!b->sort_scratch || (select && (!b->heap || !b->picks || !b->pick_ids)))
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
+    if (st == SL_OK)
+        st = base_node_areas(b, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "%s", method);
+        sl_occ_base_free(b);
+    }
+    return st;
+}
+
+sl_status sl_occ_base_scene_changed(sl_occ_base *b, sl_error *err)
+{
+    sl_status st = sl_bvh_refit(b->bvh, b->scene, err);
+    if (st == SL_OK)
+        st = sl_bvh_rebuild_if_degraded(b->bvh, b->scene, 0, NULL, err);
+    if (st == SL_OK)
+        st = base_node_areas(b, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "%s", b->method);
+        return st;
+    }
+    sl_occ_set_scene_changed(b->occ);
+    return SL_OK;
+}
+
+uint32_t sl_occ_base_select(sl_occ_base *b, const sl_occ_view *v, const sl_occ_common *c, uint64_t *nodes_visited)
+{
+    if (!b->pick_cap)
+        return 0;
+    uint32_t n = sl_occ_select(b->occ, v, b->bvh, b->node_area, c->occluders, c->budget, c->min_quality, b->heap,
+                               b->picks, nodes_visited);
+    for (uint32_t i = 0; i < n; i++)
+        b->pick_ids[i] = b->picks[i].proxy;
+    return n;
+}
+
+/* ---- screen pyramids ---- */
+
+sl_status sl_occ_pyramid_size(sl_occ_pyramid *p, const sl_allocator *alloc, const sl_raster *ctx, uint32_t w,
+                              uint32_t h, bool *resized, sl_error *err)
+{
+    if (resized)
+        *resized = false;
+    if (p->data && p->w == w && p->h == h)
+        return SL_OK;
+    uint32_t tx, ty;
+    sl_raster_get_size(ctx, NULL, NULL, &tx, &ty);
+    uint32_t lw = tx * 4, lh = ty * 2; /* 8x4 subtiles of 32x8 tiles */
+    size_t total = 0;
+    p->levels = 0;
+    for (;;) {
+        p->lw[p->levels] = lw;
+        p->lh[p->levels] = lh;
+        p->loff[p->levels] = total;
+        total += (size_t)lw * lh;
+        p->levels++;
+        if ((lw == 1 && lh == 1) || p->levels == SL_OCC_MAX_LEVELS)
+            break;
+        lw = (lw + 1) / 2;
+        lh = (lh + 1) / 2;
+    }
+    sl_free(alloc, p->data, p->cap * sizeof(float));
+    p->data = sl_alloc(alloc, total * sizeof(float));
+    p->cap = p->data ? total : 0;
+    p->w = p->h = 0;
+    if (!p->data)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for a %zu-entry pyramid", total);
+    for (uint32_t i = 0; i < p->levels; i++)
+        p->level_ptr[i] = p->data + p->loff[i];
+    p->w = w;
+    p->h = h;
+    if (resized)
+        *resized = true;
+    return SL_OK;
+}
+
+void sl_occ_pyramid_free(sl_occ_pyramid *p, const sl_allocator *alloc)
+{
+    sl_free(alloc, p->data, p->cap * sizeof(float));
+    memset(p, 0, sizeof *p);
+}
+
+void sl_occ_pyramid_read_base(sl_occ_pyramid *p, const sl_raster *ctx)
+{
+    (void)sl_raster_read_subtile_depth(ctx, p->data, (size_t)p->lw[0] * p->lh[0], NULL);
 }
 
 /* ---- prisms: footprint polygons shrunk inward ---- */
@@ -871,54 +1056,49 @@ static void consider(const sl_occ_set *s, const sl_occ_view *v, uint32_t p, floa
         heap_push(heap, hn, cap, (sl_occ_pick){p, q});
 }
 
+/* The selection's walk: prunes nodes whose proxies cannot qualify, offers every proxy reached. */
+typedef struct select_walk {
+    const sl_occ_set *s;
+    const sl_occ_view *v;
+    const float *node_area;
+    float min_quality;
+    sl_occ_pick *heap;
+    uint32_t hn, cap;
+    float e[3];
+} select_walk;
+
+static bool select_skip(void *ctx, uint32_t slot, const sl_aabb *box)
+{
+    select_walk *w = ctx;
+    if (slot == SL_NONE)
+        return false; /* objects: consider() prunes them */
+    if (!(w->node_area[slot] > 0))
+        return true;
+    /* no quality below this node can reach min_quality, or beat the worst kept once the heap is
+     * full (the walk goes near to far, so it fills with good ones early) */
+    float d2 = sl_bvh_dist2(box, w->e), bound = 2.0f * w->node_area[slot];
+    return !(d2 <= 0 || (bound >= w->min_quality * d2 && !(w->hn == w->cap && bound <= w->heap[0].quality * d2)));
+}
+
+static void select_visit(void *ctx, uint32_t object, const sl_aabb *box)
+{
+    (void)box;
+    select_walk *w = ctx;
+    uint32_t p = w->s->object_proxy[object];
+    if (p != SL_NONE)
+        consider(w->s, w->v, p, w->min_quality, w->heap, &w->hn, w->cap);
+}
+
 uint32_t sl_occ_select(const sl_occ_set *s, const sl_occ_view *v, const struct sl_bvh_t *bvh, const float *node_area,
                        uint32_t max_count, uint32_t tri_budget, float min_quality, sl_occ_pick *heap,
                        sl_occ_pick *out, uint64_t *nodes_visited)
 {
     if (max_count == 0 || s->proxy_count == 0)
         return 0;
-    uint32_t hn = 0;
-    uint64_t visited = 0;
-    const float e[3] = {v->eye.x, v->eye.y, v->eye.z};
-    if (bvh->node_slots) {
-        uint32_t stack[SL_BVH_MAX_DEPTH + 1], masks[SL_BVH_MAX_DEPTH + 1], sp = 0, ni = 0, mask = 0x3f;
-        for (;;) {
-            const sl_bvh_node *n = &bvh->nodes[ni];
-            visited++;
-            bool go = node_area[ni] > 0;
-            if (go) {
-                /* no quality below this node can reach min_quality, or beat the worst kept once
-                 * the heap is full (the walk goes near to far, so it fills with good ones early) */
-                float d2 = sl_bvh_dist2(&n->box, e), bound = 2.0f * node_area[ni];
-                go = d2 <= 0 || (bound >= min_quality * d2 && !(hn == max_count && bound <= heap[0].quality * d2));
-            }
-            int r = go ? (mask ? sl_occ_frustum_classify(v, &n->box, mask) : 0) : -1;
-            if (r >= 0) {
-                if (n->count == 0) {
-                    bool right = sl_bvh_right_first(bvh->nodes, n, e);
-                    stack[sp] = n->first + (right ? 0 : 1);
-                    masks[sp] = (uint32_t)r;
-                    sp++;
-                    ni = n->first + (right ? 1 : 0);
-                    mask = (uint32_t)r;
-                    continue;
-                }
-                for (uint32_t j = n->first; j < n->first + n->count; j++) {
-                    uint32_t p = s->object_proxy[bvh->objects[j]];
-                    if (p == SL_NONE)
-                        continue;
-                    if (r && sl_occ_frustum_classify(v, &bvh->object_bounds[j], (uint32_t)r) < 0)
-                        continue;
-                    consider(s, v, p, min_quality, heap, &hn, max_count);
-                }
-            }
-            if (sp == 0)
-                break;
-            sp--;
-            ni = stack[sp];
-            mask = masks[sp];
-        }
-    }
+    select_walk sw = {s, v, node_area, min_quality, heap, 0, max_count, {v->eye.x, v->eye.y, v->eye.z}};
+    sl_occ_walk w = {select_skip, select_visit, &sw, NULL, 0};
+    uint64_t visited = sl_occ_walk_bvh(bvh, v, &w, NULL);
+    uint32_t hn = sw.hn;
     /* proxies that belong to no object are not in the tree */
     for (uint32_t p = 0; p < s->proxy_count; p++) {
         if (s->proxies[p].object != SL_NONE)
@@ -965,7 +1145,7 @@ uint32_t sl_occ_select(const sl_occ_set *s, const sl_occ_view *v, const struct s
      * the distance rides in the quality field from here on (insertion sort: k is small) */
     for (uint32_t i = 0; i < k; i++) {
         sl_aabb b = sl_occ_proxy_box(s, &s->proxies[out[i].proxy]);
-        out[i].quality = sl_bvh_dist2(&b, e);
+        out[i].quality = sl_bvh_dist2(&b, sw.e);
     }
     for (uint32_t i = 1; i < k; i++) {
         sl_occ_pick x = out[i];
@@ -993,8 +1173,21 @@ sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_
     r->batch = sl_alloc(alloc, r->batch_cap * sizeof(uint32_t));
     r->proxy_count = set ? set->proxy_count : 0;
     r->stamp = sl_calloc(alloc, r->proxy_count ? r->proxy_count : 1, sizeof(uint32_t));
-    if (!r->batch || !r->stamp)
+    size_t mt = 1, mv = 1;
+    for (uint32_t p = 0; p < r->proxy_count; p++)
+        if (set->proxies[p].kind == SL_OCC_MESH) {
+            mt = SL_MAX(mt, (size_t)set->proxies[p].triangles);
+            mv = SL_MAX(mv, (size_t)sl_scene_meshes(set->scene)[set->proxies[p].mesh].vertex_count);
+        }
+    r->shrunk = sl_alloc(alloc, mt * 9 * sizeof(float));
+    r->shrunk_idx = sl_alloc(alloc, mt * 3 * sizeof(uint32_t));
+    r->shrunk_proj = sl_alloc(alloc, mv * sizeof(sl_occ_screen_vertex));
+    r->shrunk_cap = mt;
+    r->shrunk_proj_cap = mv;
+    if (!r->batch || !r->stamp || !r->shrunk || !r->shrunk_idx || !r->shrunk_proj)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for the occluder batch");
+    for (size_t i = 0; i < mt * 3; i++)
+        r->shrunk_idx[i] = (uint32_t)i;
     if (c->dump) {
         snprintf(r->dump_path, sizeof r->dump_path, "%s", c->dump);
         r->dump = r->dump_path;
@@ -1012,6 +1205,9 @@ void sl_occ_raster_free(sl_occ_raster *r)
     sl_raster_destroy(r->ctx);
     sl_occ_recorder_destroy(r->rec);
     sl_free(&r->alloc, r->batch, r->batch_cap * sizeof(uint32_t));
+    sl_free(&r->alloc, r->shrunk, r->shrunk_cap * 9 * sizeof(float));
+    sl_free(&r->alloc, r->shrunk_idx, r->shrunk_cap * 3 * sizeof(uint32_t));
+    sl_free(&r->alloc, r->shrunk_proj, r->shrunk_proj_cap * sizeof(sl_occ_screen_vertex));
     sl_free(&r->alloc, r->stamp, (size_t)(r->proxy_count ? r->proxy_count : 1) * sizeof(uint32_t));
     memset(r, 0, sizeof *r);
 }
@@ -1049,7 +1245,8 @@ sl_status sl_occ_raster_begin(sl_occ_raster *r, const sl_occ_view *v, sl_error *
 }
 
 /* model-to-clip = vp * affine, in double, rounded once */
-static void mul_affine(const sl_mat4 *vp, const sl_affine *t, float out[16])
+/* model-to-clip = vp * affine in double (column-major, m[col * 4 + row]) */
+static void mul_affine_d(const sl_mat4 *vp, const sl_affine *t, double out[16])
 {
     double a4[16] = {0};
     for (int r = 0; r < 3; r++)
@@ -1061,8 +1258,153 @@ static void mul_affine(const sl_mat4 *vp, const sl_affine *t, float out[16])
             double s = 0;
             for (int k = 0; k < 4; k++)
                 s += (double)vp->m[k * 4 + r] * a4[c * 4 + k];
-            out[c * 4 + r] = (float)s;
+            out[c * 4 + r] = s;
         }
+}
+
+/* the same rounded once to float (what the rasterizer is given) */
+static void mul_affine(const sl_mat4 *vp, const sl_affine *t, float out[16])
+{
+    double d[16];
+    mul_affine_d(vp, t, d);
+    for (int i = 0; i < 16; i++)
+        out[i] = (float)d[i];
+}
+
+static sl_affine object_transform(const struct sl_scene_t *sc, uint32_t object)
+{
+    uint32_t t = sl_scene_objects(sc)[object].transform;
+    return t == SL_NONE ? sl_affine_identity() : sl_scene_transforms(sc)[t];
+}
+
+/* An object's mesh: its record, vertices, indices and current transform. */
+typedef struct object_mesh {
+    const sl_mesh_rec *mr;
+    const float *pos;
+    const uint32_t *idx;
+    sl_affine xf;
+} object_mesh;
+
+static object_mesh get_object_mesh(const struct sl_scene_t *sc, uint32_t object)
+{
+    object_mesh o;
+    o.mr = &sl_scene_meshes(sc)[sl_scene_objects(sc)[object].mesh];
+    o.pos = sl_scene_positions(sc) + 3 * o.mr->first_vertex;
+    o.idx = sl_scene_indices(sc) + o.mr->first_index;
+    o.xf = object_transform(sc, object);
+    return o;
+}
+
+/* Render a scene mesh with a transform, two-sided (open meshes are seen from both sides by the
+ * oracle). */
+static void render_mesh(sl_occ_raster *r, const struct sl_scene_t *sc, const sl_occ_view *v, uint32_t mesh,
+                        sl_affine xf)
+{
+    const sl_mesh_rec *mr = &sl_scene_meshes(sc)[mesh];
+    float m[16];
+    mul_affine(&v->vp, &xf, m);
+    const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
+    const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
+    (void)sl_raster_render_triangles(r->ctx, pos, mr->vertex_count, idx, mr->triangle_count, 12, m,
+                                     SL_RASTER_CULL_NONE, NULL);
+    if (r->rec)
+        sl_occ_recorder_batch(r->rec, pos, 12, idx, mr->triangle_count, m, SL_RASTER_CULL_NONE);
+}
+
+/* Vertices projected at most once per sampled test, on first use (props have a few dozen; larger
+ * meshes project per index). */
+#define SAMPLED_VERTEX_CACHE 256
+
+
+static sl_occ_screen_vertex project_vertex(const sl_occ_view *v, const double m[16], const float *p)
+{
+    sl_occ_screen_vertex o = {0, 0, 0, false, false};
+    double cl[4];
+    for (int r = 0; r < 4; r++)
+        cl[r] = m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r];
+    if (!(cl[3] > 1e-5) || !isfinite(cl[0]) || !isfinite(cl[1]) || !isfinite(cl[2]))
+        return o;
+    o.between = cl[2] >= -cl[3] && cl[2] <= cl[3];
+    double inv = 1.0 / cl[3];
+    o.x = (cl[0] * inv + 1.0) * 0.5 * (double)v->width;
+    o.y = (1.0 - cl[1] * inv) * 0.5 * (double)v->height;
+    o.d = (float)(v->ortho ? 0.5 * (1.0 - cl[2] * inv) : inv);
+    o.ok = true;
+    return o;
+}
+
+/* Render a MESH proxy (an object's own triangles, two-sided) so that it covers only pixel centres
+ * the oracle gives to it: each triangle is projected in double precision, shrunk on screen by
+ * SL_OCC_MIN_INSET_PX (every edge moved inward: a homothety about the incentre; a triangle whose
+ * inradius is smaller is dropped) and rendered at its farthest vertex depth, nudged farther. A
+ * centre the rasterizer counts as covered then lies at least 1/32 pixel minus both snappings
+ * (1/512 pixel each) and float rounding inside the exact triangle, so the oracle's snapped
+ * triangle covers it too, and the depth written is never nearer than the triangle's there.
+ * Triangles not wholly between the near and far planes are dropped (fewer occluders is safe).
+ * The cost: centres within 1/32 pixel of the mesh's edges, inner edges included, are not covered. */
+static void render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, const sl_occ_view *v, uint32_t mesh,
+                               sl_affine xf)
+{
+    const sl_mesh_rec *mr = &sl_scene_meshes(sc)[mesh];
+    const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
+    const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
+    const double eps = SL_OCC_MIN_INSET_PX, W = (double)v->width, H = (double)v->height;
+    /* every vertex projected once (shrunk_proj holds the largest MESH proxy's) */
+    double m[16];
+    mul_affine_d(&v->vp, &xf, m);
+    sl_occ_screen_vertex *proj = r->shrunk_proj;
+    for (uint32_t i = 0; i < mr->vertex_count; i++)
+        proj[i] = project_vertex(v, m, pos + 3 * (size_t)i);
+    uint32_t n = 0;
+    for (uint32_t t = 0; t < mr->triangle_count && n < r->shrunk_cap; t++) {
+        double sx[3], sy[3], dfar = INFINITY;
+        bool ok = true;
+        for (int k = 0; k < 3 && ok; k++) {
+            uint32_t vi = idx[3 * t + (uint32_t)k];
+            ok = vi < mr->vertex_count && proj[vi].ok && proj[vi].between;
+            if (!ok)
+                break;
+            sx[k] = proj[vi].x;
+            sy[k] = proj[vi].y;
+            dfar = proj[vi].d < dfar ? proj[vi].d : dfar;
+        }
+        if (!ok)
+            continue;
+        double ax = sx[1] - sx[2], ay = sy[1] - sy[2], bx = sx[2] - sx[0], by = sy[2] - sy[0];
+        double cx = sx[0] - sx[1], cy = sy[0] - sy[1];
+        double la = sqrt(ax * ax + ay * ay), lb = sqrt(bx * bx + by * by), lc = sqrt(cx * cx + cy * cy);
+        double per = la + lb + lc;
+        double area2 = fabs((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]));
+        double inr = per > 0 ? area2 / per : 0; /* inradius = area / semi-perimeter */
+        if (!(inr > eps) || !isfinite(inr) || !(dfar > 0))
+            continue;
+        double ix = (la * sx[0] + lb * sx[1] + lc * sx[2]) / per, iy = (la * sy[0] + lb * sy[1] + lc * sy[2]) / per;
+        double scale = (inr - eps) / inr;
+        /* the farthest depth, nudged farther against rounding */
+        float d = (float)(dfar * (1.0 - 1.0 / 1048576.0));
+        float *o = r->shrunk + 9 * (size_t)n;
+        for (int k = 0; k < 3; k++) {
+            double px = ix + (sx[k] - ix) * scale, py = iy + (sy[k] - iy) * scale;
+            double nx = 2.0 * px / W - 1.0, ny = 1.0 - 2.0 * py / H;
+            /* input (x_clip, y_clip, c) mapped by g_shrunk_m: perspective w = 1/d, z = 0;
+             * orthographic w = 1, z = 1 - 2d */
+            double w = v->ortho ? 1.0 : 1.0 / (double)d;
+            o[3 * k] = (float)(nx * w);
+            o[3 * k + 1] = (float)(ny * w);
+            o[3 * k + 2] = v->ortho ? (float)(1.0 - 2.0 * (double)d) : (float)w;
+        }
+        n++;
+    }
+    if (!n)
+        return;
+    /* columns: clip = (a, b, 0, c) perspective; (a, b, c, 1) orthographic */
+    static const float m_persp[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0};
+    static const float m_ortho[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    const float *to_clip = v->ortho ? m_ortho : m_persp;
+    (void)sl_raster_render_triangles(r->ctx, r->shrunk, 3 * n, r->shrunk_idx, n, 12, to_clip, SL_RASTER_CULL_NONE,
+                                     NULL);
+    if (r->rec)
+        sl_occ_recorder_batch(r->rec, r->shrunk, 12, r->shrunk_idx, n, to_clip, SL_RASTER_CULL_NONE);
 }
 
 uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const uint32_t *proxies,
@@ -1085,23 +1427,10 @@ uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_oc
             k += m;
             continue;
         }
-        const sl_mesh_rec *mr = &sl_scene_meshes(sc)[pr->mesh];
-        sl_affine xf;
-        if (pr->kind == SL_OCC_MESH) {
-            uint32_t t = sl_scene_objects(sc)[pr->object].transform;
-            xf = t == SL_NONE ? sl_affine_identity() : sl_scene_transforms(sc)[t];
-        } else {
-            xf = sl_scene_occluder(s->scene, pr->source).transform;
-        }
-        float m[16];
-        mul_affine(&v->vp, &xf, m);
-        const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
-        const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
-        /* two-sided: open meshes are seen from both sides by the oracle */
-        (void)sl_raster_render_triangles(r->ctx, pos, mr->vertex_count, idx, mr->triangle_count, 12, m,
-                                         SL_RASTER_CULL_NONE, NULL);
-        if (r->rec)
-            sl_occ_recorder_batch(r->rec, pos, 12, idx, mr->triangle_count, m, SL_RASTER_CULL_NONE);
+        if (pr->kind == SL_OCC_MESH)
+            render_mesh_shrunk(r, sc, v, pr->mesh, object_transform(sc, pr->object));
+        else
+            render_mesh(r, sc, v, pr->mesh, sl_scene_occluder(s->scene, pr->source).transform);
     }
     if (k) {
         /* prisms are closed and the eye is outside them (sl_occ_usable): back faces are hidden */
@@ -1127,20 +1456,158 @@ sl_raster_result sl_occ_raster_test(sl_occ_raster *r, int32_t x0, int32_t y0, in
 
 sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, const sl_occ_view *v, uint32_t object)
 {
-    const struct sl_scene_t *sc = scene;
-    const sl_object_rec *o = &sl_scene_objects(sc)[object];
-    const sl_mesh_rec *mr = &sl_scene_meshes(sc)[o->mesh];
-    sl_affine xf = o->transform == SL_NONE ? sl_affine_identity() : sl_scene_transforms(sc)[o->transform];
+    object_mesh om = get_object_mesh(scene, object);
     float m[16];
-    mul_affine(&v->vp, &xf, m);
-    const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
-    const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
+    mul_affine(&v->vp, &om.xf, m);
     r->queries++;
-    sl_raster_result res = sl_raster_test_triangles(r->ctx, pos, mr->vertex_count, idx, mr->triangle_count, 12, m,
-                                                    SL_RASTER_CULL_NONE);
+    sl_raster_result res = sl_raster_test_triangles(r->ctx, om.pos, om.mr->vertex_count, om.idx,
+                                                    om.mr->triangle_count, 12, m, SL_RASTER_CULL_NONE);
     if (r->rec)
-        sl_occ_recorder_mesh_query(r->rec, pos, 12, idx, mr->triangle_count, m, SL_RASTER_CULL_NONE, res);
+        sl_occ_recorder_mesh_query(r->rec, om.pos, 12, om.idx, om.mr->triangle_count, m, SL_RASTER_CULL_NONE, res);
     return res;
+}
+
+/* One sampled test (sl_occ_test_object_sampled): the layers, the rectangle, and per pixel of it
+ * the nearest depth already proven hidden (-infinity: none). */
+typedef struct sampled_test {
+    sl_occ_raster *const *layers;
+    uint32_t layer_count;
+    int32_t x0, y0, w, h;
+    float *proven;
+} sampled_test;
+
+/* Is pixel (x, y) hidden at depth d in some layer? Remembers the answer. */
+static bool sample_hidden(sampled_test *t, int32_t x, int32_t y, float d)
+{
+    float *p = t->proven + (size_t)(y - t->y0) * (size_t)t->w + (size_t)(x - t->x0);
+    if (d <= *p)
+        return true; /* hidden at a nearer depth already */
+    for (uint32_t l = 0; l < t->layer_count; l++)
+        if (t->layers[l]->occluders_rendered &&
+            sl_occ_raster_test(t->layers[l], x, y, x + 1, y + 1, d) != SL_RASTER_VISIBLE) {
+            *p = d;
+            return true;
+        }
+    return false;
+}
+
+/* Test the pixel centres of the rectangle that lie within SL_OCC_MIN_INSET_PX of triangle (a, b,
+ * c) (screen positions) at depth d; false at the first one not hidden. The margin covers the
+ * oracle's 1/256-pixel vertex snapping (a snapped triangle lies within half a snapping step of the
+ * exact one) and the rounding of this projection many times over; a triangle whose area is too
+ * small for stable edge functions tests every centre of its grown bounding box. */
+static bool sample_triangle(sampled_test *t, const double *a, const double *b, const double *c, float d)
+{
+    const double eps = SL_OCC_MIN_INSET_PX;
+    double lx = a[0] < b[0] ? a[0] : b[0], hx = a[0] < b[0] ? b[0] : a[0];
+    double ly = a[1] < b[1] ? a[1] : b[1], hy = a[1] < b[1] ? b[1] : a[1];
+    lx = c[0] < lx ? c[0] : lx;
+    hx = c[0] > hx ? c[0] : hx;
+    ly = c[1] < ly ? c[1] : ly;
+    hy = c[1] > hy ? c[1] : hy;
+    /* the centres px + 0.5 in [lx - eps, hx + eps], clamped to the rectangle */
+    double fx0 = ceil(lx - eps - 0.5), fx1 = floor(hx + eps - 0.5), fy0 = ceil(ly - eps - 0.5),
+           fy1 = floor(hy + eps - 0.5);
+    fx0 = fx0 > (double)t->x0 ? fx0 : (double)t->x0;
+    fy0 = fy0 > (double)t->y0 ? fy0 : (double)t->y0;
+    fx1 = fx1 < (double)(t->x0 + t->w - 1) ? fx1 : (double)(t->x0 + t->w - 1);
+    fy1 = fy1 < (double)(t->y0 + t->h - 1) ? fy1 : (double)(t->y0 + t->h - 1);
+    if (!(fx0 <= fx1) || !(fy0 <= fy1))
+        return true;
+    double area2 = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    const double *v[3] = {a, b, c};
+    double ex[3] = {0, 0, 0}, ey[3] = {0, 0, 0}, lim[3] = {0, 0, 0};
+    bool thin = !(fabs(area2) > 1e-6);
+    double sgn = area2 < 0 ? -1.0 : 1.0;
+    for (int i = 0; i < 3 && !thin; i++) {
+        const double *p = v[i], *q = v[(i + 1) % 3];
+        ex[i] = sgn * (q[0] - p[0]);
+        ey[i] = sgn * (q[1] - p[1]);
+        /* inside or within eps: cross(e, s - p) >= -eps |e| (edges counter-clockwise) */
+        lim[i] = -eps * sqrt(ex[i] * ex[i] + ey[i] * ey[i]) + ex[i] * p[1] - ey[i] * p[0];
+    }
+    for (int32_t y = (int32_t)fy0; y <= (int32_t)fy1; y++) {
+        double sy = y + 0.5;
+        for (int32_t x = (int32_t)fx0; x <= (int32_t)fx1; x++) {
+            double sx = x + 0.5;
+            bool in = thin || (ex[0] * sy - ey[0] * sx >= lim[0] && ex[1] * sy - ey[1] * sx >= lim[1] &&
+                               ex[2] * sy - ey[2] * sx >= lim[2]);
+            if (in && !sample_hidden(t, x, y, d))
+                return false;
+        }
+    }
+    return true;
+}
+
+sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene,
+                                            const sl_occ_view *v, uint32_t object, const sl_occ_rect *rect)
+{
+    int32_t w = rect->x1 - rect->x0, h = rect->y1 - rect->y0;
+    if (w <= 0 || h <= 0 || (int64_t)w * h > SL_OCC_SAMPLED_MAX_PX || layer_count == 0)
+        return SL_RASTER_VISIBLE;
+    object_mesh om = get_object_mesh(scene, object);
+    const sl_mesh_rec *mr = om.mr;
+    const float *pos = om.pos;
+    const uint32_t *idx = om.idx;
+    double m[16];
+    mul_affine_d(&v->vp, &om.xf, m);
+    float proven[SL_OCC_SAMPLED_MAX_PX];
+    for (int32_t i = 0; i < w * h; i++)
+        proven[i] = -INFINITY;
+    sampled_test t = {layers, layer_count, rect->x0, rect->y0, w, h, proven};
+    sl_occ_screen_vertex cache[SAMPLED_VERTEX_CACHE];
+    bool have[SAMPLED_VERTEX_CACHE];
+    bool cached = mr->vertex_count <= SAMPLED_VERTEX_CACHE;
+    if (cached)
+        memset(have, 0, mr->vertex_count * sizeof have[0]);
+    layers[0]->queries++;
+    for (uint32_t k = 0; k < mr->triangle_count; k++) {
+        sl_occ_screen_vertex tv[3];
+        for (int j = 0; j < 3; j++) {
+            uint32_t vi = idx[3 * k + (uint32_t)j];
+            if (vi >= mr->vertex_count)
+                return SL_RASTER_VISIBLE;
+            if (!cached) {
+                tv[j] = project_vertex(v, m, pos + 3 * (size_t)vi);
+            } else {
+                if (!have[vi]) {
+                    cache[vi] = project_vertex(v, m, pos + 3 * (size_t)vi);
+                    have[vi] = true;
+                }
+                tv[j] = cache[vi];
+            }
+            if (!tv[j].ok)
+                return SL_RASTER_VISIBLE;
+        }
+        /* the triangle's nearest depth, nudged nearer like a box's nearest corner */
+        float dmax = sl_occ_maxf(tv[0].d, sl_occ_maxf(tv[1].d, tv[2].d));
+        dmax += fabsf(dmax) * (1.0f / 1048576.0f);
+        const double a[2] = {tv[0].x, tv[0].y}, b[2] = {tv[1].x, tv[1].y}, c[2] = {tv[2].x, tv[2].y};
+        if (!sample_triangle(&t, a, b, c, dmax))
+            return SL_RASTER_VISIBLE;
+    }
+    return SL_RASTER_OCCLUDED;
+}
+
+bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene, const sl_occ_view *v,
+                          uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t, uint64_t *tests)
+{
+    const struct sl_scene_t *sc = scene;
+    uint32_t tris = sl_scene_meshes(sc)[sl_scene_objects(sc)[object].mesh].triangle_count;
+    if ((tris > t->mesh_test && tris > t->sample_tris) || sl_occ_point_in_box(v->eye, box, 0.0f))
+        return false;
+    if (tests)
+        (*tests)++;
+    if (tris <= t->mesh_test)
+        for (uint32_t l = 0; l < layer_count; l++)
+            if (layers[l]->occluders_rendered &&
+                sl_occ_raster_test_object(layers[l], scene, v, object) != SL_RASTER_VISIBLE)
+                return true;
+    sl_occ_rect r;
+    if (tris > t->sample_tris || sl_occ_project_box(v, box, &r) != SL_OCC_RECT ||
+        (int64_t)(r.x1 - r.x0) * (r.y1 - r.y0) > t->sample_px)
+        return false;
+    return sl_occ_test_object_sampled(layers, layer_count, scene, v, object, &r) != SL_RASTER_VISIBLE;
 }
 
 sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err)

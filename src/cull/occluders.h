@@ -1,6 +1,8 @@
 /* Shared machinery of the online occlusion methods (hzb, hom, lazygrid, lazygrid-z, busygrid,
- * frusta, plp, cplp): the per-frame view, box projection, occluder proxies and their selection,
- * a rasterizer wrapper that counts, records and dumps, and the debugging recorder/replayer.
+ * frusta, plp, cplp): the per-frame view, box projection, the front-to-back BVH walk, occluder
+ * proxies and their selection, the base every method builds on (BVH, proxies, selection buffers,
+ * refit on scene change), screen pyramids, a rasterizer wrapper that counts, records and dumps,
+ * objects tested by their own triangles, and the debugging recorder/replayer.
  *
  * Occluder proxies (docs/occlusion.md, "Occluders"). A proxy is geometry that lies INSIDE an
  * object's solid, so that whatever it hides the object hides too; the methods render proxies,
@@ -15,9 +17,9 @@
  *    prism is not used (sl_occ_usable). A closed outward-wound solid: back faces may be culled.
  *  - MESH: the object's own triangles (objects flagged SL_OBJECT_OCCLUDER without a footprint,
  *    e.g. the solid world faces of a Quake III map), with the object's current transform, so a
- *    moving occluder is rendered where it is. Its silhouette coincides with the original, so its
- *    conservativeness rests on the rasterizer and the oracle snapping the same edges alike (both
- *    follow the same fill rule; see docs/occlusion.md for the residual risk).
+ *    moving occluder is rendered where it is. Each triangle is shrunk on screen by
+ *    SL_OCC_MIN_INSET_PX and drawn at its farthest depth, so that the independent snapping of
+ *    rasterizer and oracle cannot disagree about a covered pixel centre (docs/occlusion.md).
  *  - SCENE_MESH: a 3D occluder mesh of the scene (sl_scene_add_occluder), trusted to lie inside.
  * The meshoptimizer simplifier is not used: its output is not guaranteed to lie inside the
  * original, and a proxy must never exceed the original's silhouette.
@@ -106,6 +108,25 @@ static inline bool sl_occ_point_in_box(sl_vec3 p, const sl_aabb *b, float g)
     return p.x >= b->min.x - g && p.x <= b->max.x + g && p.y >= b->min.y - g && p.y <= b->max.y + g &&
            p.z >= b->min.z - g && p.z <= b->max.z + g;
 }
+
+/* ---- the front-to-back BVH walk every method uses ---- */
+
+/* What a walk asks its method. Boxes beyond a frustum plane are skipped before any question. */
+typedef struct sl_occ_walk {
+    /* Skip this box: a node's subtree (slot: its node slot) or an object of a leaf that holds more
+     * than one (slot SL_NONE; a one-object leaf's box is the node's)? NULL: never. */
+    bool (*skip)(void *ctx, uint32_t slot, const sl_aabb *box);
+    /* Every object reached, in the walk's front-to-back order; NULL: append it to out. */
+    void (*visit)(void *ctx, uint32_t object, const sl_aabb *box);
+    void *ctx;
+    uint32_t *out;            /* with visit NULL: the objects reached (count of them) */
+    uint32_t count;
+} sl_occ_walk;
+
+/* Walk the BVH nearer child first (sl_bvh_right_first) with the view's frustum plane masks.
+ * Returns the nodes visited; *objects_tested (may be NULL) counts the leaf objects looked at. */
+uint64_t sl_occ_walk_bvh(const struct sl_bvh_t *bvh, const sl_occ_view *v, sl_occ_walk *w,
+                         uint64_t *objects_tested);
 
 /* ---- occluder proxies ---- */
 
@@ -239,11 +260,48 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
     "record=FILE (default none): record frame debug_frame's occluders and queries for replay\n" \
     "debug_frame=N (default 0): the cull call (0 = first) that dump and record capture\n"
 
-/* A string option (no scene paths may contain ',' or white space). *out is NULL when absent;
- * it points into o's text, copied by the caller. */
-sl_status sl_occ_opts_string(sl_opts *o, const char *key, const char **out, sl_error *err);
+/* ---- the base of every method: BVH, proxies, selection buffers ---- */
+
+/* What every occlusion method holds besides its own buffers: the object BVH, the occluder proxies,
+ * the selection's per-node areas and pick buffers (methods that select only), and the scratch of
+ * sl_cull_sort_ids. */
+typedef struct sl_occ_base {
+    sl_allocator alloc;
+    sl_scene scene;
+    const char *method;       /* static name, for error messages */
+    sl_bvh bvh;
+    sl_occ_set *occ;
+    float *node_area;         /* per BVH node slot (sl_occ_node_areas); NULL unless selecting */
+    uint32_t node_slots;
+    sl_occ_pick *heap, *picks;/* pick_cap entries each */
+    uint32_t *pick_ids;       /* the frame's chosen proxies, nearest first */
+    uint32_t pick_cap;        /* 0 unless selecting */
+    uint32_t object_count;
+    uint32_t *sort_scratch;   /* object_count entries */
+} sl_occ_base;
+
+/* Build the BVH (c->leaf_size) and the proxies (c->inset, c->all_objects, faces/mesh_faces as
+ * given); when `select`, also the node areas and the buffers for c->occluders picks. On failure
+ * everything built is freed and the error is prefixed with `method`. */
+sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, const sl_occ_common *c, bool faces,
+                           uint32_t mesh_faces, bool select, const sl_allocator *alloc, sl_error *err);
+void sl_occ_base_free(sl_occ_base *b);
+/* Objects moved: refit the BVH (rebuilt when the refit degrades it), refresh the node areas and
+ * disable the prisms of moved objects. */
+sl_status sl_occ_base_scene_changed(sl_occ_base *b, sl_error *err);
+/* Choose the frame's occluders (sl_occ_select with c's count, budget and min_quality) into
+ * b->picks and b->pick_ids, nearest first; returns their number. */
+uint32_t sl_occ_base_select(sl_occ_base *b, const sl_occ_view *v, const sl_occ_common *c, uint64_t *nodes_visited);
 
 /* ---- the rasterizer wrapper ---- */
+
+/* A vertex projected in double precision (MESH occluders, pixel-centre tests). */
+typedef struct sl_occ_screen_vertex {
+    double x, y;              /* screen position (pixels) */
+    float d;                  /* depth in the rasterizer's convention (larger = nearer) */
+    bool ok;                  /* in front of the eye (w > 1e-5) and finite */
+    bool between;             /* and between the near and far planes */
+} sl_occ_screen_vertex;
 
 typedef struct sl_occ_recorder sl_occ_recorder;
 
@@ -254,6 +312,11 @@ typedef struct sl_occ_raster {
     uint32_t threads, isa;
     uint32_t *batch;          /* prism indices of one batch */
     size_t batch_cap;         /* in indices */
+    float *shrunk;            /* one MESH proxy's triangles shrunk on screen, 3 vertices x 3 floats each */
+    uint32_t *shrunk_idx;     /* 0, 1, 2, ... */
+    size_t shrunk_cap;        /* in triangles: the largest MESH proxy */
+    struct sl_occ_screen_vertex *shrunk_proj; /* its vertices projected */
+    size_t shrunk_proj_cap;   /* in vertices */
     uint32_t *stamp;          /* per proxy: frame + 1 when rendered this frame */
     uint32_t proxy_count;
     uint32_t frame_id;        /* increments per frame (never 0 in stamp) */
@@ -287,6 +350,46 @@ sl_raster_result sl_occ_raster_test(sl_occ_raster *r, int32_t x0, int32_t y0, in
 /* Test an object by its own triangles (sl_raster_test_triangles, two-sided, with its current
  * transform): counted as one query and recorded. */
 sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, const sl_occ_view *v, uint32_t object);
+/* Most pixels of an object's box rectangle for sl_occ_test_object_sampled. */
+#define SL_OCC_SAMPLED_MAX_PX 1024
+/* Test an object by its own triangles sampled at pixel centres, the way the oracle decides
+ * visibility: every pixel centre within SL_OCC_MIN_INSET_PX of one of its triangles (two-sided,
+ * current transform) is tested at that triangle's nearest depth, and a centre hidden in any of
+ * the layers (rasterizers that hold valid occluders only) is hidden. OCCLUDED when every such
+ * centre is hidden, including when there is none (the object covers no pixel centre at the
+ * camera's resolution: the oracle, and a renderer without multisampling, draw nothing of it);
+ * VISIBLE otherwise, and whenever rect (the object's box, SL_OCC_RECT) holds more than
+ * SL_OCC_SAMPLED_MAX_PX pixels or a vertex is not in front of the eye. Counted as one query of
+ * layers[0] plus the pixel queries. */
+sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene,
+                                            const sl_occ_view *v, uint32_t object, const sl_occ_rect *rect);
+/* When an object whose box looks visible is tested by its own triangles (options mesh_test,
+ * sample_tris, sample_px of the methods that offer them). */
+typedef struct sl_occ_mesh_tests {
+    uint32_t mesh_test;       /* outward-conservative test (sl_raster_test_triangles) up to this many
+                                 triangles (0: never) */
+    uint32_t sample_tris;     /* pixel-centre test (sl_occ_test_object_sampled) up to this many
+                                 triangles (0: never) ... */
+    uint32_t sample_px;       /* ... when its box's rectangle holds at most this many pixels */
+} sl_occ_mesh_tests;
+
+#define SL_OCC_HELP_MESH_TESTS \
+    "mesh_test=0..100000 (default 64): test an object whose box looks visible by its own triangles, " \
+    "rasterized outward-conservatively, when it has at most this many (0: never)\n" \
+    "sample_tris=0..1000000 (default 64): test an object whose box looks visible by its own triangles " \
+    "sampled at pixel centres (as the oracle) when it has at most this many and its box covers at most " \
+    "sample_px pixels (0: never)\n" \
+    "sample_px=0..1024 (default 256): largest box rectangle (pixels) of a pixel-centre test\n"
+
+/* Read mesh_test, sample_tris and sample_px. */
+sl_status sl_occ_configure_mesh_tests(sl_opts *o, sl_occ_mesh_tests *t, sl_error *err);
+
+/* Is an object whose box looks visible hidden by its own triangles? Tried in this order, as
+ * configured by t: the outward-conservative mesh query in each layer, then the pixel-centre test
+ * (sl_occ_test_object_sampled) over all the layers. False when the eye is in its box. *tests
+ * (may be NULL) counts the objects tested. */
+bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene, const sl_occ_view *v,
+                          uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t, uint64_t *tests);
 /* End a frame: on the debug frame, write the recording and the dumps (the pyramid given as
  * `levels` float images, level i of size w_i x h_i, may be NULL). Debug output failures are
  * reported as errors of the cull call. */
@@ -297,6 +400,36 @@ typedef struct sl_occ_levels {
     bool opacity;             /* values are opacities in [0,1] (else depths, larger = nearer) */
 } sl_occ_levels;
 sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err);
+
+/* ---- screen pyramids (hzb's max-depth pyramid, hom's opacity pyramid) ---- */
+
+#define SL_OCC_MAX_LEVELS 24
+
+/* Levels over the rasterizer's 8x4 subtiles: level 0 has one entry per subtile of the tiled
+ * buffer, each next level half as many per axis (rounded up), down to 1x1. */
+typedef struct sl_occ_pyramid {
+    float *data;
+    size_t cap;               /* entries allocated */
+    uint32_t levels;
+    uint32_t lw[SL_OCC_MAX_LEVELS], lh[SL_OCC_MAX_LEVELS];
+    size_t loff[SL_OCC_MAX_LEVELS];
+    const float *level_ptr[SL_OCC_MAX_LEVELS];
+    uint32_t w, h;            /* screen size it was laid out for (0: none) */
+} sl_occ_pyramid;
+
+/* Lay the pyramid out for the rasterizer of a w x h screen; allocates only when the size changed
+ * (*resized then true; may be NULL). */
+sl_status sl_occ_pyramid_size(sl_occ_pyramid *p, const sl_allocator *alloc, const sl_raster *ctx, uint32_t w,
+                              uint32_t h, bool *resized, sl_error *err);
+void sl_occ_pyramid_free(sl_occ_pyramid *p, const sl_allocator *alloc);
+/* Level 0 from the buffer: the farthest depth of each subtile (sl_raster_read_subtile_depth). */
+void sl_occ_pyramid_read_base(sl_occ_pyramid *p, const sl_raster *ctx);
+/* The pyramid as debugging levels. */
+static inline sl_occ_levels sl_occ_pyramid_levels(const sl_occ_pyramid *p, bool opacity)
+{
+    sl_occ_levels l = {p->levels, p->level_ptr, p->lw, p->lh, opacity};
+    return l;
+}
 
 /* ---- debugging (occlusion_debug.c) ---- */
 

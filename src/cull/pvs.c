@@ -49,32 +49,14 @@ static const char g_help[] =
     "dynamic=frustum|pvs (default frustum): dynamic objects (cars) by frustum only, or from the baked set too\n"
     "aggressive=BOOL (default false): accept a file baked by an aggressive method (gvs); the culler is then aggressive\n";
 
-/* A string option: the option reader has typed getters only, so this file records the key as
- * known, marks it used and notes its effective value itself (the fields are documented in
- * culler_internal.h). */
-static const char *opts_string(sl_opts *o, const char *key)
-{
-    bool known = false;
-    for (uint32_t i = 0; i < o->known_count; i++)
-        known |= strcmp(o->known[i], key) == 0;
-    if (!known && o->known_count < SL_OPTS_MAX_ENTRIES)
-        o->known[o->known_count++] = key;
-    for (uint32_t i = 0; i < o->count; i++)
-        if (strcmp(o->keys[i], key) == 0) {
-            o->used[i] = true;
-            size_t n = strlen(o->effective);
-            snprintf(o->effective + n, sizeof o->effective - n, "%s%s=%s", n ? "," : "", key, o->values[i]);
-            return o->values[i];
-        }
-    return NULL;
-}
-
 static sl_status pvs_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
     pvs_config *c = config;
-    const char *file = opts_string(o, "file");
+    const char *file;
     static const char *const dyn_names[] = {"frustum", "pvs"};
-    sl_status st = sl_opts_enum(o, "dynamic", dyn_names, 2, 0, &c->dynamic, err);
+    sl_status st = sl_opts_string(o, "file", &file, err);
+    if (st == SL_OK)
+        st = sl_opts_enum(o, "dynamic", dyn_names, 2, 0, &c->dynamic, err);
     if (st == SL_OK)
         st = sl_opts_bool(o, "aggressive", false, &c->aggressive, err);
     if (st != SL_OK)

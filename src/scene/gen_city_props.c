@@ -4,6 +4,12 @@
  *  - trees along avenues and quays (street_tree_spacing) and river banks, in parks and squares
  *    (trees_per_ha), a few in courtyards;
  *  - cars (DYNAMIC) parked along the kerbs and in the driving lanes, cars_per_km on average.
+ * Every prop is flagged SL_OBJECT_OCCLUDER: each is a solid (a car's body and wheels are closed
+ * boxes open only underneath; a lamp is closed prisms and boxes standing on
+ * the ground; a tree's crown is a closed solid and its trunk tube is closed off by the ground and
+ * the crown), and an occlusion method renders an occluder's own triangles two-sided, exactly what
+ * the oracle draws, so a nearby car or tree may hide what stands behind it. Cars stay DYNAMIC:
+ * their occluder geometry follows their current transform.
  * Every prop stands inside the free space it belongs to, with its crown or body clear of the
  * façades; positions use the bilinear parameterisation of the street quads, so they follow the
  * jittered streets. */
@@ -154,7 +160,7 @@ static sl_status tree(gc_city *c, sl_rng *r, gc_v2 at, double scale, bool street
     uint32_t color = v == 1 ? COLOR_CONIFER : tree_colors[sl_rng_below(r, (uint32_t)SL_COUNTOF(tree_colors))];
     double yaw = sl_rng_range(r, 0, (float)(2 * GC_PI));
     c->n_trees++;
-    return place(c, c->tree_mesh[v], SL_KIND_TREE, 0, color, at, gc_ground(c, at.x, at.y), yaw, scale);
+    return place(c, c->tree_mesh[v], SL_KIND_TREE, SL_OBJECT_OCCLUDER, color, at, gc_ground(c, at.x, at.y), yaw, scale);
 }
 
 static gc_v2 quad_at(const gc_v2 q[4], double s, double f)
@@ -189,7 +195,7 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
             /* the arm reaches over the carriageway: left of the direction from the right kerb */
             double ay = yaw + (side ? -0.5 : 0.5) * GC_PI;
             double z = on_bridge ? 0.15 : gc_ground(c, at.x, at.y);
-            if ((st = place(c, c->lamp_mesh, SL_KIND_LAMP, 0, COLOR_LAMP, at, z, ay, 1.0)) != SL_OK)
+            if ((st = place(c, c->lamp_mesh, SL_KIND_LAMP, SL_OBJECT_OCCLUDER, COLOR_LAMP, at, z, ay, 1.0)) != SL_OK)
                 return st;
             c->n_lamps++;
         }
@@ -252,7 +258,7 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
                 gc_v2 at = quad_at(q, (s + jit) / len, lanes[l].f);
                 double z = on_bridge ? 0.15 : gc_ground(c, at.x, at.y);
                 int dir = lanes[l].dir ? lanes[l].dir : (sl_rng_below(&r, 2) ? 1 : -1);
-                if ((st = place(c, c->car_mesh[v], SL_KIND_CAR, SL_OBJECT_DYNAMIC, color, at, z,
+                if ((st = place(c, c->car_mesh[v], SL_KIND_CAR, SL_OBJECT_DYNAMIC | SL_OBJECT_OCCLUDER, color, at, z,
                                 dir > 0 ? yaw : yaw + GC_PI, 1.0)) != SL_OK)
                     return st;
                 c->n_cars++;
