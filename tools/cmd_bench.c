@@ -3,6 +3,7 @@
  * (library side: include/sightline/bench.h; formats: docs/bench.md), prints the summary table,
  * and fails loudly when a conservative method drops a visible object. */
 #include "cli.h"
+#include "pvs_cli.h"
 
 #include "core/sl_core.h"
 #include "sightline/bench.h"
@@ -37,9 +38,16 @@ static void usage(FILE *out)
             "  --frames A:B         with --path: frames A to B-1 (A:, :B and A also work)\n\n"
             "methods:\n"
             "  --methods LIST       comma-separated registry names (default: every registered method that\n"
-            "                       runs with its default options; one that needs an option, like pvs's\n"
-            "                       file=PATH, is reported as not run unless given --method-options;\n"
-            "                       `sightline methods` lists them all)\n"
+            "                       runs with its default options, and pvs; one that needs an option is\n"
+            "                       reported as not run unless given --method-options; `sightline\n"
+            "                       methods` lists them all)\n"
+            "                       pvs without file=PATH: the bench first bakes, per scene, the PVS of\n"
+            "                       the street cells within %g m of its cameras (all frames of a --path,\n"
+            "                       like `sightline pvs build --along PATH --radius %g`, method %s)\n"
+            "                       into OUT/LABEL.slpvs and runs pvs on it; where the eye is in none\n"
+            "                       of them, pvs culls by the frustum. A scene without streets, views\n"
+            "                       near no cell (--random flyover) or an OUT holding a comma or space:\n"
+            "                       pvs is reported as not run (an error when --methods names it)\n"
             "  --method-options NAME:key=value,...   options for one method (repeatable)\n"
             "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n\n"
             "rendering:\n"
@@ -58,7 +66,7 @@ static void usage(FILE *out)
             "  --json               print the summary as JSON instead of the table\n"
             "  --strict             exit 1 when a conservative method misses a visible object (default)\n"
             "  --no-strict          report such misses loudly but exit 0\n"
-            "  --quiet              no progress bar\n"
+            "  --quiet              no progress bar (nor the lines about the PVS bake)\n"
             "  --help               this text\n\n"
             "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
             "naming the scene, frame, method and objects, and the command exits 1 (unless --no-strict).\n"
@@ -67,7 +75,10 @@ static void usage(FILE *out)
             "  sightline bench city:small --walk 300\n"
             "  sightline bench city:vienna:1 --walk 600 --fps 10 --methods vfc --out vienna-bench\n"
             "  sightline bench city.slscene --random street --count 200 --seed 3 --repeat 5\n"
-            "  sightline bench city.slscene --path walk.txt --frames 0:100 --method-options vfc:coherence=off\n");
+            "  sightline bench city.slscene --path walk.txt --frames 0:100 --method-options vfc:coherence=off\n"
+            "  sightline bench city:tiny --walk 60 --methods vfc,pvs\n"
+            "  sightline bench city:small --walk 60 --methods pvs --method-options pvs:file=city.slpvs\n",
+            (double)CLI_PVS_ALONG_RADIUS, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD);
 }
 
 typedef struct bench_args {
@@ -297,16 +308,32 @@ static const char *options_for(const bench_args *g, const char *name)
     return NULL;
 }
 
+/* Whether the bench bakes a file for this method: pvs given no file= option. */
+static bool bakes_pvs(const char *name, const char *options)
+{
+    if (strcmp(name, "pvs") != 0)
+        return false;
+    for (const char *p = options; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL) {
+        p += strspn(p, " \t");
+        size_t len = strcspn(p, "=, \t");
+        if (len == 4 && !strncmp(p, "file", 4))
+            return false;
+    }
+    return true;
+}
+
 /* The methods to run with their options: --methods (default: every registered method that runs
- * with its default options or was given --method-options; the rest go to skipped with the
- * reason) and --method-options. Names and options point into argv, names[] or the registry.
- * Returns the count, or -1 after printing a usage error. */
+ * with its default options or was given --method-options, and pvs; the rest go to skipped with
+ * the reason) and --method-options. Names and options point into argv, names[] or the registry.
+ * *bake_index receives the index of a pvs that needs a baked file (-1: none). Returns the count,
+ * or -1 after printing a usage error. */
 static int method_specs(const bench_args *g, const char *cmd, char *names, size_t names_size,
-                        sl_bench_method_spec *specs, sl_bench_skip *skipped, uint32_t *skipped_count)
+                        sl_bench_method_spec *specs, sl_bench_skip *skipped, uint32_t *skipped_count, int *bake_index)
 {
     int n = 0;
     sl_error err;
     *skipped_count = 0;
+    *bake_index = -1;
     for (uint32_t i = 0; i < g->mopt_count; i++)
         for (uint32_t j = 0; j < i; j++) {
             size_t li = (size_t)(g->mopt_value[i] - 1 - g->mopt_name[i]);
@@ -349,7 +376,7 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             if (sl_cull_method_info(i, &d, &err) != SL_OK)
                 continue;
             const char *opts = options_for(g, d.name);
-            if (!opts && sl_cull_method_check_options(d.name, NULL, &err) != SL_OK) {
+            if (!opts && !bakes_pvs(d.name, NULL) && sl_cull_method_check_options(d.name, NULL, &err) != SL_OK) {
                 if (*skipped_count < SL_BENCH_MAX_METHODS) {
                     skipped[*skipped_count].name = d.name;
                     snprintf(skipped[*skipped_count].reason, sizeof skipped[0].reason, "%s", err.message);
@@ -371,11 +398,24 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             return -1;
         }
     }
-    for (int k = 0; k < n; k++)
-        if (sl_cull_method_check_options(specs[k].name, specs[k].options, &err) != SL_OK) {
+    for (int k = 0; k < n; k++) {
+        const char *opts = specs[k].options;
+        char with_file[4200];
+        if (bakes_pvs(specs[k].name, opts)) {
+            /* the other options are checked now, with a stand-in for the file baked later */
+            *bake_index = k;
+            if (snprintf(with_file, sizeof with_file, "file=baked%s%s", opts ? "," : "", opts ? opts : "") >=
+                (int)sizeof with_file) {
+                cli_error(cmd, "--method-options: options for pvs too long");
+                return -1;
+            }
+            opts = with_file;
+        }
+        if (sl_cull_method_check_options(specs[k].name, opts, &err) != SL_OK) {
             cli_error(cmd, "%s%s", specs[k].options ? "--method-options: " : "", err.message);
             return -1;
         }
+    }
     return n;
 }
 
@@ -509,6 +549,51 @@ static void unique_label(char *label, size_t size, char labels[][128], uint32_t 
     }
 }
 
+/* pvs without a file: bake the PVS of the cells along this scene's views into OUT/LABEL.slpvs and
+ * give its name to run[index] (in opts_buf, before the user's other options). When nothing can be
+ * baked: an error (*status = 1) if --methods named pvs, else pvs leaves run[] for this scene and
+ * joins skipped with the reason. A failed bake returns its status. */
+static sl_status bake_pvs(const bench_args *g, const char *cmd, sl_scene scene, sl_path views, const char *label,
+                          const sl_progress *prog, cli_progress_state *ps, sl_bench_method_spec *run, uint32_t *nrun,
+                          uint32_t index, char *opts_buf, size_t opts_size, sl_bench_skip *skipped,
+                          uint32_t *nskipped, int *status, sl_error *err)
+{
+    char file[4400];
+    snprintf(file, sizeof file, "%s/%s.slpvs", g->out_dir, label);
+    bool talk = !g->quiet && !g->json;
+    if (talk)
+        fprintf(stderr, "sightline bench: %s: baking the PVS of the street cells within %g m of the views (%s) for "
+                        "pvs...\n", label, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD);
+    cli_pvs_along pa;
+    sl_status st = cli_pvs_bake_along(scene, views, file, prog, &pa, err);
+    cli_progress_done(ps);
+    if (st != SL_OK)
+        return st;
+    if (pa.why[0]) {
+        if (g->methods) {
+            cli_error(cmd, "cannot run pvs on %s: %s", label, pa.why);
+            *status = 1;
+            return SL_OK;
+        }
+        cli_error(cmd, "not running pvs on %s: %s", label, pa.why);
+        if (*nskipped < SL_BENCH_MAX_METHODS) {
+            skipped[*nskipped].name = "pvs";
+            snprintf(skipped[*nskipped].reason, sizeof skipped[0].reason, "%.120s: %.380s", label, pa.why);
+            (*nskipped)++;
+        }
+        memmove(run + index, run + index + 1, (*nrun - index - 1) * sizeof run[0]);
+        (*nrun)--;
+        return SL_OK;
+    }
+    const char *user = run[index].options;
+    snprintf(opts_buf, opts_size, "%s%s%s", pa.options, user ? "," : "", user ? user : "");
+    run[index].options = opts_buf;
+    if (talk)
+        fprintf(stderr, "sightline bench: %s: %u cells, %.1f%% of the objects culled per cell, %.1f s\n", file,
+                pa.cells, 100.0 * pa.culled, pa.seconds);
+    return SL_OK;
+}
+
 int sl_cmd_bench(int argc, char **argv)
 {
     const char *cmd = argv[0];
@@ -520,7 +605,8 @@ int sl_cmd_bench(int argc, char **argv)
     sl_bench_method_spec specs[SL_BENCH_MAX_METHODS];
     sl_bench_skip skipped[SL_BENCH_MAX_METHODS];
     uint32_t nskipped = 0;
-    int nm = method_specs(&g, cmd, names, sizeof names, specs, skipped, &nskipped);
+    int bake_index;
+    int nm = method_specs(&g, cmd, names, sizeof names, specs, skipped, &nskipped, &bake_index);
     if (nm < 0)
         return 2;
     if (g.frames) {
@@ -570,6 +656,20 @@ int sl_cmd_bench(int argc, char **argv)
             status = cli_fail(cmd, &err);
             break;
         }
+        sl_bench_method_spec run[SL_BENCH_MAX_METHODS];
+        uint32_t nrun = (uint32_t)nm;
+        memcpy(run, specs, nrun * sizeof run[0]);
+        char pvs_options[8800];
+        if (bake_index >= 0) {
+            st = bake_pvs(&g, cmd, s, views, label, &prog, &ps, run, &nrun, (uint32_t)bake_index, pvs_options,
+                          sizeof pvs_options, skipped, &nskipped, &status, &err);
+            if (status || st != SL_OK) {
+                sl_path_destroy(views);
+                if (!status)
+                    status = cli_fail(cmd, &err);
+                break;
+            }
+        }
         sl_bench_options bo = sl_bench_default_options();
         bo.width = g.width;
         bo.height = g.height;
@@ -578,7 +678,7 @@ int sl_cmd_bench(int argc, char **argv)
         bo.label = label;
         bo.progress = prog;
         sl_bench b = NULL;
-        st = sl_bench_create(s, specs, (uint32_t)nm, &bo, NULL, &b, &err);
+        st = sl_bench_create(s, run, nrun, &bo, NULL, &b, &err);
         if (st == SL_OK) {
             benches[nb] = b;
             snprintf(labels[nb], sizeof labels[nb], "%s", label);

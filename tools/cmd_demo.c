@@ -27,8 +27,6 @@
 #define DEMO_FLY_VIEWS 24
 #define QUICK_WALK_FRAMES 40
 #define QUICK_FLY_VIEWS 4
-#define DEMO_PVS_METHOD "adjustable"
-#define DEMO_PVS_RADIUS 2.0f
 
 static void usage(FILE *out)
 {
@@ -58,7 +56,7 @@ static void usage(FILE *out)
             "  sightline demo\n"
             "  sightline demo --preset tiny --quick --out /tmp/demo\n"
             "  sightline demo --preset vienna --frames 300 --out vienna-demo\n",
-            DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, DEMO_PVS_METHOD, DEMO_WALK_FRAMES,
+            DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, CLI_PVS_ALONG_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
 }
 
@@ -354,59 +352,6 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     put(&r->html, "</body></html>\n");
 }
 
-/* ---- the pvs culler's file ---- */
-
-/* What the demo baked for the pvs culler. */
-typedef struct demo_pvs {
-    char options[4500];         /* "file=DIR/walk.slpvs" */
-    uint32_t cells;
-    double seconds, culled;
-} demo_pvs;
-
-/* Bake the PVS of the street cells within DEMO_PVS_RADIUS of the walk's cameras into
- * DIR/walk.slpvs, so that the pvs culler runs in the demo. Elsewhere (the flyover) the culler
- * finds no cell and culls by the frustum, as it does for any eye in no cell. When the culler cannot
- * take the file's path, nothing is baked and *why says so (SL_OK); a failed bake is an error. */
-static sl_status demo_bake_pvs(sl_scene scene, sl_path walk, const char *out_dir, const sl_progress *prog, demo_pvs *dp,
-                               char *why, size_t why_cap, sl_error *err)
-{
-    memset(dp, 0, sizeof dp[0]);
-    why[0] = 0;
-    char file[4400];
-    snprintf(file, sizeof file, "%s/walk.slpvs", out_dir);
-    /* the culler's options are "key=value,...": its file name cannot hold a comma or a space */
-    if (strpbrk(file, ", \t\n=")) {
-        snprintf(why, why_cap, "the output folder's path holds a comma, '=' or a space, which the pvs culler's "
-                               "file= option cannot take");
-        return SL_OK;
-    }
-    double t0 = sl_now();
-    sl_viewcells all = NULL, near = NULL;
-    sl_status st = sl_viewcells_from_streets(scene, NULL, &all, err);
-    if (st == SL_OK)
-        st = cli_viewcells_along(all, walk, DEMO_PVS_RADIUS, &near, err);
-    sl_viewcells_destroy(all);
-    if (st == SL_OK) {
-        /* a journal left by an interrupted demo belongs to this output: start afresh */
-        char journal[4500];
-        snprintf(journal, sizeof journal, "%s.ckpt", file);
-        unlink(journal);
-        sl_pvs_build_options bo;
-        memset(&bo, 0, sizeof bo);
-        bo.method = DEMO_PVS_METHOD;
-        bo.progress = *prog;
-        sl_pvs_build_stats stats;
-        st = sl_pvs_build(scene, near, file, &bo, &stats, err);
-        dp->cells = stats.cells;
-        dp->culled = stats.mean_culled;
-    }
-    sl_viewcells_destroy(near);
-    dp->seconds = sl_now() - t0;
-    if (st == SL_OK)
-        snprintf(dp->options, sizeof dp->options, "file=%s", file);
-    return st;
-}
-
 /* ---- the command ---- */
 
 int sl_cmd_demo(int argc, char **argv)
@@ -509,14 +454,15 @@ int sl_cmd_demo(int argc, char **argv)
     if (!status && sl_path_save(walk, path, &err) != SL_OK)
         status = cli_fail(cmd, &err);
     /* the pvs culler: bake the cells along the walk, then run it with the others */
-    demo_pvs dp;
-    char pvs_note[1024] = "", why[512] = "";
+    cli_pvs_along dp;
+    char pvs_note[1024] = "";
     memset(&dp, 0, sizeof dp);
     if (!status) {
         if (!json && !quiet)
             fprintf(stderr, "sightline demo: baking the PVS of the street cells along the walk (%s)...\n",
-                    DEMO_PVS_METHOD);
-        if (demo_bake_pvs(scene, walk, out_dir, &prog, &dp, why, sizeof why, &err) != SL_OK)
+                    CLI_PVS_ALONG_METHOD);
+        snprintf(path, sizeof path, "%s/walk.slpvs", out_dir);
+        if (cli_pvs_bake_along(scene, walk, path, &prog, &dp, &err) != SL_OK)
             status = cli_fail(cmd, &err);
         cli_progress_done(&ps);
     }
@@ -532,13 +478,13 @@ int sl_cmd_demo(int argc, char **argv)
                  "pvs runs on walk.slpvs, baked for this demo: the %u street cells within %g m of the walk's "
                  "cameras, method %s, %.1f s, %.1f%% of the objects culled per cell on average. Where the eye is "
                  "in none of them (the flyover) the pvs culler falls back to frustum culling.",
-                 dp.cells, (double)DEMO_PVS_RADIUS, DEMO_PVS_METHOD, dp.seconds, 100.0 * dp.culled);
+                 dp.cells, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD, dp.seconds, 100.0 * dp.culled);
         if (!json && !quiet)
             fprintf(stderr, "sightline demo: walk.slpvs: %u cells in %.1f s\n", dp.cells, dp.seconds);
-    } else if (!status && why[0]) {
+    } else if (!status && dp.why[0]) {
         for (uint32_t i = 0; i < nskipped; i++)
             if (!strcmp(skipped[i].name, "pvs"))
-                snprintf(skipped[i].reason, sizeof skipped[i].reason, "%s", why);
+                snprintf(skipped[i].reason, sizeof skipped[i].reason, "%s", dp.why);
     }
     for (uint32_t i = 0; i < nskipped && !json && !status; i++)
         fprintf(stderr, "sightline demo: not running %s: %s\n", skipped[i].name, skipped[i].reason);

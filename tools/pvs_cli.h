@@ -1,6 +1,6 @@
-/* PVS helpers of the commands: the MPI bake driver of `sightline pvs build` (tools/pvs_mpi.c) and
- * the choice of the view cells along a camera path (tools/cmd_pvs.c), which `sightline demo` uses
- * too. The MPI driver lives in the command, not in libsightline, so that the library never needs
+/* PVS helpers of the commands: the MPI bake driver of `sightline pvs build` (tools/pvs_mpi.c), the
+ * choice of the view cells along a camera path (tools/cmd_pvs.c), and the bake along a path with
+ * which `sightline demo` and `sightline bench` give the pvs culler a file (tools/pvs_along.c). The MPI driver lives in the command, not in libsightline, so that the library never needs
  * MPI: a program that links Sightline bakes on its own cores with sl_pvs_build; only the command,
  * run under mpiexec, spans processes. */
 #ifndef SL_TOOLS_PVS_CLI_H
@@ -22,5 +22,28 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
  * finds no cell, and the pvs culler falls back to frustum culling there, as for any eye in no
  * cell, so a cell left out is never taken for an empty one. Fails when no cell is that near. */
 sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, sl_error *err);
+
+/* How the demo and the bench bake for the pvs culler: the street cells within this many metres of
+ * a camera (as `pvs build --along PATH --radius R`), with this conservative method. */
+#define CLI_PVS_ALONG_METHOD "adjustable"
+#define CLI_PVS_ALONG_RADIUS 2.0f
+
+/* What cli_pvs_bake_along baked, or why it baked nothing. */
+typedef struct cli_pvs_along {
+    char options[4500];         /* "file=FILE" for the pvs culler once baked, else empty */
+    char why[512];              /* set when nothing was baked although the call succeeded */
+    uint32_t cells;             /* cells in the file */
+    double seconds;             /* wall time of the cells and the bake */
+    double culled;              /* mean fraction of the objects culled per cell */
+} cli_pvs_along;
+
+/* Bake into `file` the PVS of the street cells within CLI_PVS_ALONG_RADIUS of the cameras of
+ * `path` with CLI_PVS_ALONG_METHOD (a journal left by an interrupted run is discarded first), so
+ * that the pvs culler runs along the path; elsewhere it finds no cell and culls by the frustum.
+ * SL_OK with out->why set and nothing written when the pvs culler's file= option cannot name `file`
+ * (a comma, '=' or white space), when the scene has no street polygons, or when no cell is near the
+ * path. A failed bake is an error. */
+sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, const char *file, const sl_progress *prog,
+                             cli_pvs_along *out, sl_error *err);
 
 #endif

@@ -3,7 +3,9 @@
 # files (exit 1), and runs on the tiny city: a walk, random street and flyover views, a hand-written
 # path with a frame range, two scenes at once, method options, a map from a point. Checks the
 # files written (CSV rows = frames x methods, JSON, summary, SVG plots, PNG maps with the PNG
-# signature) and that every conservative method misses nothing. $1 is the sightline binary.
+# signature) and that every conservative method misses nothing. The pvs culler runs on the PVS the
+# bench bakes along the views (OUT/LABEL.slpvs) or on a file given with pvs:file=, and is named as
+# not run where nothing can be baked. $1 is the sightline binary.
 # Under sanitizers (SL_SANITIZED set) the runs use fewer frames.
 set -u
 SL="$1"
@@ -72,6 +74,8 @@ expect 2 "$SL" bench city:tiny --walk 5 --methods vfc,vfc
 expect 2 "$SL" bench city:tiny --walk 5 --method-options vfc:bogus=1
 has "bogus" "$tmp/err"
 expect 2 "$SL" bench city:tiny --walk 5 --method-options coherence=off
+expect 2 "$SL" bench city:tiny --walk 5 --methods pvs --method-options pvs:bogus=1
+has "unknown option 'bogus'" "$tmp/err"
 expect 2 "$SL" bench city:tiny --walk 5 --repeat 0
 expect 2 "$SL" bench city:tiny --walk 5 --frames 0:2
 expect 2 "$SL" bench city:tiny --walk 5 --map-eye 1,2
@@ -119,6 +123,37 @@ has '"violations":0' "$tmp/walk/summary.json"
 has "| vfc | conservative | $N |" "$tmp/walk/summary.md"
 for p in cull-time triangles missed-pixels; do is_svg "$tmp/walk/city-tiny-1-$p.svg"; done
 is_png "$tmp/walk/city-tiny-1-map-vfc.png"
+# pvs ran by default on the PVS baked along the walk, with no miss (column 18)
+has "baking the PVS of the street cells" "$tmp/err"
+has "| pvs | conservative | $N |" "$tmp/out"
+hasnt "not run: pvs" "$tmp/out"
+[ "$(awk -F, '$10 == "pvs"' "$tmp/walk/frames.csv" | wc -l)" -eq "$N" ] || fail "frames.csv: no $N pvs rows"
+awk -F, '$10 == "pvs" && $18 != 0 { exit 1 }' "$tmp/walk/frames.csv" || fail "pvs missed an object"
+[ -s "$tmp/walk/city-tiny-1.slpvs" ] || fail "no city-tiny-1.slpvs"
+[ ! -e "$tmp/walk/city-tiny-1.slpvs.ckpt" ] || fail "the PVS bake left its journal"
+"$SL" pvs verify "$tmp/walk/city-tiny-1.slpvs" >/dev/null 2>&1 || fail "city-tiny-1.slpvs does not verify"
+
+# ---- pvs: --json and other options, a given file, nothing to bake ----
+expect 0 "$SL" bench city:tiny --walk 3 --methods vfc,pvs --method-options pvs:dynamic=frustum --no-plots --json \
+    --out "$tmp/pj"
+hasnt "baking" "$tmp/err"
+has '"name":"pvs","options":"file='"$tmp"'/pj/city-tiny-1.slpvs,dynamic=frustum' "$tmp/out"
+has '"violations":0' "$tmp/out"
+[ "$(awk -F, '$10 == "pvs" && $18 == 0' "$tmp/pj/frames.csv" | wc -l)" -eq 3 ] || fail "pvs --json: rows"
+expect 0 "$SL" bench city:tiny --walk 3 --methods pvs --method-options pvs:file="$tmp/walk/city-tiny-1.slpvs" \
+    --no-plots --out "$tmp/pf"
+hasnt "baking" "$tmp/err"
+[ ! -e "$tmp/pf/city-tiny-1.slpvs" ] || fail "pvs:file= given, yet the bench baked"
+[ "$(awk -F, '$10 == "pvs" && $18 == 0' "$tmp/pf/frames.csv" | wc -l)" -eq 3 ] || fail "pvs:file=: rows"
+expect 0 "$SL" bench city:tiny --random flyover --count 2 --no-plots --quiet --out "$tmp/pn"
+has "not run: pvs (city-tiny-1: no street view cell" "$tmp/out"
+has '"name":"pvs","reason":"city-tiny-1: ' "$tmp/pn/summary.json"
+expect 1 "$SL" bench city:tiny --random flyover --count 2 --methods vfc,pvs --no-plots --quiet --out "$tmp/pn2"
+has "cannot run pvs on city-tiny-1" "$tmp/err"
+expect 0 "$SL" bench city:tiny --walk 2 --no-plots --quiet --out "$tmp/a,b"
+has "not run: pvs (city-tiny-1: the output folder's path holds a comma" "$tmp/out"
+expect 1 "$SL" bench city:tiny --walk 2 --methods vfc,pvs --no-plots --quiet --out "$tmp/a,b"
+has "comma" "$tmp/err"
 
 # ---- JSON summary, random views, no plots, repeats, method options ----
 expect 0 "$SL" bench city:tiny --random street --count $N --seed 2 --no-plots --json --repeat 3 \

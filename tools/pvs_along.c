@@ -1,0 +1,70 @@
+/* The PVS that `sightline demo` and `sightline bench` bake for the pvs culler along their camera
+ * paths (tools/pvs_cli.h): one function, so that both commands bake the same cells with the same
+ * method as `sightline pvs build --cells streets --along PATH --radius R`. */
+#include "pvs_cli.h"
+
+#include "core/sl_core.h"
+#include "sightline/region.h"
+
+#include <string.h>
+#include <unistd.h>
+
+sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, const char *file, const sl_progress *prog,
+                             cli_pvs_along *out, sl_error *err)
+{
+    memset(out, 0, sizeof out[0]);
+    /* the culler's options are "key=value,...": its file name cannot hold a comma or a space */
+    if (strpbrk(file, ", \t\n=")) {
+        snprintf(out->why, sizeof out->why,
+                 "the output folder's path holds a comma, '=' or a space, which the pvs culler's file= option "
+                 "cannot take");
+        return SL_OK;
+    }
+    if (strlen(file) + 5 >= sizeof out->options) {
+        snprintf(out->why, sizeof out->why, "the output folder's path is too long for the pvs culler's file= option");
+        return SL_OK;
+    }
+    if (sl_scene_street_polygon_count(scene) == 0) {
+        snprintf(out->why, sizeof out->why,
+                 "the scene has no streets to lay view cells along the views (bake a PVS with `sightline pvs "
+                 "build` and give it with file=PATH)");
+        return SL_OK;
+    }
+    double t0 = sl_now();
+    sl_viewcells all = NULL, near = NULL;
+    sl_status st = sl_viewcells_from_streets(scene, NULL, &all, err);
+    if (st == SL_OK) {
+        sl_error e;
+        st = cli_viewcells_along(all, path, CLI_PVS_ALONG_RADIUS, &near, &e);
+        if (st == SL_ERROR_INVALID_ARGUMENT) {
+            /* no cell near the cameras (views above the streets): nothing to bake, not a failure */
+            snprintf(out->why, sizeof out->why,
+                     "no street view cell lies within %g m of the %u cameras (views above the streets?)",
+                     (double)CLI_PVS_ALONG_RADIUS, sl_path_count(path));
+            st = SL_OK;
+        } else if (st != SL_OK && err) {
+            *err = e;
+        }
+    }
+    sl_viewcells_destroy(all);
+    if (st == SL_OK && near) {
+        /* a journal left by an interrupted run belongs to this output: start afresh */
+        char journal[4500];
+        snprintf(journal, sizeof journal, "%s.ckpt", file);
+        unlink(journal);
+        sl_pvs_build_options bo;
+        memset(&bo, 0, sizeof bo);
+        bo.method = CLI_PVS_ALONG_METHOD;
+        bo.progress = *prog;
+        sl_pvs_build_stats stats;
+        st = sl_pvs_build(scene, near, file, &bo, &stats, err);
+        if (st == SL_OK) {
+            out->cells = stats.cells;
+            out->culled = stats.mean_culled;
+            snprintf(out->options, sizeof out->options, "file=%s", file);
+        }
+    }
+    sl_viewcells_destroy(near);
+    out->seconds = sl_now() - t0;
+    return st;
+}
