@@ -229,9 +229,31 @@ static void test_raster_partial(void **state)
     free(m);
 }
 
+/* The unsaturated-cell bits agree with the map: on the clip, a cell's row bit is set exactly when
+ * its value is below its top, and each band's count and bit of a column say how many of its cells
+ * there are unsaturated. */
+static void check_bits(const test_map *m, const float *top)
+{
+    const sl_cullmap_grid *g = &m->g;
+    for (int j = 0; j < MAP_N; j++)
+        for (int i = 0; i < MAP_N; i++) {
+            bool un = m->z[j * MAP_N + i] < top[j * MAP_N + i];
+            assert_int_equal((int)((g->row_bits[j * g->words] >> i) & 1), (int)un);
+        }
+    for (int b = 0; b < MAP_N / 8; b++)
+        for (int i = 0; i < MAP_N; i++) {
+            int n = 0;
+            for (int j = 8 * b; j < 8 * b + 8; j++)
+                n += m->z[j * MAP_N + i] < top[j * MAP_N + i];
+            assert_int_equal((int)g->band_count[b * MAP_N + i], n);
+            assert_int_equal((int)((g->band_bits[b * g->words] >> i) & 1), n > 0);
+        }
+}
+
 /* Everything at once, with cells as wide as the shadows: silhouette chains of convex buildings
  * (seams), separate walls (partial coverage), floors, saturation against random cell tops and
- * the block skipping; every written cell must stay sound. */
+ * the block skipping, half the time with the unsaturated-cell bits (then only the unsaturated
+ * cells are visited); every written cell must stay sound, and the bits true. */
 static void test_raster_mixed(void **state)
 {
     (void)state;
@@ -240,7 +262,9 @@ static void test_raster_mixed(void **state)
     test_map *m = malloc(sizeof *m);
     static float top[MAP_N * MAP_N];
     static uint16_t unsat[(MAP_N / 8) * (MAP_N / 8) + 1];
-    int written = 0;
+    static uint64_t row_bits[MAP_N], band_bits[MAP_N / 8];
+    static uint8_t band_count[(MAP_N / 8) * MAP_N];
+    int written = 0, written_bits = 0;
     for (int t = 0; t < 600; t++) {
         map_init(m, t % 3 != 0);
         for (int c = 0; c < MAP_N * MAP_N; c++) {
@@ -255,6 +279,16 @@ static void test_raster_mixed(void **state)
         m->g.unsat = unsat;
         m->g.block_shift = 3;
         m->g.bnx = MAP_N / 8;
+        const bool bits = t % 4 >= 2;
+        if (bits) {
+            memset(row_bits, 0, sizeof row_bits);
+            memset(band_bits, 0, sizeof band_bits);
+            memset(band_count, 0, sizeof band_count);
+            m->g.row_bits = row_bits;
+            m->g.band_bits = band_bits;
+            m->g.band_count = band_count;
+            m->g.words = 1;
+        }
         /* cells as wide as the shadows: 2 to 5 m cells over the same 64 x 64 map */
         m->g.cell = 2.0 + (t % 4);
         m->g.min_x = m->g.min_y = -32.0 * m->g.cell;
@@ -291,9 +325,15 @@ static void test_raster_mixed(void **state)
             sl_cullmap_raster_wedge(&m->g, eye, &e, 1, 0, &m->clip);
             all[na++] = e;
         }
-        written += check_cells(m, eye, all, na, &r);
+        int w = check_cells(m, eye, all, na, &r);
+        written += w;
+        if (bits) {
+            written_bits += w;
+            check_bits(m, top);
+        }
     }
     assert_true(written > 3000);
+    assert_true(written_bits > 1000);
     free(m);
 }
 

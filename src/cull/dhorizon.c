@@ -28,7 +28,7 @@
 #include "urban_internal.h"
 
 static const char g_help[] =
-    "cell=NUMBER (default 8): scene-grid cell size in metres (0.5..1000)\n"
+    "cell=NUMBER (default 16): scene-grid cell size in metres (0.5..1000)\n"
     "bins=1024..1048576 (default 8192): azimuth bins of the horizon (rounded up to a power of two)\n"
     "max_move=NUMBER (default 4): a frame after a move longer than this (metres) is a full sweep\n"
     "max_turn=NUMBER (default 30): a frame after a turn larger than this (degrees) is a full sweep\n"
@@ -47,7 +47,7 @@ static sl_status dhorizon_configure(sl_opts *o, void *config, sl_cull_guarantee 
 {
     dhorizon_config *c = config;
     sl_status st;
-    if ((st = sl_opts_float(o, "cell", 8.0f, 0.5f, 1000.0f, &c->cell, err)) != SL_OK ||
+    if ((st = sl_opts_float(o, "cell", 16.0f, 0.5f, 1000.0f, &c->cell, err)) != SL_OK ||
         (st = sl_opts_u32(o, "bins", 8192, 1024, 1u << 20, &c->bins, err)) != SL_OK ||
         (st = sl_opts_float(o, "max_move", 4.0f, 0.0f, 10000.0f, &c->max_move, err)) != SL_OK ||
         (st = sl_opts_float(o, "max_turn", 30.0f, 0.0f, 180.0f, &c->max_turn, err)) != SL_OK ||
@@ -126,10 +126,10 @@ bool sl_dhorizon_skip(sl_urban_sweep *s, const sl_urban_view *v, uint32_t id, do
      * at most dmax + dh away then: bound that horizon over the widened azimuths, then add the
      * elevation change */
     double was = sl_horizon_max(old, ea0, espan);
-    double need = was == -INFINITY ? -INFINITY : tan(fmin(atan(was) + db, M_PI_2));
+    double need = was == -INFINITY ? -INFINITY : tan(sl_urban_min(atan(was) + db, M_PI_2));
     if (!(min_h > need + 1e-6 * (1 + fabs(need)))) {
         was = sl_horizon_max_before(old, ea0, espan, dmax + dh, 512);
-        need = was == -INFINITY ? -INFINITY : tan(fmin(atan(was) + db, M_PI_2));
+        need = was == -INFINITY ? -INFINITY : tan(sl_urban_min(atan(was) + db, M_PI_2));
         if (!(min_h > need + 1e-6 * (1 + fabs(need))))
             return false;
     }

@@ -25,7 +25,7 @@
 #include <float.h>
 
 static const char g_help[] =
-    "cell=NUMBER (default 8): scene-grid cell size in metres (0.5..1000)\n"
+    "cell=NUMBER (default 16): scene-grid cell size in metres (0.5..1000)\n"
     "bins=1024..1048576 (default 8192): azimuth bins of the horizon (rounded up to a power of two)\n";
 
 typedef struct horizon_config {
@@ -38,7 +38,7 @@ static sl_status horizon_configure(sl_opts *o, void *config, sl_cull_guarantee *
     horizon_config *c = config;
     (void)g;
     sl_status st;
-    if ((st = sl_opts_float(o, "cell", 8.0f, 0.5f, 1000.0f, &c->cell, err)) != SL_OK ||
+    if ((st = sl_opts_float(o, "cell", 16.0f, 0.5f, 1000.0f, &c->cell, err)) != SL_OK ||
         (st = sl_opts_u32(o, "bins", 8192, 1024, 1u << 20, &c->bins, err)) != SL_OK)
         return st;
     return SL_OK;
@@ -120,9 +120,9 @@ sl_status sl_urban_sweep_create(sl_scene scene, float cell, uint32_t bins, bool 
 /* Level of node id. */
 static inline uint32_t node_level(const sl_urban_scene *u, uint32_t id)
 {
-    uint32_t l = 0;
-    while (l + 1 < u->levels && id >= u->level_base[l + 1])
-        l++;
+    uint32_t l = 0; /* the bases increase with the level: count those at most id (no branch) */
+    for (uint32_t k = 1; k < u->levels; k++)
+        l += id >= u->level_base[k];
     return l;
 }
 
@@ -161,18 +161,20 @@ static inline void front_add(sl_urban_sweep *s, uint32_t id, uint32_t kind)
         s->front[s->cur][s->front_count[s->cur]++] = SL_FRONT_ENTRY(id, kind);
 }
 
-/* Push a node keyed by its nearest plan distance. */
-static void push_node(sl_urban_sweep *s, const sl_urban_view *v, uint32_t id, uint32_t kind)
+/* Append a node keyed by its nearest plan distance to the heap's entries (sl_urban_heap_build
+ * makes them a heap). */
+static void append_node(sl_urban_sweep *s, const sl_urban_view *v, uint32_t id, uint32_t kind)
 {
     const sl_urban_scene *u = &s->us;
-    uint32_t l = 0;
-    while (l + 1 < u->levels && id >= u->level_base[l + 1])
-        l++;
+    uint32_t l = node_level(u, id);
     uint32_t lnx = u->level_nx[l], i = (id - u->level_base[l]) % lnx, j = (id - u->level_base[l]) / lnx;
     double r[4], dmin, dmax;
     node_rect(u, l, i, j, r);
     sl_urban_rect_dist(v->eye, r[0], r[1], r[2], r[3], &dmin, &dmax);
-    sl_urban_heap_push(&s->nodes, key_down(dmin), SL_FRONT_ENTRY(id, kind));
+    if (s->nodes.n == s->nodes.cap)
+        return; /* cannot happen: the frontier's nodes are disjoint */
+    s->nodes.key[s->nodes.n] = key_down(dmin);
+    s->nodes.val[s->nodes.n++] = SL_FRONT_ENTRY(id, kind);
 }
 
 /* Test (the part in the cell of) object o; report it when visible. */
@@ -191,10 +193,10 @@ static void test_object(sl_urban_sweep *s, const sl_urban_view *v, const sl_hori
      * none of it is nearer; else judge the part of the box inside this cell */
     bool whole = dmin >= (double)sweep_key;
     if (!whole) {
-        r[0] = fmax(r[0], cr[0]);
-        r[1] = fmax(r[1], cr[1]);
-        r[2] = fmin(r[2], cr[2]);
-        r[3] = fmin(r[3], cr[3]);
+        r[0] = sl_urban_max(r[0], cr[0]);
+        r[1] = sl_urban_max(r[1], cr[1]);
+        r[2] = sl_urban_min(r[2], cr[2]);
+        r[3] = sl_urban_min(r[3], cr[3]);
         if (r[0] > r[2] || r[1] > r[3])
             return; /* listed through rounding only: nothing of it in this cell */
         sl_urban_rect_dist(v->eye, r[0], r[1], r[2], r[3], &dmin, &dmax);
@@ -253,7 +255,8 @@ sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t 
          * the hidden and unexamined parts, which are re-examined at their distance) */
         const uint32_t *f = s->front[s->cur ^ 1];
         for (uint32_t k = 0; k < s->front_count[s->cur ^ 1]; k++)
-            push_node(s, &v, SL_FRONT_ID(f[k]), SL_FRONT_KIND(f[k]));
+            append_node(s, &v, SL_FRONT_ID(f[k]), SL_FRONT_KIND(f[k]));
+        sl_urban_heap_build(&s->nodes);
     } else if (u->node_count)
         sl_urban_heap_push(&s->nodes, 0.0f, SL_FRONT_ENTRY(u->level_base[u->levels - 1], SL_FRONT_OUT));
     const double ez = v.eye[2];
@@ -277,10 +280,9 @@ sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t 
         }
         s->nodes_visited++;
         float top = u->pyr_top[id];
-        if (top == -INFINITY) {
-            front_add(s, id, SL_FRONT_OUT); /* empty */
-            continue;
-        }
+        if (top == -INFINITY)
+            continue; /* empty: nothing to see or to hide here (nor on any later frame, while the
+                         objects stay: not kept in the frontier) */
         uint32_t l = node_level(u, id), lnx = u->level_nx[l];
         uint32_t i = (id - u->level_base[l]) % lnx, j = (id - u->level_base[l]) / lnx;
         double r[4], dmin, dmax, a0, span;
@@ -334,7 +336,7 @@ sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t 
             if (!sl_urban_edge_mode_cached(u, pc->edge, &v, s->fp_excluded, s->frame, &s->modes))
                 continue;
             double dx0 = pc->x0 - v.eye[0], dy0 = pc->y0 - v.eye[1], dx1 = pc->x1 - v.eye[0], dy1 = pc->y1 - v.eye[1];
-            double far = sqrt(fmax(dx0 * dx0 + dy0 * dy0, dx1 * dx1 + dy1 * dy1));
+            double far = sqrt(sl_urban_max(dx0 * dx0 + dy0 * dy0, dx1 * dx1 + dy1 * dy1));
             /* a façade already below the horizon (every occluder in it is nearer than this cell,
              * hence than the façade) hides nothing new: an occluded occluder */
             double near = sl_urban_seg_dist(&v, pc->x0, pc->y0, pc->x1, pc->y1);

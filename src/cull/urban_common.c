@@ -117,7 +117,7 @@ static bool footprint_valid(const sl_urban_fp *f, const sl_aabb *prism, const sl
         return true;
     const float *lo = &prism->min.x, *hi = &prism->max.x, *olo = &obj->min.x, *ohi = &obj->max.x;
     for (int k = 0; k < 3; k++) {
-        float tol = 1e-2f + 1e-5f * fmaxf(fabsf(lo[k]), fabsf(hi[k]));
+        float tol = 1e-2f + 1e-5f * sl_urban_maxf(fabsf(lo[k]), fabsf(hi[k]));
         if (olo[k] > lo[k] + tol || ohi[k] < hi[k] - tol)
             return false;
     }
@@ -133,13 +133,13 @@ static void compute_heights(sl_urban_scene *u)
         float lo = INFINITY;
         const uint32_t *ids = g->ids + g->start[c];
         for (uint32_t k = 0; k < g->count[c]; k++)
-            lo = fminf(lo, boxes[ids[k]].min.z);
+            lo = sl_urban_minf(lo, boxes[ids[k]].min.z);
         u->cell_floor[c] = lo;
         float top = g->max_z[c], nf = lo;
         for (uint32_t p = u->cell_piece_start[c]; p < u->cell_piece_start[c + 1]; p++) {
             const sl_urban_fp *f = &u->fps[u->edges[u->pieces[p].edge].fp];
-            top = fmaxf(top, f->roof);
-            nf = fminf(nf, f->base);
+            top = sl_urban_maxf(top, f->roof);
+            nf = sl_urban_minf(nf, f->base);
         }
         u->cell_top[c] = top;
         u->node_floor[c] = nf;
@@ -157,8 +157,8 @@ static void compute_heights(sl_urban_scene *u)
                         if (ci >= pnx || cj >= pny)
                             continue;
                         uint32_t id = u->level_base[l - 1] + cj * pnx + ci;
-                        top = fmaxf(top, u->pyr_top[id]);
-                        fl = fminf(fl, u->pyr_floor[id]);
+                        top = sl_urban_maxf(top, u->pyr_top[id]);
+                        fl = sl_urban_minf(fl, u->pyr_floor[id]);
                     }
                 uint32_t id = u->level_base[l] + j * u->level_nx[l] + i;
                 u->pyr_top[id] = top;
@@ -280,8 +280,8 @@ sl_status sl_urban_scene_build(sl_scene scene, float cell, const sl_allocator *a
     u->cell = g->cell;
     /* the grid maps float points to cells with float arithmetic: allow its rounding everywhere */
     u->margin = 8.0 * FLT_EPSILON *
-                    (fmax(fmax(fabs((double)g->min_x), fabs((double)g->max_x)),
-                          fmax(fabs((double)g->min_y), fabs((double)g->max_y))) +
+                    (sl_urban_max(sl_urban_max(fabs((double)g->min_x), fabs((double)g->max_x)),
+                          sl_urban_max(fabs((double)g->min_y), fabs((double)g->max_y))) +
                      g->cell) +
                 1e-6;
     const size_t nc = u->ncells;
@@ -531,14 +531,14 @@ void sl_urban_view_make(const sl_camera *cam, sl_urban_view *v)
         for (int q = 0; q < 3; q++)
             dirs[k][q] = (double)(&fr.corners[4 + k].x)[q] - v->eye[q];
         double len = sqrt(dirs[k][0] * dirs[k][0] + dirs[k][1] * dirs[k][1] + dirs[k][2] * dirs[k][2]);
-        far = fmax(far, len);
+        far = sl_urban_max(far, len);
         if (len > 0)
-            cmin = fmin(cmin, (dirs[k][0] * f.x + dirs[k][1] * f.y + dirs[k][2] * f.z) / len);
+            cmin = sl_urban_min(cmin, (dirs[k][0] * f.x + dirs[k][1] * f.y + dirs[k][2] * f.z) / len);
         if (hypot(dirs[k][0], dirs[k][1]) < 1e-9 * (1 + len))
             degenerate = true;
     }
     v->far = far * (1 + 1e-6) + 1e-3;
-    v->near_guard = cam->near_plane / fmax(cmin, 1e-3) * 1.001 + 1e-3;
+    v->near_guard = cam->near_plane / sl_urban_max(cmin, 1e-3) * 1.001 + 1e-3;
     v->full_az = !v->perspective || up_in || down_in || degenerate;
     if (!v->full_az) {
         double rx = 0, ry = 0;
@@ -550,8 +550,8 @@ void sl_urban_view_make(const sl_camera *cam, sl_urban_view *v)
         double amin = INFINITY, amax = -INFINITY;
         for (int k = 0; k < 4; k++) {
             double rel = atan2(rx * dirs[k][1] - ry * dirs[k][0], rx * dirs[k][0] + ry * dirs[k][1]);
-            amin = fmin(amin, rel);
-            amax = fmax(amax, rel);
+            amin = sl_urban_min(amin, rel);
+            amax = sl_urban_max(amax, rel);
         }
         const double m = 1e-5; /* the float corners against the exact frustum */
         double span = amax - amin + 2 * m;
@@ -626,12 +626,12 @@ bool sl_urban_frustum_spans(const sl_urban_scene *u, const sl_urban_view *v, uin
     const double m = u->margin + 1e-3 + 1e-6 * (fabs(v->eye[0]) + fabs(v->eye[1]));
     double ylo = INFINITY, yhi = -INFINITY;
     for (int k = 0; k < v->npoly; k++) {
-        ylo = fmin(ylo, v->poly[k][1]);
-        yhi = fmax(yhi, v->poly[k][1]);
+        ylo = sl_urban_min(ylo, v->poly[k][1]);
+        yhi = sl_urban_max(yhi, v->poly[k][1]);
     }
     double fj0 = floor((ylo - m - u->min_y) / u->cell), fj1 = floor((yhi + m - u->min_y) / u->cell);
-    fj0 = fmax(fj0, 0.0);
-    fj1 = fmin(fj1, (double)u->ny - 1);
+    fj0 = sl_urban_max(fj0, 0.0);
+    fj1 = sl_urban_min(fj1, (double)u->ny - 1);
     if (!(fj0 <= fj1))
         return false;
     *j0 = (uint32_t)fj0;
@@ -654,22 +654,22 @@ bool sl_urban_frustum_spans(const sl_urban_scene *u, const sl_urban_view *v, uin
                     ta = tb;
                     tb = t;
                 }
-                t0 = fmax(t0, ta);
-                t1 = fmin(t1, tb);
+                t0 = sl_urban_max(t0, ta);
+                t1 = sl_urban_min(t1, tb);
                 if (t0 > t1)
                     continue;
             }
             double xa = p[0] + t0 * (q[0] - p[0]), xb = p[0] + t1 * (q[0] - p[0]);
-            xlo = fmin(xlo, fmin(xa, xb));
-            xhi = fmax(xhi, fmax(xa, xb));
+            xlo = sl_urban_min(xlo, sl_urban_min(xa, xb));
+            xhi = sl_urban_max(xhi, sl_urban_max(xa, xb));
         }
         int32_t *a = &x0[j - *j0], *b = &x1[j - *j0];
         *a = 1;
         *b = 0;
         if (!(xlo <= xhi))
             continue;
-        double fi0 = fmax(floor((xlo - m - u->min_x) / u->cell), 0.0);
-        double fi1 = fmin(floor((xhi + m - u->min_x) / u->cell), (double)u->nx - 1);
+        double fi0 = sl_urban_max(floor((xlo - m - u->min_x) / u->cell), 0.0);
+        double fi1 = sl_urban_min(floor((xhi + m - u->min_x) / u->cell), (double)u->nx - 1);
         if (fi0 <= fi1) {
             *a = (int32_t)fi0;
             *b = (int32_t)fi1;
@@ -685,8 +685,8 @@ void sl_urban_exclude(const sl_urban_scene *u, const sl_urban_view *v, uint32_t 
     const double ex = v->eye[0], ey = v->eye[1], ez = v->eye[2];
     double fi = floor((ex - u->min_x) / u->cell), fj = floor((ey - u->min_y) / u->cell);
     double r = ceil(g / u->cell) + 1;
-    double i0 = fmax(fi - r, 0), i1 = fmin(fi + r, (double)u->nx - 1);
-    double j0 = fmax(fj - r, 0), j1 = fmin(fj + r, (double)u->ny - 1);
+    double i0 = sl_urban_max(fi - r, 0), i1 = sl_urban_min(fi + r, (double)u->nx - 1);
+    double j0 = sl_urban_max(fj - r, 0), j1 = sl_urban_min(fj + r, (double)u->ny - 1);
     if (!(i0 <= i1) || !(j0 <= j1))
         return;
     for (uint32_t j = (uint32_t)j0; j <= (uint32_t)j1; j++)
@@ -749,13 +749,18 @@ uint32_t sl_urban_chain_step(const sl_urban_scene *u, uint32_t e, int mode, int 
     bool succ = (mode > 0) == (dir > 0);
     uint32_t cand[3] = {succ ? ed->next : ed->prev, succ ? ed->alt_next[0] : ed->alt_prev[0],
                         succ ? ed->alt_next[1] : ed->alt_prev[1]};
+    uint32_t ok[3], nok = 0;
+    for (int k = 0; k < 3; k++)
+        if (cand[k] != SL_NONE && cand[k] != e &&
+            sl_urban_edge_mode_cached(u, cand[k], v, excluded, frame, cache) == mode)
+            ok[nok++] = cand[k];
+    if (nok < 2)
+        return nok ? ok[0] : SL_NONE; /* no choice to make */
     double dex = (ed->bx - ed->ax) * mode, dey = (ed->by - ed->ay) * mode;
     uint32_t best = SL_NONE;
     double best_turn = INFINITY;
-    for (int k = 0; k < 3; k++) {
-        uint32_t c = cand[k];
-        if (c == SL_NONE || c == e || sl_urban_edge_mode_cached(u, c, v, excluded, frame, cache) != mode)
-            continue;
+    for (uint32_t k = 0; k < nok; k++) {
+        uint32_t c = ok[k];
         const sl_urban_edge *cd = &u->edges[c];
         double dcx = (cd->bx - cd->ax) * mode, dcy = (cd->by - cd->ay) * mode;
         /* the turn from the earlier to the later edge of the pair; the rightmost one traces the
@@ -815,7 +820,7 @@ void sl_urban_rect_dist(const double eye[3], double x0, double y0, double x1, do
     double ex = eye[0], ey = eye[1];
     double dx = ex < x0 ? x0 - ex : (ex > x1 ? ex - x1 : 0), dy = ey < y0 ? y0 - ey : (ey > y1 ? ey - y1 : 0);
     *dmin = sqrt(dx * dx + dy * dy);
-    double fx = fmax(fabs(ex - x0), fabs(ex - x1)), fy = fmax(fabs(ey - y0), fabs(ey - y1));
+    double fx = sl_urban_max(fabs(ex - x0), fabs(ex - x1)), fy = sl_urban_max(fabs(ey - y0), fabs(ey - y1));
     *dmax = sqrt(fx * fx + fy * fy);
 }
 
@@ -909,9 +914,9 @@ static void tree_update(sl_horizon *h, uint32_t k0, uint32_t k1)
     uint32_t l = (k0 + h->n) >> 1, r = (k1 + h->n) >> 1;
     while (l >= 1) {
         for (uint32_t i = l; i <= r; i++) {
-            h->hmin[i] = fminf(h->hmin[2 * i], h->hmin[2 * i + 1]);
-            h->hmax[i] = fmaxf(h->hmax[2 * i], h->hmax[2 * i + 1]);
-            h->hbot[i] = fmaxf(h->hbot[2 * i], h->hbot[2 * i + 1]);
+            h->hmin[i] = sl_urban_minf(h->hmin[2 * i], h->hmin[2 * i + 1]);
+            h->hmax[i] = sl_urban_maxf(h->hmax[2 * i], h->hmax[2 * i + 1]);
+            h->hbot[i] = sl_urban_maxf(h->hbot[2 * i], h->hbot[2 * i + 1]);
         }
         if (l == 1)
             break;
@@ -980,8 +985,8 @@ static void seg_bounds(const seg_ctx *c, double t0, double t1, float *top, float
     }
     double x0 = c->ax + t0 * c->dx, y0 = c->ay + t0 * c->dy, x1 = c->ax + t1 * c->dx, y1 = c->ay + t1 * c->dy;
     double d0 = sqrt(x0 * x0 + y0 * y0), d1 = sqrt(x1 * x1 + y1 * y1);
-    double dmax = fmax(d0, d1), dmin = c->tfoot > t0 && c->tfoot < t1 ? c->dfoot : fmin(d0, d1);
-    double zmin = fmin(c->az + t0 * c->dz, c->az + t1 * c->dz);
+    double dmax = sl_urban_max(d0, d1), dmin = c->tfoot > t0 && c->tfoot < t1 ? c->dfoot : sl_urban_min(d0, d1);
+    double zmin = sl_urban_min(c->az + t0 * c->dz, c->az + t1 * c->dz);
     double top_s = sl_urban_slope_lo(zmin, c->ez, dmin, dmax);
     *top = float_down(top_s - 1e-7 * (1 + fabs(top_s)));
     if (c->base == -INFINITY)
@@ -999,8 +1004,8 @@ static void partial(sl_horizon *h, uint32_t k, double x0, double x1, float v, fl
     if (x0 <= lo) { /* a left part */
         if (x1 > h->lx[k]) {
             if (h->lx[k] >= lo && x0 <= h->lx[k]) { /* overlaps the old one: extend */
-                h->lv[k] = fminf(h->lv[k], v);
-                h->lb[k] = fmaxf(h->lb[k], b);
+                h->lv[k] = sl_urban_minf(h->lv[k], v);
+                h->lb[k] = sl_urban_maxf(h->lb[k], b);
             } else {
                 h->lv[k] = v;
                 h->lb[k] = b;
@@ -1010,8 +1015,8 @@ static void partial(sl_horizon *h, uint32_t k, double x0, double x1, float v, fl
     } else if (x1 >= hi) { /* a right part */
         if (x0 < h->rx[k]) {
             if (h->rx[k] <= hi && x1 >= h->rx[k]) {
-                h->rv[k] = fminf(h->rv[k], v);
-                h->rb[k] = fmaxf(h->rb[k], b);
+                h->rv[k] = sl_urban_minf(h->rv[k], v);
+                h->rb[k] = sl_urban_maxf(h->rb[k], b);
             } else {
                 h->rv[k] = v;
                 h->rb[k] = b;
@@ -1021,17 +1026,17 @@ static void partial(sl_horizon *h, uint32_t k, double x0, double x1, float v, fl
     } else { /* strictly inside: it can only extend a left or a right part it touches */
         if (h->lx[k] >= lo && x0 <= h->lx[k] && x1 > h->lx[k]) {
             h->lx[k] = x1;
-            h->lv[k] = fminf(h->lv[k], v);
-            h->lb[k] = fmaxf(h->lb[k], b);
+            h->lv[k] = sl_urban_minf(h->lv[k], v);
+            h->lb[k] = sl_urban_maxf(h->lb[k], b);
         }
         if (h->rx[k] <= hi && x1 >= h->rx[k] && x0 < h->rx[k]) {
             h->rx[k] = x0;
-            h->rv[k] = fminf(h->rv[k], v);
-            h->rb[k] = fmaxf(h->rb[k], b);
+            h->rv[k] = sl_urban_minf(h->rv[k], v);
+            h->rb[k] = sl_urban_maxf(h->rb[k], b);
         }
     }
     if (h->lx[k] >= lo && h->rx[k] <= hi && h->lx[k] >= h->rx[k]) {
-        if (leaf_raise(h, k, fminf(h->lv[k], h->rv[k]), fmaxf(h->lb[k], h->rb[k])))
+        if (leaf_raise(h, k, sl_urban_minf(h->lv[k], h->rv[k]), sl_urban_maxf(h->lb[k], h->rb[k])))
             tree_update(h, k, k);
     }
 }
@@ -1046,7 +1051,7 @@ static void insert_range(sl_horizon *h, const seg_ctx *c, double lo, double hi, 
         k0 = h->n - 1;
     if (k1 > h->n)
         k1 = h->n;
-    double tlo = fmin(ta, tb), thi = fmax(ta, tb);
+    double tlo = sl_urban_min(ta, tb), thi = sl_urban_max(ta, tb);
     float v, b;
     if (k0 == k1 || (k1 == k0 + 1 && hi == k1 * w && lo > k0 * w)) {
         /* within one bin */
@@ -1197,7 +1202,7 @@ double sl_horizon_max_before(const sl_horizon *h, double a0, double span, double
             const float *hd = h->hist_d + (size_t)k * SL_HORIZON_STEPS, *hv = h->hist_v + (size_t)k * SL_HORIZON_STEPS;
             for (uint32_t m = h->hist_n[k]; m > 0; m--)
                 if ((double)hd[m - 1] <= d) {
-                    mx = fmaxf(mx, hv[m - 1]);
+                    mx = sl_urban_maxf(mx, hv[m - 1]);
                     break;
                 }
         }
@@ -1213,14 +1218,14 @@ void sl_horizon_range(const sl_horizon *h, double a0, double span, double *min_h
         uint32_t l = r[q][0] + h->n, rr = r[q][1] + h->n + 1;
         while (l < rr) {
             if (l & 1) {
-                mn = fminf(mn, h->hmin[l]);
-                mb = fmaxf(mb, h->hbot[l]);
+                mn = sl_urban_minf(mn, h->hmin[l]);
+                mb = sl_urban_maxf(mb, h->hbot[l]);
                 l++;
             }
             if (rr & 1) {
                 rr--;
-                mn = fminf(mn, h->hmin[rr]);
-                mb = fmaxf(mb, h->hbot[rr]);
+                mn = sl_urban_minf(mn, h->hmin[rr]);
+                mb = sl_urban_maxf(mb, h->hbot[rr]);
             }
             l >>= 1;
             rr >>= 1;
@@ -1239,9 +1244,9 @@ double sl_horizon_max(const sl_horizon *h, double a0, double span)
         uint32_t l = r[q][0] + h->n, rr = r[q][1] + h->n + 1;
         while (l < rr) {
             if (l & 1)
-                mx = fmaxf(mx, h->hmax[l++]);
+                mx = sl_urban_maxf(mx, h->hmax[l++]);
             if (rr & 1)
-                mx = fmaxf(mx, h->hmax[--rr]);
+                mx = sl_urban_maxf(mx, h->hmax[--rr]);
             l >>= 1;
             rr >>= 1;
         }
@@ -1290,11 +1295,9 @@ void sl_urban_heap_push(sl_urban_heap *h, float key, uint32_t val)
     h->val[i] = val;
 }
 
-uint32_t sl_urban_heap_pop(sl_urban_heap *h)
+/* Move (key, val) down from slot i to its place. */
+static void heap_sift_down(sl_urban_heap *h, uint32_t i, float key, uint32_t val)
 {
-    uint32_t top = h->val[0];
-    float key = h->key[--h->n];
-    uint32_t val = h->val[h->n], i = 0;
     for (;;) {
         uint32_t c = 2 * i + 1;
         if (c >= h->n)
@@ -1307,10 +1310,23 @@ uint32_t sl_urban_heap_pop(sl_urban_heap *h)
         h->val[i] = h->val[c];
         i = c;
     }
-    if (h->n) {
-        h->key[i] = key;
-        h->val[i] = val;
-    }
+    h->key[i] = key;
+    h->val[i] = val;
+}
+
+void sl_urban_heap_build(sl_urban_heap *h)
+{
+    for (uint32_t i = h->n / 2; i > 0; i--)
+        heap_sift_down(h, i - 1, h->key[i - 1], h->val[i - 1]);
+}
+
+uint32_t sl_urban_heap_pop(sl_urban_heap *h)
+{
+    uint32_t top = h->val[0];
+    float key = h->key[--h->n];
+    uint32_t val = h->val[h->n];
+    if (h->n)
+        heap_sift_down(h, 0, key, val);
     return top;
 }
 

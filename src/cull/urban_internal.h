@@ -184,6 +184,13 @@ uint32_t sl_urban_chain_step(const sl_urban_scene *u, uint32_t e, int mode, int 
 /* Plan distance from the eye to segment (x0,y0)-(x1,y1). */
 double sl_urban_seg_dist(const sl_urban_view *v, double x0, double y0, double x1, double y1);
 
+/* fmin/fmax without the libm call (they are not inlined without -ffast-math), with their NaN rule:
+ * a NaN argument yields the other one. */
+static inline float sl_urban_minf(float a, float b) { return (b < a || a != a) ? b : a; }
+static inline float sl_urban_maxf(float a, float b) { return (b > a || a != a) ? b : a; }
+static inline double sl_urban_min(double a, double b) { return (b < a || a != a) ? b : a; }
+static inline double sl_urban_max(double a, double b) { return (b > a || a != a) ? b : a; }
+
 /* ===== polar helpers ============================================================================ */
 
 /* Pseudo-azimuth (the "diamond angle") of direction (dx, dy): a strictly increasing function of
@@ -210,7 +217,10 @@ static inline void sl_urban_paz_dir(double p, double *dx, double *dy)
 /* p wrapped into [0, 4). */
 static inline double sl_urban_paz_wrap(double p)
 {
-    p = fmod(p, SL_URBAN_CIRCLE);
+    if (!(p >= -SL_URBAN_CIRCLE && p < 2 * SL_URBAN_CIRCLE)) /* (sums and differences stay within) */
+        p = fmod(p, SL_URBAN_CIRCLE);
+    else if (p >= SL_URBAN_CIRCLE)
+        p -= SL_URBAN_CIRCLE; /* exact, as fmod */
     if (p < 0)
         p += SL_URBAN_CIRCLE;
     return p >= SL_URBAN_CIRCLE ? 0.0 : p;
@@ -297,6 +307,8 @@ sl_status sl_urban_heap_init(sl_urban_heap *h, uint32_t cap, const sl_allocator 
 void sl_urban_heap_free(sl_urban_heap *h, const sl_allocator *a);
 /* Push (the capacity is never exceeded by the sweeps: each entry is pushed once per frame). */
 void sl_urban_heap_push(sl_urban_heap *h, float key, uint32_t val);
+/* Make a heap of the n entries stored in key[0..n), val[0..n) in any order (in linear time). */
+void sl_urban_heap_build(sl_urban_heap *h);
 /* Pop the smallest key. */
 uint32_t sl_urban_heap_pop(sl_urban_heap *h);
 
@@ -314,7 +326,8 @@ typedef struct sl_urban_sweep {
     uint32_t *fp_excluded;      /* per footprint: frame when excluded */
     sl_urban_mode_cache modes;  /* per edge: how it serves this frame */
     /* the frontier of the last sweep (dhorizon): the nodes where it stopped, each with how (see
-     * SL_FRONT_*), tiling the grid; front[cur] is being written, front[cur ^ 1] is the last one */
+     * SL_FRONT_*), tiling the grid less its empty nodes; front[cur] is being written, front[cur ^ 1]
+     * is the last one */
     uint32_t *front[2];
     uint32_t front_count[2];
     uint32_t *sort_scratch;

@@ -67,6 +67,15 @@ typedef struct sl_cullmap_grid {
      * coarser map's) and the block's highest point; a block whose value reaches its top is
      * skipped like a saturated one */
     const float *block_z, *block_top;
+    /* optional (NULL: off), with top: the unsaturated cells as bits, so that the rasterizer visits
+     * only those (a cell is unsaturated while its value is below its top). row_bits: per row,
+     * words 64-bit words, bit i set when cell i of the row is unsaturated; band_bits: the same per
+     * band of 2^block_shift rows (bit i: some cell of column i in the band is unsaturated);
+     * band_count: per band and column (nx per band), how many. Valid on the clip's cells (zero
+     * elsewhere); sl_cullmap_clear sets them up there (the caller zeroes them first). */
+    uint64_t *row_bits, *band_bits;
+    uint8_t *band_count;
+    uint32_t words;
     /* optional partial coverage (NULL part: off): a cell straddling the silhouette ray of a shadow
      * records the part of its azimuth range that the shadow covers (an entry per cell, valid when
      * its stamp equals the map's); when the shadows of different occluders together cover the cell,
@@ -103,7 +112,8 @@ uint64_t sl_cullmap_raster_wedge(sl_cullmap_grid *map, const double eye[3], cons
                                  uint32_t self, const sl_cullmap_clip *clip);
 
 /* Set z to -INFINITY on the clip's cells (and count the unsaturated cells per block when the map
- * has top; the blocks touching the clip must have been zeroed by the caller). */
+ * has top, and set their bits when it has row_bits; the blocks, bands and rows touching the clip
+ * must have been zeroed by the caller). */
 void sl_cullmap_clear(sl_cullmap_grid *map, const sl_cullmap_clip *clip);
 
 /* dst = min(dst, src) cell by cell on the clip's cells (the from-region merge over sample points:
