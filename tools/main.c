@@ -15,6 +15,7 @@ static const sl_command commands[] = {
     {"render", sl_cmd_render, "write id, depth, overdraw (and cull map) images for a camera or a path"},
     {"radar", sl_cmd_radar, "radar echo image of a terrain from a transmitter (occlusion horizon sweep)"},
     {"pvs", sl_cmd_pvs, "from-region visibility: pvs build | info | query | verify"},
+    {"occlusion", sl_cmd_occlusion, "debugging of the occlusion methods: occlusion replay FILE (a recorded frame)"},
     {"demo", sl_cmd_demo, "generate the default city, run the walkthrough and write a report"},
 };
 

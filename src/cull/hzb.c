@@ -16,9 +16,9 @@
  *     rebuilt after every `refresh` such occluders. A stale pyramid is still conservative: every
  *     state of the buffer during a frame bounds the depth of occluders that stay valid all frame.
  *     An object whose box looks visible is then tested by its own triangles (sl_occ_object_hidden):
- *     rasterized outward-conservatively (at most `mesh_test` triangles), then sampled at the pixel
- *     centres the oracle samples (at most `sample_tris` triangles, box rectangle of at most
- *     `sample_px` pixels), which drops objects hidden behind occluders that do not cover their
+ *     sampled at the pixel centres the oracle samples (at most `sample_tris` triangles, box
+ *     rectangle of at most `sample_px` pixels), then rasterized outward-conservatively (at most
+ *     `mesh_test` triangles); hidden by either is hidden. The sampling drops objects hidden behind occluders that do not cover their
  *     whole box and objects that cover no pixel centre at all (far lamps, trees, cars). Visible
  *     proxies of quality below min_quality (small, mostly far) go to a second buffer
  *     (`far_layer`): merged into the main one, their far depths would dilute the partial layers

@@ -1316,7 +1316,7 @@ static void render_mesh(sl_occ_raster *r, const struct sl_scene_t *sc, const sl_
 #define SAMPLED_VERTEX_CACHE 256
 
 
-static sl_occ_screen_vertex project_vertex(const sl_occ_view *v, const double m[16], const float *p)
+static inline sl_occ_screen_vertex project_vertex(const sl_occ_view *v, const double m[16], const float *p)
 {
     sl_occ_screen_vertex o = {0, 0, 0, false, false};
     double cl[4];
@@ -1332,6 +1332,8 @@ static sl_occ_screen_vertex project_vertex(const sl_occ_view *v, const double m[
     o.ok = true;
     return o;
 }
+
+static inline double maxd(double a, double b) { return a > b ? a : b; }
 
 /* Render a MESH proxy (an object's own triangles, two-sided) so that it covers only pixel centres
  * the oracle gives to it: each triangle is projected in double precision, shrunk on screen by
@@ -1372,9 +1374,16 @@ static void render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, co
             continue;
         double ax = sx[1] - sx[2], ay = sy[1] - sy[2], bx = sx[2] - sx[0], by = sy[2] - sy[0];
         double cx = sx[0] - sx[1], cy = sy[0] - sy[1];
+        double area2 = fabs((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]));
+        /* most far triangles are too thin: the perimeter is at least twice the longest edge, at
+         * least twice its largest coordinate difference, so inradius <= area2 / (2 * that); with a
+         * relative margin far above the rounding below, such a triangle is dropped by the exact
+         * test too, and the square roots are skipped */
+        double span = maxd(maxd(maxd(fabs(ax), fabs(ay)), maxd(fabs(bx), fabs(by))), maxd(fabs(cx), fabs(cy)));
+        if (area2 <= 2.0 * eps * span * (1.0 - 1e-9))
+            continue;
         double la = sqrt(ax * ax + ay * ay), lb = sqrt(bx * bx + by * by), lc = sqrt(cx * cx + cy * cy);
         double per = la + lb + lc;
-        double area2 = fabs((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]));
         double inr = per > 0 ? area2 / per : 0; /* inradius = area / semi-perimeter */
         if (!(inr > eps) || !isfinite(inr) || !(dfar > 0))
             continue;
@@ -1476,19 +1485,29 @@ typedef struct sampled_test {
     float *proven;
 } sampled_test;
 
+/* Is every pixel of [x0, x1) x [y0, y1) hidden at depth d in one layer? The rasterizer's rectangle
+ * test is monotone in the pixel set (a subtile that hides a set of pixels hides each subset), so a
+ * rectangle hidden in a layer proves each of its pixels hidden there: the per-pixel answers below
+ * are unchanged, only fewer queries are made. */
+static bool rect_hidden(sampled_test *t, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d)
+{
+    for (uint32_t l = 0; l < t->layer_count; l++)
+        if (t->layers[l]->occluders_rendered &&
+            sl_occ_raster_test(t->layers[l], x0, y0, x1, y1, d) != SL_RASTER_VISIBLE)
+            return true;
+    return false;
+}
+
 /* Is pixel (x, y) hidden at depth d in some layer? Remembers the answer. */
 static bool sample_hidden(sampled_test *t, int32_t x, int32_t y, float d)
 {
     float *p = t->proven + (size_t)(y - t->y0) * (size_t)t->w + (size_t)(x - t->x0);
     if (d <= *p)
         return true; /* hidden at a nearer depth already */
-    for (uint32_t l = 0; l < t->layer_count; l++)
-        if (t->layers[l]->occluders_rendered &&
-            sl_occ_raster_test(t->layers[l], x, y, x + 1, y + 1, d) != SL_RASTER_VISIBLE) {
-            *p = d;
-            return true;
-        }
-    return false;
+    if (!rect_hidden(t, x, y, x + 1, y + 1, d))
+        return false;
+    *p = d;
+    return true;
 }
 
 /* Test the pixel centres of the rectangle that lie within SL_OCC_MIN_INSET_PX of triangle (a, b,
@@ -1526,15 +1545,27 @@ static bool sample_triangle(sampled_test *t, const double *a, const double *b, c
         /* inside or within eps: cross(e, s - p) >= -eps |e| (edges counter-clockwise) */
         lim[i] = -eps * sqrt(ex[i] * ex[i] + ey[i] * ey[i]) + ex[i] * p[1] - ey[i] * p[0];
     }
-    for (int32_t y = (int32_t)fy0; y <= (int32_t)fy1; y++) {
+    /* one query for the centres' bounding rectangle, then one per row's span of centres inside
+     * (an interval: the grown triangle is convex), then pixel by pixel where those cannot tell */
+    int32_t px0 = (int32_t)fx0, px1 = (int32_t)fx1, py0 = (int32_t)fy0, py1 = (int32_t)fy1;
+    if ((px1 > px0 || py1 > py0) && rect_hidden(t, px0, py0, px1 + 1, py1 + 1, d))
+        return true;
+    for (int32_t y = py0; y <= py1; y++) {
         double sy = y + 0.5;
-        for (int32_t x = (int32_t)fx0; x <= (int32_t)fx1; x++) {
+        int32_t lo = px1 + 1, hi = px0 - 1;
+        for (int32_t x = px0; x <= px1; x++) {
             double sx = x + 0.5;
-            bool in = thin || (ex[0] * sy - ey[0] * sx >= lim[0] && ex[1] * sy - ey[1] * sx >= lim[1] &&
-                               ex[2] * sy - ey[2] * sx >= lim[2]);
-            if (in && !sample_hidden(t, x, y, d))
-                return false;
+            if (thin || (ex[0] * sy - ey[0] * sx >= lim[0] && ex[1] * sy - ey[1] * sx >= lim[1] &&
+                         ex[2] * sy - ey[2] * sx >= lim[2])) {
+                lo = x < lo ? x : lo;
+                hi = x;
+            }
         }
+        if (hi > lo && py1 > py0 && rect_hidden(t, lo, y, hi + 1, y + 1, d))
+            continue;
+        for (int32_t x = lo; x <= hi; x++)
+            if (!sample_hidden(t, x, y, d))
+                return false;
     }
     return true;
 }
@@ -1562,27 +1593,29 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
         memset(have, 0, mr->vertex_count * sizeof have[0]);
     layers[0]->queries++;
     for (uint32_t k = 0; k < mr->triangle_count; k++) {
-        sl_occ_screen_vertex tv[3];
+        sl_occ_screen_vertex own[3];
+        const sl_occ_screen_vertex *tv[3]; /* pointers: no copies of the cached vertices */
         for (int j = 0; j < 3; j++) {
             uint32_t vi = idx[3 * k + (uint32_t)j];
             if (vi >= mr->vertex_count)
                 return SL_RASTER_VISIBLE;
             if (!cached) {
-                tv[j] = project_vertex(v, m, pos + 3 * (size_t)vi);
+                own[j] = project_vertex(v, m, pos + 3 * (size_t)vi);
+                tv[j] = &own[j];
             } else {
                 if (!have[vi]) {
                     cache[vi] = project_vertex(v, m, pos + 3 * (size_t)vi);
                     have[vi] = true;
                 }
-                tv[j] = cache[vi];
+                tv[j] = &cache[vi];
             }
-            if (!tv[j].ok)
+            if (!tv[j]->ok)
                 return SL_RASTER_VISIBLE;
         }
         /* the triangle's nearest depth, nudged nearer like a box's nearest corner */
-        float dmax = sl_occ_maxf(tv[0].d, sl_occ_maxf(tv[1].d, tv[2].d));
+        float dmax = sl_occ_maxf(tv[0]->d, sl_occ_maxf(tv[1]->d, tv[2]->d));
         dmax += fabsf(dmax) * (1.0f / 1048576.0f);
-        const double a[2] = {tv[0].x, tv[0].y}, b[2] = {tv[1].x, tv[1].y}, c[2] = {tv[2].x, tv[2].y};
+        const double a[2] = {tv[0]->x, tv[0]->y}, b[2] = {tv[1]->x, tv[1]->y}, c[2] = {tv[2]->x, tv[2]->y};
         if (!sample_triangle(&t, a, b, c, dmax))
             return SL_RASTER_VISIBLE;
     }
@@ -1598,16 +1631,19 @@ bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl
         return false;
     if (tests)
         (*tests)++;
+    /* the object is hidden when either test hides it; the pixel-centre test goes first (cheaper,
+     * and it answers most small objects) */
+    sl_occ_rect r;
+    if (tris <= t->sample_tris && sl_occ_project_box(v, box, &r) == SL_OCC_RECT &&
+        (int64_t)(r.x1 - r.x0) * (r.y1 - r.y0) <= t->sample_px &&
+        sl_occ_test_object_sampled(layers, layer_count, scene, v, object, &r) != SL_RASTER_VISIBLE)
+        return true;
     if (tris <= t->mesh_test)
         for (uint32_t l = 0; l < layer_count; l++)
             if (layers[l]->occluders_rendered &&
                 sl_occ_raster_test_object(layers[l], scene, v, object) != SL_RASTER_VISIBLE)
                 return true;
-    sl_occ_rect r;
-    if (tris > t->sample_tris || sl_occ_project_box(v, box, &r) != SL_OCC_RECT ||
-        (int64_t)(r.x1 - r.x0) * (r.y1 - r.y0) > t->sample_px)
-        return false;
-    return sl_occ_test_object_sampled(layers, layer_count, scene, v, object, &r) != SL_RASTER_VISIBLE;
+    return false;
 }
 
 sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err)

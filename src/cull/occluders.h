@@ -384,10 +384,12 @@ typedef struct sl_occ_mesh_tests {
 /* Read mesh_test, sample_tris and sample_px. */
 sl_status sl_occ_configure_mesh_tests(sl_opts *o, sl_occ_mesh_tests *t, sl_error *err);
 
-/* Is an object whose box looks visible hidden by its own triangles? Tried in this order, as
- * configured by t: the outward-conservative mesh query in each layer, then the pixel-centre test
- * (sl_occ_test_object_sampled) over all the layers. False when the eye is in its box. *tests
- * (may be NULL) counts the objects tested. */
+/* Is an object whose box looks visible hidden by its own triangles? Hidden when either test, as
+ * configured by t, hides it: the pixel-centre test (sl_occ_test_object_sampled) over all the
+ * layers, tried first (cheaper, and it answers most of the small objects it applies to), then the
+ * outward-conservative mesh query in each layer. Queries leave the buffers unchanged, so the
+ * order changes the cost, never the answer. False when the eye is in its box. *tests (may be
+ * NULL) counts the objects tested. */
 bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene, const sl_occ_view *v,
                           uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t, uint64_t *tests);
 /* End a frame: on the debug frame, write the recording and the dumps (the pyramid given as
