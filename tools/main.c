@@ -25,7 +25,7 @@ static void usage(FILE *out)
                  "Sightline %s: visibility culling for large 3D scenes.\n\ncommands:\n",
             sl_version_string());
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-        fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
+        fprintf(out, "  %-9s %s\n", commands[i].name, commands[i].summary);
 }
 
 int main(int argc, char **argv)
