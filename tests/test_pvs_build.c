@@ -3,7 +3,8 @@
  * and the oracle agrees nothing visible is lost; an object seen through a gap is kept; the bake
  * is byte-identical with 1 and 2 threads; a stopped bake resumes to the same bytes, also from a
  * torn journal; a journal of another bake is refused; the pvs culler keeps every object the point
- * oracle sees; the tiny city has zero misses against the region oracle. */
+ * oracle sees; the tiny city has zero misses against the region oracle; the speed shortcuts of the
+ * adjustable and sample methods (hierarchical disks, view channels) keep the sets conservative. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -115,7 +116,8 @@ static bool bake_and_check(sl_scene s, sl_viewcells vc, uint32_t target, const c
 static void test_fusion(void **state)
 {
     (void)state;
-    const char *opts = "eps=0.5,cell=0.5,map=64";
+    /* prefilter off: the cases test the cull maps' fusion, not the adjustable method's */
+    const char *opts = "eps=0.5,cell=0.5,map=64,prefilter=false";
     sl_error err;
     sl_viewcells vc = one_box_cell(-1, -1, 1, 1);
 
@@ -128,7 +130,7 @@ static void test_fusion(void **state)
     uint32_t t = add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
     assert_false(bake_and_check(s, vc, t, opts));
     /* shrunk one by one, a 2 eps gap opens at the joint and the target shows through it */
-    assert_true(bake_and_check(s, vc, t, "eps=0.5,cell=0.5,map=64,merge=false"));
+    assert_true(bake_and_check(s, vc, t, "eps=0.5,cell=0.5,map=64,merge=false,prefilter=false"));
     sl_scene_destroy(s);
 
     /* (b) overlapping umbrae: A (x < 2, y = 10) and B (x > -2, y = 15); each hides part of the wide
@@ -365,6 +367,20 @@ static void test_culler(void **state)
     sl_scene_destroy(s);
 }
 
+/* A coarse region oracle for the tiny city (the tests stay short). */
+static sl_region_oracle coarse_oracle(sl_scene s)
+{
+    sl_error err;
+    sl_region_oracle_options oo = {0};
+    oo.face_size = 96;
+    oo.edge_spacing = 4;
+    oo.face_samples = 6;
+    oo.interior_samples = 6;
+    sl_region_oracle ro;
+    assert_int_equal(sl_region_oracle_create(s, &oo, NULL, &ro, &err), SL_OK);
+    return ro;
+}
+
 /* Zero misses against the region oracle on every cell of the tiny city (coarse cells). */
 static void test_tiny_city_oracle(void **state)
 {
@@ -380,13 +396,7 @@ static void test_tiny_city_oracle(void **state)
     assert_int_equal(sl_pvs_build(s, vc, file, &bo, NULL, &err), SL_OK);
     sl_pvs p;
     assert_int_equal(sl_pvs_load(file, NULL, &p, &err), SL_OK);
-    sl_region_oracle_options oo = {0};
-    oo.face_size = 96;
-    oo.edge_spacing = 4;
-    oo.face_samples = 6;
-    oo.interior_samples = 6;
-    sl_region_oracle ro;
-    assert_int_equal(sl_region_oracle_create(s, &oo, NULL, &ro, &err), SL_OK);
+    sl_region_oracle ro = coarse_oracle(s);
     uint32_t n = sl_scene_object_count(s), count, nc = sl_viewcells_count(vc);
     uint32_t *ids = malloc(n * sizeof *ids);
     uint32_t step = getenv("SL_SANITIZED") ? 12 : 3; /* a third of the cells: the test stays short */
@@ -408,6 +418,78 @@ static void test_tiny_city_oracle(void **state)
     free(ids);
     sl_region_oracle_destroy(ro);
     sl_pvs_destroy(p);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
+/* Is every id of a (ascending, n) in b (ascending, m)? */
+static bool subset_of(const uint32_t *a, uint32_t n, const uint32_t *b, uint32_t m)
+{
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        while (k < m && b[k] < a[i])
+            k++;
+        if (k >= m || b[k] != a[i])
+            return false;
+    }
+    return true;
+}
+
+/* The speed shortcuts keep the guarantee. adjustable's hierarchical disks: the result is the
+ * intersection of every level's union, so it lies inside the coarsest level's set computed alone
+ * (eps 1 * 2^top, levels=0); sample's view channels only leave occluders and map cells out, so
+ * with occluder culling off (whose skips depend on the maps) the set contains the full maps' set;
+ * with the prefilter, sample's set lies inside the adjustable set. Every set holds every object
+ * the region oracle sees. */
+static void test_shortcuts(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_viewcells vc;
+    tiny(&s, &vc, 20);
+    sl_error err;
+    sl_region_oracle ro = coarse_oracle(s);
+    uint32_t n = sl_scene_object_count(s), nc = sl_viewcells_count(vc);
+    enum { NM = 6 };
+    const char *names[NM] = {"adjustable", "adjustable", "sample", "sample", "sample", "adjustable"};
+    char coarse_opts[64];
+    const char *opts[NM] = {"eps=1,levels=2", coarse_opts, "occluder_cull=false,prefilter=false,channels=true",
+                            "occluder_cull=false,prefilter=false,channels=false", "", ""};
+    uint32_t *ids[NM], count[NM];
+    for (int m = 0; m < NM; m++)
+        ids[m] = malloc(((size_t)n + 1) * sizeof(uint32_t));
+    uint32_t cells = getenv("SL_SANITIZED") ? 2 : 6, tested = 0;
+    uint64_t fine = 0, coarse = 0;
+    for (uint32_t c = 0; c < nc && tested < cells; c += nc / cells + 1, tested++) {
+        /* the coarsest level the method uses: the first whose grid square (eps 2^l sqrt 2) covers
+         * the cell's box, at most levels (2) */
+        const sl_aabb *bb = &sl_viewcells_data(vc)[c].bounds;
+        double extent = fmax((double)bb->max.x - bb->min.x, (double)bb->max.y - bb->min.y);
+        int top = 0;
+        while (top < 2 && ldexp(1.0, top) * M_SQRT2 < extent)
+            top++;
+        snprintf(coarse_opts, sizeof coarse_opts, "eps=%g,levels=0", ldexp(1.0, top));
+        for (int m = 0; m < NM; m++)
+            assert_int_equal(sl_pvs_bake_cell(s, vc, c, names[m], opts[m], ids[m], n, &count[m], &err), SL_OK);
+        if (!subset_of(ids[0], count[0], ids[1], count[1]))
+            fail_msg("cell %u: the hierarchical adjustable set is not inside the coarse level's", c);
+        if (!subset_of(ids[3], count[3], ids[2], count[2]))
+            fail_msg("cell %u: sample with view channels lost objects of the full maps", c);
+        if (!subset_of(ids[4], count[4], ids[5], count[5]))
+            fail_msg("cell %u: sample with the prefilter keeps an object outside the adjustable set", c);
+        fine += count[0], coarse += count[1];
+        sl_region_visibility v;
+        assert_int_equal(sl_region_oracle_cell(ro, vc, c, &v, &err), SL_OK);
+        for (int m = 0; m < NM; m += 2)
+            if (!subset_of(v.visible, v.visible_count, ids[m], count[m]))
+                fail_msg("cell %u: %s (%s) misses an object the oracle sees", c, names[m], opts[m]);
+    }
+    assert_true(tested > 0);
+    /* the finer disks do cull more than the coarse level alone */
+    assert_true(fine < coarse);
+    for (int m = 0; m < NM; m++)
+        free(ids[m]);
+    sl_region_oracle_destroy(ro);
     sl_viewcells_destroy(vc);
     sl_scene_destroy(s);
 }
@@ -434,6 +516,7 @@ int main(void)
         cmocka_unit_test(test_threads_resume),
         cmocka_unit_test(test_culler),
         cmocka_unit_test(test_tiny_city_oracle),
+        cmocka_unit_test(test_shortcuts),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

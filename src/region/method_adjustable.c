@@ -27,7 +27,13 @@
  * nothing, like an occluder thinner than the shrinking.
  *
  * Footprints are split into convex pieces (GEOS triangulation, then triangles merged back while the
- * union stays convex — Hertel-Mehlhorn). Scope: PRISM and BOX cells of 2.5D scenes. */
+ * union stays convex — Hertel-Mehlhorn). Scope: PRISM and BOX cells of 2.5D scenes.
+ *
+ * Speed (adj_cell, filter_pieces): the disks are computed level by level, radius eps * 2^l from a
+ * coarse level down to eps; a level's union is valid for the whole cell, so the cell's set may be
+ * the intersection of the levels' unions, and each level only tests what the coarser one kept.
+ * Per level, occluder pieces that cannot lie in front of any remaining candidate are left out —
+ * any piece may be left out, since a lower horizon only makes a disk's set larger. */
 #include "pvs_internal.h"
 
 #include "geos_util.h"
@@ -41,6 +47,7 @@
 typedef struct adj_config {
     float eps;
     uint32_t bins;
+    uint32_t levels; /* coarser disk levels (radius eps * 2^l) that pre-filter the candidates */
 } adj_config;
 
 typedef struct piece {
@@ -61,27 +68,40 @@ typedef struct adj_shared {
     const sl_aabb *bounds;
 } adj_shared;
 
+/* A sort key: distance, then id (a total order: the result never depends on the sort). */
+typedef struct keyed {
+    double k;
+    uint32_t id;
+} keyed;
+
 typedef struct adj_worker {
     adj_shared *sh;
     float *horizon;
-    uint8_t *visible;
-    double *okey;    /* per object: r_min, id */
-    double *pkey;    /* per piece: d_far, id */
-    double *pdata;   /* per piece: lo, hi (azimuth), t (tangent bound) */
-    uint32_t *live;  /* undecided objects */
+    uint8_t *visible; /* per object, this level: seen by one of the level's disks */
+    keyed *okey;      /* per live object: r_min, id */
+    keyed *pkey;      /* per drawn piece: d_far, id */
+    double *pdata;    /* per piece: lo, hi (azimuth), t (tangent bound) */
+    uint32_t *live;   /* candidates not yet seen at this level */
+    uint32_t *cand;   /* this level's candidates: the coarser level's set, ascending */
+    uint32_t *plist;  /* pieces kept by the level's filter */
+    double *need;     /* NEED_BINS: farthest candidate reach per azimuth (the piece filter) */
+    sl_array centres; /* double[2]: the level's disk centres */
 } adj_worker;
 
 static const char g_help[] =
-    "eps=FLOAT (default 1): radius of the disks whose sets are computed (metres); disks cover the cell on a "
+    "eps=FLOAT (default 0.7): radius of the disks whose sets are computed (metres); disks cover the cell on a "
     "grid of eps*sqrt(2)\n"
-    "bins=2..65536 (default 2048): azimuth bins of the occlusion horizon\n";
+    "bins=2..65536 (default 2048): azimuth bins of the occlusion horizon\n"
+    "levels=0..8 (default 8): at most this many coarser levels of disks (radius eps*2^l) whose sets bound the "
+    "finer ones, stopping at the first whose single grid square covers the cell; 0: one level\n";
 
 static sl_status adj_configure(sl_opts *o, void *config, sl_error *err)
 {
     adj_config *c = config;
     sl_status st;
-    if ((st = sl_opts_float(o, "eps", 1.0f, 0.05f, 1000.0f, &c->eps, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "bins", 2048, 2, 65536, &c->bins, err)) != SL_OK)
+    if ((st = sl_opts_float(o, "eps", 0.7f, 0.05f, 1000.0f, &c->eps, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "bins", 2048, 2, 65536, &c->bins, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "levels", 8, 0, 8, &c->levels, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -305,6 +325,58 @@ static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *con
     return SL_OK;
 }
 
+static inline bool kless(const keyed *a, const keyed *b) { return a->k < b->k || (a->k == b->k && a->id < b->id); }
+
+static inline void kswap(keyed *a, keyed *b)
+{
+    keyed t = *a;
+    *a = *b;
+    *b = t;
+}
+
+/* In-place quicksort by (k, id). glibc's qsort allocates a buffer as large as the array on every
+ * call (page faults on fresh memory for 30,000 objects); this one allocates nothing. */
+static void sort_keyed(keyed *v, size_t n)
+{
+    while (n > 16) {
+        keyed *a = v, *b = v + n / 2, *c = v + n - 1;
+        if (kless(b, a))
+            kswap(a, b);
+        if (kless(c, b))
+            kswap(b, c);
+        if (kless(b, a))
+            kswap(a, b);
+        keyed p = *b;
+        ptrdiff_t i = -1, j = (ptrdiff_t)n;
+        for (;;) {
+            do
+                i++;
+            while (kless(&v[i], &p));
+            do
+                j--;
+            while (kless(&p, &v[j]));
+            if (i >= j)
+                break;
+            kswap(&v[i], &v[j]);
+        }
+        /* Hoare: [0, j] and [j+1, n), both non-empty; recurse on the smaller side */
+        size_t left = (size_t)j + 1;
+        if (left < n - left) {
+            sort_keyed(v, left);
+            v += left;
+            n -= left;
+        } else {
+            sort_keyed(v + left, n - left);
+            n = left;
+        }
+    }
+    for (size_t i = 1; i < n; i++)
+        for (size_t j = i; j > 0 && kless(&v[j], &v[j - 1]); j--)
+            kswap(&v[j], &v[j - 1]);
+}
+
+#define NEED_BINS 720u /* azimuth bins of the per-level piece filter */
+
 static void adj_worker_destroy(void *p)
 {
     adj_worker *w = p;
@@ -314,10 +386,14 @@ static void adj_worker_destroy(void *p)
     size_t no = (size_t)w->sh->nobj + 1, np = (size_t)w->sh->npiece + 1;
     sl_free(a, w->horizon, (size_t)w->sh->cfg.bins * sizeof(float));
     sl_free(a, w->visible, no);
-    sl_free(a, w->okey, 2 * no * sizeof(double));
-    sl_free(a, w->pkey, 2 * np * sizeof(double));
+    sl_free(a, w->okey, no * sizeof(keyed));
+    sl_free(a, w->pkey, np * sizeof(keyed));
     sl_free(a, w->pdata, 3 * np * sizeof(double));
     sl_free(a, w->live, no * sizeof(uint32_t));
+    sl_free(a, w->cand, no * sizeof(uint32_t));
+    sl_free(a, w->plist, np * sizeof(uint32_t));
+    sl_free(a, w->need, NEED_BINS * sizeof(double));
+    sl_array_free(a, &w->centres, 2 * sizeof(double));
     sl_free(a, w, sizeof *w);
 }
 
@@ -331,11 +407,15 @@ static sl_status adj_worker_create(void *shared, void **out, sl_error *err)
     size_t no = (size_t)s->nobj + 1, np = (size_t)s->npiece + 1;
     w->horizon = sl_alloc(&s->a, (size_t)s->cfg.bins * sizeof(float));
     w->visible = sl_alloc(&s->a, no);
-    w->okey = sl_alloc(&s->a, 2 * no * sizeof(double));
-    w->pkey = sl_alloc(&s->a, 2 * np * sizeof(double));
+    w->okey = sl_alloc(&s->a, no * sizeof(keyed));
+    w->pkey = sl_alloc(&s->a, np * sizeof(keyed));
     w->pdata = sl_alloc(&s->a, 3 * np * sizeof(double));
     w->live = sl_alloc(&s->a, no * sizeof(uint32_t));
-    if (!w->horizon || !w->visible || !w->okey || !w->pkey || !w->pdata || !w->live) {
+    w->cand = sl_alloc(&s->a, no * sizeof(uint32_t));
+    w->plist = sl_alloc(&s->a, np * sizeof(uint32_t));
+    w->need = sl_alloc(&s->a, NEED_BINS * sizeof(double));
+    if (!w->horizon || !w->visible || !w->okey || !w->pkey || !w->pdata || !w->live || !w->cand || !w->plist ||
+        !w->need) {
         adj_worker_destroy(w);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
     }
@@ -343,53 +423,62 @@ static sl_status adj_worker_create(void *shared, void **out, sl_error *err)
     return SL_OK;
 }
 
-static int cmp_key(const void *a, const void *b)
-{
-    const double *x = a, *y = b;
-    if (x[0] != y[0])
-        return x[0] < y[0] ? -1 : 1;
-    return (x[1] > y[1]) - (x[1] < y[1]);
-}
-
-/* Angular interval [*lo, *hi] (lo in [0, 2pi), hi - lo < pi) of points seen from c; false when c is
- * not clearly outside their hull (within `clear` of a point, or the points surround c). */
+/* Angular interval [*lo, *hi] (lo in [0, 2pi), hi - lo < pi) of points seen from c, and the
+ * points at its ends; false when c is not clearly outside their hull (some point is not in front
+ * of c relative to the points' mean direction, or c lies on one of them). The points all lie in
+ * the open half-plane in front of c, where the cross product orders directions by angle, so the
+ * two extremes come from orientation tests and only they need an atan2. */
 static bool azimuth_range(double cx, double cy, const double *p, uint32_t n, double *lo, double *hi, uint32_t *ilo,
                           uint32_t *ihi)
 {
     double mx = 0, my = 0;
     for (uint32_t i = 0; i < n; i++)
         mx += p[2 * i] - cx, my += p[2 * i + 1] - cy;
-    double ref = atan2(my, mx);
-    double a0 = INFINITY, a1 = -INFINITY;
+    uint32_t a = 0, b = 0;
+    double ax = 0, ay = 0, bx = 0, by = 0;
     for (uint32_t i = 0; i < n; i++) {
         double dx = p[2 * i] - cx, dy = p[2 * i + 1] - cy;
-        /* angle relative to the reference direction, in (-pi, pi] */
-        double rel = atan2(dx * sin(-ref) + dy * cos(-ref), dx * cos(-ref) - dy * sin(-ref));
-        if (rel < a0)
-            a0 = rel, *ilo = i;
-        if (rel > a1)
-            a1 = rel, *ihi = i;
+        if (!(mx * dx + my * dy > 0))
+            return false;
+        if (i == 0) {
+            ax = bx = dx, ay = by = dy;
+            continue;
+        }
+        if (ax * dy - ay * dx < 0) /* clockwise of the lowest so far */
+            a = i, ax = dx, ay = dy;
+        if (bx * dy - by * dx > 0) /* counter-clockwise of the highest so far */
+            b = i, bx = dx, by = dy;
     }
-    if (!(a1 - a0 < M_PI - 1e-9) || a0 <= -M_PI / 2 || a1 >= M_PI / 2)
+    double span = atan2(ax * by - ay * bx, ax * bx + ay * by);
+    if (!(span >= 0 && span < M_PI - 1e-9))
         return false;
-    double l = fmod(ref + a0 + 2 * TWO_PI, TWO_PI);
+    double l = atan2(ay, ax);
+    if (l < 0)
+        l += TWO_PI;
+    if (!(l < TWO_PI))
+        l = 0;
     *lo = l;
-    *hi = l + (a1 - a0);
+    *hi = l + span;
+    *ilo = a;
+    *ihi = b;
     return true;
 }
 
-/* One disk: mark visible every live object the disk sees. */
-static void disk(adj_worker *w, double cx, double cy, double h, uint32_t nlive)
+/* One disk of radius eps around (cx, cy) at eye height h: mark visible every live object it sees,
+ * with the pieces plist[0..npl) as occluders. Leaving pieces out only lowers the horizon, so any
+ * subset of the pieces gives a superset of the disk's set (still conservative). */
+static void disk(adj_worker *w, double cx, double cy, double h, double eps, uint32_t nlive, uint32_t npl)
 {
     adj_shared *s = w->sh;
-    const double eps = s->cfg.eps;
     const uint32_t nb = s->cfg.bins;
     const double bw = TWO_PI / nb;
+    keyed *pkey = w->pkey, *okey = w->okey;
     for (uint32_t b = 0; b < nb; b++)
         w->horizon[b] = -INFINITY;
     /* occluder pieces: shrunk intervals and tangent bounds, sorted by the far distance */
     uint32_t np = 0;
-    for (uint32_t k = 0; k < s->npiece; k++) {
+    for (uint32_t q = 0; q < npl; q++) {
+        uint32_t k = w->plist[q];
         const piece *pc = &s->pieces[k];
         const double *v = s->xy + 2 * (size_t)pc->first;
         double lo, hi;
@@ -414,37 +503,38 @@ static void disk(adj_worker *w, double cx, double cy, double h, uint32_t nlive)
             continue;
         double dfar = fmax(ca, cb);
         double tb = pc->roof > h ? (pc->roof - h) / (dfar + eps) : (pc->roof - h) / (dnear - eps);
-        w->pkey[2 * np] = dfar;
-        w->pkey[2 * np + 1] = k;
+        pkey[np].k = dfar;
+        pkey[np].id = k;
         w->pdata[3 * (size_t)k] = lo;
         w->pdata[3 * (size_t)k + 1] = hi;
         w->pdata[3 * (size_t)k + 2] = tb;
         np++;
     }
-    qsort(w->pkey, np, 2 * sizeof(double), cmp_key);
+    sort_keyed(pkey, np);
     /* live objects sorted by their nearest distance */
     for (uint32_t i = 0; i < nlive; i++) {
         const sl_aabb *b = &s->bounds[w->live[i]];
         double dx = fmax(0.0, fmax(b->min.x - cx, cx - b->max.x)), dy = fmax(0.0, fmax(b->min.y - cy, cy - b->max.y));
-        w->okey[2 * i] = hypot(dx, dy);
-        w->okey[2 * i + 1] = w->live[i];
+        okey[i].k = hypot(dx, dy);
+        okey[i].id = w->live[i];
     }
-    qsort(w->okey, nlive, 2 * sizeof(double), cmp_key);
+    sort_keyed(okey, nlive);
     uint32_t next = 0;
     for (uint32_t i = 0; i < nlive; i++) {
-        double rmin = w->okey[2 * i];
-        uint32_t o = (uint32_t)w->okey[2 * i + 1];
+        double rmin = okey[i].k;
+        uint32_t o = okey[i].id;
         if (w->visible[o])
             continue;
         /* pieces wholly nearer than the object (with the disk's slack) join the horizon */
-        while (next < np && w->pkey[2 * next] + 2 * eps <= rmin - 1e-9) {
-            uint32_t k = (uint32_t)w->pkey[2 * next + 1];
+        while (next < np && pkey[next].k + 2 * eps <= rmin - 1e-9) {
+            uint32_t k = pkey[next].id;
             double lo = w->pdata[3 * (size_t)k], hi = w->pdata[3 * (size_t)k + 1];
             float tb = (float)w->pdata[3 * (size_t)k + 2];
             /* bins wholly inside [lo, hi] (hi may pass 2 pi: wrap) */
             int64_t b0 = (int64_t)ceil(lo / bw - 1e-12), b1 = (int64_t)floor(hi / bw + 1e-12) - 1;
+            /* b0 >= 0 and b1 < 2 nb (lo < 2 pi + pi/2, hi - lo < pi): one subtraction wraps */
             for (int64_t b = b0; b <= b1; b++) {
-                float *hz = &w->horizon[(uint32_t)(b % nb)];
+                float *hz = &w->horizon[b >= (int64_t)nb ? b - nb : b];
                 if (tb > *hz)
                     *hz = tb;
             }
@@ -469,19 +559,136 @@ static void disk(adj_worker *w, double cx, double cy, double h, uint32_t nlive)
         int64_t b0 = (int64_t)floor(lo / bw), b1 = (int64_t)floor(hi / bw);
         bool hidden = true;
         for (int64_t q = b0; q <= b1 && hidden; q++)
-            hidden = (double)w->horizon[(uint32_t)(q % nb)] >= tobj;
+            hidden = (double)w->horizon[q >= (int64_t)nb ? q - nb : q] >= tobj;
         if (!hidden)
             w->visible[o] = 1;
     }
 }
 
+/* Does the square [x, x1] x [y, y1] meet the convex counter-clockwise polygon (separating axes)? */
+static bool square_meets_poly(const double *poly, int n, double x, double y, double x1, double y1)
+{
+    double px0 = INFINITY, px1 = -INFINITY, py0 = INFINITY, py1 = -INFINITY;
+    for (int i = 0; i < n; i++) {
+        px0 = fmin(px0, poly[2 * i]), px1 = fmax(px1, poly[2 * i]);
+        py0 = fmin(py0, poly[2 * i + 1]), py1 = fmax(py1, poly[2 * i + 1]);
+    }
+    if (px1 < x || px0 > x1 || py1 < y || py0 > y1)
+        return false;
+    const double sq[4][2] = {{x, y}, {x1, y}, {x1, y1}, {x, y1}};
+    for (int i = 0; i < n; i++) {
+        const double *a = poly + 2 * i, *b = poly + 2 * ((i + 1) % n);
+        bool out_all = true;
+        for (int c = 0; c < 4 && out_all; c++)
+            out_all = sl_orient2d(a[0], a[1], b[0], b[1], sq[c][0], sq[c][1]) < 0;
+        if (out_all)
+            return false;
+    }
+    return true;
+}
+
+/* Mark bins [lo, hi] (radians, hi may pass 2 pi) of a NEED_BINS circle with max(need, v). */
+static void need_mark(double *need, double lo, double hi, double v)
+{
+    const double bw = TWO_PI / NEED_BINS;
+    int64_t b0 = (int64_t)floor(lo / bw), b1 = (int64_t)floor(hi / bw);
+    if (b1 - b0 >= (int64_t)NEED_BINS)
+        b1 = b0 + NEED_BINS - 1;
+    for (int64_t b = b0; b <= b1; b++) {
+        double *n = &need[((b % NEED_BINS) + NEED_BINS) % NEED_BINS];
+        if (v > *n)
+            *n = v;
+    }
+}
+
+/* The pieces worth drawing for the disks centred within rc of (ox, oy), given the candidate
+ * objects cand[0..nc): a piece is kept when, in some direction where it lies, a candidate lies
+ * farther. Both azimuth intervals are widened by what moving the eye rc can change them
+ * (asin(rc / distance)), distances are moved by rc. This is a speed filter only: a piece left out
+ * lowers the horizon, which can only make a disk's set larger, never smaller. */
+static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, double eps, uint32_t nc)
+{
+    adj_shared *s = w->sh;
+    double *need = w->need, all = -INFINITY;
+    for (uint32_t b = 0; b < NEED_BINS; b++)
+        need[b] = -INFINITY;
+    for (uint32_t i = 0; i < nc; i++) {
+        const sl_aabb *b = &s->bounds[w->cand[i]];
+        double dx = fmax(0.0, fmax(b->min.x - ox, ox - b->max.x)), dy = fmax(0.0, fmax(b->min.y - oy, oy - b->max.y));
+        double d = hypot(dx, dy), reach = d + rc;
+        double corners[8] = {b->min.x, b->min.y, b->max.x, b->min.y, b->max.x, b->max.y, b->min.x, b->max.y};
+        double lo, hi;
+        uint32_t ia, ib;
+        if (!(d > 2 * rc) || !azimuth_range(ox, oy, corners, 4, &lo, &hi, &ia, &ib)) {
+            all = fmax(all, reach);
+            continue;
+        }
+        double widen = asin(rc / d);
+        need_mark(need, lo - widen + TWO_PI, hi + widen + TWO_PI, reach);
+    }
+    uint32_t npl = 0;
+    for (uint32_t k = 0; k < s->npiece; k++) {
+        const piece *pc = &s->pieces[k];
+        const double *v = s->xy + 2 * (size_t)pc->first;
+        double near = INFINITY;
+        for (uint32_t i = 0; i < pc->count; i++)
+            near = fmin(near, hypot(v[2 * i] - ox, v[2 * i + 1] - oy));
+        /* the pieces' nearest point may be on an edge: the vertices' minimum is within the
+         * piece's own extent of it, so only a lower bound is wanted here: use the box distance */
+        double px0 = INFINITY, px1 = -INFINITY, py0 = INFINITY, py1 = -INFINITY;
+        for (uint32_t i = 0; i < pc->count; i++) {
+            px0 = fmin(px0, v[2 * i]), px1 = fmax(px1, v[2 * i]);
+            py0 = fmin(py0, v[2 * i + 1]), py1 = fmax(py1, v[2 * i + 1]);
+        }
+        double dx = fmax(0.0, fmax(px0 - ox, ox - px1)), dy = fmax(0.0, fmax(py0 - oy, oy - py1));
+        double dbox = hypot(dx, dy);
+        /* a piece joins an object's horizon only when nearer than it by 2 eps (disk()) */
+        double reach = fmax(0.0, dbox - rc) + 2 * eps;
+        bool keep = all >= reach;
+        double lo, hi;
+        uint32_t ia, ib;
+        if (!keep && (!(dbox > 2 * rc) || !azimuth_range(ox, oy, v, pc->count, &lo, &hi, &ia, &ib)))
+            keep = true;
+        if (!keep) {
+            double widen = asin(rc / fmin(near, fmax(dbox, 2 * rc)));
+            const double bw = TWO_PI / NEED_BINS;
+            int64_t b0 = (int64_t)floor((lo - widen + TWO_PI) / bw), b1 = (int64_t)floor((hi + widen + TWO_PI) / bw);
+            for (int64_t b = b0; b <= b1 && !keep; b++)
+                keep = need[b % NEED_BINS] >= reach;
+        }
+        if (keep)
+            w->plist[npl++] = k;
+    }
+    return npl;
+}
+
+/* Disk centres of one level: the centres of the grid squares (side eps*sqrt(2), circumradius eps,
+ * anchored at the cell box's corner) that meet the cell's polygon; they cover the cell. */
+static bool level_centres(adj_worker *w, const double *poly, int n, const sl_aabb *bb, double eps)
+{
+    const double side = eps * M_SQRT2;
+    w->centres.count = 0;
+    for (double y = bb->min.y; y < bb->max.y + 1e-9 || y == bb->min.y; y += side)
+        for (double x = bb->min.x; x < bb->max.x + 1e-9 || x == bb->min.x; x += side) {
+            if (!square_meets_poly(poly, n, x, y, x + side, y + side))
+                continue;
+            double c[2] = {x + 0.5 * side, y + 0.5 * side};
+            if (!sl_array_push(&w->sh->a, &w->centres, sizeof c, c, 1))
+                return false;
+        }
+    return true;
+}
+
+/* The cell's set is computed level by level (hierarchical disks): level l covers the cell with
+ * disks of radius eps * 2^l, coarsest first. The union of a level's disk sets is conservative for
+ * the cell (the disks cover it, each set is valid in its disk), so the intersection of the levels'
+ * unions is conservative too; each level therefore only tests the objects that the coarser level
+ * kept. With levels=0 this is the plain method. */
 static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, sl_error *err)
 {
-    (void)err;
     adj_worker *w = worker;
     adj_shared *s = w->sh;
     const sl_viewcell *vc = &sl_viewcells_data(s->cells)[cell];
-    memset(w->visible, 0, s->nobj);
     double poly[8];
     int n;
     if (vc->shape == SL_CELL_PRISM) {
@@ -494,45 +701,53 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
         memcpy(poly, q, sizeof q);
         n = 4;
     }
-    /* disks: centres of the grid squares (side eps*sqrt(2), circumradius eps) meeting the polygon */
-    const double side = s->cfg.eps * M_SQRT2;
     const sl_aabb *bb = &vc->bounds;
+    uint32_t nc = s->nobj;
+    for (uint32_t o = 0; o < s->nobj; o++)
+        w->cand[o] = o;
     uint64_t work = 0;
-    for (double y = bb->min.y; y < bb->max.y + 1e-9 || y == bb->min.y; y += side) {
-        for (double x = bb->min.x; x < bb->max.x + 1e-9 || x == bb->min.x; x += side) {
-            double x1 = x + side, y1 = y + side;
-            /* square vs convex polygon (separating axes: the square's axes and the polygon's edges) */
-            double px0 = INFINITY, px1 = -INFINITY, py0 = INFINITY, py1 = -INFINITY;
-            for (int i = 0; i < n; i++) {
-                px0 = fmin(px0, poly[2 * i]), px1 = fmax(px1, poly[2 * i]);
-                py0 = fmin(py0, poly[2 * i + 1]), py1 = fmax(py1, poly[2 * i + 1]);
-            }
-            bool meets = !(px1 < x || px0 > x1 || py1 < y || py0 > y1);
-            for (int i = 0; i < n && meets; i++) {
-                const double *a = poly + 2 * i, *b = poly + 2 * ((i + 1) % n);
-                const double sq[4][2] = {{x, y}, {x1, y}, {x1, y1}, {x, y1}};
-                bool out_all = true;
-                for (int c = 0; c < 4 && out_all; c++)
-                    out_all = sl_orient2d(a[0], a[1], b[0], b[1], sq[c][0], sq[c][1]) < 0;
-                meets = !out_all;
-            }
-            if (!meets)
-                continue;
+    /* the coarsest level: the first whose single grid square covers the cell's box (a coarser one
+     * would only repeat a full pass with a looser disk), at most cfg.levels */
+    int top = 0;
+    const double extent = fmax((double)bb->max.x - bb->min.x, (double)bb->max.y - bb->min.y);
+    while (top < (int)s->cfg.levels && s->cfg.eps * ldexp(1.0, top) * M_SQRT2 < extent)
+        top++;
+    for (int level = top; level >= 0; level--) {
+        const double eps = s->cfg.eps * ldexp(1.0, level);
+        if (!level_centres(w, poly, n, bb, eps))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
+        const double(*cen)[2] = w->centres.data;
+        const size_t ncen = w->centres.count;
+        /* pieces that can matter to this level's candidates, from the centres' mean */
+        double ox = 0, oy = 0, rc = 0;
+        for (size_t i = 0; i < ncen; i++)
+            ox += cen[i][0], oy += cen[i][1];
+        ox /= (double)ncen, oy /= (double)ncen;
+        for (size_t i = 0; i < ncen; i++)
+            rc = fmax(rc, hypot(cen[i][0] - ox, cen[i][1] - oy));
+        rc = rc * (1 + 1e-9) + 1e-9;
+        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc);
+        for (uint32_t i = 0; i < nc; i++)
+            w->visible[w->cand[i]] = 0;
+        for (size_t i = 0; i < ncen; i++) {
             uint32_t nlive = 0;
-            for (uint32_t o = 0; o < s->nobj; o++)
-                if (!w->visible[o])
-                    w->live[nlive++] = o;
+            for (uint32_t q = 0; q < nc; q++)
+                if (!w->visible[w->cand[q]])
+                    w->live[nlive++] = w->cand[q];
             if (nlive == 0)
                 break;
-            disk(w, x + 0.5 * side, y + 0.5 * side, vc->z_max, nlive);
+            disk(w, cen[i][0], cen[i][1], vc->z_max, eps, nlive, npl);
             work++;
         }
+        /* the next level's candidates: this level's union (cand stays ascending) */
+        uint32_t m = 0;
+        for (uint32_t q = 0; q < nc; q++)
+            if (w->visible[w->cand[q]])
+                w->cand[m++] = w->cand[q];
+        nc = m;
     }
-    uint32_t k = 0;
-    for (uint32_t o = 0; o < s->nobj; o++)
-        if (w->visible[o])
-            out->ids[k++] = o;
-    out->count = k;
+    memcpy(out->ids, w->cand, (size_t)nc * sizeof(uint32_t));
+    out->count = nc;
     out->work = work;
     return SL_OK;
 }

@@ -25,6 +25,15 @@
  * 5. Occluders are rasterized front to back from each sample and an occluder whose top edge lies
  *    wholly inside the shadows already drawn is skipped (rejection of occluded occluders;
  *    skipping an occluder can only make the result larger, so it never costs conservativeness).
+ * 6. View channels: a map after the first is needed only for the objects still undecided, and its
+ *    decisions read only cells meeting the convex hull of the view cell's box and such an object's
+ *    box. Those maps are drawn only there (channel_spans), with only the occluders meeting those
+ *    cells: a sight line from the cell to a point of a hull stays inside the convex hull, so an
+ *    occluder outside every hull shades no cell that is read; leaving any occluder out can only
+ *    lower map values, i.e. enlarge the result.
+ * 7. Prefilter: the adjustable method's set (method_adjustable.c) is computed first and only its
+ *    members are decided; the others are hidden. Both sets contain every visible object, hence so
+ *    does their intersection, which is what the cell gets.
  *
  * Rasterization bound: the thesis proves centre-sampled rasterization conservative when eps >=
  * k sqrt(2)/2 for map cells of side k (Corollary 5). The rasterizer used here covers a map cell
@@ -50,6 +59,8 @@ typedef struct sample_config {
     float map0;         /* side of the first map, metres */
     bool occluder_cull; /* skip occluders hidden by the shadows drawn so far */
     bool merge;         /* shrink touching footprints as one height field */
+    bool channels;      /* maps after the first: only the view channels of undecided objects */
+    bool prefilter;     /* start from the adjustable method's set (intersection) */
 } sample_config;
 
 typedef struct spoly {
@@ -80,6 +91,9 @@ typedef struct sample_shared {
     uint32_t gnx, gny;
     const sl_aabb *obj_bounds;
     uint32_t nobj;
+    /* prefilter: the adjustable method, prepared alongside (NULL when off) */
+    const sl_pvs_method *pre;
+    void *pre_config, *pre_shared;
 } sample_shared;
 
 typedef struct sample_worker {
@@ -101,6 +115,10 @@ typedef struct sample_worker {
     uint8_t *front;
     size_t front_cap;
     sl_array samples;           /* double[3] */
+    sl_array aggs;              /* sl_aabb: undecided objects merged per bucket (channel_spans) */
+    uint32_t *agg_stamp, *agg_of; /* per bucket: stamp of its aggregate, its index in aggs */
+    void *pre_worker;           /* the prefilter's worker, and its set */
+    uint32_t *pre_ids;
 } sample_worker;
 
 static const char g_help[] =
@@ -108,7 +126,11 @@ static const char g_help[] =
     "cell=FLOAT (default 2): cull-map cell size in metres (the thesis bound asks eps >= cell*sqrt(2)/2)\n"
     "map=FLOAT (default 256): side of the first (smallest) cull map in metres; maps double until all objects are decided\n"
     "occluder_cull=BOOL (default true): skip occluders hidden behind the shadows already drawn\n"
-    "merge=BOOL (default true): shrink touching footprints together as one 2.5D occluder (no gaps between them)\n";
+    "merge=BOOL (default true): shrink touching footprints together as one 2.5D occluder (no gaps between them)\n"
+    "channels=BOOL (default true): maps after the first draw only the occluders and cells in the view channels of "
+    "the objects still undecided\n"
+    "prefilter=BOOL (default true): decide only the objects in the adjustable method's set (default options) and "
+    "keep the intersection of the two conservative sets\n";
 
 static sl_status sample_configure(sl_opts *o, void *config, sl_error *err)
 {
@@ -118,7 +140,9 @@ static sl_status sample_configure(sl_opts *o, void *config, sl_error *err)
         (st = sl_opts_float(o, "cell", 2.0f, 0.05f, 1000.0f, &c->cell, err)) != SL_OK ||
         (st = sl_opts_float(o, "map", 256.0f, 8.0f, 1e6f, &c->map0, err)) != SL_OK ||
         (st = sl_opts_bool(o, "occluder_cull", true, &c->occluder_cull, err)) != SL_OK ||
-        (st = sl_opts_bool(o, "merge", true, &c->merge, err)) != SL_OK)
+        (st = sl_opts_bool(o, "merge", true, &c->merge, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "channels", true, &c->channels, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "prefilter", true, &c->prefilter, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -130,6 +154,10 @@ static void sample_release(void *p)
         return;
     const sl_allocator *a = &s->a;
     size_t nb = (size_t)s->bnx * s->bny + 1;
+    if (s->pre_shared)
+        s->pre->release(s->pre_shared);
+    if (s->pre_config)
+        sl_free(a, s->pre_config, s->pre->config_size ? s->pre->config_size : 1);
     sl_free(a, s->polys, ((size_t)s->npoly + 1) * sizeof(spoly));
     sl_free(a, s->pxy, (s->pxy_count + 1) * sizeof(double));
     sl_free(a, s->rings, (s->ring_total + 1) * sizeof(uint32_t));
@@ -315,6 +343,16 @@ static sl_status sample_prepare(sl_scene scene, sl_viewcells cells, const void *
         sample_release(s);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sample: out of memory for the lookup grids");
     }
+    /* the prefilter: adjustable shrinking with its default options */
+    if (cfg->prefilter) {
+        uint64_t pre_removed = 0;
+        if ((st = sl_pvs_registry_find("adjustable", &s->pre, err)) != SL_OK ||
+            (st = sl_pvs_method_configure(s->pre, "", alloc, &s->pre_config, NULL, err)) != SL_OK ||
+            (st = s->pre->prepare(scene, cells, s->pre_config, alloc, &s->pre_shared, &pre_removed, err)) != SL_OK) {
+            sample_release(s);
+            return st;
+        }
+    }
     *shared = s;
     return SL_OK;
 }
@@ -341,6 +379,12 @@ static void sample_worker_destroy(void *p)
     sl_free(a, w->chain, w->chain_cap * sizeof(sl_shadow_edge));
     sl_free(a, w->front, w->front_cap);
     sl_array_free(a, &w->samples, 3 * sizeof(double));
+    sl_array_free(a, &w->aggs, sizeof(sl_aabb));
+    sl_free(a, w->agg_stamp, ((size_t)w->sh->bnx * w->sh->bny + 1) * sizeof(uint32_t));
+    sl_free(a, w->agg_of, ((size_t)w->sh->bnx * w->sh->bny + 1) * sizeof(uint32_t));
+    if (w->pre_worker)
+        w->sh->pre->worker_destroy(w->pre_worker);
+    sl_free(a, w->pre_ids, ((size_t)w->sh->nobj + 1) * sizeof(uint32_t));
     sl_free(a, w, sizeof *w);
 }
 
@@ -354,9 +398,20 @@ static sl_status sample_worker_create(void *shared, void **out, sl_error *err)
     w->state = sl_calloc(&s->a, (size_t)s->nobj + 1, 1);
     w->poly_stamp = sl_calloc(&s->a, (size_t)s->npoly + 1, sizeof(uint32_t));
     w->obj_stamp = sl_calloc(&s->a, (size_t)s->nobj + 1, sizeof(uint32_t));
-    if (!w->state || !w->poly_stamp || !w->obj_stamp) {
+    w->agg_stamp = sl_calloc(&s->a, (size_t)s->bnx * s->bny + 1, sizeof(uint32_t));
+    w->agg_of = sl_calloc(&s->a, (size_t)s->bnx * s->bny + 1, sizeof(uint32_t));
+    if (!w->state || !w->poly_stamp || !w->obj_stamp || !w->agg_stamp || !w->agg_of) {
         sample_worker_destroy(w);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sample: out of memory");
+    }
+    if (s->pre) {
+        w->pre_ids = sl_alloc(&s->a, ((size_t)s->nobj + 1) * sizeof(uint32_t));
+        sl_status st = w->pre_ids ? s->pre->worker_create(s->pre_shared, &w->pre_worker, err)
+                                  : sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sample: out of memory");
+        if (st != SL_OK) {
+            sample_worker_destroy(w);
+            return st;
+        }
     }
     *out = w;
     return SL_OK;
@@ -428,21 +483,46 @@ static int cmp_key(const void *a, const void *b)
     return (x[1] > y[1]) - (x[1] < y[1]);
 }
 
-/* Is the top edge (a, b) at height z inside the shadows of map zs (all of it, sampled at a quarter
- * cell)? Only an optimisation: a wrong "yes" would only drop an occluder. */
-static bool edge_hidden(const sample_worker *w, const window *win, const float *zs, double ax, double ay, double bx,
-                        double by, double z)
+/* Is the top edge (a, b) at height z inside the shadows of map zs: every map cell the segment
+ * passes through (walked column by column, or row by row along the steeper axis) within the clip
+ * (cells outside it hold stale values) and at least z? Only an optimisation: a wrong "yes" would
+ * only drop an occluder, which can only enlarge the result. */
+static bool edge_hidden(const sample_worker *w, const window *win, const float *zs, const sl_cullmap_clip *clip,
+                        double ax, double ay, double bx, double by, double z)
 {
-    double k = w->sh->cfg.cell;
-    double len = hypot(bx - ax, by - ay);
-    uint32_t n = (uint32_t)fmin(ceil(len / (0.25 * k)), 1e5) + 1;
-    for (uint32_t i = 0; i <= n; i++) {
-        double t = (double)i / n, x = ax + t * (bx - ax), y = ay + t * (by - ay);
-        double fi = floor((x - win->mx) / k), fj = floor((y - win->my) / k);
-        if (fi < 0 || fj < 0 || fi >= win->nx || fj >= win->ny)
-            return false;
-        if (!((double)zs[(size_t)fj * win->nx + (size_t)fi] >= z))
-            return false;
+    const double k = w->sh->cfg.cell;
+    double u0 = (ax - win->mx) / k, v0 = (ay - win->my) / k, u1 = (bx - win->mx) / k, v1 = (by - win->my) / k;
+    const bool steep = fabs(v1 - v0) > fabs(u1 - u0);
+    if (steep) { /* walk rows: swap the roles of u and v */
+        double t = u0;
+        u0 = v0, v0 = t;
+        t = u1;
+        u1 = v1, v1 = t;
+    }
+    if (u0 > u1) {
+        double t = u0;
+        u0 = u1, u1 = t;
+        t = v0;
+        v0 = v1, v1 = t;
+    }
+    const double nu = steep ? win->ny : win->nx, nv = steep ? win->nx : win->ny;
+    if (!(u0 >= 0 && u1 < nu && fmin(v0, v1) >= 0 && fmax(v0, v1) < nv))
+        return false;
+    const double slope = u1 > u0 ? (v1 - v0) / (u1 - u0) : 0;
+    for (int64_t c = (int64_t)u0, c1 = (int64_t)u1; c <= c1; c++) {
+        double ua = fmax(u0, (double)c), ub = fmin(u1, (double)c + 1);
+        double va = v0 + (ua - u0) * slope, vb = v0 + (ub - u0) * slope;
+        int64_t r0 = (int64_t)fmin(va, vb), r1 = (int64_t)fmax(va, vb);
+        for (int64_t r = r0; r <= r1; r++) {
+            int64_t i = steep ? r : c, j = steep ? c : r;
+            if (j < clip->j0 || j > clip->j1)
+                return false;
+            size_t row = (size_t)j - clip->j0;
+            if (i < clip->x0[row] || i > clip->x1[row])
+                return false;
+            if (!((double)zs[(size_t)j * win->nx + (size_t)i] >= z))
+                return false;
+        }
     }
     return true;
 }
@@ -497,7 +577,7 @@ static sl_status draw_ring(sample_worker *w, const window *win, const double eye
         }
         for (uint32_t q = 0; q < len; q++) {
             const sl_shadow_edge *ed = &w->chain[q];
-            if (s->cfg.occluder_cull && edge_hidden(w, win, g->z, ed->ax, ed->ay, ed->bx, ed->by, ed->az))
+            if (s->cfg.occluder_cull && edge_hidden(w, win, g->z, clip, ed->ax, ed->ay, ed->bx, ed->by, ed->az))
                 continue;
             *written += sl_cullmap_raster_wedge(g, eye, w->chain, len, q, clip);
         }
@@ -570,39 +650,67 @@ static int hull8(double (*p)[2], int n, double (*h)[2])
     return m;
 }
 
-/* Does the square [x0,x1]x[y0,y1] meet the convex polygon h (separating axes)? */
-static bool square_meets_hull(const double (*h)[2], int n, double x0, double y0, double x1, double y1)
+/* A fresh stamp for the per-worker "seen" marks (all marks cleared when it wraps). */
+static void next_stamp(sample_worker *w)
 {
-    double hx0 = INFINITY, hx1 = -INFINITY, hy0 = INFINITY, hy1 = -INFINITY;
-    for (int i = 0; i < n; i++) {
-        hx0 = fmin(hx0, h[i][0]), hx1 = fmax(hx1, h[i][0]);
-        hy0 = fmin(hy0, h[i][1]), hy1 = fmax(hy1, h[i][1]);
+    const sample_shared *s = w->sh;
+    if (++w->stamp == 0) {
+        memset(w->poly_stamp, 0, ((size_t)s->npoly + 1) * sizeof(uint32_t));
+        memset(w->obj_stamp, 0, ((size_t)s->nobj + 1) * sizeof(uint32_t));
+        memset(w->agg_stamp, 0, ((size_t)s->bnx * s->bny + 1) * sizeof(uint32_t));
+        w->stamp = 1;
     }
-    if (hx1 < x0 || hx0 > x1 || hy1 < y0 || hy0 > y1)
-        return false;
-    const double sq[4][2] = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+}
+
+/* Extent of the convex polygon h along coordinate 1 - c within the slab lo <= p[c] <= hi (c = 1: the
+ * x-extent of a horizontal strip; c = 0: the y-extent of a vertical one); false when the slab misses
+ * the polygon. Every edge is clipped to the slab and its clipped ends taken. */
+static bool hull_slab(const double (*h)[2], int n, int c, double lo, double hi, double *a, double *b)
+{
+    const int o = 1 - c;
+    double mn = INFINITY, mx = -INFINITY;
     for (int i = 0; i < n; i++) {
-        const double *a = h[i], *b = h[(i + 1) % n];
-        /* the hull is counter-clockwise: outside is to the right of every edge */
-        bool all_out = true;
-        for (int c = 0; c < 4 && all_out; c++)
-            all_out = sl_orient2d(a[0], a[1], b[0], b[1], sq[c][0], sq[c][1]) < 0;
-        if (all_out)
-            return false;
+        const double *p = h[i], *q = h[(i + 1) % n];
+        double d = q[c] - p[c], t0 = 0, t1 = 1;
+        if (d == 0) {
+            if (p[c] < lo || p[c] > hi)
+                continue;
+        } else {
+            double ta = (lo - p[c]) / d, tb = (hi - p[c]) / d;
+            t0 = fmax(0.0, fmin(ta, tb));
+            t1 = fmin(1.0, fmax(ta, tb));
+            if (!(t0 <= t1))
+                continue;
+        }
+        double u0 = p[o] + t0 * (q[o] - p[o]), u1 = p[o] + t1 * (q[o] - p[o]);
+        mn = fmin(mn, fmin(u0, u1));
+        mx = fmax(mx, fmax(u0, u1));
     }
-    return true;
+    *a = mn;
+    *b = mx;
+    return mn <= mx;
+}
+
+/* Hull of the view cell's box and an object's box (the view channel of the horizon test). */
+static int channel_hull(const sl_aabb *v, const sl_aabb *b, double (*h)[2])
+{
+    double pts[8][2] = {{v->min.x, v->min.y}, {v->max.x, v->min.y}, {v->max.x, v->max.y}, {v->min.x, v->max.y},
+                        {b->min.x, b->min.y}, {b->max.x, b->min.y}, {b->max.x, b->max.y}, {b->min.x, b->max.y}};
+    return hull8(pts, 8, h);
 }
 
 /* Horizon test of an object wholly outside the window (section 5.6): every sight line from the
  * view cell V to the object leaves the map through a border cell meeting the hull of the two
- * boxes, at a height within [lo, hi]; hidden when every such cell hides that range. */
+ * boxes, at a height within [lo, hi]; hidden when every such cell hides that range. The border
+ * cells meeting the hull are found per border line from the hull's extent in that row (column):
+ * a cell meets a convex polygon exactly when its side overlaps the polygon's extent in its strip;
+ * the strip and the extent are widened by a rounding margin, so a few more cells may be tested
+ * (a stricter test), never fewer. */
 static bool hidden_by_horizon(const sample_worker *w, const window *win, const sl_aabb *v, const sl_aabb *b)
 {
     double k = w->sh->cfg.cell;
-    double pts[8][2] = {{v->min.x, v->min.y}, {v->max.x, v->min.y}, {v->max.x, v->max.y}, {v->min.x, v->max.y},
-                        {b->min.x, b->min.y}, {b->max.x, b->min.y}, {b->max.x, b->max.y}, {b->min.x, b->max.y}};
     double h[16][2];
-    int nh = hull8(pts, 8, h);
+    int nh = channel_hull(v, b, h);
     if (nh < 3)
         return false;
     /* nearest horizontal distance between the boxes */
@@ -612,37 +720,26 @@ static bool hidden_by_horizon(const sample_worker *w, const window *win, const s
     if (!(dmin > 0))
         return false;
     double lo = fmin(v->min.z, b->min.z), vtop = v->max.z, otop = b->max.z;
-    /* border cells: the rows j = 0 and ny-1, the columns i = 0 and nx-1, restricted to the hull's box */
-    double hx0 = INFINITY, hx1 = -INFINITY, hy0 = INFINITY, hy1 = -INFINITY;
-    for (int i = 0; i < nh; i++) {
-        hx0 = fmin(hx0, h[i][0]), hx1 = fmax(hx1, h[i][0]);
-        hy0 = fmin(hy0, h[i][1]), hy1 = fmax(hy1, h[i][1]);
-    }
-    int64_t ci0 = (int64_t)fmax(0, floor((hx0 - win->mx) / k)), ci1 = (int64_t)fmin(win->nx - 1.0, floor((hx1 - win->mx) / k));
-    int64_t cj0 = (int64_t)fmax(0, floor((hy0 - win->my) / k)), cj1 = (int64_t)fmin(win->ny - 1.0, floor((hy1 - win->my) / k));
-    if (ci0 > ci1 || cj0 > cj1)
-        return false; /* the hull misses the map: cannot happen for a view cell inside it */
+    const double tol = 1e-9 * (1.0 + fabs(win->mx) + fabs(win->my) + win->nx * k + win->ny * k);
+    bool any = false;
     for (int side = 0; side < 4; side++) {
         /* side 0: bottom row, 1: top row, 2: left column, 3: right column (corners twice: harmless) */
-        int64_t a0, a1;
-        if (side < 2) {
-            int64_t j = side == 0 ? 0 : (int64_t)win->ny - 1;
-            if (j < cj0 || j > cj1)
-                continue;
-            a0 = ci0, a1 = ci1;
-        } else {
-            int64_t i = side == 2 ? 0 : (int64_t)win->nx - 1;
-            if (i < ci0 || i > ci1)
-                continue;
-            a0 = cj0, a1 = cj1;
-        }
+        const bool row = side < 2;
+        const int64_t fixed = side == 0 || side == 2 ? 0 : (int64_t)(row ? win->ny : win->nx) - 1;
+        const double base = row ? win->my : win->mx, along0 = row ? win->mx : win->my;
+        const int64_t len = row ? win->nx : win->ny;
+        double ea, eb;
+        if (!hull_slab((const double(*)[2])h, nh, row ? 1 : 0, base + (double)fixed * k - tol,
+                       base + (double)(fixed + 1) * k + tol, &ea, &eb))
+            continue;
+        /* cells whose [t k, (t+1) k] overlaps [ea, eb] */
+        int64_t a0 = (int64_t)fmax(0.0, ceil((ea - tol - along0) / k) - 1);
+        int64_t a1 = (int64_t)fmin((double)len - 1, floor((eb + tol - along0) / k));
         for (int64_t t = a0; t <= a1; t++) {
-            int64_t i = side < 2 ? t : (side == 2 ? 0 : (int64_t)win->nx - 1);
-            int64_t j = side < 2 ? (side == 0 ? 0 : (int64_t)win->ny - 1) : t;
+            int64_t i = row ? t : fixed, j = row ? fixed : t;
             double x0 = win->mx + (double)i * k, y0 = win->my + (double)j * k;
-            if (!square_meets_hull((const double(*)[2])h, nh, x0, y0, x0 + k, y0 + k))
-                continue;
             size_t c = (size_t)j * win->nx + (size_t)i;
+            any = true;
             if (!(w->floor[c] <= lo))
                 return false;
             double hi = vtop;
@@ -659,7 +756,102 @@ static bool hidden_by_horizon(const sample_worker *w, const window *win, const s
                 return false;
         }
     }
+    return any; /* no border cell found: the hull misses the map (cannot happen), undecided */
+}
+
+/* The map cells that this level's decisions read: every cell meeting the view channel of an
+ * undecided object (its box's cells and the border cells of the horizon test lie in the
+ * channel), one cell wider on every side against rounding, as a span per row. Occluders that miss
+ * every channel cannot shade a point of one (a sight line from the cell to a point of a channel
+ * stays in that convex channel), and cells outside the spans are neither written nor read. */
+static bool channel_spans(sample_worker *w, const window *win, const sl_aabb *v, sl_cullmap_clip *clip)
+{
+    const sample_shared *s = w->sh;
+    const double k = s->cfg.cell;
+    for (uint32_t j = 0; j < win->ny; j++)
+        w->x0[j] = (int32_t)win->nx, w->x1[j] = -1;
+    /* the undecided objects' boxes merged per bucket of their lower corner: the channel of a
+     * merged box holds the channels of its members (fewer, larger channels: a superset) */
+    next_stamp(w);
+    w->aggs.count = 0;
+    for (uint32_t o = 0; o < s->nobj; o++) {
+        if (w->state[o])
+            continue;
+        const sl_aabb *b = &s->obj_bounds[o];
+        uint32_t r[4];
+        bucket_range(s, b->min.x, b->min.y, b->min.x, b->min.y, r);
+        size_t bi = (size_t)r[1] * s->bnx + r[0];
+        if (w->agg_stamp[bi] != w->stamp) {
+            w->agg_stamp[bi] = w->stamp;
+            w->agg_of[bi] = (uint32_t)w->aggs.count;
+            if (!sl_array_push(&s->a, &w->aggs, sizeof *b, b, 1))
+                return false;
+        } else {
+            sl_aabb_merge(&SL_AT(w->aggs, sl_aabb, w->agg_of[bi]), b);
+        }
+    }
+    for (size_t q = 0; q < w->aggs.count; q++) {
+        double h[16][2];
+        int nh = channel_hull(v, &SL_AT(w->aggs, sl_aabb, q), h);
+        if (nh < 3) { /* a degenerate hull (flat boxes): keep the whole window, to be safe */
+            for (uint32_t j = 0; j < win->ny; j++)
+                w->x0[j] = 0, w->x1[j] = (int32_t)win->nx - 1;
+            continue;
+        }
+        /* per edge, its extent in each row it crosses (rows widened by one on both sides) */
+        for (int e = 0; e < nh; e++) {
+            const double *p = h[e], *pq = h[(e + 1) % nh];
+            double ey0 = fmin(p[1], pq[1]), ey1 = fmax(p[1], pq[1]);
+            int64_t j0 = (int64_t)fmax(0.0, floor((ey0 - win->my) / k) - 1);
+            int64_t j1 = (int64_t)fmin(win->ny - 1.0, floor((ey1 - win->my) / k) + 1);
+            double dy = pq[1] - p[1];
+            for (int64_t j = j0; j <= j1; j++) {
+                double y0 = win->my + (double)(j - 1) * k, y1 = win->my + (double)(j + 2) * k, t0 = 0, t1 = 1;
+                if (dy != 0) {
+                    double ta = (y0 - p[1]) / dy, tb = (y1 - p[1]) / dy;
+                    t0 = fmax(0.0, fmin(ta, tb));
+                    t1 = fmin(1.0, fmax(ta, tb));
+                    if (!(t0 <= t1))
+                        continue;
+                }
+                double u0 = p[0] + t0 * (pq[0] - p[0]), u1 = p[0] + t1 * (pq[0] - p[0]);
+                int32_t a = (int32_t)fmax(0.0, floor((fmin(u0, u1) - win->mx) / k) - 1);
+                int32_t b = (int32_t)fmin(win->nx - 1.0, floor((fmax(u0, u1) - win->mx) / k) + 1);
+                if (a < w->x0[j])
+                    w->x0[j] = a;
+                if (b > w->x1[j])
+                    w->x1[j] = b;
+            }
+        }
+    }
+    uint32_t j0 = win->ny, j1 = 0, i0 = win->nx, i1 = 0;
+    for (uint32_t j = 0; j < win->ny; j++)
+        if (w->x0[j] <= w->x1[j]) {
+            j0 = SL_MIN(j0, j), j1 = j;
+            i0 = SL_MIN(i0, (uint32_t)w->x0[j]), i1 = SL_MAX(i1, (uint32_t)w->x1[j]);
+        }
+    if (j0 > j1) { /* nothing undecided: an empty clip */
+        j0 = j1 = 0;
+        i0 = 1, i1 = 0;
+        w->x0[0] = 1, w->x1[0] = 0;
+    }
+    clip->j0 = j0, clip->j1 = j1, clip->i0 = i0, clip->i1 = i1;
+    clip->x0 = w->x0 + j0, clip->x1 = w->x1 + j0;
     return true;
+}
+
+/* Does the occluder's box meet the clip's spans? */
+static bool box_in_clip(const window *win, double k, const sl_cullmap_clip *clip, const spoly *p)
+{
+    int64_t j0 = (int64_t)floor((p->y0 - win->my) / k), j1 = (int64_t)floor((p->y1 - win->my) / k);
+    int64_t i0 = (int64_t)floor((p->x0 - win->mx) / k), i1 = (int64_t)floor((p->x1 - win->mx) / k);
+    j0 = SL_MAX(j0, (int64_t)clip->j0), j1 = SL_MIN(j1, (int64_t)clip->j1);
+    for (int64_t j = j0; j <= j1; j++) {
+        int64_t a = clip->x0[j - clip->j0], b = clip->x1[j - clip->j0];
+        if (a <= b && a <= i1 && b >= i0)
+            return true;
+    }
+    return false;
 }
 
 static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, sl_error *err)
@@ -699,6 +891,18 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
 
     memset(w->state, 0, s->nobj);
     uint32_t undecided = s->nobj;
+    if (w->pre_worker) {
+        /* the adjustable set is conservative, so is its intersection with this method's set: the
+         * objects outside it start hidden and only its members are decided here */
+        sl_pvs_cell_result pr = {w->pre_ids, 0, 0};
+        sl_status st = s->pre->cell(w->pre_worker, cell, &pr, err);
+        if (st != SL_OK)
+            return st;
+        memset(w->state, 2, s->nobj);
+        for (uint32_t q = 0; q < pr.count; q++)
+            w->state[pr.ids[q]] = 0;
+        undecided = pr.count;
+    }
     const double cx = 0.5 * ((double)vc->bounds.min.x + vc->bounds.max.x);
     const double cy = 0.5 * ((double)vc->bounds.min.y + vc->bounds.max.y);
     uint64_t written = 0;
@@ -720,25 +924,27 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
         win.my = s->min_y + win.j0 * k;
         win.x0 = win.mx, win.y0 = win.my;
         win.x1 = win.mx + win.nx * k, win.y1 = win.my + win.ny * k;
-        size_t cells = (size_t)win.nx * win.ny;
         if (!reserve_map(w, win.nx, win.ny))
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sample: out of memory for a %u x %u cull map", win.nx, win.ny);
         for (uint32_t j = 0; j < win.ny; j++)
             w->x0[j] = 0, w->x1[j] = (int32_t)win.nx - 1;
         sl_cullmap_clip clip = {0, win.ny - 1, 0, win.nx - 1, w->x0, w->x1};
+        /* level 0 decides every object; later levels only need the view channels of the objects
+         * still undecided (channel_spans) */
+        /* (with the prefilter the first map needs only the channels of the survivors too) */
+        const bool channels = s->cfg.channels && (level > 0 || w->pre_worker);
+        if (channels && !channel_spans(w, &win, &vc->bounds, &clip))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sample: out of memory");
+        const double cx0 = win.mx + clip.i0 * k, cy0 = win.my + clip.j0 * k;
+        const double cx1 = win.mx + (clip.i1 + 1.0) * k, cy1 = win.my + (clip.j1 + 1.0) * k;
 
         /* candidates: occluders and objects of the buckets under the window */
-        w->stamp++;
-        if (w->stamp == 0) {
-            memset(w->poly_stamp, 0, ((size_t)s->npoly + 1) * sizeof(uint32_t));
-            memset(w->obj_stamp, 0, ((size_t)s->nobj + 1) * sizeof(uint32_t));
-            w->stamp = 1;
-        }
+        next_stamp(w);
         w->cand.count = 0;
         w->keys.count = 0;
         w->objs.count = 0;
         uint32_t r[4];
-        bucket_range(s, win.x0, win.y0, win.x1, win.y1, r);
+        bucket_range(s, cx0, cy0, cx1, cy1, r);
         for (uint32_t by = r[1]; by <= r[3]; by++)
             for (uint32_t bx = r[0]; bx <= r[2]; bx++) {
                 size_t bi = (size_t)by * s->bnx + bx;
@@ -748,7 +954,10 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
                         continue;
                     w->poly_stamp[id] = w->stamp;
                     const spoly *p = &s->polys[id];
-                    if (p->x1 < win.x0 || p->x0 > win.x1 || p->y1 < win.y0 || p->y0 > win.y1)
+                    if (p->x1 < cx0 || p->x0 > cx1 || p->y1 < cy0 || p->y0 > cy1)
+                        continue;
+                    /* an occluder missing every view channel shades none of the cells read */
+                    if (channels && !box_in_clip(&win, k, &clip, p))
                         continue;
                     double dx = fmax(0.0, fmax(p->x0 - cx, cx - p->x1)), dy = fmax(0.0, fmax(p->y0 - cy, cy - p->y1));
                     double key[2] = {hypot(dx, dy), (double)id};
@@ -776,23 +985,29 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
          * map value at or above a cell's top hides all of it, so the rasterizer stops raising it
          * (saturation) — except on the border ring, whose values the horizon test reads above the
          * objects' tops (top +inf there). Empty cells: nothing to hide (top -inf). */
-        for (size_t c = 0; c < cells; c++) {
-            w->floor[c] = INFINITY;
-            w->top[c] = -INFINITY;
+        /* (only the clip's cells: nothing reads the others) */
+        for (uint32_t j = clip.j0; j <= clip.j1; j++) {
+            const size_t row = (size_t)j * win.nx;
+            for (int32_t i = clip.x0[j - clip.j0]; i <= clip.x1[j - clip.j0]; i++) {
+                w->floor[row + (size_t)i] = INFINITY;
+                w->top[row + (size_t)i] = -INFINITY;
+            }
         }
         const uint32_t *objs = w->objs.data;
         for (size_t q = 0; q < w->objs.count; q++) {
             const sl_aabb *b = &s->obj_bounds[objs[q]];
             int64_t i0 = (int64_t)floor((b->min.x - win.mx) / k), ii1 = (int64_t)floor((b->max.x - win.mx) / k);
             int64_t jj0 = (int64_t)floor((b->min.y - win.my) / k), jj1 = (int64_t)floor((b->max.y - win.my) / k);
-            i0 = SL_MAX(i0, 0), jj0 = SL_MAX(jj0, 0);
-            ii1 = SL_MIN(ii1, (int64_t)win.nx - 1), jj1 = SL_MIN(jj1, (int64_t)win.ny - 1);
-            for (int64_t j = jj0; j <= jj1; j++)
-                for (int64_t i = i0; i <= ii1; i++) {
-                    size_t c = (size_t)j * win.nx + (size_t)i;
-                    w->floor[c] = fminf(w->floor[c], b->min.z);
-                    w->top[c] = fmaxf(w->top[c], b->max.z);
+            jj0 = SL_MAX(jj0, (int64_t)clip.j0), jj1 = SL_MIN(jj1, (int64_t)clip.j1);
+            const float bz0 = b->min.z, bz1 = b->max.z;
+            for (int64_t j = jj0; j <= jj1; j++) {
+                int64_t a = SL_MAX(i0, (int64_t)clip.x0[j - clip.j0]), e = SL_MIN(ii1, (int64_t)clip.x1[j - clip.j0]);
+                float *fl = w->floor + (size_t)j * win.nx, *tp = w->top + (size_t)j * win.nx;
+                for (int64_t i = a; i <= e; i++) {
+                    fl[i] = bz0 < fl[i] ? bz0 : fl[i];
+                    tp[i] = bz1 > tp[i] ? bz1 : tp[i];
                 }
+            }
         }
         if (!win.all) {
             for (uint32_t i = 0; i < win.nx; i++)
