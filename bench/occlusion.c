@@ -27,6 +27,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #define MAX_METHODS 24
 
@@ -238,6 +239,7 @@ int main(int argc, char **argv)
         die("oracle", &err);
     double visible = 0;
     bool violation = false;
+    const bool tty = isatty(STDERR_FILENO); /* progress on a terminal only */
     for (uint32_t f = 0; f < frames; f++) {
         sl_camera cam = sl_path_camera(walk, f);
         sl_oracle_frame fr;
@@ -268,10 +270,11 @@ int main(int argc, char **argv)
                 violation = true;
             }
         }
-        if (f % 25 == 0)
+        if (f % 25 == 0 && tty)
             fprintf(stderr, "\rwalkthrough frame %u/%u", f, frames);
     }
-    fprintf(stderr, "\n");
+    if (tty)
+        fprintf(stderr, "\n");
     sl_scene_stats ss;
     sl_scene_get_stats(s, &ss);
     printf("## Walkthrough: %s city, street walk of %u frames at %g fps (seed 1), %ux%u, threads=%u\n\n", preset,

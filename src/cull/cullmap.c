@@ -36,7 +36,7 @@
 #include <stdlib.h>
 
 static const char g_help[] =
-    "cell=NUMBER (default 8): scene-grid (and cull-map) cell size in metres (0.5..1000)\n"
+    "cell=NUMBER (default 12): scene-grid (and cull-map) cell size in metres (0.5..1000)\n"
     "radius=NUMBER (default 800): occluders farther than this (metres, in plan) are not used (1..1e6)\n";
 
 typedef struct cullmap_config {
@@ -85,7 +85,7 @@ static sl_status cullmap_configure(sl_opts *o, void *config, sl_cull_guarantee *
     cullmap_config *c = config;
     (void)g;
     sl_status st;
-    if ((st = sl_opts_float(o, "cell", 8.0f, 0.5f, 1000.0f, &c->cell, err)) != SL_OK ||
+    if ((st = sl_opts_float(o, "cell", 12.0f, 0.5f, 1000.0f, &c->cell, err)) != SL_OK ||
         (st = sl_opts_float(o, "radius", 800.0f, 1.0f, 1e6f, &c->radius, err)) != SL_OK)
         return st;
     return SL_OK;
