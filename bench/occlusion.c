@@ -64,14 +64,20 @@ static double percentile(double *v, size_t n, double p)
     return v[k ? k - 1 : 0];
 }
 
-/* "name[:options]" into a method; options get threads=T when the method has a rasterizer. */
+/* "name[:key=value[:key=value...]]" into a method (the list itself is comma-separated, so options
+ * are separated by colons here); options get threads=T when the method has a rasterizer. */
 static void parse_method(const char *spec, uint32_t threads, method *m)
 {
     snprintf(m->spec, sizeof m->spec, "%s", spec);
     const char *colon = strchr(spec, ':');
     size_t nl = colon ? (size_t)(colon - spec) : strlen(spec);
     snprintf(m->name, sizeof m->name, "%.*s", (int)nl, spec);
-    const char *o = colon ? colon + 1 : "";
+    char ob[256];
+    snprintf(ob, sizeof ob, "%s", colon ? colon + 1 : "");
+    for (char *c = ob; *c; c++)
+        if (*c == ':')
+            *c = ',';
+    const char *o = ob;
     char probe[290];
     if (strstr(o, "threads="))
         snprintf(probe, sizeof probe, "%s", o); /* the spec sets its own thread count */

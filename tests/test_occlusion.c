@@ -419,11 +419,159 @@ static void test_sampled_subpixel(void **state)
         if (k > n / 2)
             fail_msg("%s kept %u of %u sub-pixel poles (the oracle sees %u)", methods[m], k, n, fr.visible_count);
         sl_culler_destroy(c);
-        assert_int_equal(sl_culler_create(methods[m], s, "sample_tris=0,mesh_test=0", NULL, &c, &err), SL_OK);
+        /* hzb's silhouette test of the box and its exact layer would cull them too */
+        assert_int_equal(sl_culler_create(methods[m], s,
+                                          m == 0 ? "sample_tris=0,mesh_test=0,box_rows=0,exact_px=0"
+                                                 : "sample_tris=0,mesh_test=0",
+                                          NULL, &c, &err),
+                         SL_OK);
         uint32_t in_view = cull(c, &cam, out, 256);
         assert_true(in_view > k);
         sl_culler_destroy(c);
     }
+    sl_oracle_destroy(o);
+    sl_scene_destroy(s);
+}
+
+/* The exact layer reproduces the oracle's fragments bit for bit: every object of the tiny city
+ * (instanced, closed convex parts, objects crossing the near plane) drawn into it gives the
+ * oracle's depth and id buffers exactly, for a street view and a pitched, rolled one. */
+static void test_exact_layer_is_oracle(void **state)
+{
+    (void)state;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    sl_aabb sb = sl_scene_bounds(s);
+    for (int view = 0; view < 2; view++) {
+        sl_camera cam = sl_camera_default();
+        cam.position = (sl_vec3){0.5f * (sb.min.x + sb.max.x) + 3.0f, 0.5f * (sb.min.y + sb.max.y) + 1.0f, 1.7f};
+        cam.yaw = view ? 2.3f : 0.4f;
+        cam.pitch = view ? 0.35f : 0.0f;
+        cam.roll = view ? 0.2f : 0.0f;
+        cam.width = 320;
+        cam.height = 240;
+        cam.near_plane = 0.1f;
+        cam.far_plane = 2000.0f;
+        sl_oracle_frame fr;
+        assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+        sl_oracle_view ov;
+        assert_int_equal(sl_oracle_get_view(o, 0, &ov, &err), SL_OK);
+        sl_occ_view v;
+        sl_occ_view_init(&v, &cam);
+        sl_occ_exact e;
+        assert_int_equal(sl_occ_exact_init(&e, sl_default_allocator(), &err), SL_OK);
+        for (int pass = 0; pass < 2; pass++) { /* the second pass clears the first's rectangles */
+            assert_int_equal(sl_occ_exact_begin(&e, &v, &err), SL_OK);
+            for (uint32_t i = 0; i < sl_scene_object_count(s); i++) {
+                sl_aabb b = sl_scene_object_bounds(s, i);
+                sl_occ_rect r;
+                int k = sl_occ_project_box(&v, &b, &r);
+                if (k == SL_OCC_OUT)
+                    continue;
+                if (k == SL_OCC_NEAR)
+                    r = (sl_occ_rect){0, 0, (int32_t)cam.width, (int32_t)cam.height, INFINITY};
+                assert_int_equal(sl_occ_exact_draw(&e, s, i, &r, &err), SL_OK);
+            }
+        }
+        size_t n = (size_t)cam.width * cam.height, same = 0;
+        for (size_t i = 0; i < n; i++)
+            same += memcmp(&e.depth[i], &ov.depth[i], sizeof(float)) == 0 && e.ids[i] == ov.ids[i];
+        if (same != n)
+            fail_msg("view %d: %zu of %zu pixels differ from the oracle's", view, n - same, n);
+        /* a drawn pixel hides depths a little farther than its own, never its own */
+        for (size_t i = 0; i < n; i += 7) {
+            if (!(ov.depth[i] > 0.0f))
+                continue;
+            double rd = ov.depth[i];
+            int32_t x = (int32_t)(i % cam.width), y = (int32_t)(i / cam.width);
+            assert_false(sl_occ_exact_hides(&e, x, y, rd));
+            assert_false(sl_occ_exact_hides(&e, x, y, rd * (1.0 - 1e-7)));
+            assert_true(sl_occ_exact_hides(&e, x, y, rd * (1.0 - 1e-5)));
+        }
+        sl_occ_exact_free(&e);
+    }
+    sl_oracle_destroy(o);
+    sl_scene_destroy(s);
+}
+
+/* A row of small boxes straight down the view axis (a line of trees at the end of a street), each
+ * hidden by the one before it, none of them an occluder: only the exact layer can hide them. hzb
+ * keeps the first few, exact_px=0 keeps them all; nothing the oracle sees is dropped. */
+static void test_exact_layer_row(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    const uint32_t n = 60;
+    for (uint32_t i = 0; i < n; i++) {
+        float x = 300.0f + 12.0f * (float)i;
+        add_box(s, (sl_vec3){x, -1.5f, 0}, (sl_vec3){x + 3.0f, 1.5f, 4.0f}, SL_KIND_TREE, 0, NULL);
+    }
+    sl_camera cam = wall_camera(320, 240);
+    sl_oracle o;
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+    assert_true(fr.visible_count < n / 4);
+    uint32_t out[64];
+    sl_culler c;
+    assert_int_equal(sl_culler_create("hzb", s, NULL, NULL, &c, &err), SL_OK);
+    uint32_t k = cull(c, &cam, out, 64);
+    for (uint32_t i = 0; i < fr.visible_count; i++)
+        if (!contains(out, k, fr.visible[i]))
+            fail_msg("hzb dropped box %u, which the oracle sees", fr.visible[i]);
+    if (k > 2 * fr.visible_count + 2)
+        fail_msg("hzb kept %u of %u boxes (the oracle sees %u)", k, n, fr.visible_count);
+    sl_culler_destroy(c);
+    assert_int_equal(sl_culler_create("hzb", s, "exact_px=0", NULL, &c, &err), SL_OK);
+    uint32_t without = cull(c, &cam, out, 64);
+    assert_true(without > 2 * k);
+    sl_culler_destroy(c);
+    sl_oracle_destroy(o);
+    sl_scene_destroy(s);
+}
+
+/* Boxes whose silhouette covers no pixel centre (thin poles between pixel columns) are culled by
+ * the silhouette test of their box alone (box_rows; the triangle tests are off), and none the
+ * oracle sees is dropped; box_rows=0 keeps more of them. */
+static void test_box_rows(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    sl_rng rng;
+    sl_rng_seed(&rng, 11, 3);
+    const uint32_t n = 200;
+    for (uint32_t i = 0; i < n; i++) {
+        float x = 100.0f + 300.0f * sl_rng_float(&rng), y = (sl_rng_float(&rng) - 0.5f) * 0.8f * x;
+        add_box(s, (sl_vec3){x, y, 0}, (sl_vec3){x + 0.05f, y + 0.05f, 3}, SL_KIND_LAMP, 0, NULL);
+    }
+    sl_camera cam = wall_camera(320, 240);
+    sl_oracle o;
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+    uint32_t out[256];
+    sl_culler c;
+    assert_int_equal(sl_culler_create("hzb", s, "sample_tris=0,mesh_test=0,exact_px=0", NULL, &c, &err), SL_OK);
+    uint32_t k = cull(c, &cam, out, 256);
+    for (uint32_t i = 0; i < fr.visible_count; i++)
+        if (!contains(out, k, fr.visible[i]))
+            fail_msg("hzb dropped pole %u, which the oracle sees", fr.visible[i]);
+    sl_culler_destroy(c);
+    assert_int_equal(sl_culler_create("hzb", s, "sample_tris=0,mesh_test=0,exact_px=0,box_rows=0", NULL, &c, &err),
+                     SL_OK);
+    uint32_t without = cull(c, &cam, out, 256);
+    if (!(k < without && k < n / 2))
+        fail_msg("box_rows kept %u poles, box_rows=0 %u, of %u (the oracle sees %u)", k, without, n,
+                 fr.visible_count);
+    sl_culler_destroy(c);
     sl_oracle_destroy(o);
     sl_scene_destroy(s);
 }
@@ -624,7 +772,8 @@ static void test_no_allocation(void **state)
     sl_scene_destroy(s);
 }
 
-/* An empty scene and a scene without any occluder: every method runs and keeps what vfc keeps. */
+/* An empty scene and a scene without any occluder: every method runs and keeps what vfc keeps
+ * (hzb without its exact layer, which hides objects behind visible non-occluders too). */
 static void test_degenerate_scenes(void **state)
 {
     (void)state;
@@ -647,7 +796,9 @@ static void test_degenerate_scenes(void **state)
     uint32_t ref[16], kr = cull(v, &cam, ref, 16);
     for (size_t i = 0; i < SL_COUNTOF(g_conservative); i++) {
         sl_culler c;
-        assert_int_equal(sl_culler_create(g_conservative[i], s, NULL, NULL, &c, &err), SL_OK);
+        assert_int_equal(
+            sl_culler_create(g_conservative[i], s, strcmp(g_conservative[i], "hzb") ? NULL : "exact_px=0", NULL, &c, &err),
+            SL_OK);
         k = cull(c, &cam, out, 16);
         assert_int_equal(k, kr);
         assert_memory_equal(out, ref, k * sizeof *out);
@@ -841,6 +992,8 @@ int main(void)
         cmocka_unit_test(test_sampled_mesh_test), cmocka_unit_test(test_sampled_subpixel),
         cmocka_unit_test(test_rect_query_monotone),
         cmocka_unit_test(test_city_props_occlude),
+        cmocka_unit_test(test_exact_layer_is_oracle), cmocka_unit_test(test_exact_layer_row),
+        cmocka_unit_test(test_box_rows),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -38,6 +38,8 @@ typedef struct hzb_config {
     sl_occ_mesh_tests mt;
     bool far_layer;
     float far_quality;
+    uint32_t box_rows;
+    uint32_t exact_px;
 } hzb_config;
 
 typedef struct hzb_state {
@@ -46,6 +48,7 @@ typedef struct hzb_state {
     sl_occ_raster r;
     sl_occ_raster far;           /* far layer: visible proxies of low quality (far_layer) */
     sl_occ_pyramid pyr;          /* the max-depth pyramid */
+    sl_occ_exact ex;             /* small visible objects drawn as the oracle draws them (exact_px) */
     bool pyr_valid;
 } hzb_state;
 
@@ -64,7 +67,12 @@ static const char g_help[] =
     SL_OCC_HELP_MESH_TESTS
     "far_layer=BOOL (default true): render visible proxies below min_quality into a second buffer; a box "
     "hidden in either buffer is hidden\n"
-    "far_quality=NUMBER (default 0): least quality (sr) of a far-layer occluder\n" SL_OCC_HELP_DEBUG;
+    "far_quality=NUMBER (default 0): least quality (sr) of a far-layer occluder\n"
+    "box_rows=0..100000 (default 8): a box whose rectangle looks visible is tested at the pixel centres of "
+    "its silhouette when the rectangle is at most this many rows tall (0: never)\n"
+    "exact_px=0..16777216 (default 48): a visible object whose box rectangle holds at most this many pixels "
+    "is drawn with the oracle's rasterizer into an exact layer that pixel-centre tests consult (0: never)\n"
+    SL_OCC_HELP_DEBUG;
 
 static sl_status hzb_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
@@ -78,7 +86,9 @@ static sl_status hzb_configure(sl_opts *o, void *config, sl_cull_guarantee *g, s
         (st = sl_opts_u32(o, "refresh", 16, 0, 100000, &c->refresh, err)) != SL_OK ||
         (st = sl_occ_configure_mesh_tests(o, &c->mt, err)) != SL_OK ||
         (st = sl_opts_bool(o, "far_layer", true, &c->far_layer, err)) != SL_OK ||
-        (st = sl_opts_float(o, "far_quality", 0.0f, 0.0f, 100.0f, &c->far_quality, err)) != SL_OK)
+        (st = sl_opts_float(o, "far_quality", 0.0f, 0.0f, 100.0f, &c->far_quality, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "box_rows", 8, 0, 100000, &c->box_rows, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "exact_px", 48, 0, 1u << 24, &c->exact_px, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -92,6 +102,7 @@ static void hzb_destroy(void *state)
     sl_occ_raster_free(&s->r);
     sl_occ_raster_free(&s->far);
     sl_occ_pyramid_free(&s->pyr, &a);
+    sl_occ_exact_free(&s->ex);
     sl_occ_base_free(&s->b);
     sl_free(&a, s, sizeof *s);
 }
@@ -111,7 +122,9 @@ static sl_status hzb_create(sl_scene scene, const void *config, const sl_allocat
         sl_free(alloc, s, sizeof *s);
         return st;
     }
-    st = sl_occ_raster_init(&s->r, &s->cfg.c, s->b.occ, alloc, err);
+    st = sl_occ_exact_init(&s->ex, alloc, err);
+    if (st == SL_OK)
+        st = sl_occ_raster_init(&s->r, &s->cfg.c, s->b.occ, alloc, err);
     if (st == SL_OK && s->cfg.far_layer) {
         sl_occ_common fc = s->cfg.c;
         fc.dump = fc.record = NULL; /* the debugging outputs show the main layer */
@@ -178,13 +191,16 @@ typedef struct frame_ctx {
     sl_cull_stats *st;
     uint32_t since_refresh;
     uint32_t *out, k;           /* objects found visible */
+    sl_status status;           /* the first failure of the exact layer */
+    sl_error *err;
 } frame_ctx;
 
 /* True when box b is hidden (or off screen). */
 static bool occluded(frame_ctx *f, const sl_aabb *b)
 {
     sl_occ_rect r;
-    int k = sl_occ_project_box(f->v, b, &r);
+    float xy[16];
+    int k = sl_occ_project_box_corners(f->v, b, &r, xy);
     if (k == SL_OCC_OUT)
         return true;
     if (k == SL_OCC_NEAR)
@@ -196,8 +212,14 @@ static bool occluded(frame_ctx *f, const sl_aabb *b)
     if (sl_occ_raster_test(&s->r, r.x0, r.y0, r.x1, r.y1, r.dnear) != SL_RASTER_VISIBLE)
         return true;
     /* hidden by the far layer's occluders alone is hidden too: both hold valid occluders only */
-    return s->cfg.far_layer && s->far.occluders_rendered &&
-           sl_occ_raster_test(&s->far, r.x0, r.y0, r.x1, r.y1, r.dnear) != SL_RASTER_VISIBLE;
+    if (s->cfg.far_layer && s->far.occluders_rendered &&
+        sl_occ_raster_test(&s->far, r.x0, r.y0, r.x1, r.y1, r.dnear) != SL_RASTER_VISIBLE)
+        return true;
+    /* the rectangle looks visible: the pixel centres of the box's silhouette */
+    sl_occ_raster *layers[2] = {&s->r, &s->far};
+    return s->cfg.box_rows &&
+           sl_occ_box_rows_hidden(layers, s->cfg.far_layer ? 2 : 1, s->cfg.exact_px ? &s->ex : NULL, b, &r, xy,
+                                  s->cfg.box_rows);
 }
 
 static void maybe_render(frame_ctx *f, uint32_t object)
@@ -236,10 +258,15 @@ static void visit(void *ctx, uint32_t id, const sl_aabb *box)
     frame_ctx *f = ctx;
     hzb_state *s = f->s;
     sl_occ_raster *layers[2] = {&s->r, &s->far};
-    if (sl_occ_object_hidden(layers, s->cfg.far_layer ? 2 : 1, s->b.scene, f->v, id, box, &s->cfg.mt,
+    sl_occ_exact *ex = s->cfg.exact_px ? &s->ex : NULL;
+    if (sl_occ_object_hidden(layers, s->cfg.far_layer ? 2 : 1, ex, s->b.scene, f->v, id, box, &s->cfg.mt,
                              &f->st->occlusion_tests))
         return;
     f->out[f->k++] = id;
+    sl_occ_rect r;
+    if (ex && f->status == SL_OK && sl_occ_project_box(f->v, box, &r) == SL_OCC_RECT &&
+        (uint64_t)(r.x1 - r.x0) * (uint64_t)(r.y1 - r.y0) <= s->cfg.exact_px)
+        f->status = sl_occ_exact_draw(ex, s->b.scene, id, &r, f->err);
     if (f->s->cfg.render_visible)
         maybe_render(f, id);
 }
@@ -257,6 +284,8 @@ static sl_status hzb_cull(void *state, const sl_camera *cam, uint32_t *out, uint
         st = sl_occ_raster_begin(&s->far, &v, err);
     if (st == SL_OK && s->cfg.pyramid)
         st = sl_occ_pyramid_size(&s->pyr, &s->b.alloc, s->r.ctx, v.width, v.height, NULL, err);
+    if (st == SL_OK && s->cfg.exact_px)
+        st = sl_occ_exact_begin(&s->ex, &v, err);
     if (st != SL_OK) {
         sl_error_prefix(err, "hzb");
         return st;
@@ -270,18 +299,22 @@ static sl_status hzb_cull(void *state, const sl_camera *cam, uint32_t *out, uint
         build_pyramid(s);
     double t2 = sl_now();
     /* 2. front-to-back traversal */
-    frame_ctx f = {s, &v, stats, 0, out, 0};
+    frame_ctx f = {s, &v, stats, 0, out, 0, SL_OK, err};
     sl_occ_walk w = {skip, visit, &f, NULL, 0};
     uint64_t tested = 0;
     uint64_t visited = sl_occ_walk_bvh(s->b.bvh, &v, &w, &tested);
     uint32_t k = f.k;
+    if (f.status != SL_OK) {
+        sl_error_prefix(err, "hzb");
+        return f.status;
+    }
     double t3 = sl_now();
     sl_cull_sort_ids(out, k, s->b.sort_scratch);
     double t4 = sl_now();
     stats->nodes_visited += visited;
     stats->objects_tested = tested;
     stats->queries = s->r.queries + s->far.queries;
-    stats->pixel_queries = s->r.pixel_queries + s->far.pixel_queries;
+    stats->pixel_queries = s->r.pixel_queries + s->far.pixel_queries + s->ex.pixel_tests;
     sl_cull_phase(stats, "select", sl_cull_ms(t0, t1));
     sl_cull_phase(stats, "render", sl_cull_ms(t1, t2));
     sl_cull_phase(stats, "traverse", sl_cull_ms(t2, t3));

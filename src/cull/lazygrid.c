@@ -513,7 +513,7 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
             /* the rasterizer holds true depths whatever the variant: a depth test of the object's
              * own triangles is valid at any point of the traversal */
             sl_occ_raster *layer = &s->r;
-            if (pk == SL_OCC_RECT && sl_occ_object_hidden(&layer, 1, s->b.scene, &v, id, box, &s->cfg.mt, &otests))
+            if (pk == SL_OCC_RECT && sl_occ_object_hidden(&layer, 1, NULL, s->b.scene, &v, id, box, &s->cfg.mt, &otests))
                 continue;
             out[k++] = id;
             if (obuf) {

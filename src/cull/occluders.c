@@ -108,6 +108,11 @@ static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
 
 int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
 {
+    return sl_occ_project_box_corners(v, b, r, NULL);
+}
+
+int sl_occ_project_box_corners(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r, float *xy)
+{
     const float *m = v->vp.m;
     r->x0 = 0;
     r->y0 = 0;
@@ -144,6 +149,10 @@ int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
         float inv = 1.0f / w;
         float sx = (x * inv) * hw + hw, sy = hh - (y * inv) * hh;
         float d = v->ortho ? 0.5f * (1.0f - z * inv) : inv;
+        if (xy) {
+            xy[2 * k] = sx;
+            xy[2 * k + 1] = sy;
+        }
         minx = sl_occ_minf(minx, sx);
         maxx = sl_occ_maxf(maxx, sx);
         miny = sl_occ_minf(miny, sy);
@@ -1478,9 +1487,21 @@ sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, con
 
 /* One sampled test (sl_occ_test_object_sampled): the layers, the rectangle, and per pixel of it
  * the nearest depth already proven hidden (-infinity: none). */
+/* Reversed depth of a clip-space point exactly as the oracle computes a vertex's (raster_ref.c). */
+static inline double oracle_depth(const double c[4])
+{
+    double inv = 1.0 / c[3];
+    double d = 0.5 * (1.0 - c[2] * inv);
+    return d < 0 ? 0 : d > 1 ? 1 : d;
+}
+
 typedef struct sampled_test {
     sl_occ_raster *const *layers;
     uint32_t layer_count;
+    sl_occ_exact *exact;
+    /* the current triangle's oracle depth bound, computed when first needed (rd < 0: not yet) */
+    double rd, mex[16];
+    const float *tri[3];
     int32_t x0, y0, w, h;
     float *proven;
 } sampled_test;
@@ -1498,12 +1519,33 @@ static bool rect_hidden(sampled_test *t, int32_t x0, int32_t y0, int32_t x1, int
     return false;
 }
 
-/* Is pixel (x, y) hidden at depth d in some layer? Remembers the answer. */
+/* Is pixel (x, y) hidden at depth d (oracle depth rd) in some layer or in the exact layer?
+ * Remembers the layers' answers (the exact layer's are in the oracle's depth order, which d does
+ * not follow exactly). */
 static bool sample_hidden(sampled_test *t, int32_t x, int32_t y, float d)
 {
     float *p = t->proven + (size_t)(y - t->y0) * (size_t)t->w + (size_t)(x - t->x0);
     if (d <= *p)
         return true; /* hidden at a nearer depth already */
+    if (t->exact && t->exact->drawn) {
+        if (t->rd < 0.0) {
+            /* the triangle's largest vertex depth as the oracle computes it (its fragments'
+             * depths are clamped to the vertices' range) */
+            double best = 0.0;
+            for (int j = 0; j < 3; j++) {
+                const float *q = t->tri[j];
+                const double *mx = t->mex;
+                double cl[4];
+                for (int row = 0; row < 4; row++)
+                    cl[row] = mx[row] * q[0] + mx[4 + row] * q[1] + mx[8 + row] * q[2] + mx[12 + row];
+                double od = cl[3] > 0.0 ? oracle_depth(cl) : INFINITY;
+                best = od > best ? od : best;
+            }
+            t->rd = best;
+        }
+        if (sl_occ_exact_hides(t->exact, x, y, t->rd))
+            return true;
+    }
     if (!rect_hidden(t, x, y, x + 1, y + 1, d))
         return false;
     *p = d;
@@ -1570,8 +1612,9 @@ static bool sample_triangle(sampled_test *t, const double *a, const double *b, c
     return true;
 }
 
-sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene,
-                                            const sl_occ_view *v, uint32_t object, const sl_occ_rect *rect)
+sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32_t layer_count,
+                                            struct sl_occ_exact *exact, sl_scene scene, const sl_occ_view *v,
+                                            uint32_t object, const sl_occ_rect *rect)
 {
     int32_t w = rect->x1 - rect->x0, h = rect->y1 - rect->y0;
     if (w <= 0 || h <= 0 || (int64_t)w * h > SL_OCC_SAMPLED_MAX_PX || layer_count == 0)
@@ -1585,7 +1628,10 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
     float proven[SL_OCC_SAMPLED_MAX_PX];
     for (int32_t i = 0; i < w * h; i++)
         proven[i] = -INFINITY;
-    sampled_test t = {layers, layer_count, rect->x0, rect->y0, w, h, proven};
+    sampled_test t = {.layers = layers, .layer_count = layer_count, .exact = exact, .rd = -1.0,
+                      .x0 = rect->x0, .y0 = rect->y0, .w = w, .h = h, .proven = proven};
+    if (exact && exact->drawn)
+        sl_refrast_compose(exact->vp, &om.xf, t.mex); /* the oracle's object-to-clip matrix */
     sl_occ_screen_vertex cache[SAMPLED_VERTEX_CACHE];
     bool have[SAMPLED_VERTEX_CACHE];
     bool cached = mr->vertex_count <= SAMPLED_VERTEX_CACHE;
@@ -1615,6 +1661,9 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
         /* the triangle's nearest depth, nudged nearer like a box's nearest corner */
         float dmax = sl_occ_maxf(tv[0]->d, sl_occ_maxf(tv[1]->d, tv[2]->d));
         dmax += fabsf(dmax) * (1.0f / 1048576.0f);
+        t.rd = -1.0;
+        for (int j = 0; j < 3; j++)
+            t.tri[j] = pos + 3 * (size_t)idx[3 * k + (uint32_t)j];
         const double a[2] = {tv[0]->x, tv[0]->y}, b[2] = {tv[1]->x, tv[1]->y}, c[2] = {tv[2]->x, tv[2]->y};
         if (!sample_triangle(&t, a, b, c, dmax))
             return SL_RASTER_VISIBLE;
@@ -1622,8 +1671,165 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
     return SL_RASTER_OCCLUDED;
 }
 
-bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene, const sl_occ_view *v,
-                          uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t, uint64_t *tests)
+/* Convex hull of n <= 8 points (x, y pairs), counter-clockwise in (x, y), by Andrew's monotone
+ * chain; returns the hull's vertex count (written to h). */
+static uint32_t hull8(const float *p, uint32_t n, float *h)
+{
+    uint32_t idx[8];
+    for (uint32_t i = 0; i < n; i++)
+        idx[i] = i;
+    for (uint32_t i = 1; i < n; i++) /* insertion sort by (x, y) */
+        for (uint32_t j = i; j > 0; j--) {
+            const float *a = p + 2 * idx[j - 1], *b = p + 2 * idx[j];
+            if (a[0] < b[0] || (a[0] == b[0] && a[1] <= b[1]))
+                break;
+            uint32_t t = idx[j];
+            idx[j] = idx[j - 1];
+            idx[j - 1] = t;
+        }
+    uint32_t out[18], k = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        uint32_t start = k;
+        for (uint32_t q = 0; q < n; q++) {
+            uint32_t i = pass ? idx[n - 1 - q] : idx[q];
+            while (k >= start + 2) {
+                const float *a = p + 2 * out[k - 2], *b = p + 2 * out[k - 1], *c = p + 2 * i;
+                double cr = ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)b[1] - a[1]) * ((double)c[0] - a[0]);
+                if (cr > 0.0)
+                    break;
+                k--;
+            }
+            out[k++] = i;
+        }
+        k--; /* the last point of each chain starts the other */
+    }
+    for (uint32_t i = 0; i < k; i++) {
+        h[2 * i] = p[2 * out[i]];
+        h[2 * i + 1] = p[2 * out[i] + 1];
+    }
+    return k;
+}
+
+/* x extent of the convex polygon h (m vertices) within the band ya <= y <= yb: false when the band
+ * misses it. */
+static bool band_extent(const float *h, uint32_t m, double ya, double yb, double *xl, double *xr)
+{
+    double lo = INFINITY, hi = -INFINITY;
+    for (uint32_t i = 0; i < m; i++) {
+        double x0 = h[2 * i], y0 = h[2 * i + 1];
+        uint32_t j = i + 1 == m ? 0 : i + 1;
+        double x1 = h[2 * j], y1 = h[2 * j + 1];
+        if (y0 >= ya && y0 <= yb) {
+            lo = x0 < lo ? x0 : lo;
+            hi = x0 > hi ? x0 : hi;
+        }
+        double yl = y0 < y1 ? y0 : y1, yh = y0 < y1 ? y1 : y0;
+        for (int e = 0; e < 2; e++) {
+            double yc = e ? yb : ya;
+            if (yl < yc && yc < yh) {
+                double x = x0 + (x1 - x0) * (yc - y0) / (y1 - y0);
+                lo = x < lo ? x : lo;
+                hi = x > hi ? x : hi;
+            }
+        }
+    }
+    if (!(lo <= hi))
+        return false;
+    *xl = lo;
+    *xr = hi;
+    return true;
+}
+
+bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact,
+                            const sl_aabb *box, const sl_occ_rect *r, const float *xy, uint32_t max_rows)
+{
+    /* pixel centres within 1/64 pixel of the silhouette count as covered: the oracle's vertex
+     * snapping moves edges by at most 1/512 pixel, and float projection errs far less */
+    const double eps = 1.0 / 64.0;
+    /* first the rectangle of the pixel centres the corners' bounding box covers: it leaves out the
+     * border rows and columns the box touches without covering a centre (one query) */
+    float lx = xy[0], hx = xy[0], ly = xy[1], hy = xy[1];
+    for (int k = 1; k < 8; k++) {
+        lx = xy[2 * k] < lx ? xy[2 * k] : lx;
+        hx = xy[2 * k] > hx ? xy[2 * k] : hx;
+        ly = xy[2 * k + 1] < ly ? xy[2 * k + 1] : ly;
+        hy = xy[2 * k + 1] > hy ? xy[2 * k + 1] : hy;
+    }
+    double cx0 = ceil((double)lx - eps - 0.5), cx1 = floor((double)hx + eps - 0.5);
+    double cy0 = ceil((double)ly - eps - 0.5), cy1 = floor((double)hy + eps - 0.5);
+    cx0 = cx0 > r->x0 ? cx0 : r->x0;
+    cy0 = cy0 > r->y0 ? cy0 : r->y0;
+    cx1 = cx1 < r->x1 - 1 ? cx1 : r->x1 - 1;
+    cy1 = cy1 < r->y1 - 1 ? cy1 : r->y1 - 1;
+    if (cx0 > cx1 || cy0 > cy1)
+        return true; /* no pixel centre at all */
+    for (uint32_t l = 0; l < layer_count; l++)
+        if (layers[l]->occluders_rendered &&
+            sl_occ_raster_test(layers[l], (int32_t)cx0, (int32_t)cy0, (int32_t)cx1 + 1, (int32_t)cy1 + 1, r->dnear) !=
+                SL_RASTER_VISIBLE)
+            return true;
+    if ((uint32_t)(r->y1 - r->y0) > max_rows)
+        return false;
+    double rd = -1.0; /* the box's largest oracle depth, computed when first needed */
+    float h[16];
+    uint32_t m = hull8(xy, 8, h);
+    int32_t y = r->y0;
+    while (y < r->y1) {
+        /* one query per group of rows inside one 4-row band of subtiles: the union of the rows'
+         * spans (the rectangle test is monotone, so a hidden union hides each row) */
+        int32_t yend = ((y >> 2) + 1) << 2;
+        if (yend > r->y1)
+            yend = r->y1;
+        int32_t qx0 = INT32_MAX, qx1 = INT32_MIN, qy0 = INT32_MAX, qy1 = INT32_MIN;
+        int32_t span[4][2], npx = 0;
+        for (int32_t row = y; row < yend; row++) {
+            span[row - y][0] = 0;
+            span[row - y][1] = -1;
+            double yc = row + 0.5, xl, xr;
+            if (!band_extent(h, m, yc - eps, yc + eps, &xl, &xr))
+                continue;
+            /* columns whose centre c + 0.5 lies in [xl - eps, xr + eps] */
+            double ca = ceil(xl - eps - 0.5), cb = floor(xr + eps - 0.5);
+            ca = fmax(ca, r->x0);
+            cb = fmin(cb, r->x1 - 1);
+            if (ca > cb)
+                continue;
+            span[row - y][0] = (int32_t)ca;
+            span[row - y][1] = (int32_t)cb;
+            npx += (int32_t)(cb - ca) + 1;
+            qx0 = qx0 < (int32_t)ca ? qx0 : (int32_t)ca;
+            qx1 = qx1 > (int32_t)cb + 1 ? qx1 : (int32_t)cb + 1;
+            qy0 = qy0 < row ? qy0 : row;
+            qy1 = row + 1;
+        }
+        if (qx0 < qx1) {
+            bool hid = false;
+            for (uint32_t l = 0; l < layer_count && !hid; l++)
+                hid = layers[l]->occluders_rendered &&
+                      sl_occ_raster_test(layers[l], qx0, qy0, qx1, qy1, r->dnear) != SL_RASTER_VISIBLE;
+            /* pixel by pixel: each centre hidden in some layer or in the exact layer */
+            for (int32_t row = y; row < yend && !hid && npx <= 64; row++)
+                for (int32_t x = span[row - y][0]; x <= span[row - y][1]; x++) {
+                    if (rd < 0.0)
+                        rd = exact && exact->drawn ? sl_occ_exact_box_depth(exact, box) : INFINITY;
+                    bool ph = sl_occ_exact_hides(exact, x, row, rd);
+                    for (uint32_t l = 0; l < layer_count && !ph; l++)
+                        ph = layers[l]->occluders_rendered &&
+                             sl_occ_raster_test(layers[l], x, row, x + 1, row + 1, r->dnear) != SL_RASTER_VISIBLE;
+                    if (!ph)
+                        return false;
+                }
+            if (!hid && npx > 64)
+                return false;
+        }
+        y = yend;
+    }
+    return true;
+}
+
+bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact, sl_scene scene,
+                          const sl_occ_view *v, uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t,
+                          uint64_t *tests)
 {
     const struct sl_scene_t *sc = scene;
     uint32_t tris = sl_scene_meshes(sc)[sl_scene_objects(sc)[object].mesh].triangle_count;
@@ -1636,7 +1842,7 @@ bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl
     sl_occ_rect r;
     if (tris <= t->sample_tris && sl_occ_project_box(v, box, &r) == SL_OCC_RECT &&
         (int64_t)(r.x1 - r.x0) * (r.y1 - r.y0) <= t->sample_px &&
-        sl_occ_test_object_sampled(layers, layer_count, scene, v, object, &r) != SL_RASTER_VISIBLE)
+        sl_occ_test_object_sampled(layers, layer_count, exact, scene, v, object, &r) != SL_RASTER_VISIBLE)
         return true;
     if (tris <= t->mesh_test)
         for (uint32_t l = 0; l < layer_count; l++)
@@ -1644,6 +1850,120 @@ bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl
                 sl_occ_raster_test_object(layers[l], scene, v, object) != SL_RASTER_VISIBLE)
                 return true;
     return false;
+}
+
+/* ---- the exact layer ---- */
+
+sl_status sl_occ_exact_init(sl_occ_exact *e, const sl_allocator *alloc, sl_error *err)
+{
+    (void)err;
+    memset(e, 0, sizeof *e);
+    e->alloc = *alloc;
+    return SL_OK;
+}
+
+void sl_occ_exact_free(sl_occ_exact *e)
+{
+    size_t n = (size_t)e->width * e->height;
+    sl_free(&e->alloc, e->depth, n * sizeof(float));
+    sl_free(&e->alloc, e->ids, n * sizeof(uint32_t));
+    sl_free(&e->alloc, e->dirty, e->dirty_cap * sizeof *e->dirty);
+    sl_refrast_scratch_free(&e->alloc, &e->scratch);
+    memset(e, 0, sizeof *e);
+}
+
+sl_status sl_occ_exact_begin(sl_occ_exact *e, const sl_occ_view *v, sl_error *err)
+{
+    if (e->width != v->width || e->height != v->height) {
+        size_t old = (size_t)e->width * e->height, n = (size_t)v->width * v->height;
+        sl_free(&e->alloc, e->depth, old * sizeof(float));
+        sl_free(&e->alloc, e->ids, old * sizeof(uint32_t));
+        e->depth = sl_calloc(&e->alloc, n, sizeof(float));
+        e->ids = sl_alloc(&e->alloc, n * sizeof(uint32_t));
+        e->width = e->height = 0;
+        if (!e->depth || !e->ids) {
+            sl_free(&e->alloc, e->depth, n * sizeof(float));
+            sl_free(&e->alloc, e->ids, n * sizeof(uint32_t));
+            e->depth = NULL;
+            e->ids = NULL;
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "exact layer: out of memory for %ux%u pixels", v->width,
+                           v->height);
+        }
+        for (size_t i = 0; i < n; i++)
+            e->ids[i] = SL_NONE;
+        e->width = v->width;
+        e->height = v->height;
+        e->dirty_count = 0;
+    }
+    /* clear what the last frame drew (depth 0 and no id: what sl_refrast_clear writes) */
+    for (size_t k = 0; k < e->dirty_count; k++) {
+        const sl_occ_rect *r = &e->dirty[k];
+        for (int32_t y = r->y0; y < r->y1; y++) {
+            size_t at = (size_t)y * e->width + (size_t)r->x0, n = (size_t)(r->x1 - r->x0);
+            memset(e->depth + at, 0, n * sizeof(float));
+            for (size_t i = 0; i < n; i++)
+                e->ids[at + i] = SL_NONE;
+        }
+    }
+    e->dirty_count = 0;
+    e->drawn = 0;
+    e->pixel_tests = 0;
+    for (int i = 0; i < 16; i++)
+        e->vp[i] = (double)v->vp.m[i]; /* as the oracle converts sl_camera_view_proj */
+    return SL_OK;
+}
+
+double sl_occ_exact_box_depth(const sl_occ_exact *e, const sl_aabb *b)
+{
+    double best = 0.0;
+    for (int k = 0; k < 8; k++) {
+        double p[3] = {(k & 1) ? b->max.x : b->min.x, (k & 2) ? b->max.y : b->min.y, (k & 4) ? b->max.z : b->min.z};
+        double c[4];
+        for (int row = 0; row < 4; row++)
+            c[row] = e->vp[row] * p[0] + e->vp[4 + row] * p[1] + e->vp[8 + row] * p[2] + e->vp[12 + row];
+        if (!(c[3] > 0.0))
+            return INFINITY;
+        double od = oracle_depth(c);
+        best = od > best ? od : best;
+    }
+    return best;
+}
+
+sl_status sl_occ_exact_draw(sl_occ_exact *e, sl_scene scene, uint32_t object, const sl_occ_rect *r, sl_error *err)
+{
+    const struct sl_scene_t *sc = scene;
+    object_mesh om = get_object_mesh(sc, object);
+    if (!sl_refrast_scratch_reserve(&e->alloc, &e->scratch, om.mr->vertex_count))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "exact layer: out of memory for %u vertices", om.mr->vertex_count);
+    if (e->dirty_count == e->dirty_cap) {
+        size_t cap = e->dirty_cap ? 2 * e->dirty_cap : 256;
+        sl_occ_rect *d = sl_alloc(&e->alloc, cap * sizeof *d);
+        if (!d)
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "exact layer: out of memory");
+        if (e->dirty_count)
+            memcpy(d, e->dirty, e->dirty_count * sizeof *d);
+        sl_free(&e->alloc, e->dirty, e->dirty_cap * sizeof *d);
+        e->dirty = d;
+        e->dirty_cap = cap;
+    }
+    /* what the oracle draws for the object: its matrix, mesh and facing rule (a closed convex
+     * mesh without its back faces; drawing fewer fragments than the oracle is always safe) */
+    double m[16];
+    sl_refrast_compose(e->vp, &om.xf, m);
+    sl_refrast_cull cull = SL_REFRAST_CULL_NONE;
+    if (sl_scene_objects(sc)[object].flags & SL_OBJECT_CLOSED_CONVEX) {
+        const float *a = om.xf.m;
+        double det = (double)a[0] * ((double)a[5] * a[10] - (double)a[6] * a[9]) -
+                     (double)a[1] * ((double)a[4] * a[10] - (double)a[6] * a[8]) +
+                     (double)a[2] * ((double)a[4] * a[9] - (double)a[5] * a[8]);
+        cull = det < 0 ? SL_REFRAST_CULL_FRONT : SL_REFRAST_CULL_BACK;
+    }
+    sl_refrast_target t = {e->width, e->height, e->ids, e->depth, NULL, 2.0 * SL_REFRAST_GUARD_PX / e->width,
+                           2.0 * SL_REFRAST_GUARD_PX / e->height};
+    sl_refrast_mesh(&t, &e->scratch, m, om.pos, om.mr->vertex_count, om.idx, om.mr->triangle_count, object, cull);
+    e->dirty[e->dirty_count++] = *r;
+    e->drawn++;
+    return SL_OK;
 }
 
 sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err)

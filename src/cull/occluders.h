@@ -34,6 +34,9 @@
 
 #include "accel/bvh_internal.h"
 #include "scene/scene_internal.h"
+#include "truth/raster_ref.h"
+
+#include <math.h>
 #include "sightline/accel.h"
 #include "sightline/raster.h"
 
@@ -81,6 +84,9 @@ enum {
 
 /* Project box b. Returns SL_OCC_OUT, SL_OCC_RECT or SL_OCC_NEAR. */
 int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r);
+/* The same, also writing the eight corners' screen positions (x, y pairs, corner k = min corner
+ * plus bit 0: x, bit 1: y, bit 2: z extent) to xy (16 floats) when the result is SL_OCC_RECT. */
+int sl_occ_project_box_corners(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r, float *xy);
 
 /* Forward (eye-space) depth range of a box: min and max of dot(fwd, p - eye) over its corners. */
 static inline void sl_occ_box_zrange(const sl_occ_view *v, const sl_aabb *b, float *zmin, float *zmax)
@@ -355,14 +361,17 @@ sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, con
 /* Test an object by its own triangles sampled at pixel centres, the way the oracle decides
  * visibility: every pixel centre within SL_OCC_MIN_INSET_PX of one of its triangles (two-sided,
  * current transform) is tested at that triangle's nearest depth, and a centre hidden in any of
- * the layers (rasterizers that hold valid occluders only) is hidden. OCCLUDED when every such
+ * the layers (rasterizers that hold valid occluders only) or in the exact layer (may be NULL) is
+ * hidden. OCCLUDED when every such
  * centre is hidden, including when there is none (the object covers no pixel centre at the
  * camera's resolution: the oracle, and a renderer without multisampling, draw nothing of it);
  * VISIBLE otherwise, and whenever rect (the object's box, SL_OCC_RECT) holds more than
  * SL_OCC_SAMPLED_MAX_PX pixels or a vertex is not in front of the eye. Counted as one query of
  * layers[0] plus the pixel queries. */
-sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene,
-                                            const sl_occ_view *v, uint32_t object, const sl_occ_rect *rect);
+struct sl_occ_exact;
+sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32_t layer_count,
+                                            struct sl_occ_exact *exact, sl_scene scene, const sl_occ_view *v,
+                                            uint32_t object, const sl_occ_rect *rect);
 /* When an object whose box looks visible is tested by its own triangles (options mesh_test,
  * sample_tris, sample_px of the methods that offer them). */
 typedef struct sl_occ_mesh_tests {
@@ -384,14 +393,70 @@ typedef struct sl_occ_mesh_tests {
 /* Read mesh_test, sample_tris and sample_px. */
 sl_status sl_occ_configure_mesh_tests(sl_opts *o, sl_occ_mesh_tests *t, sl_error *err);
 
+/* ---- the exact layer: visible objects drawn with the oracle's own rasterizer ----
+ * Far, small objects (a pixel or two at the end of a street) hide each other, but as occluders
+ * they are too thin for the conservative rasterizer (MESH proxies drop triangles thinner than
+ * SL_OCC_MIN_INSET_PX). Drawn with the point oracle's reference rasterizer (truth/raster_ref.h),
+ * with the same world-to-clip matrix, object transform and facing rule, an object's fragments
+ * (covered pixel centres and their depths) are bit-identical to the ones the oracle draws for it
+ * at the same resolution. Where such a fragment is nearer than every point a tested object may
+ * show at that pixel centre, with a margin far above float rounding, the oracle gives the pixel
+ * to something else. Only visible objects' true triangles are drawn (no proxies), so the layer
+ * holds nothing that is not there. Pixels never drawn hold depth 0 (hides nothing). */
+typedef struct sl_occ_exact {
+    sl_allocator alloc;
+    uint32_t width, height;   /* allocated size */
+    float *depth;             /* oracle's reversed depth, 0 where nothing was drawn */
+    uint32_t *ids;
+    sl_refrast_scratch scratch;
+    sl_occ_rect *dirty;       /* rectangles drawn this frame: cleared at the next begin */
+    size_t dirty_count, dirty_cap;
+    uint32_t drawn;           /* objects drawn this frame */
+    double vp[16];            /* the oracle's world-to-clip matrix */
+    uint64_t pixel_tests;
+} sl_occ_exact;
+
+sl_status sl_occ_exact_init(sl_occ_exact *e, const sl_allocator *alloc, sl_error *err);
+void sl_occ_exact_free(sl_occ_exact *e);
+/* Start a frame: size the buffers for the view, clear what the last frame drew. */
+sl_status sl_occ_exact_begin(sl_occ_exact *e, const sl_occ_view *v, sl_error *err);
+/* Draw an object (its own triangles, the oracle's facing rule) whose box covers rectangle r. */
+sl_status sl_occ_exact_draw(sl_occ_exact *e, sl_scene scene, uint32_t object, const sl_occ_rect *r, sl_error *err);
+/* Does the layer prove pixel (x, y) hidden for surfaces whose oracle depth there is at most rd
+ * (reversed depth (1 - z/w) / 2, larger = nearer, as computed from the oracle's matrix)? The
+ * oracle's own order is compared: converting to 1/w is not exact, because z and w come from a
+ * float matrix whose rows are not exactly proportional. The margin (2^-20 relative) covers the
+ * float storage of both depths and the ties the oracle breaks by object id. */
+static inline bool sl_occ_exact_hides(sl_occ_exact *e, int32_t x, int32_t y, double rd)
+{
+    if (!e || !e->drawn)
+        return false;
+    e->pixel_tests++;
+    double stored = (double)e->depth[(size_t)y * e->width + (size_t)x];
+    return stored > 0.0 && stored > rd + fabs(rd) * (1.0 / 1048576.0);
+}
+/* The largest oracle depth of a point in the box (a corner's: the reversed depth is monotone
+ * along segments in front of the eye); +infinity when a corner is not in front of the eye. */
+double sl_occ_exact_box_depth(const sl_occ_exact *e, const sl_aabb *b);
+/* A box whose rectangle looks visible, tested at the pixel centres its silhouette covers (the
+ * convex hull of its projected corners, grown by 1/64 pixel for the oracle's vertex snapping) at
+ * its nearest depth: true when each such pixel is hidden in some layer (row groups within a 4-row
+ * band of subtiles are queried as one rectangle, hidden in one layer; failing that, pixel by pixel
+ * in the layers and the exact layer, which may be NULL, when the group holds at most 64 pixels). An object inside the box
+ * covers only pixel centres the silhouette covers, at depths no nearer than r->dnear, so it is
+ * hidden from the oracle at the same resolution too; a box that covers no pixel centre hides
+ * everything in it. Not tried (false) when the rectangle is taller than max_rows. */
+bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact,
+                            const sl_aabb *box, const sl_occ_rect *r, const float *xy, uint32_t max_rows);
 /* Is an object whose box looks visible hidden by its own triangles? Hidden when either test, as
  * configured by t, hides it: the pixel-centre test (sl_occ_test_object_sampled) over all the
  * layers, tried first (cheaper, and it answers most of the small objects it applies to), then the
  * outward-conservative mesh query in each layer. Queries leave the buffers unchanged, so the
  * order changes the cost, never the answer. False when the eye is in its box. *tests (may be
  * NULL) counts the objects tested. */
-bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_scene scene, const sl_occ_view *v,
-                          uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t, uint64_t *tests);
+bool sl_occ_object_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact, sl_scene scene,
+                          const sl_occ_view *v, uint32_t object, const sl_aabb *box, const sl_occ_mesh_tests *t,
+                          uint64_t *tests);
 /* End a frame: on the debug frame, write the recording and the dumps (the pyramid given as
  * `levels` float images, level i of size w_i x h_i, may be NULL). Debug output failures are
  * reported as errors of the cull call. */

@@ -174,18 +174,6 @@ typedef struct thread_arg {
     bool started;
 } thread_arg;
 
-/* Object-to-clip matrix: the view-projection (column-major) times the object's 3x4 affine. */
-static void compose(const double vp[16], const sl_affine *t, double m[16])
-{
-    for (int col = 0; col < 4; col++)
-        for (int row = 0; row < 4; row++) {
-            double s = col == 3 ? vp[12 + row] : 0.0;
-            for (int k = 0; k < 3; k++)
-                s += vp[k * 4 + row] * (double)t->m[k * 4 + col];
-            m[col * 4 + row] = s;
-        }
-}
-
 static double affine_det(const sl_affine *t)
 {
     const float *m = t->m;
@@ -219,7 +207,7 @@ static void *run_thread(void *p)
         const sl_mesh_rec *mesh = &meshes[obj->mesh];
         const sl_affine *xf = obj->transform == SL_NONE ? &identity : &transforms[obj->transform];
         double m[16];
-        compose(job->vp, xf, m);
+        sl_refrast_compose(job->vp, xf, m);
         sl_refrast_cull cull = SL_REFRAST_CULL_NONE;
         if ((obj->flags & SL_OBJECT_CLOSED_CONVEX) && !o->opt.draw_closed_backfaces)
             /* a mirroring transform turns the mesh's front faces into back faces */

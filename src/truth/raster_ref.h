@@ -63,6 +63,20 @@ bool sl_refrast_box_visible(const double vp[16], const sl_aabb *box, uint32_t wi
 bool sl_refrast_scratch_reserve(const sl_allocator *a, sl_refrast_scratch *s, size_t n);
 void sl_refrast_scratch_free(const sl_allocator *a, sl_refrast_scratch *s);
 
+/* Object-to-clip matrix: the view-projection vp (column-major) times the object's 3x4 affine t.
+ * Shared by the oracle and the cullers that reproduce its fragments (cull/occluders.c): the same
+ * operations in the same order give bit-identical matrices. */
+static inline void sl_refrast_compose(const double vp[16], const sl_affine *t, double m[16])
+{
+    for (int col = 0; col < 4; col++)
+        for (int row = 0; row < 4; row++) {
+            double s = col == 3 ? vp[12 + row] : 0.0;
+            for (int k = 0; k < 3; k++)
+                s += vp[k * 4 + row] * (double)t->m[k * 4 + col];
+            m[col * 4 + row] = s;
+        }
+}
+
 /* Draw one object: positions (3 floats per vertex) transformed by the object-to-clip matrix m
  * (column-major doubles), triangles from indices (3 per triangle, each < vertex_count). */
 void sl_refrast_mesh(const sl_refrast_target *t, sl_refrast_scratch *s, const double m[16], const float *positions,
