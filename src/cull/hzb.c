@@ -15,6 +15,9 @@
  *     (front-to-back order makes the objects found first the best occluders); the pyramid is
  *     rebuilt after every `refresh` such occluders. A stale pyramid is still conservative: every
  *     state of the buffer during a frame bounds the depth of occluders that stay valid all frame.
+ *     A box whose rectangle looks visible is then tested at the pixel centres its silhouette
+ *     covers (sl_occ_box_rows_hidden, `box_rows`): the rectangle touches border rows and columns
+ *     whose centres the box does not reach, and a box between pixel centres hides nothing.
  *     An object whose box looks visible is then tested by its own triangles (sl_occ_object_hidden):
  *     sampled at the pixel centres the oracle samples (at most `sample_tris` triangles, box
  *     rectangle of at most `sample_px` pixels), then rasterized outward-conservatively (at most
@@ -24,6 +27,12 @@
  *     (`far_layer`): merged into the main one, their far depths would dilute the partial layers
  *     the rasterizer keeps along near silhouettes; a box (or a sampled pixel) hidden in either
  *     buffer is hidden (each holds valid occluders only).
+ *     Visible objects whose box rectangle holds at most `exact_px` pixels (far, small ones) are
+ *     also drawn into an exact layer (sl_occ_exact) with the oracle's own rasterizer: their
+ *     fragments are the oracle's, so a pixel-centre test that finds one nearer than anything the
+ *     tested object may show there proves the pixel lost, at the same resolution. At the end of
+ *     a street far props and buildings a pixel or two in size hide each other, and no conservative
+ *     proxy of them survives the rasterizer's inset.
  * Conservative: proxies lie inside their objects (occluders.h), the rasterizer never writes a
  * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner. */
 #include "occluders.h"
