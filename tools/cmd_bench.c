@@ -42,43 +42,47 @@ static void usage(FILE *out)
             "                       reported as not run unless given --method-options; `sightline\n"
             "                       methods` lists them all)\n"
             "                       pvs without file=PATH: the bench first bakes, per scene, the PVS of\n"
-            "                       the street cells within %g m of its cameras (all frames of a --path,\n"
-            "                       like `sightline pvs build --along PATH --radius %g`, method %s)\n"
-            "                       into OUT/LABEL.slpvs and runs pvs on it; where the eye is in none\n"
-            "                       of them, pvs culls by the frustum. A scene without streets, views\n"
-            "                       near no cell (--random flyover) or an OUT holding a comma or space:\n"
-            "                       pvs is reported as not run (an error when --methods names it)\n"
+            "                       the street cells within %g m of the cameras of the frames it runs\n"
+            "                       (with --path, only those of --frames A:B; like `sightline pvs build\n"
+            "                       --along PATH --radius %g`, method %s) into OUT/LABEL.slpvs, names\n"
+            "                       the file and its number of cells on stderr (not with --quiet or\n"
+            "                       --json) and runs pvs on it; where the eye is in none of the cells,\n"
+            "                       pvs culls by the frustum. A scene without streets, views near no\n"
+            "                       cell (--random flyover) or an OUT holding a comma or space: pvs is\n"
+            "                       reported as not run (an error when --methods names it)\n"
             "  --method-options NAME:key=value,...   options for one method (repeatable)\n"
-            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n\n"
-            "rendering:\n"
-            "  --width W --height H viewport of every camera and oracle resolution (default 1024x768,\n"
-            "                       replacing a path file's)\n"
-            "  --threads T          oracle threads (default 2); methods always run on one thread\n"
-            "  --map NAME           map inside a .pk3\n\n"
-            "output:\n"
-            "  --out DIR            output folder (default bench-out): frames.csv, frames.json,\n"
-            "                       summary.md, summary.json, and per scene LABEL-cull-time.svg,\n"
-            "                       LABEL-triangles.svg, LABEL-missed-pixels.svg, LABEL-map-METHOD.png\n"
-            "  --map-eye X,Y,Z      top-down maps of visibility from this point in all directions\n"
-            "                       (default: from the first frame's camera)\n"
-            "  --map-size N         map pixels along its longer side (default 1024)\n"
-            "  --no-plots           no plots and no maps\n"
-            "  --json               print the summary as JSON instead of the table\n"
-            "  --strict             exit 1 when a conservative method misses a visible object (default)\n"
-            "  --no-strict          report such misses loudly but exit 0\n"
-            "  --quiet              no progress bar (nor the lines about the PVS bake)\n"
-            "  --help               this text\n\n"
-            "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
-            "naming the scene, frame, method and objects, and the command exits 1 (unless --no-strict).\n"
-            "Exit status: 0 ok, 1 failure or violation, 2 usage error.\n\n"
-            "examples:\n"
-            "  sightline bench city:small --walk 300\n"
-            "  sightline bench city:vienna:1 --walk 600 --fps 10 --methods vfc --out vienna-bench\n"
-            "  sightline bench city.slscene --random street --count 200 --seed 3 --repeat 5\n"
-            "  sightline bench city.slscene --path walk.txt --frames 0:100 --method-options vfc:coherence=off\n"
-            "  sightline bench city:tiny --walk 60 --methods vfc,pvs\n"
-            "  sightline bench city:small --walk 60 --methods pvs --method-options pvs:file=city.slpvs\n",
+            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n\n",
             (double)CLI_PVS_ALONG_RADIUS, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD);
+    /* two calls: one string literal would pass the 4095 characters C11 compilers must support */
+    fputs("rendering:\n"
+          "  --width W --height H viewport of every camera and oracle resolution (default 1024x768,\n"
+          "                       replacing a path file's)\n"
+          "  --threads T          oracle threads (default 2); methods always run on one thread\n"
+          "  --map NAME           map inside a .pk3\n\n"
+          "output:\n"
+          "  --out DIR            output folder (default bench-out): frames.csv, frames.json,\n"
+          "                       summary.md, summary.json, and per scene LABEL-cull-time.svg,\n"
+          "                       LABEL-triangles.svg, LABEL-missed-pixels.svg, LABEL-map-METHOD.png\n"
+          "  --map-eye X,Y,Z      top-down maps of visibility from this point in all directions\n"
+          "                       (default: from the first frame's camera)\n"
+          "  --map-size N         map pixels along its longer side (default 1024)\n"
+          "  --no-plots           no plots and no maps\n"
+          "  --json               print the summary as JSON instead of the table\n"
+          "  --strict             exit 1 when a conservative method misses a visible object (default)\n"
+          "  --no-strict          report such misses loudly but exit 0\n"
+          "  --quiet              no progress bar (nor the lines about the PVS bake)\n"
+          "  --help               this text\n\n"
+          "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
+          "naming the scene, frame, method and objects, and the command exits 1 (unless --no-strict).\n"
+          "Exit status: 0 ok, 1 failure or violation, 2 usage error.\n\n"
+          "examples:\n"
+          "  sightline bench city:small --walk 300\n"
+          "  sightline bench city:vienna:1 --walk 600 --fps 10 --methods vfc --out vienna-bench\n"
+          "  sightline bench city.slscene --random street --count 200 --seed 3 --repeat 5\n"
+          "  sightline bench city.slscene --path walk.txt --frames 0:100 --method-options vfc:coherence=off\n"
+          "  sightline bench city:tiny --walk 60 --methods vfc,pvs\n"
+          "  sightline bench city:small --walk 60 --methods pvs --method-options pvs:file=city.slpvs\n",
+          out);
 }
 
 typedef struct bench_args {
@@ -549,14 +553,15 @@ static void unique_label(char *label, size_t size, char labels[][128], uint32_t 
     }
 }
 
-/* pvs without a file: bake the PVS of the cells along this scene's views into OUT/LABEL.slpvs and
- * give its name to run[index] (in opts_buf, before the user's other options). When nothing can be
- * baked: an error (*status = 1) if --methods named pvs, else pvs leaves run[] for this scene and
- * joins skipped with the reason. A failed bake returns its status. */
-static sl_status bake_pvs(const bench_args *g, const char *cmd, sl_scene scene, sl_path views, const char *label,
-                          const sl_progress *prog, cli_progress_state *ps, sl_bench_method_spec *run, uint32_t *nrun,
-                          uint32_t index, char *opts_buf, size_t opts_size, sl_bench_skip *skipped,
-                          uint32_t *nskipped, int *status, sl_error *err)
+/* pvs without a file: bake the PVS of the cells along the frames first..first+count-1 of this
+ * scene's views (those the bench runs) into OUT/LABEL.slpvs and give its name to run[index] (in
+ * opts_buf, before the user's other options). When nothing can be baked: an error (*status = 1) if
+ * --methods named pvs, else pvs leaves run[] for this scene and joins skipped with the reason. A
+ * failed bake returns its status. */
+static sl_status bake_pvs(const bench_args *g, const char *cmd, sl_scene scene, sl_path views, uint32_t first,
+                          uint32_t count, const char *label, const sl_progress *prog, cli_progress_state *ps,
+                          sl_bench_method_spec *run, uint32_t *nrun, uint32_t index, char *opts_buf, size_t opts_size,
+                          sl_bench_skip *skipped, uint32_t *nskipped, int *status, sl_error *err)
 {
     char file[4400];
     snprintf(file, sizeof file, "%s/%s.slpvs", g->out_dir, label);
@@ -565,7 +570,7 @@ static sl_status bake_pvs(const bench_args *g, const char *cmd, sl_scene scene, 
         fprintf(stderr, "sightline bench: %s: baking the PVS of the street cells within %g m of the views (%s) for "
                         "pvs...\n", label, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD);
     cli_pvs_along pa;
-    sl_status st = cli_pvs_bake_along(scene, views, file, prog, &pa, err);
+    sl_status st = cli_pvs_bake_along(scene, views, first, count, file, prog, &pa, err);
     cli_progress_done(ps);
     if (st != SL_OK)
         return st;
@@ -661,8 +666,8 @@ int sl_cmd_bench(int argc, char **argv)
         memcpy(run, specs, nrun * sizeof run[0]);
         char pvs_options[8800];
         if (bake_index >= 0) {
-            st = bake_pvs(&g, cmd, s, views, label, &prog, &ps, run, &nrun, (uint32_t)bake_index, pvs_options,
-                          sizeof pvs_options, skipped, &nskipped, &status, &err);
+            st = bake_pvs(&g, cmd, s, views, first, count, label, &prog, &ps, run, &nrun, (uint32_t)bake_index,
+                          pvs_options, sizeof pvs_options, skipped, &nskipped, &status, &err);
             if (status || st != SL_OK) {
                 sl_path_destroy(views);
                 if (!status)

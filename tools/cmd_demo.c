@@ -462,7 +462,7 @@ int sl_cmd_demo(int argc, char **argv)
             fprintf(stderr, "sightline demo: baking the PVS of the street cells along the walk (%s)...\n",
                     CLI_PVS_ALONG_METHOD);
         snprintf(path, sizeof path, "%s/walk.slpvs", out_dir);
-        if (cli_pvs_bake_along(scene, walk, path, &prog, &dp, &err) != SL_OK)
+        if (cli_pvs_bake_along(scene, walk, 0, UINT32_MAX, path, &prog, &dp, &err) != SL_OK)
             status = cli_fail(cmd, &err);
         cli_progress_done(&ps);
     }

@@ -9,8 +9,30 @@
 #include <string.h>
 #include <unistd.h>
 
-sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, const char *file, const sl_progress *prog,
-                             cli_pvs_along *out, sl_error *err)
+/* The frames first..first+count-1 of `path` (count clamped to its end) as a new path with the same
+ * intrinsics: the cameras whose cells are baked. Poses of a valid path append without error. */
+static sl_status path_slice(sl_path path, uint32_t first, uint32_t count, sl_path *out, sl_error *err)
+{
+    *out = NULL;
+    uint32_t n = sl_path_count(path);
+    if (first >= n)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "frame %u is beyond the path's %u frames", first, n);
+    if (count > n - first)
+        count = n - first;
+    sl_camera intrinsics = sl_path_intrinsics(path);
+    const sl_pose *poses = sl_path_poses(path);
+    sl_status st = sl_path_create(&intrinsics, NULL, out, err);
+    for (uint32_t i = 0; st == SL_OK && i < count; i++)
+        st = sl_path_append(*out, &poses[first + i], err);
+    if (st != SL_OK) {
+        sl_path_destroy(*out);
+        *out = NULL;
+    }
+    return st;
+}
+
+sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, uint32_t first, uint32_t count, const char *file,
+                             const sl_progress *prog, cli_pvs_along *out, sl_error *err)
 {
     memset(out, 0, sizeof out[0]);
     /* the culler's options are "key=value,...": its file name cannot hold a comma or a space */
@@ -32,21 +54,25 @@ sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, const char *file, con
     }
     double t0 = sl_now();
     sl_viewcells all = NULL, near = NULL;
-    sl_status st = sl_viewcells_from_streets(scene, NULL, &all, err);
+    sl_path run = NULL;
+    sl_status st = path_slice(path, first, count, &run, err);
+    if (st == SL_OK)
+        st = sl_viewcells_from_streets(scene, NULL, &all, err);
     if (st == SL_OK) {
         sl_error e;
-        st = cli_viewcells_along(all, path, CLI_PVS_ALONG_RADIUS, &near, &e);
+        st = cli_viewcells_along(all, run, CLI_PVS_ALONG_RADIUS, &near, &e);
         if (st == SL_ERROR_INVALID_ARGUMENT) {
             /* no cell near the cameras (views above the streets): nothing to bake, not a failure */
             snprintf(out->why, sizeof out->why,
                      "no street view cell lies within %g m of the %u cameras (views above the streets?)",
-                     (double)CLI_PVS_ALONG_RADIUS, sl_path_count(path));
+                     (double)CLI_PVS_ALONG_RADIUS, sl_path_count(run));
             st = SL_OK;
         } else if (st != SL_OK && err) {
             *err = e;
         }
     }
     sl_viewcells_destroy(all);
+    sl_path_destroy(run);
     if (st == SL_OK && near) {
         /* a journal left by an interrupted run belongs to this output: start afresh */
         char journal[4500];

@@ -5,31 +5,12 @@
 # files written (CSV rows = frames x methods, JSON, summary, SVG plots, PNG maps with the PNG
 # signature) and that every conservative method misses nothing. The pvs culler runs on the PVS the
 # bench bakes along the views (OUT/LABEL.slpvs) or on a file given with pvs:file=, and is named as
-# not run where nothing can be baked. $1 is the sightline binary.
+# not run where nothing can be baked; with --frames A:B it bakes the cells along those frames only.
+# $1 is the sightline binary.
 # Under sanitizers (SL_SANITIZED set) the runs use fewer frames.
 set -u
 SL="$1"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-    echo "FAIL: $*"
-    echo "--- stdout"; head -c 4000 "$tmp/out" 2>/dev/null
-    echo "--- stderr"; head -c 4000 "$tmp/err" 2>/dev/null
-    exit 1
-}
-expect() {
-    local want=$1
-    shift
-    "$@" >"$tmp/out" 2>"$tmp/err"
-    local rc=$?
-    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
-}
-has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
-hasnt() { ! grep -q -- "$1" "$2" || fail "'$1' unexpectedly in $2"; }
-is_png() { [ "$(head -c 8 "$1" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$1 is not a PNG"; }
-is_svg() { head -c 5 "$1" | grep -q '<?xml' && grep -q '</svg>' "$1" || fail "$1 is not an SVG"; }
-rows() { echo $(($(wc -l <"$1") - 1)); }
+. "$(dirname "$0")/lib/common.sh"
 
 if [ -n "${SL_SANITIZED:-}" ]; then N=4; else N=12; fi
 
@@ -187,4 +168,24 @@ expect 0 "$SL" bench city:tiny --path "$tmp/p.txt" --frames 3: --methods vfc --n
 expect 1 "$SL" bench city:tiny --path "$tmp/p.txt" --frames 9:12 --out "$tmp/path3"
 has "beyond" "$tmp/err"
 expect 2 "$SL" bench city:tiny --path "$tmp/p.txt" --frames 3:1
+
+# ---- pvs with --frames: the bench bakes the cells along the frames it runs, not the whole path ----
+# a 40 s walk at 1 fps (55 m) of the same generated city, run whole (0:40) and as frames 0:2; the
+# cells baked are read back with `pvs info` and must match the count the bench printed on stderr
+expect 0 "$SL" gen city --preset tiny -o "$tmp/city.slscene"
+expect 0 "$SL" path gen "$tmp/city.slscene" --kind walk --frames 40 --fps 1 -o "$tmp/w.txt"
+cells=()
+for r in 0:40 0:2; do
+    o="$tmp/ps${#cells[@]}"
+    expect 0 "$SL" bench "$tmp/city.slscene" --path "$tmp/w.txt" --frames "$r" --methods pvs --width 64 --height 48 \
+        --no-plots --out "$o"
+    n=$("$SL" pvs info "$o/city.slpvs" --json | grep -o '"cells":[0-9]*' | head -1 | cut -d: -f2)
+    [ -n "$n" ] || fail "--frames $r: no cell count from pvs info $o/city.slpvs"
+    has "$o/city.slpvs: $n cells" "$tmp/err"
+    [ "$(awk -F, '$10 == "pvs" && $18 == 0' "$o/frames.csv" | wc -l)" -eq "${r#0:}" ] ||
+        fail "--frames $r: not ${r#0:} pvs rows without a miss"
+    cells+=("$n")
+done
+[ "${cells[1]}" -gt 0 ] && [ "${cells[1]}" -lt "${cells[0]}" ] ||
+    fail "--frames 0:2 baked ${cells[1]} cells, the whole path ${cells[0]}: expected fewer, but some"
 echo "PASS"

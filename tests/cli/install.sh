@@ -8,14 +8,13 @@ if [ -n "${SL_SANITIZED:-}" ]; then
     exit 0
 fi
 build=$(pwd)
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+. "$(dirname "$0")/lib/common.sh"
 cmake --install "$build" --prefix "$tmp/prefix" >/dev/null
 for f in include/sightline/scene.h include/sightline/cull.h bin/sightline share/doc/sightline/README.md; do
-    [ -e "$tmp/prefix/$f" ] || { echo "FAIL: $f not installed"; exit 1; }
+    [ -e "$tmp/prefix/$f" ] || fail "$f not installed"
 done
 libdir=$(ls -d "$tmp"/prefix/lib*/ | head -n 1)
-[ -e "$libdir/libsightline.so" ] && [ -e "$libdir/libsightline.a" ] || { echo "FAIL: libraries missing"; exit 1; }
+[ -e "$libdir/libsightline.so" ] && [ -e "$libdir/libsightline.a" ] || fail "libraries missing"
 "$tmp/prefix/bin/sightline" --version >/dev/null
 
 cat > "$tmp/consumer.c" <<'C'

@@ -6,23 +6,7 @@
 # crash. $1 is the sightline binary.
 set -u
 SL="$1"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-    echo "FAIL: $*"
-    echo "--- stdout"; head -c 4000 "$tmp/out" 2>/dev/null
-    echo "--- stderr"; head -c 4000 "$tmp/err" 2>/dev/null
-    exit 1
-}
-expect() {
-    local want=$1
-    shift
-    "$@" >"$tmp/out" 2>"$tmp/err"
-    local rc=$?
-    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
-}
-has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
+. "$(dirname "$0")/lib/common.sh"
 
 # ---- help and usage errors ----
 expect 0 "$SL" occlusion --help

@@ -4,32 +4,7 @@
 # city. $1 is the sightline binary.
 set -u
 SL="$1"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-    echo "FAIL: $*"
-    echo "--- stdout"; cat "$tmp/out" 2>/dev/null
-    echo "--- stderr"; cat "$tmp/err" 2>/dev/null
-    exit 1
-}
-# expect STATUS COMMAND...: run, keep stdout/stderr in $tmp/out and $tmp/err, check the status
-expect() {
-    local want=$1
-    shift
-    "$@" >"$tmp/out" 2>"$tmp/err"
-    local rc=$?
-    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
-}
-has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
-# near KEY VALUE TOLERANCE: the JSON number KEY in $tmp/out is within TOLERANCE of VALUE
-near() {
-    local v
-    v=$(grep -o "\"$1\":[^,}]*" "$tmp/out" | head -1 | cut -d: -f2)
-    [ -n "$v" ] || fail "no $1 in the JSON output"
-    awk -v v="$v" -v w="$2" -v t="$3" 'BEGIN { d = v - w; if (d < 0) d = -d; exit !(d <= t) }' ||
-        fail "$1 is $v, expected $2 +- $3"
-}
+. "$(dirname "$0")/lib/common.sh"
 
 # ---- help and usage errors ----
 expect 0 "$SL" path --help

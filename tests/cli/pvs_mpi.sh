@@ -9,25 +9,9 @@
 set -u
 SL="$1"
 MPIEXEC="${SL_MPIEXEC:-$(command -v mpiexec || true)}"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+. "$(dirname "$0")/lib/common.sh"
 # the sanitizer build: MPICH keeps allocations until exit
 export ASAN_OPTIONS="${ASAN_OPTIONS:-}:detect_leaks=0"
-
-fail() {
-    echo "FAIL: $*"
-    echo "--- stdout"; cat "$tmp/out" 2>/dev/null
-    echo "--- stderr"; cat "$tmp/err" 2>/dev/null
-    exit 1
-}
-expect() {
-    local want=$1
-    shift
-    "$@" >"$tmp/out" 2>"$tmp/err"
-    local rc=$?
-    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
-}
-has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
 
 # ---- help and usage errors ----
 expect 0 "$SL" pvs --help

@@ -4,31 +4,7 @@
 # by --images and --KIND, --json listing. $1 is the sightline binary.
 set -u
 SL="$1"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-    echo "FAIL: $*"
-    echo "--- stdout"; head -c 4000 "$tmp/out" 2>/dev/null
-    echo "--- stderr"; head -c 4000 "$tmp/err" 2>/dev/null
-    exit 1
-}
-expect() {
-    local want=$1
-    shift
-    "$@" >"$tmp/out" 2>"$tmp/err"
-    local rc=$?
-    [ "$rc" -eq "$want" ] || fail "exit status $rc, expected $want: $*"
-}
-has() { grep -q -- "$1" "$2" || fail "'$1' not in $2"; }
-is_png() { [ "$(head -c 8 "$1" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$1 is not a PNG"; }
-# png_size FILE: "WIDTHxHEIGHT" from the IHDR chunk
-png_size() {
-    local w h
-    w=$(od -An -tu1 -j16 -N4 "$1" | awk '{ print $1 * 16777216 + $2 * 65536 + $3 * 256 + $4 }')
-    h=$(od -An -tu1 -j20 -N4 "$1" | awk '{ print $1 * 16777216 + $2 * 65536 + $3 * 256 + $4 }')
-    echo "${w}x${h}"
-}
+. "$(dirname "$0")/lib/common.sh"
 
 # ---- help and usage errors ----
 expect 0 "$SL" render --help
