@@ -492,6 +492,13 @@ static void test_exact_layer_is_oracle(void **state)
             assert_false(sl_occ_exact_hides(&e, x, y, rd * (1.0 - 1e-7)));
             assert_true(sl_occ_exact_hides(&e, x, y, rd * (1.0 - 1e-5)));
         }
+        /* a box's depth bound is at least the depth of every pixel its object owns */
+        for (size_t i = 0; i < n; i++) {
+            if (ov.ids[i] == SL_NONE)
+                continue;
+            sl_aabb b = sl_scene_object_bounds(s, ov.ids[i]);
+            assert_true(sl_occ_exact_box_depth(&e, &b) >= (double)ov.depth[i]);
+        }
         sl_occ_exact_free(&e);
     }
     sl_oracle_destroy(o);

@@ -1913,11 +1913,21 @@ sl_status sl_occ_exact_begin(sl_occ_exact *e, const sl_occ_view *v, sl_error *er
     return SL_OK;
 }
 
+/* A box coordinate pushed outward by 2^-20 of its magnitude (plus 2^-20 m): object boxes are
+ * transformed in float, the oracle transforms vertices in double, so a vertex may lie an ulp or
+ * two outside its object's box. */
+static inline double grow_coord(float c, double dir)
+{
+    return (double)c + dir * (fabs((double)c) + 1.0) * (1.0 / 1048576.0);
+}
+
 double sl_occ_exact_box_depth(const sl_occ_exact *e, const sl_aabb *b)
 {
     double best = 0.0;
     for (int k = 0; k < 8; k++) {
-        double p[3] = {(k & 1) ? b->max.x : b->min.x, (k & 2) ? b->max.y : b->min.y, (k & 4) ? b->max.z : b->min.z};
+        double p[3] = {(k & 1) ? grow_coord(b->max.x, 1) : grow_coord(b->min.x, -1),
+                       (k & 2) ? grow_coord(b->max.y, 1) : grow_coord(b->min.y, -1),
+                       (k & 4) ? grow_coord(b->max.z, 1) : grow_coord(b->min.z, -1)};
         double c[4];
         for (int row = 0; row < 4; row++)
             c[row] = e->vp[row] * p[0] + e->vp[4 + row] * p[1] + e->vp[8 + row] * p[2] + e->vp[12 + row];

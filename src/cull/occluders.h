@@ -435,8 +435,9 @@ static inline bool sl_occ_exact_hides(sl_occ_exact *e, int32_t x, int32_t y, dou
     double stored = (double)e->depth[(size_t)y * e->width + (size_t)x];
     return stored > 0.0 && stored > rd + fabs(rd) * (1.0 / 1048576.0);
 }
-/* The largest oracle depth of a point in the box (a corner's: the reversed depth is monotone
- * along segments in front of the eye); +infinity when a corner is not in front of the eye. */
+/* The largest oracle depth of a point in the box, grown by 2^-20 of its coordinates (a corner's:
+ * the reversed depth is monotone along segments in front of the eye); +infinity when a corner is
+ * not in front of the eye. */
 double sl_occ_exact_box_depth(const sl_occ_exact *e, const sl_aabb *b);
 /* A box whose rectangle looks visible, tested at the pixel centres its silhouette covers (the
  * convex hull of its projected corners, grown by 1/64 pixel for the oracle's vertex snapping) at
