@@ -208,8 +208,7 @@ typedef struct frame_ctx {
 static bool occluded(frame_ctx *f, const sl_aabb *b)
 {
     sl_occ_rect r;
-    float xy[16];
-    int k = sl_occ_project_box_corners(f->v, b, &r, xy);
+    int k = sl_occ_project_box(f->v, b, &r);
     if (k == SL_OCC_OUT)
         return true;
     if (k == SL_OCC_NEAR)
@@ -227,7 +226,7 @@ static bool occluded(frame_ctx *f, const sl_aabb *b)
     /* the rectangle looks visible: the pixel centres of the box's silhouette */
     sl_occ_raster *layers[2] = {&s->r, &s->far};
     return s->cfg.box_rows &&
-           sl_occ_box_rows_hidden(layers, s->cfg.far_layer ? 2 : 1, s->cfg.exact_px ? &s->ex : NULL, b, &r, xy,
+           sl_occ_box_rows_hidden(layers, s->cfg.far_layer ? 2 : 1, s->cfg.exact_px ? &s->ex : NULL, f->v, b, &r,
                                   s->cfg.box_rows);
 }
 

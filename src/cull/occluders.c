@@ -106,12 +106,15 @@ static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
     *hi = (int32_t)fb;
 }
 
-int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
+/* A box coordinate pushed outward by 2^-20 of its magnitude (plus 2^-20 m): object boxes are
+ * transformed in float, the oracle transforms vertices in double, so a vertex may lie an ulp or
+ * two outside its object's box. */
+static inline double grow_coord(float c, double dir)
 {
-    return sl_occ_project_box_corners(v, b, r, NULL);
+    return (double)c + dir * (fabs((double)c) + 1.0) * (1.0 / 1048576.0);
 }
 
-int sl_occ_project_box_corners(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r, float *xy)
+int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
 {
     const float *m = v->vp.m;
     r->x0 = 0;
@@ -149,10 +152,6 @@ int sl_occ_project_box_corners(const sl_occ_view *v, const sl_aabb *b, sl_occ_re
         float inv = 1.0f / w;
         float sx = (x * inv) * hw + hw, sy = hh - (y * inv) * hh;
         float d = v->ortho ? 0.5f * (1.0f - z * inv) : inv;
-        if (xy) {
-            xy[2 * k] = sx;
-            xy[2 * k + 1] = sy;
-        }
         minx = sl_occ_minf(minx, sx);
         maxx = sl_occ_maxf(maxx, sx);
         miny = sl_occ_minf(miny, sy);
@@ -1673,14 +1672,14 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
 
 /* Convex hull of n <= 8 points (x, y pairs), counter-clockwise in (x, y), by Andrew's monotone
  * chain; returns the hull's vertex count (written to h). */
-static uint32_t hull8(const float *p, uint32_t n, float *h)
+static uint32_t hull8(const double *p, uint32_t n, double *h)
 {
     uint32_t idx[8];
     for (uint32_t i = 0; i < n; i++)
         idx[i] = i;
     for (uint32_t i = 1; i < n; i++) /* insertion sort by (x, y) */
         for (uint32_t j = i; j > 0; j--) {
-            const float *a = p + 2 * idx[j - 1], *b = p + 2 * idx[j];
+            const double *a = p + 2 * idx[j - 1], *b = p + 2 * idx[j];
             if (a[0] < b[0] || (a[0] == b[0] && a[1] <= b[1]))
                 break;
             uint32_t t = idx[j];
@@ -1693,8 +1692,8 @@ static uint32_t hull8(const float *p, uint32_t n, float *h)
         for (uint32_t q = 0; q < n; q++) {
             uint32_t i = pass ? idx[n - 1 - q] : idx[q];
             while (k >= start + 2) {
-                const float *a = p + 2 * out[k - 2], *b = p + 2 * out[k - 1], *c = p + 2 * i;
-                double cr = ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)b[1] - a[1]) * ((double)c[0] - a[0]);
+                const double *a = p + 2 * out[k - 2], *b = p + 2 * out[k - 1], *c = p + 2 * i;
+                double cr = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
                 if (cr > 0.0)
                     break;
                 k--;
@@ -1712,7 +1711,7 @@ static uint32_t hull8(const float *p, uint32_t n, float *h)
 
 /* x extent of the convex polygon h (m vertices) within the band ya <= y <= yb: false when the band
  * misses it. */
-static bool band_extent(const float *h, uint32_t m, double ya, double yb, double *xl, double *xr)
+static bool band_extent(const double *h, uint32_t m, double ya, double yb, double *xl, double *xr)
 {
     double lo = INFINITY, hi = -INFINITY;
     for (uint32_t i = 0; i < m; i++) {
@@ -1741,22 +1740,40 @@ static bool band_extent(const float *h, uint32_t m, double ya, double yb, double
 }
 
 bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact,
-                            const sl_aabb *box, const sl_occ_rect *r, const float *xy, uint32_t max_rows)
+                            const sl_occ_view *v, const sl_aabb *box, const sl_occ_rect *r, uint32_t max_rows)
 {
+    /* the corners of the box grown by 2^-20 of its coordinates (object boxes are computed in
+     * float, the oracle places vertices in double), projected in double with the oracle's matrix
+     * (a float projection of world coordinates errs by up to a tenth of a pixel near the eye) */
+    double xy[16];
+    const double W = (double)v->width, H = (double)v->height;
+    for (int k = 0; k < 8; k++) {
+        double p[3] = {(k & 1) ? grow_coord(box->max.x, 1) : grow_coord(box->min.x, -1),
+                       (k & 2) ? grow_coord(box->max.y, 1) : grow_coord(box->min.y, -1),
+                       (k & 4) ? grow_coord(box->max.z, 1) : grow_coord(box->min.z, -1)};
+        double c[4];
+        for (int row = 0; row < 4; row++)
+            c[row] = (double)v->vp.m[row] * p[0] + (double)v->vp.m[4 + row] * p[1] + (double)v->vp.m[8 + row] * p[2] +
+                     (double)v->vp.m[12 + row];
+        if (!(c[3] > 0.0) || !isfinite(c[0]) || !isfinite(c[1]))
+            return false;
+        xy[2 * k] = (c[0] / c[3] + 1.0) * 0.5 * W;
+        xy[2 * k + 1] = (1.0 - c[1] / c[3]) * 0.5 * H;
+    }
     /* pixel centres within 1/64 pixel of the silhouette count as covered: the oracle's vertex
-     * snapping moves edges by at most 1/512 pixel, and float projection errs far less */
+     * snapping moves edges by at most 1/512 pixel */
     const double eps = 1.0 / 64.0;
     /* first the rectangle of the pixel centres the corners' bounding box covers: it leaves out the
      * border rows and columns the box touches without covering a centre (one query) */
-    float lx = xy[0], hx = xy[0], ly = xy[1], hy = xy[1];
+    double lx = xy[0], hx = xy[0], ly = xy[1], hy = xy[1];
     for (int k = 1; k < 8; k++) {
         lx = xy[2 * k] < lx ? xy[2 * k] : lx;
         hx = xy[2 * k] > hx ? xy[2 * k] : hx;
         ly = xy[2 * k + 1] < ly ? xy[2 * k + 1] : ly;
         hy = xy[2 * k + 1] > hy ? xy[2 * k + 1] : hy;
     }
-    double cx0 = ceil((double)lx - eps - 0.5), cx1 = floor((double)hx + eps - 0.5);
-    double cy0 = ceil((double)ly - eps - 0.5), cy1 = floor((double)hy + eps - 0.5);
+    double cx0 = ceil(lx - eps - 0.5), cx1 = floor(hx + eps - 0.5);
+    double cy0 = ceil(ly - eps - 0.5), cy1 = floor(hy + eps - 0.5);
     cx0 = cx0 > r->x0 ? cx0 : r->x0;
     cy0 = cy0 > r->y0 ? cy0 : r->y0;
     cx1 = cx1 < r->x1 - 1 ? cx1 : r->x1 - 1;
@@ -1771,7 +1788,7 @@ bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, 
     if ((uint32_t)(r->y1 - r->y0) > max_rows)
         return false;
     double rd = -1.0; /* the box's largest oracle depth, computed when first needed */
-    float h[16];
+    double h[16];
     uint32_t m = hull8(xy, 8, h);
     int32_t y = r->y0;
     while (y < r->y1) {
@@ -1911,14 +1928,6 @@ sl_status sl_occ_exact_begin(sl_occ_exact *e, const sl_occ_view *v, sl_error *er
     for (int i = 0; i < 16; i++)
         e->vp[i] = (double)v->vp.m[i]; /* as the oracle converts sl_camera_view_proj */
     return SL_OK;
-}
-
-/* A box coordinate pushed outward by 2^-20 of its magnitude (plus 2^-20 m): object boxes are
- * transformed in float, the oracle transforms vertices in double, so a vertex may lie an ulp or
- * two outside its object's box. */
-static inline double grow_coord(float c, double dir)
-{
-    return (double)c + dir * (fabs((double)c) + 1.0) * (1.0 / 1048576.0);
 }
 
 double sl_occ_exact_box_depth(const sl_occ_exact *e, const sl_aabb *b)

@@ -84,9 +84,6 @@ enum {
 
 /* Project box b. Returns SL_OCC_OUT, SL_OCC_RECT or SL_OCC_NEAR. */
 int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r);
-/* The same, also writing the eight corners' screen positions (x, y pairs, corner k = min corner
- * plus bit 0: x, bit 1: y, bit 2: z extent) to xy (16 floats) when the result is SL_OCC_RECT. */
-int sl_occ_project_box_corners(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r, float *xy);
 
 /* Forward (eye-space) depth range of a box: min and max of dot(fwd, p - eye) over its corners. */
 static inline void sl_occ_box_zrange(const sl_occ_view *v, const sl_aabb *b, float *zmin, float *zmax)
@@ -439,16 +436,21 @@ static inline bool sl_occ_exact_hides(sl_occ_exact *e, int32_t x, int32_t y, dou
  * the reversed depth is monotone along segments in front of the eye); +infinity when a corner is
  * not in front of the eye. */
 double sl_occ_exact_box_depth(const sl_occ_exact *e, const sl_aabb *b);
-/* A box whose rectangle looks visible, tested at the pixel centres its silhouette covers (the
- * convex hull of its projected corners, grown by 1/64 pixel for the oracle's vertex snapping) at
- * its nearest depth: true when each such pixel is hidden in some layer (row groups within a 4-row
- * band of subtiles are queried as one rectangle, hidden in one layer; failing that, pixel by pixel
- * in the layers and the exact layer, which may be NULL, when the group holds at most 64 pixels). An object inside the box
- * covers only pixel centres the silhouette covers, at depths no nearer than r->dnear, so it is
- * hidden from the oracle at the same resolution too; a box that covers no pixel centre hides
- * everything in it. Not tried (false) when the rectangle is taller than max_rows. */
+/* A box whose rectangle r (sl_occ_project_box) looks visible, tested at the pixel centres its
+ * silhouette covers, at depth r->dnear: true when each such centre is hidden in some layer. The
+ * box is grown by 2^-20 of its coordinates (object boxes are computed in float, the oracle places
+ * vertices in double), its corners projected in double, and centres within 1/64 pixel of the
+ * silhouette count as covered (the oracle snaps vertices by at most 1/512 pixel). First one query
+ * for the rectangle of the centres inside the corners' bounding box (the border rows and columns
+ * the box only grazes are left out; no centre at all: hidden); then, when r is at most max_rows
+ * rows tall, the centres inside the convex hull of the corners, row by row (the rows within one
+ * 4-row band of subtiles as one rectangle, hidden in one layer; failing that, pixel by pixel in
+ * the layers and the exact layer, which may be NULL, when the band holds at most 64 centres).
+ * Everything in the box covers only centres its silhouette covers, at depths no nearer than its
+ * nearest corner, so it is hidden from the oracle at the same resolution too. False when a corner
+ * is not in front of the eye. */
 bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact,
-                            const sl_aabb *box, const sl_occ_rect *r, const float *xy, uint32_t max_rows);
+                            const sl_occ_view *v, const sl_aabb *box, const sl_occ_rect *r, uint32_t max_rows);
 /* Is an object whose box looks visible hidden by its own triangles? Hidden when either test, as
  * configured by t, hides it: the pixel-centre test (sl_occ_test_object_sampled) over all the
  * layers, tried first (cheaper, and it answers most of the small objects it applies to), then the
