@@ -77,8 +77,9 @@ static const char g_help[] =
     "far_layer=BOOL (default true): render visible proxies below min_quality into a second buffer; a box "
     "hidden in either buffer is hidden\n"
     "far_quality=NUMBER (default 0): least quality (sr) of a far-layer occluder\n"
-    "box_rows=0..100000 (default 8): a box whose rectangle looks visible is tested at the pixel centres of "
-    "its silhouette when the rectangle is at most this many rows tall (0: never)\n"
+    "box_rows=0..100000 (default 8): a box whose rectangle looks visible is tested again at the pixel centres "
+    "it covers: those of its corners' bounding box, and, when the rectangle is at most this many rows tall, "
+    "those inside its silhouette (0: neither)\n"
     "exact_px=0..16777216 (default 48): a visible object whose box rectangle holds at most this many pixels "
     "is drawn with the oracle's rasterizer into an exact layer that pixel-centre tests consult (0: never)\n"
     SL_OCC_HELP_DEBUG;
