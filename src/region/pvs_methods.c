@@ -10,6 +10,7 @@
     X(sample)             \
     X(adjustable)         \
     X(mappvs) \
+    X(portal) \
     X(gvs)
 
 #define SL_DECLARE_PVS_METHOD(name) extern const sl_pvs_method sl_pvs_method_##name;
