@@ -1211,8 +1211,9 @@ static void gvs_release(void *p)
 }
 
 static sl_status gvs_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                             void **shared, uint64_t *removed, sl_error *err)
+                             uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
 {
+    (void)threads; /* serial */
     const gvs_config *c = config;
     *removed = 0;
     if (c->o.origins == SL_GVS_ORIGINS_BOUNDARY) {

@@ -272,8 +272,9 @@ static sl_status decompose(adj_shared *s, sl_geos *g, uint32_t f, sl_array *piec
 }
 
 static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                             void **shared, uint64_t *removed, sl_error *err)
+                             uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
 {
+    (void)threads; /* serial */
     adj_shared *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");

@@ -24,8 +24,9 @@ typedef struct mappvs_worker {
 } mappvs_worker;
 
 static sl_status mappvs_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                                void **shared, uint64_t *removed, sl_error *err)
+                                uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
 {
+    (void)threads; /* serial */
     (void)config;
     *removed = 0;
     sl_bsp_view bv;

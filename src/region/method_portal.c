@@ -31,6 +31,7 @@
 #include "pvs_internal.h"
 
 #include <math.h>
+#include <omp.h>
 #include <stdlib.h>
 
 #define PORTAL_MAXV 64    /* vertices of a winding during the flow; a clip that would need more is skipped */
@@ -912,7 +913,7 @@ static int cmp_order(const void *x, const void *y)
  * walks find the finished (tighter) rows of the portals they cross. The order is cut into fixed
  * chunks walked in parallel: a walk reads the rows as they were before its chunk (its chunk's
  * results are committed after it), so the rows do not depend on the thread count. */
-static sl_status walk_all(portal_shared *s, sl_error *err)
+static sl_status walk_all(portal_shared *s, uint32_t threads, sl_error *err)
 {
     const sl_allocator *a = &s->a;
     const size_t nd = s->ndp ? s->ndp : 1, row = (size_t)s->lwords;
@@ -942,7 +943,8 @@ static sl_status walk_all(portal_shared *s, sl_error *err)
             int cn = (int)(s->ndp - c0 < PORTAL_CHUNK ? s->ndp - c0 : PORTAL_CHUNK);
             sl_status cst[PORTAL_CHUNK];
             bool over[PORTAL_CHUNK];
-#pragma omp parallel
+            int nt = threads ? (int)threads : omp_get_max_threads();
+#pragma omp parallel num_threads(nt)
             {
                 walker w;
                 bool ok = walker_init(&w, s);
@@ -969,7 +971,7 @@ static sl_status walk_all(portal_shared *s, sl_error *err)
 }
 
 static sl_status portal_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                                void **shared, uint64_t *removed, sl_error *err)
+                                uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
 {
     *removed = 0;
     sl_bsp_view bv;
@@ -1066,7 +1068,7 @@ static sl_status portal_prepare(sl_scene scene, sl_viewcells cells, const void *
     if (st == SL_OK)
         st = might_see(s, err);
     if (st == SL_OK)
-        st = walk_all(s, err);
+        st = walk_all(s, threads, err);
     if (st == SL_OK)
         st = assign_objects(s, &bv, planes, err);
     sl_free(a, planes, (size_t)(bv.plane_count ? bv.plane_count : 1) * sizeof *planes);

@@ -226,7 +226,7 @@ static bool build_buckets(sample_shared *s, uint32_t n, const double (*box)[4], 
 }
 
 static sl_status sample_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                                void **shared, uint64_t *removed, sl_error *err)
+                                uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
 {
     const sample_config *cfg = config;
     sample_shared *s = sl_calloc(alloc, 1, sizeof *s);
@@ -348,7 +348,8 @@ static sl_status sample_prepare(sl_scene scene, sl_viewcells cells, const void *
         uint64_t pre_removed = 0;
         if ((st = sl_pvs_registry_find("adjustable", &s->pre, err)) != SL_OK ||
             (st = sl_pvs_method_configure(s->pre, "", alloc, &s->pre_config, NULL, err)) != SL_OK ||
-            (st = s->pre->prepare(scene, cells, s->pre_config, alloc, &s->pre_shared, &pre_removed, err)) != SL_OK) {
+            (st = s->pre->prepare(scene, cells, s->pre_config, alloc, threads, &s->pre_shared, &pre_removed, err)) !=
+                SL_OK) {
             sample_release(s);
             return st;
         }

@@ -202,7 +202,7 @@ sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const ch
         if ((st = journal_open(b, output, opt, err)) != SL_OK)
             return st;
     }
-    st = b->method->prepare(scene, cells, b->config, b->a, &b->shared, &b->removed, err);
+    st = b->method->prepare(scene, cells, b->config, b->a, opt ? opt->threads : 0, &b->shared, &b->removed, err);
     return st;
 }
 

@@ -33,9 +33,10 @@ typedef struct sl_pvs_method {
     /* Read every option the method understands into config (zeroed, config_size bytes). */
     sl_status (*configure)(sl_opts *opts, void *config, sl_error *err);
     /* Scene-wide preparation (occluder shrinking, acceleration structures). *removed receives the
-     * number of occluders that vanished (reported). alloc is never NULL. */
+     * number of occluders that vanished (reported). alloc is never NULL. threads: the bake's thread
+     * count, for a preparation that runs in parallel (0: OpenMP's default). */
     sl_status (*prepare)(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                         void **shared, uint64_t *removed, sl_error *err);
+                         uint32_t threads, void **shared, uint64_t *removed, sl_error *err);
     sl_status (*worker_create)(void *shared, void **worker, sl_error *err);
     sl_status (*cell)(void *worker, uint32_t cell, sl_pvs_cell_result *out, sl_error *err);
     void (*worker_destroy)(void *worker);
