@@ -124,8 +124,8 @@ static sl_path make_walk(sl_scene s, uint32_t frames, float fps, uint32_t w, uin
     return p;
 }
 
-/* Median over frames of the fastest of `repeat` culls. */
-static double median_time(sl_culler c, sl_path p, uint32_t repeat, uint32_t *out, uint32_t n, double *scratch)
+/* Cull every frame of the walk `repeat` times; times[f]: the fastest (wall clock, ms). */
+static void walk_times(sl_culler c, sl_path p, uint32_t repeat, uint32_t *out, uint32_t n, double *times)
 {
     uint32_t frames = sl_path_count(p);
     for (uint32_t f = 0; f < frames; f++) {
@@ -140,9 +140,15 @@ static double median_time(sl_culler c, sl_path p, uint32_t repeat, uint32_t *out
             sl_culler_stats(c, &st);
             best = fmin(best, st.total_ms);
         }
-        scratch[f] = best;
+        times[f] = best;
     }
-    return percentile(scratch, frames, 0.5);
+}
+
+/* Median over frames of the fastest of `repeat` culls. */
+static double median_time(sl_culler c, sl_path p, uint32_t repeat, uint32_t *out, uint32_t n, double *scratch)
+{
+    walk_times(c, p, repeat, out, n, scratch);
+    return percentile(scratch, sl_path_count(p), 0.5);
 }
 
 /* Allocator that counts live bytes (for the memory table). */
@@ -285,27 +291,10 @@ int main(int argc, char **argv)
     /* timing: each method culls the whole walk on its own, `repeat` times per frame, so that the
      * other methods and the oracle do not evict its caches between frames (as in bench_urban) */
     for (uint32_t i = 0; i < nm; i++) {
-        /* one untimed pass first: the first method timed after the oracle pass ran up to 1.4x slower
-         * than the same method timed later in the same run */
-        for (uint32_t f = 0; f < frames; f++) {
-            sl_camera cam = sl_path_camera(walk, f);
-            uint32_t k;
-            if (sl_culler_cull(c[i], &cam, out, n, &k, &err) != SL_OK)
-                die(methods[i].spec, &err);
-        }
-        for (uint32_t f = 0; f < frames; f++) {
-            sl_camera cam = sl_path_camera(walk, f);
-            double best = INFINITY;
-            for (uint32_t r = 0; r < repeat; r++) {
-                uint32_t k;
-                sl_cull_stats st;
-                if (sl_culler_cull(c[i], &cam, out, n, &k, &err) != SL_OK)
-                    die(methods[i].spec, &err);
-                sl_culler_stats(c[i], &st);
-                best = fmin(best, st.total_ms);
-            }
-            times[(size_t)i * frames + f] = best;
-        }
+        /* one untimed pass first (its times are overwritten): the first method timed after the
+         * oracle pass ran up to 1.4x slower than the same method timed later in the same run */
+        walk_times(c[i], walk, 1, out, n, times + (size_t)i * frames);
+        walk_times(c[i], walk, repeat, out, n, times + (size_t)i * frames);
         if (tty)
             fprintf(stderr, "\rtiming %u/%u", i + 1, nm);
     }
