@@ -107,6 +107,30 @@ static uint32_t cull(sl_culler c, const sl_camera *cam, uint32_t *out, uint32_t 
     return k;
 }
 
+/* A field of n thin vertical poles (side `w` metres, 3 m tall) at random 100-400 m ahead of
+ * wall_camera, in a new scene. */
+static sl_scene pole_field(uint64_t seed, uint32_t n, float w)
+{
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    sl_rng rng;
+    sl_rng_seed(&rng, seed, 1);
+    for (uint32_t i = 0; i < n; i++) {
+        float x = 100.0f + 300.0f * sl_rng_float(&rng), y = (sl_rng_float(&rng) - 0.5f) * 0.8f * x;
+        add_box(s, (sl_vec3){x, y, 0}, (sl_vec3){x + w, y + w, 3}, SL_KIND_LAMP, 0, NULL);
+    }
+    return s;
+}
+
+/* Fail unless every object of the oracle frame is among the k objects kept. */
+static void assert_keeps_visible(const char *what, const uint32_t *out, uint32_t k, const sl_oracle_frame *fr)
+{
+    for (uint32_t i = 0; i < fr->visible_count; i++)
+        if (!contains(out, k, fr->visible[i]))
+            fail_msg("%s dropped object %u, which the oracle sees", what, fr->visible[i]);
+}
+
 /* ---- proxies ---- */
 
 /* Every prism of the tiny city lies inside its footprint: each vertex at least `inset` from
@@ -392,16 +416,9 @@ static void test_rect_query_monotone(void **state)
 static void test_sampled_subpixel(void **state)
 {
     (void)state;
-    sl_scene s;
-    sl_error err;
-    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
-    sl_rng rng;
-    sl_rng_seed(&rng, 7, 1);
     const uint32_t n = 200;
-    for (uint32_t i = 0; i < n; i++) {
-        float x = 100.0f + 300.0f * sl_rng_float(&rng), y = (sl_rng_float(&rng) - 0.5f) * 0.8f * x;
-        add_box(s, (sl_vec3){x, y, 0}, (sl_vec3){x + 0.02f, y + 0.02f, 3}, SL_KIND_LAMP, 0, NULL);
-    }
+    sl_scene s = pole_field(7, n, 0.02f);
+    sl_error err;
     sl_camera cam = wall_camera(320, 240);
     sl_oracle o;
     sl_oracle_frame fr;
@@ -413,9 +430,7 @@ static void test_sampled_subpixel(void **state)
         sl_culler c;
         assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &c, &err), SL_OK);
         uint32_t k = cull(c, &cam, out, 256);
-        for (uint32_t i = 0; i < fr.visible_count; i++)
-            if (!contains(out, k, fr.visible[i]))
-                fail_msg("%s dropped pole %u, which the oracle sees", methods[m], fr.visible[i]);
+        assert_keeps_visible(methods[m], out, k, &fr);
         if (k > n / 2)
             fail_msg("%s kept %u of %u sub-pixel poles (the oracle sees %u)", methods[m], k, n, fr.visible_count);
         sl_culler_destroy(c);
@@ -529,9 +544,7 @@ static void test_exact_layer_row(void **state)
     sl_culler c;
     assert_int_equal(sl_culler_create("hzb", s, NULL, NULL, &c, &err), SL_OK);
     uint32_t k = cull(c, &cam, out, 64);
-    for (uint32_t i = 0; i < fr.visible_count; i++)
-        if (!contains(out, k, fr.visible[i]))
-            fail_msg("hzb dropped box %u, which the oracle sees", fr.visible[i]);
+    assert_keeps_visible("hzb", out, k, &fr);
     if (k > 2 * fr.visible_count + 2)
         fail_msg("hzb kept %u of %u boxes (the oracle sees %u)", k, n, fr.visible_count);
     sl_culler_destroy(c);
@@ -549,16 +562,9 @@ static void test_exact_layer_row(void **state)
 static void test_box_rows(void **state)
 {
     (void)state;
-    sl_scene s;
-    sl_error err;
-    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
-    sl_rng rng;
-    sl_rng_seed(&rng, 11, 3);
     const uint32_t n = 200;
-    for (uint32_t i = 0; i < n; i++) {
-        float x = 100.0f + 300.0f * sl_rng_float(&rng), y = (sl_rng_float(&rng) - 0.5f) * 0.8f * x;
-        add_box(s, (sl_vec3){x, y, 0}, (sl_vec3){x + 0.05f, y + 0.05f, 3}, SL_KIND_LAMP, 0, NULL);
-    }
+    sl_scene s = pole_field(11, n, 0.05f);
+    sl_error err;
     sl_camera cam = wall_camera(320, 240);
     sl_oracle o;
     sl_oracle_frame fr;
@@ -568,9 +574,7 @@ static void test_box_rows(void **state)
     sl_culler c;
     assert_int_equal(sl_culler_create("hzb", s, "sample_tris=0,mesh_test=0,exact_px=0", NULL, &c, &err), SL_OK);
     uint32_t k = cull(c, &cam, out, 256);
-    for (uint32_t i = 0; i < fr.visible_count; i++)
-        if (!contains(out, k, fr.visible[i]))
-            fail_msg("hzb dropped pole %u, which the oracle sees", fr.visible[i]);
+    assert_keeps_visible("hzb", out, k, &fr);
     sl_culler_destroy(c);
     assert_int_equal(sl_culler_create("hzb", s, "sample_tris=0,mesh_test=0,exact_px=0,box_rows=0", NULL, &c, &err),
                      SL_OK);
