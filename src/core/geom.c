@@ -62,3 +62,48 @@ sl_aabb sl_aabb_transform(const sl_aabb *b, const sl_affine *t)
     r.max = (sl_vec3){hi[0], hi[1], hi[2]};
     return r;
 }
+
+uint32_t sl_convex_hull8(const double *xy, uint32_t n, double *hull)
+{
+    if (n == 0)
+        return 0;
+    n = n > 8 ? 8 : n;
+    double p[8][2];
+    for (uint32_t i = 0; i < n; i++) { /* insertion sort by x, then y */
+        uint32_t j = i;
+        for (; j > 0 && (xy[2 * i] < p[j - 1][0] || (xy[2 * i] == p[j - 1][0] && xy[2 * i + 1] < p[j - 1][1])); j--) {
+            p[j][0] = p[j - 1][0];
+            p[j][1] = p[j - 1][1];
+        }
+        p[j][0] = xy[2 * i];
+        p[j][1] = xy[2 * i + 1];
+    }
+    double h[18][2];
+    uint32_t k = 0;
+    for (int pass = 0; pass < 2; pass++) { /* lower chain, then upper chain */
+        uint32_t start = k;
+        for (uint32_t q = 0; q < n; q++) {
+            const double *c = p[pass == 0 ? q : n - 1 - q];
+            while (k >= start + 2) {
+                const double *o = h[k - 2], *a = h[k - 1];
+                if ((a[0] - o[0]) * (c[1] - o[1]) - (a[1] - o[1]) * (c[0] - o[0]) > 0)
+                    break;
+                k--;
+            }
+            h[k][0] = c[0];
+            h[k][1] = c[1];
+            k++;
+        }
+        k--; /* the last point starts the other chain */
+    }
+    if (k < 1) {
+        h[0][0] = p[0][0];
+        h[0][1] = p[0][1];
+        k = 1;
+    }
+    for (uint32_t i = 0; i < k; i++) {
+        hull[2 * i] = h[i][0];
+        hull[2 * i + 1] = h[i][1];
+    }
+    return k;
+}

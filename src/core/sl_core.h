@@ -120,6 +120,12 @@ static inline bool sl_progress_report(const sl_progress *p, const char *stage, u
 /* Monotonic time in seconds. */
 double sl_now(void);
 
+/* ---- small plane geometry ---- */
+/* Convex hull of n <= 8 points (x, y pairs) by Andrew's monotone chain, counter-clockwise, without
+ * collinear points; writes it to hull (room for 16 values) and returns its vertex count, at least
+ * 1 for n >= 1 (all points equal: that point). */
+uint32_t sl_convex_hull8(const double *xy, uint32_t n, double *hull);
+
 /* ---- floats ---- */
 static inline bool sl_finite3(const float *v) { return __builtin_isfinite(v[0]) && __builtin_isfinite(v[1]) && __builtin_isfinite(v[2]); }
 

@@ -1670,45 +1670,6 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
     return SL_RASTER_OCCLUDED;
 }
 
-/* Convex hull of n <= 8 points (x, y pairs), counter-clockwise in (x, y), by Andrew's monotone
- * chain; returns the hull's vertex count (written to h). */
-static uint32_t hull8(const double *p, uint32_t n, double *h)
-{
-    uint32_t idx[8];
-    for (uint32_t i = 0; i < n; i++)
-        idx[i] = i;
-    for (uint32_t i = 1; i < n; i++) /* insertion sort by (x, y) */
-        for (uint32_t j = i; j > 0; j--) {
-            const double *a = p + 2 * idx[j - 1], *b = p + 2 * idx[j];
-            if (a[0] < b[0] || (a[0] == b[0] && a[1] <= b[1]))
-                break;
-            uint32_t t = idx[j];
-            idx[j] = idx[j - 1];
-            idx[j - 1] = t;
-        }
-    uint32_t out[18], k = 0;
-    for (int pass = 0; pass < 2; pass++) {
-        uint32_t start = k;
-        for (uint32_t q = 0; q < n; q++) {
-            uint32_t i = pass ? idx[n - 1 - q] : idx[q];
-            while (k >= start + 2) {
-                const double *a = p + 2 * out[k - 2], *b = p + 2 * out[k - 1], *c = p + 2 * i;
-                double cr = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-                if (cr > 0.0)
-                    break;
-                k--;
-            }
-            out[k++] = i;
-        }
-        k--; /* the last point of each chain starts the other */
-    }
-    for (uint32_t i = 0; i < k; i++) {
-        h[2 * i] = p[2 * out[i]];
-        h[2 * i + 1] = p[2 * out[i] + 1];
-    }
-    return k;
-}
-
 /* x extent of the convex polygon h (m vertices) within the band ya <= y <= yb: false when the band
  * misses it. */
 static bool band_extent(const double *h, uint32_t m, double ya, double yb, double *xl, double *xr)
@@ -1789,7 +1750,7 @@ bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, 
         return false;
     double rd = -1.0; /* the box's largest oracle depth, computed when first needed */
     double h[16];
-    uint32_t m = hull8(xy, 8, h);
+    uint32_t m = sl_convex_hull8(xy, 8, h);
     int32_t y = r->y0;
     while (y < r->y1) {
         /* one query per group of rows inside one 4-row band of subtiles: the union of the rows'

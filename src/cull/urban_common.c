@@ -569,43 +569,15 @@ void sl_urban_view_make(const sl_camera *cam, sl_urban_view *v)
             v->cone[1][2] = -(v->cone[1][0] * v->eye[0] + v->cone[1][1] * v->eye[1]);
         }
     }
-    /* the ground plan: convex hull of the eight corners (monotone chain) */
-    double pts[8][2];
+    /* the ground plan: convex hull of the eight corners */
+    double pts[16], hull[16];
     for (int k = 0; k < 8; k++) {
-        pts[k][0] = fr.corners[k].x;
-        pts[k][1] = fr.corners[k].y;
+        pts[2 * k] = fr.corners[k].x;
+        pts[2 * k + 1] = fr.corners[k].y;
     }
-    for (int i = 1; i < 8; i++) /* sort by x then y */
-        for (int j = i; j > 0 && (pts[j][0] < pts[j - 1][0] || (pts[j][0] == pts[j - 1][0] && pts[j][1] < pts[j - 1][1])); j--) {
-            double t0 = pts[j][0], t1 = pts[j][1];
-            pts[j][0] = pts[j - 1][0], pts[j][1] = pts[j - 1][1];
-            pts[j - 1][0] = t0, pts[j - 1][1] = t1;
-        }
-    double hull[16][2];
-    int h = 0;
-    for (int pass = 0; pass < 2; pass++) {
-        int start = h;
-        for (int q = 0; q < 8; q++) {
-            const double *p = pts[pass == 0 ? q : 7 - q];
-            while (h >= start + 2) {
-                const double *o = hull[h - 2], *a = hull[h - 1];
-                double cr = (a[0] - o[0]) * (p[1] - o[1]) - (a[1] - o[1]) * (p[0] - o[0]);
-                if (cr > 0)
-                    break;
-                h--;
-            }
-            hull[h][0] = p[0];
-            hull[h][1] = p[1];
-            h++;
-        }
-        h--; /* the last point starts the other chain */
-    }
-    if (h < 1) { /* all corners at one point (cannot happen for a valid camera) */
-        hull[0][0] = pts[0][0], hull[0][1] = pts[0][1];
-        h = 1;
-    }
+    int h = (int)sl_convex_hull8(pts, 8, hull);
     v->npoly = h;
-    memcpy(v->poly, hull, (size_t)h * sizeof hull[0]);
+    memcpy(v->poly, hull, (size_t)h * 2 * sizeof hull[0]);
 }
 
 bool sl_urban_box_in_frustum(const sl_urban_view *v, const sl_aabb *b)
