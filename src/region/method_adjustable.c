@@ -44,16 +44,27 @@
 
 #define TWO_PI (2.0 * M_PI)
 
+/* Length of (x, y): metres of a city, far from overflow, so no need for hypot's care (or cost). */
+static inline double len2(double x, double y) { return sqrt(x * x + y * y); }
+
 typedef struct adj_config {
     float eps;
     uint32_t bins;
     uint32_t levels; /* coarser disk levels (radius eps * 2^l) that pre-filter the candidates */
+    float split;     /* a piece's horizon is cut where its distance grows by this factor; 0: not */
+    bool fuse;       /* runs of touching pieces shrink only at their ends */
 } adj_config;
 
 typedef struct piece {
     uint32_t first, count; /* vertices in xy, counter-clockwise, convex */
     double roof;
 } piece;
+
+/* Two pieces whose boundaries share the stretch s (x0, y0, x1, y1). */
+typedef struct touch {
+    uint32_t from, to;
+    double s[4];
+} touch;
 
 typedef struct adj_shared {
     sl_allocator a;
@@ -66,6 +77,12 @@ typedef struct adj_shared {
     size_t nxy;
     uint32_t nobj;
     const sl_aabb *bounds;
+    uint32_t ntouch;       /* touching piece pairs, both ways */
+    uint32_t *touch_start; /* per piece, its first pair in touches (npiece + 1) */
+    touch *touches;        /* sorted by (from, to) */
+    size_t touch_cap;
+    double *edge_sc;   /* sin, cos of every bin edge's azimuth (bins + 1 pairs) */
+    double log_split;  /* log(cfg.split) */
 } adj_shared;
 
 /* A sort key: distance, then id (a total order: the result never depends on the sort). */
@@ -74,35 +91,68 @@ typedef struct keyed {
     uint32_t id;
 } keyed;
 
+/* One stretch of an occluder piece's horizon: the bins [b0, b1] (b1 may pass the bin count: wrap)
+ * hide what lies beyond the piece's chord in them, up to the tangent bound tb. */
+typedef struct chunk {
+    int64_t b0, b1;
+    float tb;
+} chunk;
+
+/* A piece as one disk sees it: silhouette azimuths and vertices, and its place in a run. */
+typedef struct pview {
+    double lo, hi;
+    double ab[4]; /* the silhouette vertices at lo and at hi */
+    uint32_t stamp, succ, pred;
+} pview;
+
+#define MAX_CHUNKS 16
+#define MAX_RUN (MAX_CHUNKS + 1) /* pieces in one run of touching pieces (a zone per joint) */
+
 typedef struct adj_worker {
     adj_shared *sh;
     float *horizon;
     uint8_t *visible; /* per object, this level: seen by one of the level's disks */
     keyed *okey;      /* per live object: r_min, id */
-    keyed *pkey;      /* per drawn piece: d_far, id */
-    double *pdata;    /* per piece: lo, hi (azimuth), t (tangent bound) */
+    sl_array chunks;  /* chunk: the disk's horizon pieces (bin ranges of occluder pieces) */
+    sl_array ckey;    /* keyed per chunk: the distance beyond which it hides, index */
     uint32_t *live;   /* candidates not yet seen at this level */
     uint32_t *cand;   /* this level's candidates: the coarser level's set, ascending */
     uint32_t *plist;  /* pieces kept by the level's filter */
     double *need;     /* NEED_BINS: farthest candidate reach per azimuth (the piece filter) */
     sl_array centres; /* double[2]: the level's disk centres */
+    pview *view;      /* per piece, valid where stamp matches */
+    uint32_t stamp;
+    double runv[4 * MAX_RUN];  /* the polyline of the run being chunked */
+    double runa[2 * MAX_RUN];  /* its vertices' azimuths from C (lifted) */
+    double segw[2 * MAX_RUN];  /* run_chunks: per segment, the band's azimuth slack */
 } adj_worker;
 
 static const char g_help[] =
     "eps=FLOAT (default 0.7): radius of the disks whose sets are computed (metres); disks cover the cell on a "
     "grid of eps*sqrt(2)\n"
-    "bins=2..65536 (default 2048): azimuth bins of the occlusion horizon\n"
+    "bins=2..65536 (default 8192): azimuth bins of the occlusion horizon\n"
     "levels=0..8 (default 8): at most this many coarser levels of disks (radius eps*2^l) whose sets bound the "
-    "finer ones, stopping at the first whose single grid square covers the cell; 0: one level\n";
+    "finer ones, stopping at the first whose single grid square covers the cell; 0: one level\n"
+    "split=0 or 1.01..100 (default 1.1): a piece's stretch of horizon is cut into chunks, each with the tangent "
+    "bound of its own part of the piece, where the distance of the piece grows by this factor (at most 16 "
+    "chunks); 0: one bound per piece, from its farther silhouette vertex (the thesis)\n"
+    "fuse=BOOL (default false): a run of touching pieces (footprints sharing a wall, parts of one footprint) "
+    "is also drawn as one occluder, shrunk only at its two ends, around the joints where the pieces on their "
+    "own leave gaps (vienna: 0.7% fewer objects for 20% more time)\n";
 
 static sl_status adj_configure(sl_opts *o, void *config, sl_error *err)
 {
     adj_config *c = config;
     sl_status st;
     if ((st = sl_opts_float(o, "eps", 0.7f, 0.05f, 1000.0f, &c->eps, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "bins", 2048, 2, 65536, &c->bins, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "levels", 8, 0, 8, &c->levels, err)) != SL_OK)
+        (st = sl_opts_u32(o, "bins", 8192, 2, 65536, &c->bins, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "levels", 8, 0, 8, &c->levels, err)) != SL_OK ||
+        (st = sl_opts_float(o, "split", 1.1f, 0.0f, 100.0f, &c->split, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "fuse", false, &c->fuse, err)) != SL_OK)
         return st;
+    if (c->split != 0 && !(c->split >= 1.01f))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "adjustable: split must be 0 or at least 1.01 (got %g)",
+                       (double)c->split);
     return SL_OK;
 }
 
@@ -112,6 +162,9 @@ static void adj_release(void *p)
     if (!s)
         return;
     sl_free(&s->a, s->pieces, ((size_t)s->npiece + 1) * sizeof(piece));
+    sl_free(&s->a, s->touch_start, s->touch_start ? ((size_t)s->npiece + 1) * sizeof(uint32_t) : 0);
+    sl_free(&s->a, s->touches, s->touch_cap * sizeof(touch));
+    sl_free(&s->a, s->edge_sc, s->edge_sc ? 2 * ((size_t)s->cfg.bins + 1) * sizeof(double) : 0);
     sl_free(&s->a, s->xy, (s->nxy + 1) * sizeof(double));
     sl_free(&s->a, s, sizeof *s);
 }
@@ -143,9 +196,10 @@ static bool try_merge(const double *p, uint32_t np, const double *q, uint32_t nq
             const double *c = q + 2 * j, *d = q + 2 * ((j + 1) % nq);
             if (!(a[0] == d[0] && a[1] == d[1] && b[0] == c[0] && b[1] == c[1]))
                 continue;
-            /* p from b around to a, then q from a (= d) around to b (= c), skipping the shared edge */
+            /* p from b around to a (all np vertices), then q's vertices strictly between a (= d)
+             * and b (= c) */
             uint32_t n = 0;
-            for (uint32_t k = 0; k < np - 1; k++) {
+            for (uint32_t k = 0; k < np; k++) {
                 const double *v = p + 2 * ((i + 1 + k) % np);
                 out[2 * n] = v[0], out[2 * n + 1] = v[1], n++;
             }
@@ -271,6 +325,161 @@ static sl_status decompose(adj_shared *s, sl_geos *g, uint32_t f, sl_array *piec
     return st;
 }
 
+/* ---- touching pieces (fusion) ---- */
+
+/* Pieces that share a stretch of boundary: a sight line that crosses the chord of one and then
+ * the chord of the other never leaves the union, so the horizon may treat a run of touching pieces
+ * as one occluder, shrunk only at the run's two ends (see chain_chunks). */
+typedef struct bedge {
+    uint32_t piece;
+    double x0, y0, x1, y1;
+} bedge;
+
+#define TOUCH_TOL 1e-5 /* metres: an edge lies on another's line */
+#define TOUCH_MIN 1e-3 /* metres: the shortest shared stretch that links two pieces */
+
+/* The stretch that edges e and f share, if they are collinear and overlap by TOUCH_MIN or more. */
+static bool shared_stretch(const bedge *e, const bedge *f, double s[4])
+{
+    double dx = e->x1 - e->x0, dy = e->y1 - e->y0, len = len2(dx, dy);
+    if (!(len > TOUCH_MIN))
+        return false;
+    double ux = dx / len, uy = dy / len;
+    /* distances of f's ends from e's line, and their positions along it */
+    double d0 = (f->x0 - e->x0) * uy - (f->y0 - e->y0) * ux, d1 = (f->x1 - e->x0) * uy - (f->y1 - e->y0) * ux;
+    if (!(fabs(d0) <= TOUCH_TOL && fabs(d1) <= TOUCH_TOL))
+        return false;
+    double p0 = (f->x0 - e->x0) * ux + (f->y0 - e->y0) * uy, p1 = (f->x1 - e->x0) * ux + (f->y1 - e->y0) * uy;
+    double a = fmax(0.0, fmin(p0, p1)), b = fmin(len, fmax(p0, p1));
+    if (!(b - a >= TOUCH_MIN))
+        return false;
+    s[0] = e->x0 + a * ux, s[1] = e->y0 + a * uy, s[2] = e->x0 + b * ux, s[3] = e->y0 + b * uy;
+    return true;
+}
+
+static int cmp_link(const void *a, const void *b)
+{
+    const touch *x = a, *y = b;
+    if (x->from != y->from)
+        return x->from < y->from ? -1 : 1;
+    if (x->to != y->to)
+        return x->to < y->to ? -1 : 1;
+    /* the longer stretch first, then by coordinates: a total order */
+    double lx = len2(x->s[2] - x->s[0], x->s[3] - x->s[1]), ly = len2(y->s[2] - y->s[0], y->s[3] - y->s[1]);
+    if (lx != ly)
+        return lx > ly ? -1 : 1;
+    return memcmp(x->s, y->s, sizeof x->s);
+}
+
+/* The touching pairs of s's pieces, both ways, sorted by (from, to), one per pair. Edges are
+ * bucketed on a grid of TOUCH_CELL metres by their boxes. */
+#define TOUCH_CELL 16.0
+static sl_status find_touching(adj_shared *s, sl_error *err)
+{
+    const sl_allocator *a = &s->a;
+    sl_array edges = {0}, links = {0};
+    sl_status st = SL_OK;
+    double gx0 = INFINITY, gy0 = INFINITY, gx1 = -INFINITY, gy1 = -INFINITY;
+    for (uint32_t k = 0; k < s->npiece; k++) {
+        const piece *pc = &s->pieces[k];
+        const double *v = s->xy + 2 * (size_t)pc->first;
+        for (uint32_t i = 0; i < pc->count; i++) {
+            const double *p = v + 2 * i, *q = v + 2 * ((i + 1) % pc->count);
+            bedge e = {k, p[0], p[1], q[0], q[1]};
+            if (!sl_array_push(a, &edges, sizeof e, &e, 1))
+                goto oom;
+            gx0 = fmin(gx0, p[0]), gx1 = fmax(gx1, p[0]), gy0 = fmin(gy0, p[1]), gy1 = fmax(gy1, p[1]);
+        }
+    }
+    size_t ne = edges.count;
+    if (ne) {
+        uint32_t nx = (uint32_t)fmin(4096.0, floor((gx1 - gx0) / TOUCH_CELL) + 1);
+        uint32_t ny = (uint32_t)fmin(4096.0, floor((gy1 - gy0) / TOUCH_CELL) + 1);
+        const bedge *ev = edges.data;
+        /* counting sort of (cell, edge) entries */
+        size_t ncell = (size_t)nx * ny;
+        uint32_t *start = sl_calloc(a, ncell + 1, sizeof(uint32_t));
+        uint32_t(*range)[4] = sl_alloc(a, ne * sizeof *range);
+        if (!start || !range) {
+            sl_free(a, start, (ncell + 1) * sizeof(uint32_t));
+            sl_free(a, range, ne * sizeof *range);
+            goto oom;
+        }
+        size_t total = 0;
+        for (size_t i = 0; i < ne; i++) {
+            const bedge *e = &ev[i];
+            double x0 = fmin(e->x0, e->x1) - TOUCH_TOL, x1 = fmax(e->x0, e->x1) + TOUCH_TOL;
+            double y0 = fmin(e->y0, e->y1) - TOUCH_TOL, y1 = fmax(e->y0, e->y1) + TOUCH_TOL;
+            uint32_t r[4] = {(uint32_t)fmax(0.0, floor((x0 - gx0) / TOUCH_CELL)),
+                             (uint32_t)fmax(0.0, floor((y0 - gy0) / TOUCH_CELL)),
+                             (uint32_t)fmin(nx - 1.0, floor((x1 - gx0) / TOUCH_CELL)),
+                             (uint32_t)fmin(ny - 1.0, floor((y1 - gy0) / TOUCH_CELL))};
+            memcpy(range[i], r, sizeof r);
+            for (uint32_t y = r[1]; y <= r[3]; y++)
+                for (uint32_t x = r[0]; x <= r[2]; x++)
+                    start[(size_t)y * nx + x + 1]++, total++;
+        }
+        for (size_t c = 0; c < ncell; c++)
+            start[c + 1] += start[c];
+        uint32_t *ids = sl_alloc(a, (total + 1) * sizeof(uint32_t));
+        uint32_t *fill = sl_alloc(a, (ncell + 1) * sizeof(uint32_t));
+        if (!ids || !fill) {
+            sl_free(a, ids, (total + 1) * sizeof(uint32_t));
+            sl_free(a, fill, (ncell + 1) * sizeof(uint32_t));
+            sl_free(a, start, (ncell + 1) * sizeof(uint32_t));
+            sl_free(a, range, ne * sizeof *range);
+            goto oom;
+        }
+        memcpy(fill, start, (ncell + 1) * sizeof(uint32_t));
+        for (size_t i = 0; i < ne; i++)
+            for (uint32_t y = range[i][1]; y <= range[i][3]; y++)
+                for (uint32_t x = range[i][0]; x <= range[i][2]; x++)
+                    ids[fill[(size_t)y * nx + x]++] = (uint32_t)i;
+        bool oom = false;
+        for (size_t c = 0; c < ncell && !oom; c++)
+            for (uint32_t i = start[c]; i < start[c + 1] && !oom; i++)
+                for (uint32_t j = i + 1; j < start[c + 1] && !oom; j++) {
+                    const bedge *e = &ev[ids[i]], *f = &ev[ids[j]];
+                    double sh[4];
+                    if (e->piece == f->piece || !shared_stretch(e, f, sh))
+                        continue;
+                    touch t1 = {e->piece, f->piece, {sh[0], sh[1], sh[2], sh[3]}};
+                    touch t2 = {f->piece, e->piece, {sh[0], sh[1], sh[2], sh[3]}};
+                    oom = !sl_array_push(a, &links, sizeof t1, &t1, 1) || !sl_array_push(a, &links, sizeof t2, &t2, 1);
+                }
+        sl_free(a, ids, (total + 1) * sizeof(uint32_t));
+        sl_free(a, fill, (ncell + 1) * sizeof(uint32_t));
+        sl_free(a, start, (ncell + 1) * sizeof(uint32_t));
+        sl_free(a, range, ne * sizeof *range);
+        if (oom)
+            goto oom;
+    }
+    sl_array_free(a, &edges, sizeof(bedge));
+    /* one link per ordered pair: the longest stretch */
+    touch *tv = links.data;
+    size_t nl = links.count, m = 0;
+    if (nl)
+        qsort(tv, nl, sizeof *tv, cmp_link);
+    for (size_t i = 0; i < nl; i++)
+        if (m == 0 || tv[m - 1].from != tv[i].from || tv[m - 1].to != tv[i].to)
+            tv[m++] = tv[i];
+    s->touch_start = sl_calloc(a, (size_t)s->npiece + 1, sizeof(uint32_t));
+    if (!s->touch_start)
+        goto oom;
+    for (size_t i = 0; i < m; i++)
+        s->touch_start[tv[i].from + 1]++;
+    for (uint32_t k = 0; k < s->npiece; k++)
+        s->touch_start[k + 1] += s->touch_start[k];
+    s->ntouch = (uint32_t)m;
+    s->touches = links.data;
+    s->touch_cap = links.cap;
+    return st;
+oom:
+    sl_array_free(a, &edges, sizeof(bedge));
+    sl_array_free(a, &links, sizeof(touch));
+    return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
+}
+
 static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
                              uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
 {
@@ -321,6 +530,20 @@ static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *con
             sl_array_free(alloc, &xy, sizeof(double));
         adj_release(s);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
+    }
+    s->log_split = s->cfg.split > 0 ? log((double)s->cfg.split) : 0;
+    s->edge_sc = sl_alloc(alloc, 2 * ((size_t)s->cfg.bins + 1) * sizeof(double));
+    if (!s->edge_sc) {
+        adj_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
+    }
+    for (uint32_t b = 0; b <= s->cfg.bins; b++) {
+        double az = b * (TWO_PI / s->cfg.bins);
+        s->edge_sc[2 * b] = sin(az), s->edge_sc[2 * b + 1] = cos(az);
+    }
+    if ((st = find_touching(s, err)) != SL_OK) {
+        adj_release(s);
+        return st;
     }
     *shared = s;
     return SL_OK;
@@ -388,8 +611,9 @@ static void adj_worker_destroy(void *p)
     sl_free(a, w->horizon, (size_t)w->sh->cfg.bins * sizeof(float));
     sl_free(a, w->visible, no);
     sl_free(a, w->okey, no * sizeof(keyed));
-    sl_free(a, w->pkey, np * sizeof(keyed));
-    sl_free(a, w->pdata, 3 * np * sizeof(double));
+    sl_array_free(a, &w->chunks, sizeof(chunk));
+    sl_free(a, w->view, np * sizeof(pview));
+    sl_array_free(a, &w->ckey, sizeof(keyed));
     sl_free(a, w->live, no * sizeof(uint32_t));
     sl_free(a, w->cand, no * sizeof(uint32_t));
     sl_free(a, w->plist, np * sizeof(uint32_t));
@@ -409,14 +633,13 @@ static sl_status adj_worker_create(void *shared, void **out, sl_error *err)
     w->horizon = sl_alloc(&s->a, (size_t)s->cfg.bins * sizeof(float));
     w->visible = sl_alloc(&s->a, no);
     w->okey = sl_alloc(&s->a, no * sizeof(keyed));
-    w->pkey = sl_alloc(&s->a, np * sizeof(keyed));
-    w->pdata = sl_alloc(&s->a, 3 * np * sizeof(double));
     w->live = sl_alloc(&s->a, no * sizeof(uint32_t));
     w->cand = sl_alloc(&s->a, no * sizeof(uint32_t));
     w->plist = sl_alloc(&s->a, np * sizeof(uint32_t));
     w->need = sl_alloc(&s->a, NEED_BINS * sizeof(double));
-    if (!w->horizon || !w->visible || !w->okey || !w->pkey || !w->pdata || !w->live || !w->cand || !w->plist ||
-        !w->need) {
+    w->view = sl_calloc(&s->a, np, sizeof(pview));
+    if (!w->horizon || !w->visible || !w->okey || !w->live || !w->cand || !w->plist ||
+        !w->need || !w->view) {
         adj_worker_destroy(w);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
     }
@@ -425,31 +648,33 @@ static sl_status adj_worker_create(void *shared, void **out, sl_error *err)
 }
 
 /* Angular interval [*lo, *hi] (lo in [0, 2pi), hi - lo < pi) of points seen from c, and the
- * points at its ends; false when c is not clearly outside their hull (some point is not in front
- * of c relative to the points' mean direction, or c lies on one of them). The points all lie in
- * the open half-plane in front of c, where the cross product orders directions by angle, so the
- * two extremes come from orientation tests and only they need an atan2. */
+ * points at its ends; false when they do not lie in an open half-plane through c (c inside their
+ * hull or on it, or on one of them). The extremes are found by a pseudo-angle relative to the
+ * first point's direction (monotone in the true angle over (-pi, pi]); when the points fit in a
+ * half-plane the extremes are right, and when they do not, the extremes are pi or more apart, which
+ * the final test rejects. Only the two extremes need an atan2. */
 static bool azimuth_range(double cx, double cy, const double *p, uint32_t n, double *lo, double *hi, uint32_t *ilo,
                           uint32_t *ihi)
 {
-    double mx = 0, my = 0;
-    for (uint32_t i = 0; i < n; i++)
-        mx += p[2 * i] - cx, my += p[2 * i + 1] - cy;
+    const double rx = p[0] - cx, ry = p[1] - cy;
+    if (rx == 0 && ry == 0)
+        return false;
     uint32_t a = 0, b = 0;
-    double ax = 0, ay = 0, bx = 0, by = 0;
-    for (uint32_t i = 0; i < n; i++) {
+    double pa = 0, pb = 0;
+    for (uint32_t i = 1; i < n; i++) {
         double dx = p[2 * i] - cx, dy = p[2 * i + 1] - cy;
-        if (!(mx * dx + my * dy > 0))
+        double x = rx * dx + ry * dy, y = rx * dy - ry * dx, m = fabs(x) + fabs(y);
+        if (!(m > 0))
             return false;
-        if (i == 0) {
-            ax = bx = dx, ay = by = dy;
-            continue;
-        }
-        if (ax * dy - ay * dx < 0) /* clockwise of the lowest so far */
-            a = i, ax = dx, ay = dy;
-        if (bx * dy - by * dx > 0) /* counter-clockwise of the highest so far */
-            b = i, bx = dx, by = dy;
+        double q = y / m; /* (-1, 1] on the front side; beyond +-1 behind */
+        if (x < 0)
+            q = (y >= 0 ? 2.0 : -2.0) - q;
+        if (q < pa)
+            pa = q, a = i;
+        if (q > pb)
+            pb = q, b = i;
     }
+    double ax = p[2 * a] - cx, ay = p[2 * a + 1] - cy, bx = p[2 * b] - cx, by = p[2 * b + 1] - cy;
     double span = atan2(ax * by - ay * bx, ax * bx + ay * by);
     if (!(span >= 0 && span < M_PI - 1e-9))
         return false;
@@ -465,19 +690,179 @@ static bool azimuth_range(double cx, double cy, const double *p, uint32_t n, dou
     return true;
 }
 
+/* Distance from the origin to the segment p + t e, t in [t0, t1]. */
+static double seg_dist(double px, double py, double ex, double ey, double t0, double t1)
+{
+    double ee = ex * ex + ey * ey;
+    double t = ee > 0 ? -(px * ex + py * ey) / ee : t0;
+    t = fmin(t1, fmax(t0, t));
+    return len2(px + t * ex, py + t * ey);
+}
+
+/* The horizon chunks of one occluder run seen from the disk (C, eps) at eye height h: the polyline
+ * v[0..nv) lies inside occluders whose roofs are all at least roof (one piece's chord, or the
+ * chords of touching pieces joined along their shared stretches), v[0] at azimuth lo and v[nv-1]
+ * at azimuth hi from C (lifted: hi - lo < pi), all of it within a wedge of less than pi at C.
+ *
+ * Why it hides: for a chunk of whole bins [a0, a1] inside [lo + asin(eps/|C v0|), hi -
+ * asin(eps/|C vn|)], every sight line from an eye E of the disk to a point X of the chunk's wedge
+ * stays within eps of the ray C->X, so inside the band B of points within eps of the wedge's rays.
+ * The polyline starts outside B on one side and ends outside it on the other (the shrinking) and
+ * keeps more than eps from C, so it cuts B in two, E on the near side; an X farther from C than
+ * every polyline point in B lies on the far side, so E->X crosses the polyline at a point P of B:
+ * |EP| <= max |CP| + eps (occluder above the eye) and >= min |CP| - eps (below it). B is bounded
+ * here by the two half-planes within eps of the wedge's edge lines (a superset of B: the bounds
+ * only loosen). The chunk's key is that largest distance: the horizon takes it only for objects
+ * beyond it (with the disk's 2 eps of slack). */
+static bool run_chunks(adj_worker *w, const double *v, const double *ang, uint32_t nv, double lo, double hi,
+                       double roof, double h, double cx, double cy, double eps, const double *zones, uint32_t nzone)
+{
+    const adj_shared *s = w->sh;
+    const double bw = TWO_PI / s->cfg.bins;
+    double ca = len2(v[0] - cx, v[1] - cy), cb = len2(v[2 * (nv - 1)] - cx, v[2 * (nv - 1) + 1] - cy);
+    if (!(ca > eps) || !(cb > eps))
+        return true;
+    lo += asin(eps / ca);
+    hi -= asin(eps / cb);
+    /* bins wholly inside [lo, hi]; b0 >= 0 and b1 < 2 nb (lo < 2 pi + pi/2, hi - lo < pi) */
+    int64_t b0 = (int64_t)ceil(lo / bw - 1e-12), b1 = (int64_t)floor(hi / bw + 1e-12) - 1;
+    if (!(hi > lo) || b1 < b0)
+        return true;
+    double dnear = INFINITY, dfar = 0;
+    double *widen = w->segw; /* per segment: how far (azimuth) a band point of it strays from the bins */
+    for (uint32_t i = 0; i + 1 < nv; i++) {
+        double px = v[2 * i] - cx, py = v[2 * i + 1] - cy;
+        double d = seg_dist(px, py, v[2 * i + 2] - v[2 * i], v[2 * i + 3] - v[2 * i + 1], 0.0, 1.0);
+        if (!(d > eps))
+            return true; /* the run passes within eps of C: it hides nothing from the whole disk */
+        dnear = d < dnear ? d : dnear;
+        widen[i] = asin(eps / d) + 1e-9;
+    }
+    for (uint32_t i = 0; i < nv; i++)
+        dfar = fmax(dfar, len2(v[2 * i] - cx, v[2 * i + 1] - cy));
+    /* the chunks' bin ranges: the given zones (any subset of the bins may be left out: a lower
+     * horizon only keeps more), or the whole range cut where the distance grows by split */
+    int64_t range[2 * MAX_CHUNKS];
+    uint32_t nr = 0;
+    if (nzone) {
+        for (uint32_t z = 0; z < nzone && nr < MAX_CHUNKS; z++) {
+            int64_t z0 = (int64_t)floor(zones[2 * z] / bw), z1 = (int64_t)ceil(zones[2 * z + 1] / bw);
+            if (z0 < b0)
+                z0 = b0;
+            if (z1 > b1)
+                z1 = b1;
+            if (z0 <= z1)
+                range[2 * nr] = z0, range[2 * nr + 1] = z1, nr++;
+        }
+    } else {
+        const int64_t nbin = b1 - b0 + 1;
+        int64_t nchunk = 1;
+        if (s->cfg.split > 0 && dfar > s->cfg.split * dnear)
+            nchunk = (int64_t)ceil(log(dfar / dnear) / s->log_split);
+        if (nchunk > MAX_CHUNKS)
+            nchunk = MAX_CHUNKS;
+        if (nchunk > nbin)
+            nchunk = nbin;
+        for (int64_t j = 0; j < nchunk; j++)
+            range[2 * nr] = b0 + nbin * j / nchunk, range[2 * nr + 1] = b0 + nbin * (j + 1) / nchunk - 1, nr++;
+    }
+    const sl_allocator *a = &s->a;
+    size_t first = w->chunks.count;
+    chunk *ch = sl_array_push(a, &w->chunks, sizeof(chunk), NULL, nr);
+    keyed *ck = sl_array_push(a, &w->ckey, sizeof(keyed), NULL, nr);
+    if (!ch || !ck)
+        return false;
+    const uint32_t nb = s->cfg.bins;
+    for (uint32_t c = 0; c < nr; c++) {
+        int64_t e0 = range[2 * c], e1 = range[2 * c + 1];
+        /* inner normals of the wedge's edge lines (bin edges e0 and e1 + 1, from the table):
+         * n . (P - C) >= -eps is the half-plane */
+        const double *q0 = s->edge_sc + 2 * (e0 % nb), *q1 = s->edge_sc + 2 * ((e1 + 1) % nb);
+        const double nn[2][2] = {{-q0[0], q0[1]}, {q1[0], -q1[1]}};
+        double dmax = -1, dmin = INFINITY;
+        const double a0 = (double)e0 * bw, a1 = (double)(e1 + 1) * bw;
+        for (uint32_t i = 0; i + 1 < nv; i++) {
+            /* a point of the band lies within asin(eps / r) of the bins' azimuths, r its distance
+             * from C; a segment's azimuths run between its ends' (it keeps off C): skip segments
+             * that cannot reach the band (runs only: a chord spans its whole range) */
+            if (nv > 2) {
+                double s0 = ang[i] < ang[i + 1] ? ang[i] : ang[i + 1], s1 = ang[i] < ang[i + 1] ? ang[i + 1] : ang[i];
+                if (s1 < a0 - widen[i] || s0 > a1 + widen[i])
+                    continue;
+            }
+            double px = v[2 * i] - cx, py = v[2 * i + 1] - cy;
+            double ex = v[2 * i + 2] - v[2 * i], ey = v[2 * i + 3] - v[2 * i + 1];
+            double t0 = 0, t1 = 1;
+            for (int k = 0; k < 2 && t0 <= t1; k++) {
+                double f0 = nn[k][0] * px + nn[k][1] * py + eps, fs = nn[k][0] * ex + nn[k][1] * ey;
+                /* f0 + t fs >= 0 */
+                if (fs > 0)
+                    t0 = fmax(t0, -f0 / fs);
+                else if (fs < 0)
+                    t1 = fmin(t1, -f0 / fs);
+                else if (f0 < 0)
+                    t1 = -1;
+            }
+            if (!(t0 <= t1))
+                continue;
+            /* widen by a hair for the rounding of the clip */
+            t0 = fmax(0.0, t0 - 1e-9), t1 = fmin(1.0, t1 + 1e-9);
+            dmax = fmax(dmax, fmax(len2(px + t0 * ex, py + t0 * ey), len2(px + t1 * ex, py + t1 * ey)));
+            dmin = fmin(dmin, seg_dist(px, py, ex, ey, t0, t1));
+        }
+        ch[c].b0 = e0;
+        ch[c].b1 = e1;
+        if (dmax < 0) { /* cannot happen for a run that crosses the wedge; hide nothing */
+            ch[c].tb = -INFINITY;
+            ck[c].k = INFINITY;
+        } else {
+            dmin = fmax(dmin, dnear);
+            double tb = roof > h ? (roof - h) / (dmax + eps) : (roof - h) / (dmin - eps);
+            float tf = (float)tb;
+            if ((double)tf > tb) /* round down: the horizon never claims more than the bound */
+                tf = nextafterf(tf, -INFINITY);
+            ch[c].tb = tf;
+            ck[c].k = dmax;
+        }
+        ck[c].id = (uint32_t)(first + c);
+    }
+    return true;
+}
+
+/* horizon[b] = max(horizon[b], v) for b in [b0, b1] (a loop the compiler vectorizes). */
+static inline void raise_bins(float *restrict horizon, int64_t b0, int64_t b1, float v)
+{
+    for (int64_t b = b0; b <= b1; b++)
+        horizon[b] = horizon[b] > v ? horizon[b] : v;
+}
+
+/* Is the point p on the stretch s (within the touching tolerance)? */
+static bool on_stretch(const double *p, const double *s)
+{
+    double ex = s[2] - s[0], ey = s[3] - s[1], px = p[0] - s[0], py = p[1] - s[1];
+    return seg_dist(-px, -py, ex, ey, 0.0, 1.0) <= 2 * TOUCH_TOL;
+}
+
 /* One disk of radius eps around (cx, cy) at eye height h: mark visible every live object it sees,
  * with the pieces plist[0..npl) as occluders. Leaving pieces out only lowers the horizon, so any
  * subset of the pieces gives a superset of the disk's set (still conservative). */
-static void disk(adj_worker *w, double cx, double cy, double h, double eps, uint32_t nlive, uint32_t npl)
+static bool disk(adj_worker *w, double cx, double cy, double h, double eps, uint32_t nlive, uint32_t npl)
 {
     adj_shared *s = w->sh;
     const uint32_t nb = s->cfg.bins;
     const double bw = TWO_PI / nb;
-    keyed *pkey = w->pkey, *okey = w->okey;
+    keyed *okey = w->okey;
     for (uint32_t b = 0; b < nb; b++)
         w->horizon[b] = -INFINITY;
-    /* occluder pieces: shrunk intervals and tangent bounds, sorted by the far distance */
-    uint32_t np = 0;
+    /* occluder pieces: shrunk intervals, cut into chunks of whole bins, each with its own tangent
+     * bound; chunks sorted by the distance beyond which they hide */
+    w->chunks.count = 0;
+    w->ckey.count = 0;
+    if (++w->stamp == 0) { /* wrapped: forget every view */
+        memset(w->view, 0, ((size_t)s->npiece + 1) * sizeof(pview));
+        w->stamp = 1;
+    }
+    const uint32_t stamp = w->stamp;
     for (uint32_t q = 0; q < npl; q++) {
         uint32_t k = w->plist[q];
         const piece *pc = &s->pieces[k];
@@ -486,37 +871,92 @@ static void disk(adj_worker *w, double cx, double cy, double h, double eps, uint
         uint32_t ia, ib;
         if (!azimuth_range(cx, cy, v, pc->count, &lo, &hi, &ia, &ib))
             continue;
-        const double *A = v + 2 * ia, *B = v + 2 * ib;
-        double ca = hypot(A[0] - cx, A[1] - cy), cb = hypot(B[0] - cx, B[1] - cy);
-        double ab = hypot(B[0] - A[0], B[1] - A[1]);
-        if (!(ca > eps) || !(cb > eps) || !(ab > 0))
-            continue;
-        /* distance from C to the chord (segment) AB */
-        double t = ((cx - A[0]) * (B[0] - A[0]) + (cy - A[1]) * (B[1] - A[1])) / (ab * ab);
-        t = fmin(1.0, fmax(0.0, t));
-        double dnear = hypot(A[0] + t * (B[0] - A[0]) - cx, A[1] + t * (B[1] - A[1]) - cy);
-        double dline = fabs(sl_orient2d(A[0], A[1], B[0], B[1], cx, cy)) / ab;
-        if (!(dline > eps))
-            continue;
-        lo += asin(eps / ca);
-        hi -= asin(eps / cb);
-        if (!(hi > lo))
-            continue;
-        double dfar = fmax(ca, cb);
-        double tb = pc->roof > h ? (pc->roof - h) / (dfar + eps) : (pc->roof - h) / (dnear - eps);
-        pkey[np].k = dfar;
-        pkey[np].id = k;
-        w->pdata[3 * (size_t)k] = lo;
-        w->pdata[3 * (size_t)k + 1] = hi;
-        w->pdata[3 * (size_t)k + 2] = tb;
-        np++;
+        pview *pv = &w->view[k];
+        pv->stamp = stamp;
+        pv->succ = UINT32_MAX;
+        pv->pred = 0;
+        pv->lo = lo, pv->hi = hi;
+        pv->ab[0] = v[2 * ia], pv->ab[1] = v[2 * ia + 1], pv->ab[2] = v[2 * ib], pv->ab[3] = v[2 * ib + 1];
+        const double ang[2] = {lo, hi};
+        if (!run_chunks(w, pv->ab, ang, 2, lo, hi, pc->roof, h, cx, cy, eps, NULL, 0))
+            return false;
     }
-    sort_keyed(pkey, np);
+    /* runs of touching pieces: piece k continues into a piece whose silhouette starts on their
+     * shared stretch where k's ends, and which reaches farther round (counter-clockwise) */
+    const bool fuse = s->cfg.fuse && s->ntouch;
+    for (uint32_t q = 0; q < npl && fuse; q++) {
+        uint32_t k = w->plist[q], best = UINT32_MAX;
+        pview *pk = &w->view[k];
+        if (pk->stamp != stamp)
+            continue;
+        double reach = pk->hi - pk->lo;
+        for (uint32_t t = s->touch_start[k]; t < s->touch_start[k + 1]; t++) {
+            const touch *tc = &s->touches[t];
+            const pview *pq = &w->view[tc->to];
+            if (pq->stamp != stamp || !on_stretch(pk->ab + 2, tc->s) || !on_stretch(pq->ab, tc->s))
+                continue;
+            double d = pq->lo - pk->lo;
+            d -= TWO_PI * floor(d / TWO_PI + 0.5); /* into [-pi, pi] */
+            double r = d + (pq->hi - pq->lo);
+            if (r > reach + 1e-12 || (r == reach && best != UINT32_MAX && tc->to < best))
+                reach = r, best = tc->to;
+        }
+        pk->succ = best;
+        if (best != UINT32_MAX)
+            w->view[best].pred = 1;
+    }
+    for (uint32_t q = 0; q < npl && fuse; q++) {
+        uint32_t k = w->plist[q];
+        const pview *pk = &w->view[k];
+        if (pk->stamp != stamp || pk->succ == UINT32_MAX || pk->pred)
+            continue;
+        /* the polyline: k's chord, then each next piece's chord, joined along the stretches */
+        double roof = s->pieces[k].roof, hi = pk->hi, amin = 0, amax = pk->hi - pk->lo;
+        /* the run's horizon is drawn only around its joints, where the pieces on their own leave
+         * gaps; elsewhere each piece (with its own roof) already does at least as well */
+        double zones[2 * MAX_CHUNKS], prev_d = 0;
+        uint32_t len = 0, nzone = 0;
+        for (uint32_t cur = k; cur != UINT32_MAX && len < MAX_RUN; cur = w->view[cur].succ, len++) {
+            const pview *pc = &w->view[cur];
+            /* the run's points stay within a wedge of less than pi at C (lifted azimuths) */
+            /* the piece's silhouette vertices lie at its lo and hi */
+            double d = pc->lo - pk->lo;
+            d -= TWO_PI * floor(d / TWO_PI + 0.5);
+            double nmin = fmin(amin, d), nmax = fmax(amax, d + (pc->hi - pc->lo));
+            if (!(nmax - nmin < M_PI - 1e-6))
+                break;
+            amin = nmin, amax = nmax;
+            memcpy(w->runv + 4 * len, pc->ab, 4 * sizeof(double));
+            w->runa[2 * len] = pk->lo + d;
+            w->runa[2 * len + 1] = pk->lo + d + (pc->hi - pc->lo);
+            roof = fmin(roof, s->pieces[cur].roof);
+            if (cur != k && nzone < MAX_CHUNKS) {
+                /* the joint: from the previous piece's end (at hi, prev_d from C) to this one's
+                 * start; a zone only where their shrunk intervals leave a gap (with a bin to spare) */
+                double ta = pk->lo + d, da = len2(pc->ab[0] - cx, pc->ab[1] - cy);
+                double sp = asin(fmin(1.0, eps / prev_d)), sa = asin(fmin(1.0, eps / da));
+                if (hi - sp < ta + sa + 2 * bw) {
+                    double gap = (sp > sa ? sp : sa) + 2 * bw;
+                    zones[2 * nzone] = (hi < ta ? hi : ta) - gap;
+                    zones[2 * nzone + 1] = (hi > ta ? hi : ta) + gap;
+                    nzone++;
+                }
+            }
+            hi = pk->lo + d + (pc->hi - pc->lo);
+            prev_d = len2(pc->ab[2] - cx, pc->ab[3] - cy);
+        }
+        if (len >= 2 && nzone && !run_chunks(w, w->runv, w->runa, 2 * len, pk->lo, hi, roof, h, cx, cy, eps, zones, nzone))
+            return false;
+    }
+    keyed *ckey = w->ckey.data;
+    const chunk *chunks = w->chunks.data;
+    const size_t np = w->ckey.count;
+    sort_keyed(ckey, np);
     /* live objects sorted by their nearest distance */
     for (uint32_t i = 0; i < nlive; i++) {
         const sl_aabb *b = &s->bounds[w->live[i]];
         double dx = fmax(0.0, fmax(b->min.x - cx, cx - b->max.x)), dy = fmax(0.0, fmax(b->min.y - cy, cy - b->max.y));
-        okey[i].k = hypot(dx, dy);
+        okey[i].k = len2(dx, dy);
         okey[i].id = w->live[i];
     }
     sort_keyed(okey, nlive);
@@ -527,18 +967,12 @@ static void disk(adj_worker *w, double cx, double cy, double h, double eps, uint
         if (w->visible[o])
             continue;
         /* pieces wholly nearer than the object (with the disk's slack) join the horizon */
-        while (next < np && pkey[next].k + 2 * eps <= rmin - 1e-9) {
-            uint32_t k = pkey[next].id;
-            double lo = w->pdata[3 * (size_t)k], hi = w->pdata[3 * (size_t)k + 1];
-            float tb = (float)w->pdata[3 * (size_t)k + 2];
-            /* bins wholly inside [lo, hi] (hi may pass 2 pi: wrap) */
-            int64_t b0 = (int64_t)ceil(lo / bw - 1e-12), b1 = (int64_t)floor(hi / bw + 1e-12) - 1;
-            /* b0 >= 0 and b1 < 2 nb (lo < 2 pi + pi/2, hi - lo < pi): one subtraction wraps */
-            for (int64_t b = b0; b <= b1; b++) {
-                float *hz = &w->horizon[b >= (int64_t)nb ? b - nb : b];
-                if (tb > *hz)
-                    *hz = tb;
-            }
+        while (next < np && ckey[next].k + 2 * eps <= rmin - 1e-9) {
+            const chunk *c = &chunks[ckey[next].id];
+            /* b0 < nb <= b1 wraps: two contiguous stretches */
+            raise_bins(w->horizon, c->b0, c->b1 < (int64_t)nb ? c->b1 : (int64_t)nb - 1, c->tb);
+            if (c->b1 >= (int64_t)nb)
+                raise_bins(w->horizon, c->b0 > (int64_t)nb ? c->b0 - nb : 0, c->b1 - nb, c->tb);
             next++;
         }
         const sl_aabb *b = &s->bounds[o];
@@ -554,7 +988,7 @@ static void disk(adj_worker *w, double cx, double cy, double h, double eps, uint
             tobj = (top - h) / (rmin - eps);
         } else {
             double fx = fmax(fabs(b->min.x - cx), fabs(b->max.x - cx)), fy = fmax(fabs(b->min.y - cy), fabs(b->max.y - cy));
-            tobj = (top - h) / (hypot(fx, fy) + eps);
+            tobj = (top - h) / (len2(fx, fy) + eps);
         }
         /* every bin the object's interval touches must hide it */
         int64_t b0 = (int64_t)floor(lo / bw), b1 = (int64_t)floor(hi / bw);
@@ -564,6 +998,7 @@ static void disk(adj_worker *w, double cx, double cy, double h, double eps, uint
         if (!hidden)
             w->visible[o] = 1;
     }
+    return true;
 }
 
 /* Does the square [x, x1] x [y, y1] meet the convex counter-clockwise polygon (separating axes)? */
@@ -616,7 +1051,7 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
     for (uint32_t i = 0; i < nc; i++) {
         const sl_aabb *b = &s->bounds[w->cand[i]];
         double dx = fmax(0.0, fmax(b->min.x - ox, ox - b->max.x)), dy = fmax(0.0, fmax(b->min.y - oy, oy - b->max.y));
-        double d = hypot(dx, dy), reach = d + rc;
+        double d = len2(dx, dy), reach = d + rc;
         double corners[8] = {b->min.x, b->min.y, b->max.x, b->min.y, b->max.x, b->max.y, b->min.x, b->max.y};
         double lo, hi;
         uint32_t ia, ib;
@@ -633,7 +1068,7 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
         const double *v = s->xy + 2 * (size_t)pc->first;
         double near = INFINITY;
         for (uint32_t i = 0; i < pc->count; i++)
-            near = fmin(near, hypot(v[2 * i] - ox, v[2 * i + 1] - oy));
+            near = fmin(near, len2(v[2 * i] - ox, v[2 * i + 1] - oy));
         /* the pieces' nearest point may be on an edge: the vertices' minimum is within the
          * piece's own extent of it, so only a lower bound is wanted here: use the box distance */
         double px0 = INFINITY, px1 = -INFINITY, py0 = INFINITY, py1 = -INFINITY;
@@ -642,7 +1077,7 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
             py0 = fmin(py0, v[2 * i + 1]), py1 = fmax(py1, v[2 * i + 1]);
         }
         double dx = fmax(0.0, fmax(px0 - ox, ox - px1)), dy = fmax(0.0, fmax(py0 - oy, oy - py1));
-        double dbox = hypot(dx, dy);
+        double dbox = len2(dx, dy);
         /* a piece joins an object's horizon only when nearer than it by 2 eps (disk()) */
         double reach = fmax(0.0, dbox - rc) + 2 * eps;
         bool keep = all >= reach;
@@ -725,7 +1160,7 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
             ox += cen[i][0], oy += cen[i][1];
         ox /= (double)ncen, oy /= (double)ncen;
         for (size_t i = 0; i < ncen; i++)
-            rc = fmax(rc, hypot(cen[i][0] - ox, cen[i][1] - oy));
+            rc = fmax(rc, len2(cen[i][0] - ox, cen[i][1] - oy));
         rc = rc * (1 + 1e-9) + 1e-9;
         uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc);
         for (uint32_t i = 0; i < nc; i++)
@@ -737,7 +1172,8 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
                     w->live[nlive++] = w->cand[q];
             if (nlive == 0)
                 break;
-            disk(w, cen[i][0], cen[i][1], vc->z_max, eps, nlive, npl);
+            if (!disk(w, cen[i][0], cen[i][1], vc->z_max, eps, nlive, npl))
+                return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
             work++;
         }
         /* the next level's candidates: this level's union (cand stays ascending) */
