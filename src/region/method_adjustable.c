@@ -23,6 +23,10 @@
  *    (z - h) / (r_max + eps) <= (H - h) / (d_near - eps) for H <= h (z: X's height). The horizon
  *    stores the right-hand sides per azimuth bin (max over pieces, only bins wholly inside a
  *    piece's shrunk interval), an object its left-hand side over every bin it touches.
+ * These are the thesis's bounds, for a piece's whole interval. run_chunks proves and uses tighter
+ * ones per stretch of bins (split: d_far and d_near of the part of the chord within eps of the
+ * stretch's wedge, and that far distance as the one an object must lie beyond) and for runs of
+ * touching pieces as one occluder (fuse).
  * A piece too close to the disk (a silhouette vertex or the chord within eps of C) contributes
  * nothing, like an occluder thinner than the shrinking.
  *
@@ -329,7 +333,9 @@ static sl_status decompose(adj_shared *s, sl_geos *g, uint32_t f, sl_array *piec
 
 /* Pieces that share a stretch of boundary: a sight line that crosses the chord of one and then
  * the chord of the other never leaves the union, so the horizon may treat a run of touching pieces
- * as one occluder, shrunk only at the run's two ends (see chain_chunks). */
+ * as one occluder, shrunk only at the run's two ends (see run_chunks). Edges within TOUCH_TOL of
+ * each other's line count as touching: a slit narrower than that between two footprints is taken
+ * as closed (fuse only; the default leaves fuse off). */
 typedef struct bedge {
     uint32_t piece;
     double x0, y0, x1, y1;
@@ -766,6 +772,8 @@ static bool run_chunks(adj_worker *w, const double *v, const double *ang, uint32
         for (int64_t j = 0; j < nchunk; j++)
             range[2 * nr] = b0 + nbin * j / nchunk, range[2 * nr + 1] = b0 + nbin * (j + 1) / nchunk - 1, nr++;
     }
+    if (nr == 0) /* every zone fell outside the run's shrunk interval */
+        return true;
     const sl_allocator *a = &s->a;
     size_t first = w->chunks.count;
     chunk *ch = sl_array_push(a, &w->chunks, sizeof(chunk), NULL, nr);
