@@ -23,6 +23,7 @@
 #include "sightline/region.h"
 #include "sightline/scene.h"
 #include "sightline/truth.h"
+#include "support/box_mesh.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -30,20 +31,8 @@ static char g_dir[64];
 
 static uint32_t add_box(sl_scene s, sl_vec3 lo, sl_vec3 hi)
 {
-    sl_error err;
-    float p[24];
-    for (int i = 0; i < 8; i++) {
-        p[3 * i] = (i & 1) ? hi.x : lo.x;
-        p[3 * i + 1] = (i & 2) ? hi.y : lo.y;
-        p[3 * i + 2] = (i & 4) ? hi.z : lo.z;
-    }
-    static const uint32_t idx[36] = {0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1,
-                                     2, 3, 7, 2, 7, 6, 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5};
-    sl_mesh_desc md = {p, NULL, 8, idx, 12};
-    uint32_t mesh, obj;
-    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_BSP_FACES, SL_OBJECT_CLOSED_CONVEX};
-    assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
+    uint32_t obj = sl_test_add_box(s, lo, hi, SL_KIND_BSP_FACES, SL_OBJECT_CLOSED_CONVEX);
+    assert_int_not_equal(obj, SL_NONE);
     return obj;
 }
 

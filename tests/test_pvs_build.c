@@ -22,6 +22,7 @@
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
+#include "support/box_mesh.h"
 #include "support/counting_alloc.h"
 
 static char g_dir[256];
@@ -31,20 +32,8 @@ static void path_of(char *buf, size_t n, const char *name) { snprintf(buf, n, "%
 /* A closed box object (CLOSED_CONVEX: the oracle skips its back faces, as a renderer would). */
 static uint32_t add_box(sl_scene s, float x0, float y0, float z0, float x1, float y1, float z1, uint32_t kind)
 {
-    sl_error err;
-    float p[24];
-    for (int i = 0; i < 8; i++) {
-        p[3 * i] = (i & 1) ? x1 : x0;
-        p[3 * i + 1] = (i & 2) ? y1 : y0;
-        p[3 * i + 2] = (i & 4) ? z1 : z0;
-    }
-    static const uint32_t idx[36] = {0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1,
-                                     2, 3, 7, 2, 7, 6, 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5};
-    sl_mesh_desc md = {p, NULL, 8, idx, 12};
-    uint32_t mesh, obj;
-    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, kind, SL_OBJECT_CLOSED_CONVEX};
-    assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
+    uint32_t obj = sl_test_add_box(s, (sl_vec3){x0, y0, z0}, (sl_vec3){x1, y1, z1}, kind, SL_OBJECT_CLOSED_CONVEX);
+    assert_int_not_equal(obj, SL_NONE);
     return obj;
 }
 

@@ -12,6 +12,7 @@
 
 #include "core/sl_core.h"
 #include "sightline/region.h"
+#include "support/box_mesh.h"
 #include "support/counting_alloc.h"
 
 static void add_fp(sl_scene s, const float *xy, uint32_t n, float roof)
@@ -236,13 +237,8 @@ static void test_voxels(void **state)
     sl_error err;
     /* a closed cube [0, 4]^3, 12 triangles */
     float p[24];
-    for (int i = 0; i < 8; i++) {
-        p[3 * i] = (i & 1) ? 4.0f : 0.0f;
-        p[3 * i + 1] = (i & 2) ? 4.0f : 0.0f;
-        p[3 * i + 2] = (i & 4) ? 4.0f : 0.0f;
-    }
-    static const uint32_t idx[36] = {0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1,
-                                     2, 3, 7, 2, 7, 6, 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5};
+    sl_test_box_vertices((sl_vec3){0, 0, 0}, (sl_vec3){4, 4, 4}, p);
+    const uint32_t *idx = sl_test_box_indices;
     sl_aabb *boxes;
     uint32_t n;
     assert_int_equal(sl_shrink_mesh_voxels(p, 8, idx, 12, 0.25f, 0.5f, &a, &boxes, &n, &err), SL_OK);

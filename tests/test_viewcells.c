@@ -12,6 +12,7 @@
 #include "core/sl_core.h"
 #include "sightline/gen.h"
 #include "sightline/region.h"
+#include "support/box_mesh.h"
 #include "support/counting_alloc.h"
 
 static void add_rect(sl_scene s, float x0, float y0, float x1, float y1)
@@ -220,14 +221,8 @@ static void test_adaptive(void **state)
     sl_scene m;
     assert_int_equal(sl_scene_create(NULL, &m, &err), SL_OK);
     float cube[24];
-    for (int i = 0; i < 8; i++) {
-        cube[3 * i] = (i & 1) ? 108.0f : 100.0f;
-        cube[3 * i + 1] = (i & 2) ? 8.0f : 0.0f;
-        cube[3 * i + 2] = (i & 4) ? 8.0f : 0.0f;
-    }
-    static const uint32_t cidx[36] = {0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1,
-                                      2, 3, 7, 2, 7, 6, 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5};
-    sl_mesh_desc cm = {cube, NULL, 8, cidx, 12};
+    sl_test_box_vertices((sl_vec3){100, 0, 0}, (sl_vec3){108, 8, 8}, cube);
+    sl_mesh_desc cm = {cube, NULL, 8, sl_test_box_indices, 12};
     uint32_t cmesh, cobj;
     assert_int_equal(sl_scene_add_mesh(m, &cm, &cmesh, &err), SL_OK);
     sl_object_desc cod = {cmesh, NULL, 0, SL_KIND_OTHER, 0};
