@@ -742,7 +742,8 @@ static bool run_chunks(adj_worker *w, const double *v, const double *ang, uint32
         if (!(d > eps))
             return true; /* the run passes within eps of C: it hides nothing from the whole disk */
         dnear = d < dnear ? d : dnear;
-        widen[i] = asin(eps / d) + 1e-9;
+        if (nv > 2) /* only runs use the azimuth prefilter below */
+            widen[i] = asin(eps / d) + 1e-9;
     }
     for (uint32_t i = 0; i < nv; i++)
         dfar = fmax(dfar, len2(v[2 * i] - cx, v[2 * i + 1] - cy));
