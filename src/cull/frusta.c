@@ -31,8 +31,9 @@ typedef struct frusta_config {
 typedef struct shadow {
     uint32_t count;             /* planes: count side planes then the face plane */
     int32_t x0, y0, x1, y1;     /* screen rectangle of the face: a box in the shadow projects inside it */
-    float px[MAX_FACE_VERTS + 1], py[MAX_FACE_VERTS + 1], pz[MAX_FACE_VERTS + 1], pd[MAX_FACE_VERTS + 1];
-    float margin[MAX_FACE_VERTS + 1]; /* side planes: metres per metre of distance (perspective) or metres */
+    /* a face clipped to the near plane has up to MAX_FACE_VERTS + 1 sides, then the face plane */
+    float px[MAX_FACE_VERTS + 2], py[MAX_FACE_VERTS + 2], pz[MAX_FACE_VERTS + 2], pd[MAX_FACE_VERTS + 2];
+    float margin[MAX_FACE_VERTS + 2]; /* side planes: metres per metre of distance (perspective) or metres */
 } shadow;
 
 typedef struct face_pick {
@@ -129,35 +130,84 @@ static float face_quality(const sl_occ_face *f, const sl_occ_view *v)
     return ndv < 0 ? -f->area * ndv / d2 : 0;
 }
 
-/* Build the shadow frustum of a face; false when degenerate (the eye in its plane, a sliver). */
+/* Clip a face to the part beyond the near plane, in double precision: the plane is the one the
+ * renderer and the oracle clip at, z_clip + w_clip = 0 of the view's float world-to-clip matrix,
+ * moved 1e-6 of the terms' magnitude plus 2e-5 of the near distance farther (the oracle clips
+ * the same float matrix in double: the margin covers the float face vertices and the rounding of
+ * the interpolation). Sutherland-Hodgman; a convex polygon gains at most one vertex. Returns the
+ * count left (0: the whole face is nearer than the near plane). */
+static uint32_t clip_near(const sl_occ_view *v, const sl_vec3 *p, uint32_t n, double (*q)[3])
+{
+    const float *M = v->vp.m;
+    double P[4];
+    for (int c = 0; c < 4; c++)
+        P[c] = (double)M[4 * c + 2] + (double)M[4 * c + 3];
+    double dist[MAX_FACE_VERTS], scale = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        dist[i] = P[0] * p[i].x + P[1] * p[i].y + P[2] * p[i].z + P[3];
+        scale = fmax(scale, fabs(P[0] * p[i].x) + fabs(P[1] * p[i].y) + fabs(P[2] * p[i].z) + fabs(P[3]));
+    }
+    double gl = sqrt(P[0] * P[0] + P[1] * P[1] + P[2] * P[2]);
+    double tau = 1e-6 * scale + 2e-5 * (double)v->cam.near_plane * gl;
+    uint32_t m = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t j = (i + 1) % n;
+        double da = dist[i] - tau, db = dist[j] - tau;
+        if (da >= 0) {
+            q[m][0] = p[i].x, q[m][1] = p[i].y, q[m][2] = p[i].z;
+            m++;
+        }
+        if ((da >= 0) != (db >= 0)) {
+            double t = da / (da - db);
+            q[m][0] = p[i].x + t * ((double)p[j].x - p[i].x);
+            q[m][1] = p[i].y + t * ((double)p[j].y - p[i].y);
+            q[m][2] = p[i].z + t * ((double)p[j].z - p[i].z);
+            m++;
+        }
+    }
+    return m;
+}
+
+/* Build the shadow frustum of a face; false when degenerate (the eye in its plane, a sliver) or
+ * when nothing of it lies beyond the near plane. Only the part of the face beyond the near plane
+ * occludes: the renderer (and the oracle) clip the rest away and see through the hole, so the
+ * frustum is built from the clipped polygon (issue 12: an eye a few centimetres from a wall). */
 static bool make_shadow(const sl_occ_set *o, const sl_occ_face *f, const sl_occ_view *v, shadow *sh)
 {
     if (f->count < 3 || f->count > MAX_FACE_VERTS)
         return false;
-    const sl_vec3 *p = o->face_verts + f->first;
+    double p[MAX_FACE_VERTS + 1][3];
+    uint32_t n = clip_near(v, o->face_verts + f->first, f->count, p);
+    if (n < 3)
+        return false;
+    const sl_vec3 *fp = o->face_verts + f->first;
     double E[3] = {v->eye.x, v->eye.y, v->eye.z}, F[3] = {v->fwd.x, v->fwd.y, v->fwd.z};
-    double C[3] = {f->centre.x, f->centre.y, f->centre.z}, N[3] = {f->normal.x, f->normal.y, f->normal.z};
+    double N[3] = {f->normal.x, f->normal.y, f->normal.z};
+    /* the clipped polygon's centroid: inside it (convex), so inside every side plane */
+    double C[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++)
+            C[k] += p[i][k] / (double)n;
     double scale = fabs(C[0]) + fabs(C[1]) + fabs(C[2]) + 1.0;
     /* the face plane, inside = the side away from the eye (or along the view direction) */
-    double nd = -(N[0] * p[0].x + N[1] * p[0].y + N[2] * p[0].z);
+    double nd = -(N[0] * fp[0].x + N[1] * fp[0].y + N[2] * fp[0].z);
     double side = v->ortho ? -(N[0] * F[0] + N[1] * F[1] + N[2] * F[2]) : N[0] * E[0] + N[1] * E[1] + N[2] * E[2] + nd;
     if (fabs(side) < (v->ortho ? 1e-4 : 1e-4 * scale))
         return false;
     double s = side > 0 ? -1.0 : 1.0;
-    uint32_t n = f->count;
     /* angle (perspective) or distance (orthographic) a box must keep inside each side plane */
     double m = SL_OCC_MIN_INSET_PX / (double)v->focal;
     for (uint32_t i = 0; i < n; i++) {
-        const sl_vec3 *a = &p[i], *b = &p[(i + 1) % n];
+        const double *a = p[i], *b = p[(i + 1) % n];
         double nx, ny, nz, d;
         if (v->ortho) {
-            double e[3] = {(double)b->x - a->x, (double)b->y - a->y, (double)b->z - a->z};
+            double e[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
             nx = e[1] * F[2] - e[2] * F[1];
             ny = e[2] * F[0] - e[0] * F[2];
             nz = e[0] * F[1] - e[1] * F[0];
-            d = -(nx * a->x + ny * a->y + nz * a->z);
+            d = -(nx * a[0] + ny * a[1] + nz * a[2]);
         } else {
-            double u[3] = {a->x - E[0], a->y - E[1], a->z - E[2]}, w[3] = {b->x - E[0], b->y - E[1], b->z - E[2]};
+            double u[3] = {a[0] - E[0], a[1] - E[1], a[2] - E[2]}, w[3] = {b[0] - E[0], b[1] - E[1], b[2] - E[2]};
             nx = u[1] * w[2] - u[2] * w[1];
             ny = u[2] * w[0] - u[0] * w[2];
             nz = u[0] * w[1] - u[1] * w[0];
@@ -167,7 +217,7 @@ static bool make_shadow(const sl_occ_set *o, const sl_occ_face *f, const sl_occ_
         if (!(len > 1e-12))
             return false;
         nx /= len, ny /= len, nz /= len, d /= len;
-        /* inward: the face's centre is inside */
+        /* inward: the polygon's centroid is inside */
         double c = nx * C[0] + ny * C[1] + nz * C[2] + d;
         if (fabs(c) < 1e-9 * scale)
             return false;
@@ -192,9 +242,10 @@ static bool make_shadow(const sl_occ_set *o, const sl_occ_face *f, const sl_occ_
     float minx = INFINITY, maxx = -INFINITY, miny = INFINITY, maxy = -INFINITY;
     bool whole = false;
     for (uint32_t i = 0; i < n && !whole; i++) {
-        float x = M[0] * p[i].x + M[4] * p[i].y + M[8] * p[i].z + M[12];
-        float y = M[1] * p[i].x + M[5] * p[i].y + M[9] * p[i].z + M[13];
-        float w = M[3] * p[i].x + M[7] * p[i].y + M[11] * p[i].z + M[15];
+        float px = (float)p[i][0], py = (float)p[i][1], pz = (float)p[i][2];
+        float x = M[0] * px + M[4] * py + M[8] * pz + M[12];
+        float y = M[1] * px + M[5] * py + M[9] * pz + M[13];
+        float w = M[3] * px + M[7] * py + M[11] * pz + M[15];
         if (!(w > 1e-5f)) {
             whole = true;
             break;
