@@ -28,6 +28,30 @@ void sl_occ_view_init(sl_occ_view *v, const sl_camera *cam)
         v->focal = (float)cam->height / cam->ortho_height;
     else
         v->focal = (float)((double)cam->height / (2.0 * tan(0.5 * (double)cam->fov_y)));
+    /* the near region's reach: the farthest near-rectangle corner (exact, in double), grown for
+     * the float corners and the float matrix the renderer clips with */
+    double nr = 0;
+    if (!v->ortho) {
+        double t = tan(0.5 * (double)cam->fov_y), a = (double)cam->width / (double)cam->height;
+        nr = (double)cam->near_plane * sqrt(1.0 + t * t * (1.0 + a * a));
+    }
+    double mag = fabs((double)v->eye.x) + fabs((double)v->eye.y) + fabs((double)v->eye.z);
+    v->near_reach = (float)(nr * 1.001 + 1e-6 * mag + 1e-6);
+    v->near_depth = (float)((double)cam->near_plane * 1.001 + 1e-6 * mag + 1e-6);
+}
+
+bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b)
+{
+    float zmin, zmax;
+    sl_occ_box_zrange(v, b, &zmin, &zmax);
+    if (zmin > v->near_depth)
+        return true;
+    if (v->ortho)
+        return false;
+    float dx = sl_occ_maxf(sl_occ_maxf(b->min.x - v->eye.x, v->eye.x - b->max.x), 0.0f);
+    float dy = sl_occ_maxf(sl_occ_maxf(b->min.y - v->eye.y, v->eye.y - b->max.y), 0.0f);
+    float dz = sl_occ_maxf(sl_occ_maxf(b->min.z - v->eye.z, v->eye.z - b->max.z), 0.0f);
+    return dx * dx + dy * dy + dz * dz > v->near_reach * v->near_reach;
 }
 
 int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask)
@@ -948,11 +972,24 @@ bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
     float g = 1e-3f + 1e-6f * (fabsf(v->eye.x) + fabsf(v->eye.y) + fabsf(v->eye.z));
     if (sl_occ_point_in_box(v->eye, &box, g))
         return false;
+    sl_aabb ob = box;
     if (p->object != SL_NONE) {
-        sl_aabb ob = sl_scene_object_bounds_array(s->scene)[p->object];
+        ob = sl_scene_object_bounds_array(s->scene)[p->object];
         if (sl_occ_point_in_box(v->eye, &ob, g))
             return false;
     }
+    /* Only an occluder beyond the near plane hides anything (issue 12: the renderer clips a
+     * surface the eye is centimetres from and sees through the hole). A MESH proxy of a two-sided
+     * object is the object's own surface: the rasterizer path drops its triangles that reach the
+     * near plane and frusta clips its faces, so it may be used where the eye is close. A proxy
+     * inside a solid (a prism, a scene occluder, the two-sided rendering of a closed convex mesh
+     * whose back faces the oracle skips) hides only what the solid's surface in front of it hides,
+     * and that surface may be clipped: such a proxy is used only when its box and its object's
+     * box keep out of the near region. */
+    bool inside = p->kind != SL_OCC_MESH ||
+                  (p->object != SL_NONE && (sl_scene_objects(s->scene)[p->object].flags & SL_OBJECT_CLOSED_CONVEX));
+    if (inside && (!sl_occ_near_clear(v, &box) || !sl_occ_near_clear(v, &ob)))
+        return false;
     if (p->kind != SL_OCC_PRISM)
         return true;
     if (v->ortho)

@@ -62,6 +62,10 @@ typedef struct sl_occ_view {
                                  per metre (orthographic) */
     uint32_t width, height;
     sl_raster_depth depth;    /* INV_W for perspective, LINEAR_Z for orthographic */
+    /* the near region (the points nearer than the near plane that a pixel's ray can pass): every
+     * such point lies at forward depth below near_depth and (perspective) within near_reach of
+     * the eye, both grown for rounding */
+    float near_depth, near_reach;
 } sl_occ_view;
 
 /* Fill a view from a validated camera. */
@@ -100,6 +104,10 @@ static inline void sl_occ_box_zrange(const sl_occ_view *v, const sl_aabb *b, flo
     *zmin = a;
     *zmax = c;
 }
+
+/* Does box b keep out of the view's near region (no point of it nearer than the near plane on a
+ * pixel's ray)? Conservative: may say no for a box that does. */
+bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b);
 
 /* Frustum classification with plane masks (as vfc): -1 outside, else the mask of the planes the
  * box straddles (0: wholly inside). */
@@ -204,7 +212,9 @@ static inline sl_aabb sl_occ_proxy_box(const sl_occ_set *s, const sl_occ_proxy *
 }
 
 /* May the proxy be rendered this frame? Enabled; the eye outside its (and its object's) box; a
- * prism near enough that its inset is at least SL_OCC_MIN_INSET_PX pixels on screen. */
+ * proxy that lies inside a solid (PRISM, SCENE_MESH, the MESH of a closed convex object) only
+ * when both boxes keep out of the near region (sl_occ_near_clear); a prism near enough that its
+ * inset is at least SL_OCC_MIN_INSET_PX pixels on screen. */
 bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v);
 
 /* Coorg-Teller occluder quality, summed over the proxy's faces: -A (N.V) / |D|^2 with V the unit
