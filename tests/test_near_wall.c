@@ -9,6 +9,8 @@
  * faces, so through the clipped hole it sees what lies behind the building) or two-sided, with a
  * footprint (prism and 2.5D occluders) or without (its own mesh as occluder), and an object
  * behind it: no method may cull what the oracle sees there.
+ * Bounded camera input: a near plane the float matrix cannot resolve (1e-30 m) is refused by the
+ * methods that project with it and by the oracle, naming the limit; at the limit nothing is missed.
  * CTest: 60 views per map and 80 of the city at 320x240 (680 in all); under SL_SANITIZED 3 maps of
  * 8 views and the city's 10. bench/near_wall.c sweeps every map. */
 #include <setjmp.h>
@@ -26,6 +28,7 @@
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/import.h"
+#include "sightline/path.h"
 #include "sightline/truth.h"
 
 #include "../bench/near_wall_views.h"
@@ -275,9 +278,102 @@ static void test_building_near_wall(void **state)
     assert_int_equal(bad, 0);
 }
 
+/* A near plane of 1e-30 m is refused, naming the limit, by every method that projects with the
+ * float matrix and by the oracle; a sane one is accepted; a far/near ratio beyond 2^24 is refused
+ * by the clip-space depth of hzb and the oracle, not by the 1/w of lazygrid; at the accepted limit
+ * no conservative method misses an object on street views of the tiny city. */
+static void test_near_plane_limit(void **state)
+{
+    (void)state;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 160;
+    po.intrinsics.height = 120;
+    sl_path p;
+    uint32_t views = sanitized() ? 4 : 30;
+    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, views, 9, &po, NULL, &p, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), *out = malloc(n * sizeof *out), missed[4], mpx[4];
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    sl_culler c[NM];
+    for (size_t i = 0; i < NM; i++)
+        assert_int_equal(sl_culler_create(g_methods[i].name, s, g_methods[i].options, NULL, &c[i], &err), SL_OK);
+    sl_camera cam = sl_path_camera(p, 0);
+    uint32_t k;
+    sl_oracle_frame fr;
+    /* 1e-30: refused with the limit named */
+    sl_camera bad = cam;
+    bad.near_plane = 1e-30f;
+    assert_int_equal(sl_camera_validate(&bad, &err), SL_OK);
+    assert_int_equal(sl_oracle_render(o, &bad, &fr, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "the oracle"));
+    assert_non_null(strstr(err.message, "needs near >="));
+    for (size_t i = 0; i < NM; i++) {
+        sl_status st = sl_culler_cull(c[i], &bad, out, n, &k, &err);
+        bool projects = strcmp(g_methods[i].name, "vfc") && strcmp(g_methods[i].name, "cullmap") &&
+                        strcmp(g_methods[i].name, "horizon") && strcmp(g_methods[i].name, "dhorizon");
+        if (!projects) {
+            assert_int_equal(st, SL_OK); /* frustum planes in double: any near plane */
+            continue;
+        }
+        if (st != SL_ERROR_INVALID_ARGUMENT)
+            fail_msg("%s accepted a near plane of 1e-30 m", g_methods[i].name);
+        print_message("%s\n", err.message);
+        assert_non_null(strstr(err.message, "near plane 1e-30 m"));
+        assert_non_null(strstr(err.message, g_methods[i].name));
+        assert_non_null(strstr(err.message, "needs near >="));
+    }
+    /* far/near beyond 2^24: the clip-space depth loses the far plane, 1/w does not */
+    sl_camera wide = cam;
+    wide.far_plane = wide.near_plane * 1e8f;
+    assert_int_equal(sl_oracle_render(o, &wide, &fr, &err), SL_ERROR_INVALID_ARGUMENT);
+    print_message("%s\n", err.message);
+    assert_non_null(strstr(err.message, "far/near <= 16777216"));
+    assert_int_equal(sl_camera_check_depth(&wide, SL_DEPTH_CLIP_Z, "hzb", &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_camera_check_depth(&wide, SL_DEPTH_INV_W, "lazygrid", &err), SL_OK);
+    /* the default and the limit itself are accepted, and nothing is missed there */
+    assert_int_equal(sl_camera_check_depth(&cam, SL_DEPTH_CLIP_Z, "hzb", &err), SL_OK);
+    uint64_t misses = 0;
+    for (uint32_t f = 0; f < sl_path_count(p); f++) {
+        /* at both limits at once: near at the eye's least, far at 2^24 of it */
+        sl_camera v = sl_path_camera(p, f);
+        double lo = sl_camera_min_near(&v, SL_DEPTH_INV_W);
+        v.near_plane = (float)lo;
+        if ((double)v.near_plane < lo)
+            v.near_plane = nextafterf(v.near_plane, INFINITY);
+        v.far_plane = v.near_plane * 16777216.0f;
+        assert_int_equal(sl_camera_check_depth(&v, SL_DEPTH_CLIP_Z, "test", &err), SL_OK);
+        v.near_plane = nextafterf(v.near_plane, 0);
+        assert_int_equal(sl_camera_check_depth(&v, SL_DEPTH_INV_W, "test", &err), SL_ERROR_INVALID_ARGUMENT);
+        v.near_plane = nextafterf(v.near_plane, INFINITY);
+        assert_int_equal(sl_oracle_render(o, &v, &fr, &err), SL_OK);
+        for (size_t i = 0; i < NM; i++) {
+            if (sl_culler_cull(c[i], &v, out, n, &k, &err) != SL_OK)
+                fail_msg("%s refused near %g at the limit: %s", g_methods[i].name, (double)v.near_plane, err.message);
+            sl_cull_metrics mt;
+            assert_int_equal(sl_metrics_compare(s, &fr, out, k, &mt, missed, mpx, 4, &err), SL_OK);
+            if (mt.missed_count)
+                print_message("%s at near %g m (view %u): missed %u objects\n", g_methods[i].name,
+                              (double)v.near_plane, f, mt.missed_count);
+            misses += mt.missed_count;
+        }
+    }
+    assert_int_equal(misses, 0);
+    for (size_t i = 0; i < NM; i++)
+        sl_culler_destroy(c[i]);
+    sl_oracle_destroy(o);
+    free(out);
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_near_plane_limit),
         cmocka_unit_test(test_building_near_wall),
         cmocka_unit_test(test_near_wall_views),
     };

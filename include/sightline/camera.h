@@ -39,6 +39,30 @@ typedef struct sl_frustum {
     sl_vec3 corners[8];         /* near (bl, br, tr, tl) then far (bl, br, tr, tl) */
 } sl_frustum;
 
+/* How a consumer of the camera's float world-to-clip matrix stores depth (issue 12: a projection
+ * the format cannot resolve is refused, not culled wrongly):
+ *  NONE    the frustum planes only (vfc, the 2.5D methods, frusta's object-space shadows);
+ *  INV_W   1/w_clip in float (the conservative rasterizer of hzb, hom, lazygrid, busygrid, plp);
+ *  CLIP_Z  (1 - z_clip/w_clip)/2 in float, the renderer's depth (the oracle, hzb's exact layer).
+ * Orthographic cameras store linear depth and are not limited here. */
+typedef enum sl_depth_format { SL_DEPTH_NONE = 0, SL_DEPTH_INV_W = 1, SL_DEPTH_CLIP_Z = 2 } sl_depth_format;
+
+/* The largest far/near ratio CLIP_Z resolves: beyond it (far/near > 2^24) the float matrix's
+ * (f+n)/(f-n) rounds to 1 and the far plane is lost. INV_W has no such limit. */
+#define SL_CAMERA_MAX_FAR_NEAR 16777216.0
+
+/* The least near plane (metres) a depth format resolves for this camera (perspective; 0 for NONE
+ * and for orthographic cameras): 2^-20 of (|x| + |y| + |z| + 1 m) of the eye, below which the
+ * float rounding of the matrix's translation (2^-24 of the eye's coordinates per entry) rivals
+ * the depth term 2*near and the order of depths along a ray is lost; for CLIP_Z at least
+ * far / SL_CAMERA_MAX_FAR_NEAR too. */
+SL_API double sl_camera_min_near(const sl_camera *cam, sl_depth_format format);
+/* Check a validated camera against a depth format for `who` (a method's name, "the oracle"):
+ * SL_ERROR_INVALID_ARGUMENT naming the near plane and the limit, e.g. "near plane 1e-30 m: hzb's
+ * float depth (1 - z/w)/2 needs near >= 0.000298 m (2^-20 of |x|+|y|+|z|+1 m at this eye, and
+ * far/near <= 16777216)". */
+SL_API sl_status sl_camera_check_depth(const sl_camera *cam, sl_depth_format format, const char *who, sl_error *err);
+
 /* A default camera: at the origin, 1.7 m up, looking along +X, 60 degrees vertical fov,
  * 1024x768, near 0.1 m, far 5000 m (ortho_height 100 m, used when switched to orthographic). */
 SL_API sl_camera sl_camera_default(void);

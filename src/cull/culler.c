@@ -408,6 +408,9 @@ sl_status sl_culler_cull(sl_culler c, const sl_camera *cam, uint32_t *out_ids, u
     sl_status st = sl_camera_validate(cam, err);
     if (st != SL_OK)
         return st;
+    /* a projection the method's depth format cannot resolve is refused (issue 12 §1) */
+    if ((st = sl_camera_check_depth(cam, c->method->depth, c->method->name, err)) != SL_OK)
+        return st;
     uint32_t n = sl_scene_object_count(c->scene);
     if (n != c->object_count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,

@@ -68,6 +68,9 @@ typedef struct sl_cull_method {
     const char *options_help;
     sl_cull_guarantee guarantee;  /* with the default options */
     size_t config_size;           /* bytes of the method's parsed-options struct (may be 0) */
+    /* the depth it stores or projects with (SL_DEPTH_NONE: frustum planes only); sl_culler_cull
+     * refuses a camera that format cannot resolve (sl_camera_check_depth) */
+    sl_depth_format depth;
 
     /* Read the options into config (config_size zeroed bytes); may change *guarantee when an
      * option makes the method aggressive. Must not allocate. */

@@ -421,6 +421,7 @@ const sl_cull_method sl_cull_method_frusta = {
                "inside one frustum (Hudson et al. 1997)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE,
+    .depth = SL_DEPTH_INV_W,
     .config_size = sizeof(frusta_config),
     .configure = frusta_configure,
     .create = frusta_create,

@@ -457,6 +457,7 @@ const sl_cull_method sl_cull_method_hom = {
                "estimation buffer; threshold 1 conservative, below 1 aggressive (Zhang et al. 1997)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE,
+    .depth = SL_DEPTH_INV_W,
     .config_size = sizeof(hom_config),
     .configure = hom_configure,
     .create = hom_create,

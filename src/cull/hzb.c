@@ -344,6 +344,7 @@ const sl_cull_method sl_cull_method_hzb = {
                "pyramid (Greene, Kass & Miller 1993)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE,
+    .depth = SL_DEPTH_CLIP_Z,
     .config_size = sizeof(hzb_config),
     .configure = hzb_configure,
     .create = hzb_create,

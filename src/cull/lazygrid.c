@@ -586,6 +586,7 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
         .summary = SUMMARY,                                                                                            \
         .options_help = g_help,                                                                                        \
         .guarantee = SL_CONSERVATIVE,                                                                                  \
+        .depth = SL_DEPTH_INV_W,                                                                                       \
         .config_size = sizeof(lg_config),                                                                              \
         .configure = CONF,                                                                                             \
         .create = lg_create,                                                                                           \

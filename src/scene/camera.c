@@ -80,6 +80,32 @@ sl_status sl_camera_validate(const sl_camera *c, sl_error *err)
     return SL_OK;
 }
 
+double sl_camera_min_near(const sl_camera *c, sl_depth_format format)
+{
+    if (!c || format == SL_DEPTH_NONE || c->projection == SL_ORTHOGRAPHIC)
+        return 0;
+    double m = fabs((double)c->position.x) + fabs((double)c->position.y) + fabs((double)c->position.z) + 1.0;
+    double lo = ldexp(m, -20);
+    if (format == SL_DEPTH_CLIP_Z)
+        lo = fmax(lo, (double)c->far_plane / SL_CAMERA_MAX_FAR_NEAR);
+    return lo;
+}
+
+sl_status sl_camera_check_depth(const sl_camera *c, sl_depth_format format, const char *who, sl_error *err)
+{
+    if (!c)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: NULL");
+    double lo = sl_camera_min_near(c, format);
+    if ((double)c->near_plane >= lo)
+        return SL_OK;
+    bool zfar = format == SL_DEPTH_CLIP_Z;
+    return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                   "camera: near plane %g m: %s's %s needs near >= %.3g m (2^-20 of |x|+|y|+|z|+1 m at this eye%s)",
+                   (double)c->near_plane, who ? who : "the renderer",
+                   zfar ? "float depth (1 - z/w)/2" : "float depth 1/w",
+                   lo, zfar ? ", and far/near <= 16777216" : "");
+}
+
 void sl_camera_basis(const sl_camera *cam, sl_vec3 *forward, sl_vec3 *right, sl_vec3 *up)
 {
     dvec3 f, r, u;

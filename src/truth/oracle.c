@@ -383,6 +383,8 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
     if (!o || !cam || !out)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_render: oracle, camera and out must not be NULL");
     sl_status st = sl_camera_validate(cam, err);
+    if (st == SL_OK)
+        st = sl_camera_check_depth(cam, SL_DEPTH_CLIP_Z, "the oracle", err); /* its depth: issue 12 §1 */
     if (st != SL_OK)
         return st;
     double t0 = sl_now();
