@@ -11,7 +11,7 @@
  * behind it: no method may cull what the oracle sees there.
  * Bounded camera input: a near plane the float matrix cannot resolve (1e-30 m) is refused by the
  * methods that project with it and by the oracle, naming the limit; at the limit nothing is missed.
- * CTest: 60 views per map and 80 of the city at 320x240 (680 in all); under SL_SANITIZED 3 maps of
+ * CTest: 60 views per map and 160 of the city at 320x240 (760 in all); under SL_SANITIZED 3 maps of
  * 8 views and the city's 10. bench/near_wall.c sweeps every map. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -174,7 +174,7 @@ static void test_near_wall_views(void **state)
     sl_scene s;
     sl_error err;
     assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    uint32_t nc = sanitized() ? 10 : 80;
+    uint32_t nc = sanitized() ? 10 : 160;
     bad += run_scene(s, "small city", nc, 77, t);
     views += nc;
     sl_scene_destroy(s);
