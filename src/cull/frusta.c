@@ -153,11 +153,16 @@ static uint32_t clip_near(const sl_occ_view *v, const sl_vec3 *p, uint32_t n, do
     for (uint32_t i = 0; i < n; i++) {
         uint32_t j = (i + 1) % n;
         double da = dist[i] - tau, db = dist[j] - tau;
+        /* rounding on a near-degenerate face could add more than one vertex: drop the face then */
         if (da >= 0) {
+            if (m == MAX_FACE_VERTS + 1)
+                return 0;
             q[m][0] = p[i].x, q[m][1] = p[i].y, q[m][2] = p[i].z;
             m++;
         }
         if ((da >= 0) != (db >= 0)) {
+            if (m == MAX_FACE_VERTS + 1)
+                return 0;
             double t = da / (da - db);
             q[m][0] = p[i].x + t * ((double)p[j].x - p[i].x);
             q[m][1] = p[i].y + t * ((double)p[j].y - p[i].y);
