@@ -5,7 +5,7 @@
  * normal, looking towards the surface). Scenes: 10 OpenArena maps (openarena-081-maps) and the
  * small city. Every conservative method of the registry but pvs (it reads a baked file and has
  * no occluders), frusta and hzb with all_objects=true besides their defaults.
- * Hand-built scenes: a building 0.05 m in front of the eye, closed convex (the oracle skips its back
+ * Hand-built scenes: a building 5 mm or 5 cm in front of the eye, closed convex (the oracle skips its back
  * faces, so through the clipped hole it sees what lies behind the building) or two-sided, with a
  * footprint (prism and 2.5D occluders) or without (its own mesh as occluder), and an object
  * behind it: no method may cull what the oracle sees there.
