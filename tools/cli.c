@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -319,4 +320,22 @@ uint64_t cli_peak_rss(void)
             kb = strtoull(line + 6, NULL, 10);
     fclose(f);
     return kb * 1024;
+}
+
+bool cli_output_not_input(const char *cmd, const char *output, const char *const *inputs, size_t count)
+{
+    struct stat so;
+    if (!output || stat(output, &so) != 0)
+        return true;
+    for (size_t i = 0; i < count; i++) {
+        struct stat si;
+        if (inputs[i] && stat(inputs[i], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino) {
+            if (!strcmp(inputs[i], output))
+                cli_error(cmd, "the output %s is the input file; give another output name", output);
+            else
+                cli_error(cmd, "the output %s is the input file %s; give another output name", output, inputs[i]);
+            return false;
+        }
+    }
+    return true;
 }

@@ -95,6 +95,13 @@ void cli_json_uint(cli_json *j, const char *key, uint64_t value);
 void cli_json_double(cli_json *j, const char *key, double value);
 void cli_json_bool(cli_json *j, const char *key, bool value);
 
+/* ---- outputs ----
+ * Before a command writes OUTPUT: false (after "sightline CMD: the output OUTPUT is the input
+ * file INPUT; give another -o") when OUTPUT names the same file as one of the count inputs (NULL
+ * entries skipped). Compared by device and inode, not by name, so "x", "./x", hard links and
+ * symbolic links to an input are all caught; an output that does not exist yet is no input. */
+bool cli_output_not_input(const char *cmd, const char *output, const char *const *inputs, size_t count);
+
 /* ---- misc ---- */
 /* Human-readable byte count ("1.23 GiB") into buf. */
 const char *cli_bytes(uint64_t bytes, char *buf, size_t size);
