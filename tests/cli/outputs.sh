@@ -119,5 +119,48 @@ expect 0 "$SL" path gen "$tmp/city.slscene" --kind walk --frames 4 -o "$tmp/walk
 [ -e "$other" ] || fail "the temporary of another output was removed"
 [ -e "$alive" ] || fail "the temporary of a live process was removed"
 rm -f "$other" "$alive"
+
+# ---- a bench that fails midway leaves the previous run's folder exactly as it was ----
+snapshot() { (cd "$1" && ls -A | sort && find . -type f | sort | xargs md5sum) >"$2"; }
+B=(--walk 3 --methods vfc --map-size 64 --quiet)
+expect 0 "$SL" bench city:tiny "${B[@]}" --out "$tmp/b"
+echo "mine" >"$tmp/b/notes.txt"
+snapshot "$tmp/b" "$tmp/b.before"
+grep -q "city-tiny-1-cull-time.svg" "$tmp/b.before" || fail "the first bench wrote no plots"
+# the first scene's plots are written, then the second scene fails to open
+expect 1 "$SL" bench city:tiny "$tmp/missing.slscene" --walk 5 --methods vfc --map-size 64 --quiet --out "$tmp/b"
+has "missing.slscene" "$tmp/err"
+snapshot "$tmp/b" "$tmp/b.after"
+cmp -s "$tmp/b.before" "$tmp/b.after" || { diff "$tmp/b.before" "$tmp/b.after"; fail "the failed bench changed the previous run's folder"; }
+# a run that succeeds replaces the files it writes and nothing else
+expect 0 "$SL" bench city:tiny --walk 5 --methods vfc --map-size 64 --quiet --out "$tmp/b/"
+[ "$(cat "$tmp/b/notes.txt")" = mine ] || fail "the bench touched a file it did not write"
+[ "$(rows "$tmp/b/frames.csv")" -eq 5 ] || fail "the second bench's tables did not replace the first's"
+ls -A "$tmp/b" | grep -q sightline-run && fail "the run's temporary folder was left in the output folder"
+# a failing run into a folder that does not exist leaves no folder
+expect 1 "$SL" bench city:tiny "$tmp/missing.slscene" "${B[@]}" --out "$tmp/never/made"
+[ -e "$tmp/never/made" ] && fail "a failed bench created its output folder"
+ls "$tmp/never" | grep -q . && fail "a failed bench left a temporary folder beside its output folder"
+# --out . keeps the user's other files, fails without a trace, and replaces only its own files
+mkdir "$tmp/here"
+echo "keep" >"$tmp/here/notes.txt"
+echo "old table" >"$tmp/here/frames.csv"
+mkdir "$tmp/here/data"
+echo "keep too" >"$tmp/here/data/x.txt"
+snapshot "$tmp/here" "$tmp/here.before"
+(cd "$tmp/here" && expect 1 "$SL" bench city:tiny missing.slscene "${B[@]}" --out .) || exit 1
+snapshot "$tmp/here" "$tmp/here.after"
+cmp -s "$tmp/here.before" "$tmp/here.after" || fail "a failed bench --out . changed the folder"
+(cd "$tmp/here" && expect 0 "$SL" bench city:tiny "${B[@]}" --out .) || exit 1
+[ "$(cat "$tmp/here/notes.txt")" = keep ] && [ "$(cat "$tmp/here/data/x.txt")" = "keep too" ] ||
+    fail "bench --out . touched the user's files"
+[ "$(rows "$tmp/here/frames.csv")" -eq 3 ] || fail "bench --out . did not write its tables"
+ls -A "$tmp/here" | grep -q sightline-run && fail "bench --out . left its temporary folder"
+# the stage of a killed bench is removed by the next run into the same folder
+mkdir "$tmp/here/.sightline-run.tmp.$dead.0123456789abcdef"
+echo partial >"$tmp/here/.sightline-run.tmp.$dead.0123456789abcdef/frames.csv"
+(cd "$tmp/here" && expect 0 "$SL" bench city:tiny "${B[@]}" --no-plots --out .) || exit 1
+[ -e "$tmp/here/.sightline-run.tmp.$dead.0123456789abcdef" ] && fail "the stage of a killed bench is still there"
+[ "$(cat "$tmp/here/notes.txt")" = keep ] || fail "bench --out . touched the user's files"
 devnull_ok
 echo "outputs: ok"
