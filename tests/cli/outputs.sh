@@ -162,5 +162,30 @@ echo partial >"$tmp/here/.sightline-run.tmp.$dead.0123456789abcdef/frames.csv"
 (cd "$tmp/here" && expect 0 "$SL" bench city:tiny "${B[@]}" --no-plots --out .) || exit 1
 [ -e "$tmp/here/.sightline-run.tmp.$dead.0123456789abcdef" ] && fail "the stage of a killed bench is still there"
 [ "$(cat "$tmp/here/notes.txt")" = keep ] || fail "bench --out . touched the user's files"
+
+# ---- render and demo: a run that cannot finish moves nothing into the folder ----
+# (a folder named like one of the run's files cannot be replaced: before, every file written up to
+# that one replaced the previous run's)
+mkdir -p "$tmp/r/frame-00001-id.png"
+echo "old frame" >"$tmp/r/frame-00000-id.png"
+snapshot "$tmp/r" "$tmp/r.before"
+expect 1 "$SL" render city:tiny --path "$tmp/walk.txt" --frames 0:2 --width 32 --height 24 --images id --out "$tmp/r"
+snapshot "$tmp/r" "$tmp/r.after"
+cmp -s "$tmp/r.before" "$tmp/r.after" || fail "a failed render changed the previous run's folder"
+has "frame-00001-id.png: it is a folder" "$tmp/err"
+rmdir "$tmp/r/frame-00001-id.png"
+expect 0 "$SL" render city:tiny --path "$tmp/walk.txt" --frames 0:2 --width 32 --height 24 --images id --json --out "$tmp/r"
+is_png "$tmp/r/frame-00000-id.png"
+is_png "$tmp/r/frame-00001-id.png"
+has "\"$tmp/r/frame-00001-id.png\"" "$tmp/out"
+hasnt "sightline-run" "$tmp/out"
+mkdir -p "$tmp/d/report.md"
+echo "old table" >"$tmp/d/frames.csv"
+snapshot "$tmp/d" "$tmp/d.before"
+expect 1 "$SL" demo --preset tiny --quick --frames 2 --out "$tmp/d" --quiet
+snapshot "$tmp/d" "$tmp/d.after"
+cmp -s "$tmp/d.before" "$tmp/d.after" || fail "a failed demo changed the previous run's folder"
+has "report.md: it is a folder" "$tmp/err"
+ls -A "$tmp/d" | grep -q sightline-run && fail "the demo left its temporary folder"
 devnull_ok
 echo "outputs: ok"
