@@ -44,7 +44,7 @@ static void usage(FILE *out)
             "options:\n"
             "  --preset P    city preset: tiny, small (default) or vienna (about 8M triangles: slow)\n"
             "  --seed N      city and walk seed (default 1)\n"
-            "  --out DIR     report folder (default demo-out)\n"
+            "  --out DIR     report folder (default demo-out); files moved in only when all are written\n"
             "  --frames N    walkthrough frames (default %u; --quick: %u)\n"
             "  --quick       a short run (%u walk frames, %u flyover views) for a smoke test\n"
             "  --width W --height H   frame size (default 1024x768)\n"

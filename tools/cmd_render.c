@@ -108,7 +108,8 @@ static void usage(FILE *out)
             "  --frames A:B      with --path: frames A to B-1 (A:, :B and A also work; default all)\n"
             "  --width W         image width (default 1024, or the path's)\n"
             "  --height H        image height (default 768, or the path's)\n"
-            "  --out DIR         output folder (default render-out)\n"
+            "  --out DIR         output folder (default render-out); the images are moved in only when\n"
+            "                    all are written, other files in DIR are left alone\n"
             "  --images LIST     comma-separated kinds to write (default:");
     for (size_t m = 0, k = 0; m < MODE_COUNT; m++)
         if (modes[m].default_on)
