@@ -500,6 +500,9 @@ bool cli_outdir_commit(const char *cmd, cli_outdir *od)
                     cli_error(cmd, "cannot write %s: it is a folder (nothing of this run was moved to '%s')", to,
                               od->target);
                     ok = false;
+                } else if (!cli_output_not_input(cmd, to, od->inputs, od->input_count)) {
+                    cli_error(cmd, "nothing of this run was moved to '%s'", od->target);
+                    ok = false;
                 }
             } else if (rename(from, to) != 0) {
                 cli_error(cmd, "cannot move %s to %s: %s (the files before it were moved)", from, to, strerror(errno));

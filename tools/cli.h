@@ -115,6 +115,8 @@ typedef struct cli_outdir {
     char stage[4200];
     bool fresh;        /* target did not exist */
     bool open;
+    const char *const *inputs; /* optional: files the run read, which commit refuses to replace */
+    size_t input_count;
 } cli_outdir;
 bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od);
 bool cli_outdir_commit(const char *cmd, cli_outdir *od);

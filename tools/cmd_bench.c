@@ -617,6 +617,12 @@ int sl_cmd_bench(int argc, char **argv)
     if (!cli_outdir_begin(cmd, g.out_dir, &od))
         return 1;
     const char *work = od.stage;
+    const char *inputs[MAX_SCENES + 1];
+    for (uint32_t i = 0; i < g.scene_count; i++)
+        inputs[i] = g.scenes[i];
+    inputs[g.scene_count] = g.path_file;
+    od.inputs = inputs;
+    od.input_count = g.scene_count + 1;
 
     sl_scene scenes[MAX_SCENES] = {0};
     sl_bench benches[MAX_SCENES] = {0};

@@ -323,6 +323,9 @@ int sl_cmd_render(int argc, char **argv)
         sl_path_destroy(path);
         return 1;
     }
+    const char *inputs[2] = {scene_spec, path_file};
+    od.inputs = inputs;
+    od.input_count = 2;
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
     sl_scene scene = NULL;
