@@ -119,6 +119,14 @@ expect 0 "$SL" path gen "$tmp/city.slscene" --kind walk --frames 4 -o "$tmp/walk
 [ -e "$other" ] || fail "the temporary of another output was removed"
 [ -e "$alive" ] || fail "the temporary of a live process was removed"
 rm -f "$other" "$alive"
+# the same for a bake: an interrupted one, a temporary of its output left by a killed writer, and
+# a successful --resume
+expect 3 "$SL" pvs build "$tmp/city.slscene" --along "$tmp/walk.txt" --radius 1 --stop-after 1 -o "$tmp/w.slpvs" --quiet
+stale="$tmp/w.slpvs.tmp.$dead.00000000deadbeef"
+echo partial >"$stale"
+expect 0 "$SL" pvs build "$tmp/city.slscene" --along "$tmp/walk.txt" --radius 1 --resume -o "$tmp/w.slpvs" --quiet
+[ -s "$tmp/w.slpvs" ] || fail "the resumed bake wrote no file"
+[ -e "$stale" ] && fail "a successful --resume left the stale temporary of its output"
 
 # ---- a bench that fails midway leaves the previous run's folder exactly as it was ----
 snapshot() { (cd "$1" && ls -A | sort && find . -type f | sort | xargs md5sum) >"$2"; }
