@@ -1,11 +1,17 @@
 /* Shared command-line helpers: errors, option parsing, progress bar, JSON writer. */
 #include "cli.h"
 
+#include "core/sl_core.h"
+
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -319,4 +325,192 @@ uint64_t cli_peak_rss(void)
             kb = strtoull(line + 6, NULL, 10);
     fclose(f);
     return kb * 1024;
+}
+
+bool cli_output_not_input(const char *cmd, const char *output, const char *const *inputs, size_t count)
+{
+    struct stat so;
+    if (!output || stat(output, &so) != 0)
+        return true;
+    for (size_t i = 0; i < count; i++) {
+        struct stat si;
+        if (inputs[i] && stat(inputs[i], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino) {
+            if (!strcmp(inputs[i], output))
+                cli_error(cmd, "the output %s is the input file; give another output name", output);
+            else
+                cli_error(cmd, "the output %s is the input file %s; give another output name", output, inputs[i]);
+            return false;
+        }
+    }
+    return true;
+}
+
+/* ---- output folders ---- */
+
+#define STAGE_BASE ".sightline-run"
+
+/* Remove a stage folder: its regular files, then the folder (what else is in it stays). */
+static void remove_stage(const char *stage)
+{
+    DIR *d = opendir(stage);
+    if (!d)
+        return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        struct stat st;
+        if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(st.st_mode))
+            unlinkat(dirfd(d), e->d_name, 0);
+    }
+    closedir(d);
+    rmdir(stage);
+}
+
+/* Remove the stages "<dir>/<base>.tmp.<pid>.<hex>" whose process is gone (folders only). */
+static void remove_stale_stages(const char *dir, const char *base)
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    long self = (long)getpid();
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        long pid;
+        struct stat st;
+        if (!sl_atomic_temp_name_pid(base, e->d_name, &pid) || pid == self)
+            continue;
+        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH)
+            continue;
+        if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISDIR(st.st_mode))
+            continue;
+        char path[8400];
+        if (snprintf(path, sizeof path, "%s/%s", dir, e->d_name) < (int)sizeof path)
+            remove_stage(path);
+    }
+    closedir(d);
+}
+
+/* mkdir -p of every folder above path (not path itself). */
+static bool make_parents(const char *path)
+{
+    char buf[4096];
+    if (snprintf(buf, sizeof buf, "%s", path) >= (int)sizeof buf)
+        return false;
+    for (char *p = buf + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = 0;
+        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+            return false;
+        *p = '/';
+    }
+    return true;
+}
+
+bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od)
+{
+    memset(od, 0, sizeof *od);
+    size_t n = strlen(dir);
+    while (n > 1 && dir[n - 1] == '/')
+        n--;
+    if (n == 0 || n >= sizeof od->target) {
+        cli_error(cmd, "the output folder name '%s' is %s", dir, n ? "too long" : "empty");
+        return false;
+    }
+    memcpy(od->target, dir, n);
+    od->target[n] = 0;
+    uint64_t tag = (uint64_t)(uintptr_t)od ^ (uint64_t)(sl_now() * 1e9);
+    long pid = (long)getpid();
+    struct stat st;
+    if (stat(od->target, &st) == 0) {
+        if (!S_ISDIR(st.st_mode)) {
+            cli_error(cmd, "the output folder '%s' exists and is not a folder", od->target);
+            return false;
+        }
+        remove_stale_stages(od->target, STAGE_BASE);
+        snprintf(od->stage, sizeof od->stage, "%s/%s.tmp.%ld.%016llx", od->target, STAGE_BASE, pid,
+                 (unsigned long long)tag);
+    } else if (errno == ENOENT) {
+        od->fresh = true;
+        if (!make_parents(od->target)) {
+            cli_error(cmd, "cannot create the folders above the output folder '%s': %s", od->target, strerror(errno));
+            return false;
+        }
+        const char *slash = strrchr(od->target, '/');
+        char parent[4096];
+        snprintf(parent, sizeof parent, "%.*s", slash ? (int)(slash - od->target + (slash == od->target)) : 1,
+                 slash ? od->target : ".");
+        remove_stale_stages(parent, slash ? slash + 1 : od->target);
+        snprintf(od->stage, sizeof od->stage, "%s.tmp.%ld.%016llx", od->target, pid, (unsigned long long)tag);
+    } else {
+        cli_error(cmd, "cannot use the output folder '%s': %s", od->target, strerror(errno));
+        return false;
+    }
+    if (mkdir(od->stage, 0755) != 0) {
+        cli_error(cmd, "cannot create a folder for this run's files beside '%s': %s", od->target, strerror(errno));
+        return false;
+    }
+    od->open = true;
+    return true;
+}
+
+void cli_outdir_abort(cli_outdir *od)
+{
+    if (od->open)
+        remove_stage(od->stage);
+    od->open = false;
+}
+
+bool cli_outdir_commit(const char *cmd, cli_outdir *od)
+{
+    if (!od->open)
+        return false;
+    if (od->fresh) {
+        if (rename(od->stage, od->target) == 0) {
+            od->open = false;
+            return true;
+        }
+        if (errno != EEXIST && errno != ENOTEMPTY) {
+            cli_error(cmd, "cannot move this run's files to '%s': %s", od->target, strerror(errno));
+            cli_outdir_abort(od);
+            return false;
+        }
+        /* the folder appeared meanwhile: move the files into it as below */
+    }
+    DIR *d = opendir(od->stage);
+    if (!d) {
+        cli_error(cmd, "cannot read this run's folder '%s': %s", od->stage, strerror(errno));
+        cli_outdir_abort(od);
+        return false;
+    }
+    /* first check that every file can take its place (a folder of the same name cannot be
+     * replaced), so that a refusal leaves the target untouched */
+    bool ok = true;
+    char from[8400], to[8400];
+    struct dirent *e;
+    for (int pass = 0; pass < 2 && ok; pass++) {
+        rewinddir(d);
+        while (ok && (e = readdir(d))) {
+            struct stat st;
+            if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISREG(st.st_mode))
+                continue;
+            snprintf(from, sizeof from, "%s/%s", od->stage, e->d_name);
+            snprintf(to, sizeof to, "%s/%s", od->target, e->d_name);
+            if (pass == 0) {
+                if (lstat(to, &st) == 0 && S_ISDIR(st.st_mode)) {
+                    cli_error(cmd, "cannot write %s: it is a folder (nothing of this run was moved to '%s')", to,
+                              od->target);
+                    ok = false;
+                } else if (!cli_output_not_input(cmd, to, od->inputs, od->input_count)) {
+                    cli_error(cmd, "nothing of this run was moved to '%s'", od->target);
+                    ok = false;
+                }
+            } else if (rename(from, to) != 0) {
+                cli_error(cmd, "cannot move %s to %s: %s (the files before it were moved)", from, to, strerror(errno));
+                ok = false;
+            }
+        }
+    }
+    closedir(d);
+    cli_outdir_abort(od);
+    return ok;
 }

@@ -95,6 +95,34 @@ void cli_json_uint(cli_json *j, const char *key, uint64_t value);
 void cli_json_double(cli_json *j, const char *key, double value);
 void cli_json_bool(cli_json *j, const char *key, bool value);
 
+/* ---- outputs ----
+ * Before a command writes OUTPUT: false (after "sightline CMD: the output OUTPUT is the input
+ * file INPUT; give another -o") when OUTPUT names the same file as one of the count inputs (NULL
+ * entries skipped). Compared by device and inode, not by name, so "x", "./x", hard links and
+ * symbolic links to an input are all caught; an output that does not exist yet is no input. */
+bool cli_output_not_input(const char *cmd, const char *output, const char *const *inputs, size_t count);
+
+/* A run that writes a folder of files (bench, demo): every file goes into a new folder, od->stage,
+ * and commit moves them into the folder the user named, so that a run that fails midway leaves
+ * that folder exactly as it was. A folder that does not exist yet: the stage is made beside it
+ * (its parents are created) and renamed to it. An existing folder: the stage is made inside it
+ * (".sightline-run.tmp.PID.HEX", on the same file system) and commit moves only the files this
+ * run wrote into it, replacing those of the same names; nothing else in it is touched, so
+ * `--out .` is safe. Stages left by killed runs (their process gone) are removed by the next run
+ * into the same folder. begin and commit print their error and return false. */
+typedef struct cli_outdir {
+    char target[4096]; /* as given, less trailing slashes */
+    char stage[4200];
+    bool fresh;        /* target did not exist */
+    bool open;
+    const char *const *inputs; /* optional: files the run read, which commit refuses to replace */
+    size_t input_count;
+} cli_outdir;
+bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od);
+bool cli_outdir_commit(const char *cmd, cli_outdir *od);
+/* Remove the stage and what the run wrote into it; the target is left as it was. */
+void cli_outdir_abort(cli_outdir *od);
+
 /* ---- misc ---- */
 /* Human-readable byte count ("1.23 GiB") into buf. */
 const char *cli_bytes(uint64_t bytes, char *buf, size_t size);

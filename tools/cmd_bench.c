@@ -62,7 +62,9 @@ static void usage(FILE *out)
           "output:\n"
           "  --out DIR            output folder (default bench-out): frames.csv, frames.json,\n"
           "                       summary.md, summary.json, and per scene LABEL-cull-time.svg,\n"
-          "                       LABEL-triangles.svg, LABEL-missed-pixels.svg, LABEL-map-METHOD.png\n"
+          "                       LABEL-triangles.svg, LABEL-missed-pixels.svg, LABEL-map-METHOD.png;\n"
+          "                       moved in only when all are written (a failed run changes nothing),\n"
+          "                       other files in DIR are left alone\n"
           "  --map-eye X,Y,Z      top-down maps of visibility from this point in all directions\n"
           "                       (default: from the first frame's camera)\n"
           "  --map-size N         map pixels along its longer side (default 1024)\n"
@@ -140,26 +142,6 @@ static bool parse_range(const char *text, uint32_t *first, uint32_t *count)
     *first = (uint32_t)a;
     *count = (uint32_t)(b == UINT32_MAX ? UINT32_MAX : b - a);
     return true;
-}
-
-/* mkdir -p. */
-static bool make_dirs(const char *dir)
-{
-    char buf[4096];
-    if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
-        return false;
-    for (char *p = buf + 1; *p; p++) {
-        if (*p != '/')
-            continue;
-        *p = 0;
-        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
-            return false;
-        *p = '/';
-    }
-    if (mkdir(buf, 0755) != 0 && errno != EEXIST)
-        return false;
-    struct stat sb;
-    return stat(buf, &sb) == 0 && S_ISDIR(sb.st_mode);
 }
 
 static int parse(int argc, char **argv, bench_args *g)
@@ -554,17 +536,18 @@ static void unique_label(char *label, size_t size, char labels[][128], uint32_t 
 }
 
 /* pvs without a file: bake the PVS of the cells along the frames first..first+count-1 of this
- * scene's views (those the bench runs) into OUT/LABEL.slpvs and give its name to run[index] (in
+ * scene's views (those the bench runs) into WORK/LABEL.slpvs (WORK: the run's folder, OUT/ at the end) and give its name to run[index] (in
  * opts_buf, before the user's other options). When nothing can be baked: an error (*status = 1) if
  * --methods named pvs, else pvs leaves run[] for this scene and joins skipped with the reason. A
  * failed bake returns its status. */
-static sl_status bake_pvs(const bench_args *g, const char *cmd, sl_scene scene, sl_path views, uint32_t first,
+static sl_status bake_pvs(const bench_args *g, const char *cmd, const char *work, sl_scene scene, sl_path views, uint32_t first,
                           uint32_t count, const char *label, const sl_progress *prog, cli_progress_state *ps,
                           sl_bench_method_spec *run, uint32_t *nrun, uint32_t index, char *opts_buf, size_t opts_size,
                           sl_bench_skip *skipped, uint32_t *nskipped, int *status, sl_error *err)
 {
-    char file[4400];
-    snprintf(file, sizeof file, "%s/%s.slpvs", g->out_dir, label);
+    char file[4400], shown[4400];
+    snprintf(file, sizeof file, "%s/%s.slpvs", work, label);
+    snprintf(shown, sizeof shown, "%s/%s.slpvs", g->out_dir, label);
     bool talk = !g->quiet && !g->json;
     if (talk)
         fprintf(stderr, "sightline bench: %s: baking the PVS of the street cells within %g m of the views (%s) for "
@@ -594,7 +577,7 @@ static sl_status bake_pvs(const bench_args *g, const char *cmd, sl_scene scene, 
     snprintf(opts_buf, opts_size, "%s%s%s", pa.options, user ? "," : "", user ? user : "");
     run[index].options = opts_buf;
     if (talk)
-        fprintf(stderr, "sightline bench: %s: %u cells, %.1f%% of the objects culled per cell, %.1f s\n", file,
+        fprintf(stderr, "sightline bench: %s: %u cells, %.1f%% of the objects culled per cell, %.1f s\n", shown,
                 pa.cells, 100.0 * pa.culled, pa.seconds);
     return SL_OK;
 }
@@ -629,10 +612,17 @@ int sl_cmd_bench(int argc, char **argv)
     for (uint32_t i = 0; i < nskipped; i++)
         cli_error(cmd, "not running %s: %s (give it --method-options %s:...)", skipped[i].name, skipped[i].reason,
                   skipped[i].name);
-    if (!make_dirs(g.out_dir)) {
-        cli_error(cmd, "cannot create the output folder '%s': %s", g.out_dir, strerror(errno));
+    /* everything goes to a new folder first, moved into OUT only when the run has written it all */
+    cli_outdir od;
+    if (!cli_outdir_begin(cmd, g.out_dir, &od))
         return 1;
-    }
+    const char *work = od.stage;
+    const char *inputs[MAX_SCENES + 1];
+    for (uint32_t i = 0; i < g.scene_count; i++)
+        inputs[i] = g.scenes[i];
+    inputs[g.scene_count] = g.path_file;
+    od.inputs = inputs;
+    od.input_count = g.scene_count + 1;
 
     sl_scene scenes[MAX_SCENES] = {0};
     sl_bench benches[MAX_SCENES] = {0};
@@ -666,7 +656,7 @@ int sl_cmd_bench(int argc, char **argv)
         memcpy(run, specs, nrun * sizeof run[0]);
         char pvs_options[8800];
         if (bake_index >= 0) {
-            st = bake_pvs(&g, cmd, s, views, first, count, label, &prog, &ps, run, &nrun, (uint32_t)bake_index,
+            st = bake_pvs(&g, cmd, work, s, views, first, count, label, &prog, &ps, run, &nrun, (uint32_t)bake_index,
                           pvs_options, sizeof pvs_options, skipped, &nskipped, &status, &err);
             if (status || st != SL_OK) {
                 sl_path_destroy(views);
@@ -682,6 +672,8 @@ int sl_cmd_bench(int argc, char **argv)
         bo.repeat = g.repeat;
         bo.label = label;
         bo.progress = prog;
+        bo.stage_dir = work;
+        bo.out_dir = g.out_dir;
         sl_bench b = NULL;
         st = sl_bench_create(s, run, nrun, &bo, NULL, &b, &err);
         if (st == SL_OK) {
@@ -692,7 +684,7 @@ int sl_cmd_bench(int argc, char **argv)
         }
         cli_progress_done(&ps);
         if (st == SL_OK && !g.no_plots) {
-            snprintf(path, sizeof path, "%s/%s-", g.out_dir, label);
+            snprintf(path, sizeof path, "%s/%s-", work, label);
             st = sl_bench_write_plots(b, path, &err);
             sl_bench_map_options mo;
             memset(&mo, 0, sizeof mo);
@@ -702,7 +694,7 @@ int sl_cmd_bench(int argc, char **argv)
             sl_bench_frame f0;
             if (st == SL_OK && !g.has_eye && sl_bench_get_frame(b, 0, &f0, NULL) == SL_OK)
                 mo.camera = f0.camera;
-            snprintf(path, sizeof path, "%s/%s-map-", g.out_dir, label);
+            snprintf(path, sizeof path, "%s/%s-map-", work, label);
             if (st == SL_OK && (g.has_eye || sl_bench_frame_count(b)))
                 st = sl_bench_write_maps(b, &mo, path, NULL, &err);
         }
@@ -713,7 +705,7 @@ int sl_cmd_bench(int argc, char **argv)
     if (!status) {
         const char *files[] = {"frames.csv", "frames.json", "summary.md"};
         for (int k = 0; k < 3 && !status; k++) {
-            snprintf(path, sizeof path, "%s/%s", g.out_dir, files[k]);
+            snprintf(path, sizeof path, "%s/%s", work, files[k]);
             sl_status st = k == 0   ? sl_bench_write_csv(benches, nb, path, &err)
                            : k == 1 ? sl_bench_write_json(benches, nb, path, &err)
                                     : sl_bench_write_summary(benches, nb, path, &err);
@@ -722,42 +714,50 @@ int sl_cmd_bench(int argc, char **argv)
         }
     }
     if (!status) {
-        uint64_t violations = sl_bench_print_violations(benches, nb, 20, stderr);
-        snprintf(path, sizeof path, "%s/summary.json", g.out_dir);
+        uint64_t total_violations = 0;
+        for (uint32_t i = 0; i < nb; i++)
+            total_violations += sl_bench_violations(benches[i]);
+        snprintf(path, sizeof path, "%s/summary.json", work);
         sl_atomic_file f;
         if (sl_atomic_open(NULL, path, &f, &err) != SL_OK) {
             status = cli_fail(cmd, &err);
         } else {
             cli_json j;
             cli_json_begin(&j, f.fp);
-            json_summary(&j, benches, nb, violations, g.out_dir, skipped, nskipped);
+            json_summary(&j, benches, nb, total_violations, g.out_dir, skipped, nskipped);
             cli_json_end(&j);
             if (ferror(f.fp))
                 f.failed = true;
             if (sl_atomic_commit(&f, &err) != SL_OK)
                 status = cli_fail(cmd, &err);
         }
-        if (!status) {
-            if (g.json) {
-                cli_json j;
-                cli_json_begin(&j, stdout);
-                json_summary(&j, benches, nb, violations, g.out_dir, skipped, nskipped);
-                cli_json_end(&j);
-            } else {
-                sl_bench_print_summary(benches, nb, stdout);
-                for (uint32_t i = 0; i < nskipped; i++)
-                    printf("not run: %s (%s)\n", skipped[i].name, skipped[i].reason);
-                printf("results in %s/ (frames.csv, frames.json, summary.md, summary.json%s)\n", g.out_dir,
-                       g.no_plots ? "" : ", plots (.svg), maps (-map-METHOD.png)");
-            }
-            if (violations) {
-                fprintf(stderr,
-                        "sightline bench: CONSERVATIVENESS VIOLATION: conservative methods missed %llu visible "
-                        "object(s) in total (see above)%s\n",
-                        (unsigned long long)violations, g.strict ? "" : "; --no-strict: exit status 0");
-                if (g.strict)
-                    status = 1;
-            }
+    }
+    /* the run's files take their places in OUT only when all are written */
+    if (status)
+        cli_outdir_abort(&od);
+    else if (!cli_outdir_commit(cmd, &od))
+        status = 1;
+    if (!status) {
+        uint64_t violations = sl_bench_print_violations(benches, nb, 20, stderr);
+        if (g.json) {
+            cli_json j;
+            cli_json_begin(&j, stdout);
+            json_summary(&j, benches, nb, violations, g.out_dir, skipped, nskipped);
+            cli_json_end(&j);
+        } else {
+            sl_bench_print_summary(benches, nb, stdout);
+            for (uint32_t i = 0; i < nskipped; i++)
+                printf("not run: %s (%s)\n", skipped[i].name, skipped[i].reason);
+            printf("results in %s/ (frames.csv, frames.json, summary.md, summary.json%s)\n", g.out_dir,
+                   g.no_plots ? "" : ", plots (.svg), maps (-map-METHOD.png)");
+        }
+        if (violations) {
+            fprintf(stderr,
+                    "sightline bench: CONSERVATIVENESS VIOLATION: conservative methods missed %llu visible "
+                    "object(s) in total (see above)%s\n",
+                    (unsigned long long)violations, g.strict ? "" : "; --no-strict: exit status 0");
+            if (g.strict)
+                status = 1;
         }
     }
     for (uint32_t i = 0; i < nb; i++)

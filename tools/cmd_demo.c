@@ -44,7 +44,7 @@ static void usage(FILE *out)
             "options:\n"
             "  --preset P    city preset: tiny, small (default) or vienna (about 8M triangles: slow)\n"
             "  --seed N      city and walk seed (default 1)\n"
-            "  --out DIR     report folder (default demo-out)\n"
+            "  --out DIR     report folder (default demo-out); files moved in only when all are written\n"
             "  --frames N    walkthrough frames (default %u; --quick: %u)\n"
             "  --quick       a short run (%u walk frames, %u flyover views) for a smoke test\n"
             "  --width W --height H   frame size (default 1024x768)\n"
@@ -58,25 +58,6 @@ static void usage(FILE *out)
             "  sightline demo --preset vienna --frames 300 --out vienna-demo\n",
             DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, CLI_PVS_ALONG_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
-}
-
-static bool make_dirs(const char *dir)
-{
-    char buf[4096];
-    if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
-        return false;
-    for (char *p = buf + 1; *p; p++) {
-        if (*p != '/')
-            continue;
-        *p = 0;
-        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
-            return false;
-        *p = '/';
-    }
-    if (mkdir(buf, 0755) != 0 && errno != EEXIST)
-        return false;
-    struct stat sb;
-    return stat(buf, &sb) == 0 && S_ISDIR(sb.st_mode);
 }
 
 /* ---- report writing ---- */
@@ -408,10 +389,11 @@ int sl_cmd_demo(int argc, char **argv)
     }
     uint32_t walk_frames = has_frames ? frames : quick ? QUICK_WALK_FRAMES : DEMO_WALK_FRAMES;
     uint32_t fly_views = quick ? QUICK_FLY_VIEWS : DEMO_FLY_VIEWS;
-    if (!make_dirs(out_dir)) {
-        cli_error(cmd, "cannot create the output folder '%s': %s", out_dir, strerror(errno));
+    /* everything goes to a new folder first, moved into OUT only when the demo has written it all */
+    cli_outdir od;
+    if (!cli_outdir_begin(cmd, out_dir, &od))
         return 1;
-    }
+    const char *work = od.stage;
     double t0 = sl_now();
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
@@ -424,6 +406,7 @@ int sl_cmd_demo(int argc, char **argv)
     sl_scene scene = NULL;
     if (sl_bench_open_scene(spec, NULL, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
         cli_progress_done(&ps);
+        cli_outdir_abort(&od);
         return cli_fail(cmd, &err);
     }
     cli_progress_done(&ps);
@@ -450,7 +433,7 @@ int sl_cmd_demo(int argc, char **argv)
     if (sl_path_generate(scene, &wo, NULL, &walk, &err) != SL_OK ||
         sl_path_random_views(scene, SL_VIEWS_FLYOVER, fly_views, seed, &fo, NULL, &fly, &err) != SL_OK)
         status = cli_fail(cmd, &err);
-    snprintf(path, sizeof path, "%s/walk.txt", out_dir);
+    snprintf(path, sizeof path, "%s/walk.txt", work);
     if (!status && sl_path_save(walk, path, &err) != SL_OK)
         status = cli_fail(cmd, &err);
     /* the pvs culler: bake the cells along the walk, then run it with the others */
@@ -461,7 +444,7 @@ int sl_cmd_demo(int argc, char **argv)
         if (!json && !quiet)
             fprintf(stderr, "sightline demo: baking the PVS of the street cells along the walk (%s)...\n",
                     CLI_PVS_ALONG_METHOD);
-        snprintf(path, sizeof path, "%s/walk.slpvs", out_dir);
+        snprintf(path, sizeof path, "%s/walk.slpvs", work);
         if (cli_pvs_bake_along(scene, walk, 0, UINT32_MAX, path, &prog, &dp, &err) != SL_OK)
             status = cli_fail(cmd, &err);
         cli_progress_done(&ps);
@@ -497,6 +480,8 @@ int sl_cmd_demo(int argc, char **argv)
         bo.height = height;
         bo.label = set_label;
         bo.progress = prog;
+        bo.stage_dir = work;
+        bo.out_dir = out_dir;
         if (sl_bench_create(scene, specs, nm, &bo, NULL, &benches[k], &err) != SL_OK) {
             status = cli_fail(cmd, &err);
             break;
@@ -505,13 +490,13 @@ int sl_cmd_demo(int argc, char **argv)
         sl_path views = k == 0 ? walk : fly;
         sl_status st = sl_bench_run_path(benches[k], views, 0, sl_path_count(views), &err);
         cli_progress_done(&ps);
-        snprintf(path, sizeof path, "%s/%s-", out_dir, set_label);
+        snprintf(path, sizeof path, "%s/%s-", work, set_label);
         if (st == SL_OK)
             st = sl_bench_write_plots(benches[k], path, &err);
         sl_bench_map_options mo;
         memset(&mo, 0, sizeof mo);
         mo.camera = sl_path_camera(views, 0);
-        snprintf(path, sizeof path, "%s/%s-map-", out_dir, set_label);
+        snprintf(path, sizeof path, "%s/%s-map-", work, set_label);
         if (st == SL_OK)
             st = sl_bench_write_maps(benches[k], &mo, path, NULL, &err);
         if (st != SL_OK)
@@ -535,7 +520,7 @@ int sl_cmd_demo(int argc, char **argv)
             st = sl_oracle_get_view(oracle, 0, &v, &err);
         static const char *files[3] = {"frame-id.png", "frame-depth.png", "frame-overdraw.png"};
         for (int k = 0; k < 3 && st == SL_OK; k++) {
-            snprintf(path, sizeof path, "%s/%s", out_dir, files[k]);
+            snprintf(path, sizeof path, "%s/%s", work, files[k]);
             st = k == 0   ? sl_image_write_ids(&v, path, NULL, &err)
                  : k == 1 ? sl_image_write_depth(&v, &c, path, NULL, &err)
                           : sl_image_write_overdraw(&v, path, NULL, NULL, &err);
@@ -551,7 +536,7 @@ int sl_cmd_demo(int argc, char **argv)
     if (!status) {
         static const char *files[3] = {"frames.csv", "frames.json", "summary.md"};
         for (int k = 0; k < 3 && !status; k++) {
-            snprintf(path, sizeof path, "%s/%s", out_dir, files[k]);
+            snprintf(path, sizeof path, "%s/%s", work, files[k]);
             sl_status st = k == 0   ? sl_bench_write_csv(benches, nb, path, &err)
                            : k == 1 ? sl_bench_write_json(benches, nb, path, &err)
                                     : sl_bench_write_summary(benches, nb, path, &err);
@@ -564,8 +549,8 @@ int sl_cmd_demo(int argc, char **argv)
         report r;
         memset(&r, 0, sizeof r);
         char md_path[4400], html_path[4400];
-        snprintf(md_path, sizeof md_path, "%s/report.md", out_dir);
-        snprintf(html_path, sizeof html_path, "%s/report.html", out_dir);
+        snprintf(md_path, sizeof md_path, "%s/report.md", work);
+        snprintf(html_path, sizeof html_path, "%s/report.html", work);
         if (sl_atomic_open(NULL, md_path, &r.md, &err) != SL_OK) {
             status = cli_fail(cmd, &err);
         } else if (sl_atomic_open(NULL, html_path, &r.html, &err) != SL_OK) {
@@ -587,6 +572,11 @@ int sl_cmd_demo(int argc, char **argv)
             }
         }
     }
+    /* the demo's files take their places in OUT only when all are written */
+    if (status)
+        cli_outdir_abort(&od);
+    else if (!cli_outdir_commit(cmd, &od))
+        status = 1;
     if (!status) {
         double seconds = sl_now() - t0;
         if (json) {

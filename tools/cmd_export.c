@@ -150,6 +150,9 @@ int sl_cmd_export(int argc, char **argv)
         cli_error(a.cmd, "need SCENE and OUT (see sightline export --help)");
         return 2;
     }
+    const char *inputs[] = {input};
+    if (!cli_output_not_input(a.cmd, output, inputs, 1))
+        return 2;
     if (up && !strcmp(up, "z") && is_gltf(output, format)) {
         cli_error(a.cmd, "glTF is Y-up by definition; --up z cannot apply");
         return 2;

@@ -344,6 +344,9 @@ static int run_gen(int argc, char **argv, bool random_views)
         cli_error(a.cmd, "missing %s (see sightline %s --help)", !g.scene ? "SCENE" : "-o PATH.txt", a.cmd);
         return 2;
     }
+    const char *inputs[] = {g.scene};
+    if (!cli_output_not_input(a.cmd, g.output, inputs, 1))
+        return 2;
     const char *kind = g.kind ? g.kind : random_views ? "street" : "walk";
     sl_path_kind pk;
     sl_view_kind vk = SL_VIEWS_STREET;

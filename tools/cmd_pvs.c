@@ -302,6 +302,9 @@ static int run_build(int argc, char **argv)
                   !output ? "missing -o OUT.slpvs" : scene_path && city ? "give SCENE or --city, not both" : "missing SCENE");
         return 2;
     }
+    const char *inputs[] = {scene_path, along};
+    if (!cli_output_not_input(a.cmd, output, inputs, 2) || !cli_output_not_input(a.cmd, bo.checkpoint, inputs, 2))
+        return 2;
     if (cells_kind && strcmp(cells_kind, "streets") && strcmp(cells_kind, "grid") && strcmp(cells_kind, "bsp") &&
         strcmp(cells_kind, "adaptive")) {
         cli_error(a.cmd, "--cells: '%s' is not streets, grid, bsp or adaptive", cells_kind);

@@ -215,6 +215,9 @@ int sl_cmd_radar(int argc, char **argv)
         cli_error(a.cmd, "--size %ux%u: each side must be 1..16384", iw, ih);
         return 2;
     }
+    const char *inputs[] = {input};
+    if (!cli_output_not_input(a.cmd, output, inputs, 1))
+        return 2;
 
     /* the terrain */
     sl_error err;

@@ -108,7 +108,8 @@ static void usage(FILE *out)
             "  --frames A:B      with --path: frames A to B-1 (A:, :B and A also work; default all)\n"
             "  --width W         image width (default 1024, or the path's)\n"
             "  --height H        image height (default 768, or the path's)\n"
-            "  --out DIR         output folder (default render-out)\n"
+            "  --out DIR         output folder (default render-out); the images are moved in only when\n"
+            "                    all are written, other files in DIR are left alone\n"
             "  --images LIST     comma-separated kinds to write (default:");
     for (size_t m = 0, k = 0; m < MODE_COUNT; m++)
         if (modes[m].default_on)
@@ -180,25 +181,6 @@ static bool parse_range(const char *text, uint32_t *first, uint32_t *end_out)
     *first = (uint32_t)a;
     *end_out = (uint32_t)b;
     return true;
-}
-
-static bool make_dirs(const char *dir)
-{
-    char buf[4096];
-    if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
-        return false;
-    for (char *p = buf + 1; *p; p++) {
-        if (*p != '/')
-            continue;
-        *p = 0;
-        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
-            return false;
-        *p = '/';
-    }
-    if (mkdir(buf, 0755) != 0 && errno != EEXIST)
-        return false;
-    struct stat sb;
-    return stat(buf, &sb) == 0 && S_ISDIR(sb.st_mode);
 }
 
 static int find_mode(const char *name)
@@ -335,17 +317,22 @@ int sl_cmd_render(int argc, char **argv)
     } else {
         end = 1;
     }
-    if (!make_dirs(out_dir)) {
-        cli_error(cmd, "cannot create the output folder '%s': %s", out_dir, strerror(errno));
+    /* the images go to a new folder first, moved into OUT only when every one is written */
+    cli_outdir od;
+    if (!cli_outdir_begin(cmd, out_dir, &od)) {
         sl_path_destroy(path);
         return 1;
     }
+    const char *inputs[2] = {scene_spec, path_file};
+    od.inputs = inputs;
+    od.input_count = 2;
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
     sl_scene scene = NULL;
     char label[128];
     if (sl_bench_open_scene(scene_spec, map, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
         cli_progress_done(&ps);
+        cli_outdir_abort(&od);
         sl_path_destroy(path);
         return cli_fail(cmd, &err);
     }
@@ -379,7 +366,7 @@ int sl_cmd_render(int argc, char **argv)
         cli_json_array_begin(&j, "frames");
     }
     uint32_t written = 0;
-    char file[4400];
+    char file[4400], shown[4400];
     for (uint32_t f = first; f < end && !status; f++) {
         sl_progress_report(&prog, "rendering", f - first, end - first);
         sl_camera c = cam;
@@ -409,14 +396,15 @@ int sl_cmd_render(int argc, char **argv)
             ctx[m].camera = c;
             ctx[m].frame = f;
             ctx[m].truth = &truth;
-            snprintf(file, sizeof file, "%s/frame-%05u-%s.png", out_dir, f, modes[m].name);
+            snprintf(file, sizeof file, "%s/frame-%05u-%s.png", od.stage, f, modes[m].name);
+            snprintf(shown, sizeof shown, "%s/frame-%05u-%s.png", out_dir, f, modes[m].name);
             if (modes[m].write(&ctx[m], file, &err) != SL_OK) {
                 status = cli_fail(cmd, &err);
                 break;
             }
             written++;
             if (json)
-                cli_json_string(&j, NULL, file);
+                cli_json_string(&j, NULL, shown);
         }
         if (json) {
             cli_json_array_end(&j);
@@ -425,6 +413,10 @@ int sl_cmd_render(int argc, char **argv)
     }
     sl_progress_report(&prog, "rendering", end - first, end - first);
     cli_progress_done(&ps);
+    if (status)
+        cli_outdir_abort(&od);
+    else if (!cli_outdir_commit(cmd, &od))
+        status = 1;
     if (json && !status) {
         cli_json_array_end(&j);
         cli_json_uint(&j, "images", written);

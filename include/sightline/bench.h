@@ -48,6 +48,11 @@ typedef struct sl_bench_options {
                                  (default 1) */
     const char *label;        /* name of the scene in reports ("city-small-1"); copied (default "scene") */
     sl_progress progress;     /* sl_bench_run_path reports frames done; returning false cancels */
+    const char *stage_dir;    /* with out_dir: a method option naming a file under stage_dir (a
+                                 folder the run writes into, moved to out_dir at its end) is shown
+                                 in reports under out_dir, where the file ends up (default NULL;
+                                 read by sl_bench_create only) */
+    const char *out_dir;
 } sl_bench_options;
 
 /* The defaults above. */

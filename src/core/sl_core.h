@@ -86,28 +86,44 @@ uint64_t sl_hash64(const void *data, size_t size, uint64_t seed); /* XXH3-64 */
 
 /* ---- files ---- */
 
-/* Read a whole file into memory allocated with a. */
+/* Open an input for reading: non-blocking first (a FIFO would block open(2) for ever), then
+ * refused with "PATH: not a regular file (a FIFO)" unless it is a regular file, then blocking
+ * again. *fd receives the descriptor (close it), *size (may be NULL) the file's size. */
+sl_status sl_file_open_read(const char *path, int *fd, uint64_t *size, sl_error *err);
+/* "a directory", "a FIFO", "a character device", ... for a st_mode. */
+const char *sl_file_kind_name(unsigned mode);
+
+/* Read a whole (regular) file into memory allocated with a. */
 sl_status sl_file_read_all(const sl_allocator *a, const char *path, uint8_t **out, size_t *size, sl_error *err);
 
-/* Read-only memory map of a whole file. */
+/* Read-only memory map of a whole (regular) file. */
 typedef struct sl_mapping { void *data; size_t size; } sl_mapping;
 sl_status sl_file_map(const char *path, sl_mapping *out, sl_error *err);
 void sl_file_unmap(sl_mapping *m);
 
-/* Atomic writer: writes to "<path>.tmp.<pid>.<n>" and renames over path on commit; abort (or any
- * failure) removes the temporary file, so no partial output is ever left behind. */
+/* The writer of every output. Where path is a regular file or does not exist, it writes to
+ * "<target>.tmp.<pid>.<16 hex digits>" and renames that over target on commit; abort (or any
+ * failure) removes the temporary file, so no partial output is ever left behind. target is path,
+ * or where path's symbolic links end (the link stays, its target is replaced or, for a dangling
+ * link, created). A device or a FIFO is written through (direct: opened and written, never
+ * replaced; abort leaves what was written); a directory or a socket is refused. Opening also
+ * removes the temporaries of the same target left by processes that no longer exist. */
 typedef struct sl_atomic_file {
     FILE *fp;
-    char *path;
-    char *tmp_path;
+    char *path;     /* as given, for messages */
+    char *target;   /* the file renamed over (NULL when direct) */
+    char *tmp_path; /* NULL when direct */
     const sl_allocator *alloc;
     bool failed;
+    bool direct;    /* written through; stays set after commit or abort */
 } sl_atomic_file;
 sl_status sl_atomic_open(const sl_allocator *a, const char *path, sl_atomic_file *out, sl_error *err);
 /* Write bytes; errors are sticky and reported by commit. */
 void sl_atomic_write(sl_atomic_file *f, const void *data, size_t size);
 sl_status sl_atomic_commit(sl_atomic_file *f, sl_error *err);
 void sl_atomic_abort(sl_atomic_file *f);
+/* Whether name is "<base>.tmp.<pid>.<16 hex digits>" (a temporary of the writer); *pid receives pid. */
+bool sl_atomic_temp_name_pid(const char *base, const char *name, long *pid);
 
 /* ---- progress ---- */
 /* Report progress; returns false when the callback asked to cancel. NULL progress is fine. */

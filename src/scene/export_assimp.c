@@ -266,7 +266,7 @@ static sl_status finish_files(export_io *x, const char *path, bool ok, sl_error 
     for (size_t i = 0; i < n; i++) {
         out_file *of = files[i];
         if (of->committed) {
-            if (!ok)
+            if (!ok && !of->af.direct) /* a device written through is never unlinked */
                 unlink(of->af.path);
             sl_strfree(x->a, of->af.path);
         } else {

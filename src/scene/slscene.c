@@ -967,16 +967,9 @@ sl_status sl_scene_load(const char *path, const sl_load_options *opt, const sl_a
         madvise(map.data, map.size, MADV_WILLNEED);
         return load(&r, &map, out);
     }
-    r.fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (r.fd < 0)
-        return sl_fail(err, errno == ENOENT ? SL_ERROR_NOT_FOUND : SL_ERROR_IO, "%s: cannot open: %s", path,
-                       strerror(errno));
-    struct stat sb;
-    if (fstat(r.fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
-        close(r.fd);
-        return sl_fail(err, SL_ERROR_IO, "%s: not a regular file", path);
-    }
-    r.size = (uint64_t)sb.st_size;
+    sl_status ost = sl_file_open_read(path, &r.fd, &r.size, err); /* a FIFO is refused, not waited on */
+    if (ost != SL_OK)
+        return ost;
     sl_status st = load(&r, &map, out);
     close(r.fd);
     return st;
