@@ -270,7 +270,7 @@ static int run_build(int argc, char **argv)
         } else if (!strcmp(name, "options")) {
             bo.method_options = cli_value(&a, name, val);
         } else if (!strcmp(name, "threads")) {
-            cli_parse_u32(&a, name, cli_value(&a, name, val), &bo.threads);
+            cli_parse_threads(&a, name, cli_value(&a, name, val), true, &bo.threads);
         } else if (!strcmp(name, "mpi")) {
             mpi = true;
         } else if (!strcmp(name, "resume")) {

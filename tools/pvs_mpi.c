@@ -476,7 +476,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
     }
     double t0 = MPI_Wtime();
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
-    threads = SL_MAX(1, SL_MIN(threads, (int)MAX_CHUNK));
+    threads = SL_MAX(1, SL_MIN(threads, (int)sl_thread_limit())); /* opt->threads was checked against it */
     /* without FUNNELED the MPI library may not tolerate other threads beside the one calling it:
      * process 0 then only serves */
     int local = provided >= MPI_THREAD_FUNNELED ? threads : 0;

@@ -179,7 +179,11 @@ sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const ch
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "pvs bake: there are no view cells");
     if (b->object_count == UINT32_MAX)
         return sl_fail(err, SL_ERROR_LIMIT, "pvs bake: too many objects");
-    sl_status st = sl_pvs_registry_find(opt ? opt->method : NULL, &b->method, err);
+    /* the one thread limit: libgomp crashed when asked for 100000 threads */
+    sl_status st = sl_threads_check(opt ? opt->threads : 0, true, "pvs bake", err);
+    if (st != SL_OK)
+        return st;
+    st = sl_pvs_registry_find(opt ? opt->method : NULL, &b->method, err);
     if (st != SL_OK)
         return st;
     st = sl_pvs_method_configure(b->method, opt ? opt->method_options : NULL, b->a, &b->config, b->effective, err);
@@ -407,8 +411,7 @@ sl_status sl_pvs_build(sl_scene scene, sl_viewcells cells, const char *output, c
         if (!b.done[c])
             todo[nt++] = c;
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
-    if (threads < 1)
-        threads = 1;
+    threads = SL_MAX(1, SL_MIN(threads, (int)sl_thread_limit()));
     shared_run run;
     memset(&run, 0, sizeof run);
     run.b = &b;
