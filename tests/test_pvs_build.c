@@ -544,6 +544,215 @@ static void test_adjustable_horizon(void **state)
     sl_viewcells_destroy(vc);
 }
 
+/* ---- checkpoint, lock and thread limit: a small scene keeps these bakes to milliseconds ---- */
+
+/* Five buildings in a row along y = 10 (height h) and two boxes behind them; n box cells along
+ * the x axis in front. */
+static void row_scene(float h, uint32_t n, sl_scene *s, sl_viewcells *vc)
+{
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, s, &err), SL_OK);
+    for (int i = 0; i < 5; i++)
+        add_building(*s, -25 + 10.0f * (float)i, 10, -17 + 10.0f * (float)i, 12, h);
+    add_box(*s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
+    add_box(*s, 10, 30, 0, 14, 31, 3, SL_KIND_OTHER);
+    sl_viewcell *c = calloc(n, sizeof *c);
+    for (uint32_t i = 0; i < n; i++) {
+        float x0 = -12 + 2.0f * (float)i;
+        c[i].shape = SL_CELL_BOX;
+        c[i].cluster = -1;
+        c[i].z_min = 1;
+        c[i].z_max = 2;
+        c[i].bounds = (sl_aabb){{x0, -1, 1}, {x0 + 2, 1, 2}};
+    }
+    assert_int_equal(sl_viewcells_create(c, n, NULL, vc, &err), SL_OK);
+    free(c);
+}
+
+static bool exists(const char *path) { return access(path, F_OK) == 0; }
+
+/* What a bake started from inside another bake of the same output (from its progress callback:
+ * the first bake holds the lock then) answered. */
+typedef struct nested {
+    sl_scene s;
+    sl_viewcells vc;
+    const char *out;
+    int calls;
+    sl_status plain, resumed;
+    char plain_msg[512], resumed_msg[512];
+} nested;
+
+static bool nested_bake(void *user, const char *stage, uint64_t done, uint64_t total)
+{
+    (void)stage, (void)total;
+    nested *n = user;
+    if (done == 0 || n->calls++ > 0)
+        return true;
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    bo.method_options = "map=64";
+    bo.threads = 1;
+    sl_error err;
+    n->plain = sl_pvs_build(n->s, n->vc, n->out, &bo, NULL, &err);
+    snprintf(n->plain_msg, sizeof n->plain_msg, "%s", err.message);
+    bo.resume = true;
+    n->resumed = sl_pvs_build(n->s, n->vc, n->out, &bo, NULL, &err);
+    snprintf(n->resumed_msg, sizeof n->resumed_msg, "%s", err.message);
+    return true;
+}
+
+/* The checkpoint is written only once a cell is done: a bake that fails in prepare (mappvs on a
+ * scene without BSP) leaves none and does not block the next one; a journal of the same bake
+ * with no whole cell is not worth resuming and is replaced; one with cells blocks a plain bake
+ * with how many cells it holds and the command to delete it; a journal of another bake says what
+ * differs (scene, cells, method or options), one of an older version or a damaged one says so, each
+ * with the command to delete it. The bake lock: a second bake of the same output while the first
+ * runs is told "another bake of OUT is running (pid N)", with --resume too, and the first one
+ * finishes unharmed; the lock file goes with the bake. A thread count above the limit is refused. */
+static void test_checkpoint_lock(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_viewcells vc;
+    row_scene(20, 8, &s, &vc);
+    sl_error err;
+    char ref[300], out[300], ckpt[320], lock[330], rm[360];
+    path_of(ref, sizeof ref, "row_ref.slpvs");
+    path_of(out, sizeof out, "row.slpvs");
+    snprintf(ckpt, sizeof ckpt, "%s.ckpt", out);
+    snprintf(lock, sizeof lock, "%s.lock", ckpt);
+    snprintf(rm, sizeof rm, "rm -- '%s'", ckpt);
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    bo.method_options = "map=64";
+    bo.threads = 1;
+    sl_pvs_build_stats st;
+    assert_int_equal(sl_pvs_build(s, vc, ref, &bo, &st, &err), SL_OK);
+    assert_int_equal(st.cells, 8);
+
+    /* a prepare-time failure leaves no checkpoint and no lock; the next bake runs */
+    bo.method = "mappvs";
+    bo.method_options = NULL;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_UNSUPPORTED);
+    assert_false(exists(ckpt));
+    assert_false(exists(lock));
+    bo.method = NULL;
+    bo.method_options = "map=64";
+    if (sl_pvs_build(s, vc, out, &bo, NULL, &err) != SL_OK)
+        fail_msg("the bake after a failed one: %s", err.message);
+    assert_same_file(ref, out);
+    assert_false(exists(ckpt));
+    assert_false(exists(lock));
+    unlink(out);
+
+    /* a journal holding no whole cell (killed while writing the first) is replaced */
+    bo.stop_after = 1;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_CANCELLED);
+    size_t jn;
+    uint8_t *j = read_file(ckpt, &jn);
+    free(j);
+    assert_true(jn > 64 + 24);
+    assert_int_equal(truncate(ckpt, (off_t)jn - 2), 0);
+    bo.stop_after = 0;
+    if (sl_pvs_build(s, vc, out, &bo, &st, &err) != SL_OK)
+        fail_msg("a journal without a whole cell blocked the bake: %s", err.message);
+    assert_int_equal(st.cells_resumed, 0);
+    assert_same_file(ref, out);
+    unlink(out);
+
+    /* a journal with cells blocks a plain bake and says how to go on */
+    bo.stop_after = 3;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_CANCELLED);
+    bo.stop_after = 0;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "holds 3 of 8 cells"));
+    assert_non_null(strstr(err.message, "--resume"));
+    assert_non_null(strstr(err.message, rm));
+
+    /* another bake's journal: what differs, and the command to delete it */
+    bo.resume = true;
+    bo.method_options = "map=64,eps=2";
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "another method or options"));
+    assert_non_null(strstr(err.message, "map=64"));
+    assert_non_null(strstr(err.message, "eps=2"));
+    assert_null(strstr(err.message, "other view cells"));
+    assert_null(strstr(err.message, "another scene"));
+    assert_non_null(strstr(err.message, rm));
+    bo.method_options = "map=64";
+    sl_scene s2;
+    sl_viewcells vc2;
+    row_scene(20, 9, &s2, &vc2);
+    assert_int_equal(sl_pvs_build(s2, vc2, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "other view cells (8 in the checkpoint, 9 now)"));
+    assert_null(strstr(err.message, "another method"));
+    sl_viewcells_destroy(vc2);
+    sl_scene_destroy(s2);
+    row_scene(15, 8, &s2, &vc2); /* lower buildings: same counts, another scene */
+    assert_int_equal(sl_pvs_build(s2, vc2, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "another scene"));
+    assert_null(strstr(err.message, "other view cells"));
+    assert_non_null(strstr(err.message, rm));
+    sl_viewcells_destroy(vc2);
+    sl_scene_destroy(s2);
+    /* the same inputs resume it */
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, &st, &err), SL_OK);
+    assert_int_equal(st.cells_resumed, 3);
+    assert_same_file(ref, out);
+    assert_false(exists(ckpt));
+    unlink(out);
+
+    /* a journal of an older version, and a damaged one */
+    FILE *f = fopen(ckpt, "wb");
+    assert_non_null(f);
+    uint8_t v1[64] = "SLPVSCKP\x01";
+    assert_int_equal(fwrite(v1, 1, sizeof v1, f), sizeof v1);
+    fclose(f);
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_FORMAT);
+    assert_non_null(strstr(err.message, "journal version 1"));
+    assert_non_null(strstr(err.message, rm));
+    f = fopen(ckpt, "wb");
+    assert_int_equal(fwrite("not a journal", 1, 13, f), 13);
+    fclose(f);
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_FORMAT);
+    assert_non_null(strstr(err.message, "not a PVS checkpoint journal"));
+    unlink(ckpt);
+
+    /* the lock: a bake of the same output from inside the running one (another file description,
+     * as another process would have) is refused with the holder's pid, plain and with --resume */
+    nested n = {s, vc, out, 0, SL_OK, SL_OK, "", ""};
+    bo.resume = false;
+    bo.progress.fn = nested_bake;
+    bo.progress.user = &n;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, &st, &err), SL_OK);
+    bo.progress.fn = NULL;
+    assert_int_equal(n.calls, 8);
+    char running[400];
+    snprintf(running, sizeof running, "another bake of %s is running (pid %ld)", out, (long)getpid());
+    assert_int_not_equal(n.plain, SL_OK);
+    if (!strstr(n.plain_msg, running))
+        fail_msg("plain: '%s' lacks '%s'", n.plain_msg, running);
+    assert_int_not_equal(n.resumed, SL_OK);
+    if (!strstr(n.resumed_msg, running))
+        fail_msg("resumed: '%s' lacks '%s'", n.resumed_msg, running);
+    assert_same_file(ref, out);
+    assert_false(exists(ckpt));
+    assert_false(exists(lock));
+    unlink(out);
+
+    /* the one thread limit */
+    bo.threads = 100000;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_LIMIT);
+    assert_non_null(strstr(err.message, "at most"));
+    assert_false(exists(ckpt));
+    assert_int_equal(sl_threads_check(SL_MAX_THREADS, false, "x", &err), SL_OK);
+    assert_int_equal(sl_threads_check(0, true, "x", &err), SL_OK);
+    assert_int_equal(sl_threads_check(0, false, "x", &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_threads_check(SL_MAX_THREADS + 1, false, "x", &err), SL_ERROR_LIMIT);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -564,6 +773,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fusion),
         cmocka_unit_test(test_threads_resume),
+        cmocka_unit_test(test_checkpoint_lock),
         cmocka_unit_test(test_culler),
         cmocka_unit_test(test_tiny_city_oracle),
         cmocka_unit_test(test_shortcuts),

@@ -294,6 +294,7 @@ static sl_status master(sl_bake *b, const sl_pvs_build_options *opt, int nproc, 
     if (r.stopping == STOP_ERROR) {
         if (err)
             *err = r.err;
+        sl_bake_note_kept(b, err);
         return r.st;
     }
     if (r.stopping == STOP_CANCELLED)

@@ -58,7 +58,7 @@ has "stopped after 7" "$tmp/err"
 [ -s "$tmp/stop.slpvs.ckpt" ] || fail "no checkpoint after --stop-after"
 [ ! -e "$tmp/stop.slpvs" ] || fail "an interrupted bake left an output file"
 expect 1 "$SL" pvs build "${common[@]}" -o "$tmp/stop.slpvs"
-has "resume it (--resume) or delete it" "$tmp/err"
+has "continue it (--resume), or delete it to bake afresh: rm -- " "$tmp/err"
 expect 1 "$SL" pvs build "${common[@]}" -o "$tmp/stop.slpvs" --resume --options eps=2
 has "belongs to another bake" "$tmp/err"
 expect 0 timeout 300 "$MPIEXEC" -n 2 "$SL" pvs build "${common[@]}" -o "$tmp/stop.slpvs" --resume
