@@ -16,11 +16,14 @@
  * costs the bakers almost no core. With one process the thread driver (sl_pvs_build) runs.
  *
  * Messages (MPI_BYTE, tag 1 worker->master, tag 2 master->worker):
- *   worker: u32 want (cells it can take next; 0: it stops), u32 status, char[256] message,
- *           u32 count, then per finished cell: u32 cell, u32 ids, u32 bytes, f64 seconds, bytes
- *   master: u32 n, then n cell numbers (n = 0: no more work)
+ *   worker: u32 want (cells it can take next; 0: it stops), u32 status, char[256] message (the
+ *           error, or "pid N on HOST" when the status is OK), u32 count, then per finished cell:
+ *           u32 cell, u32 ids, u32 bytes, f64 seconds, bytes
+ *   master: u32 n, then n cell numbers (n = 0: no more work); the answer to a request may wait
+ *           while cells are out elsewhere (leases, below), so workers poll for it with sleeps
  * A process that dies takes the job down (mpiexec); the journal keeps every cell process 0 had
- * stored, and `--resume` continues from there with any number of processes. */
+ * stored, and `--resume` continues from there with any number of processes. A process that stops
+ * without dying (SIGSTOP, a hang) loses its lease: see "Leases" below. */
 #include "pvs_cli.h"
 
 #include "region/pvs_internal.h"
