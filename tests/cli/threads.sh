@@ -23,8 +23,13 @@ has "at most 256 (SL_MAX_THREADS)" "$tmp/err"
 # the runtime's own limit, when lower, is the one named
 OMP_THREAD_LIMIT=3 expect 2 "$SL" pvs build --city tiny -o "$out" --threads 4 --quiet
 has "at most 3 (the OpenMP runtime's thread limit" "$tmp/err"
-# the limit itself is accepted: a bake of a few cells with --threads 256 runs (threads beyond the
-# cells idle)
-expect 0 timeout 120 "$SL" pvs build --city tiny --cell-size 60 -o "$out" --threads 256 --quiet --json
+# the limit itself is accepted: a bake of the 2 cells near a camera with --threads 256 runs
+# (threads beyond the cells idle)
+cat >"$tmp/walk.txt" <<'PATH'
+# sightline-path 1
+0 0 0 1.7 0 0 0
+PATH
+expect 0 timeout 120 "$SL" pvs build --city tiny --cell-size 60 -o "$out" --threads 256 --quiet --json \
+    --along "$tmp/walk.txt" --radius 0
 has '"threads":256' "$tmp/out"
 echo "ok"
