@@ -205,6 +205,26 @@ static void tiny(sl_scene *s, sl_viewcells *vc, float edge)
     assert_int_equal(sl_viewcells_from_streets(*s, &vo, vc, &err), SL_OK);
 }
 
+/* Under the sanitizers (SL_SANITIZED, several times slower) the bakes take every step-th cell of
+ * the city only: the same code paths on fewer cells. Replaces *vc. */
+static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
+
+static void keep_every(sl_viewcells *vc, uint32_t step)
+{
+    if (step <= 1)
+        return;
+    uint32_t nc = sl_viewcells_count(*vc), n = 0;
+    sl_viewcell *keep = malloc(((size_t)nc + 1) * sizeof *keep);
+    for (uint32_t c = 0; c < nc; c += step)
+        keep[n++] = sl_viewcells_data(*vc)[c];
+    sl_viewcells sub;
+    sl_error err;
+    assert_int_equal(sl_viewcells_create(keep, n, NULL, &sub, &err), SL_OK);
+    free(keep);
+    sl_viewcells_destroy(*vc);
+    *vc = sub;
+}
+
 static void test_threads_resume(void **state)
 {
     (void)state;
@@ -213,6 +233,7 @@ static void test_threads_resume(void **state)
     sl_scene s;
     sl_viewcells vc;
     tiny(&s, &vc, 60);
+    keep_every(&vc, sanitized() ? 6 : 1); /* 97 cells, 17 under the sanitizers */
     sl_error err;
     char one[300], two[300], part[300], ckpt[320];
     path_of(one, sizeof one, "one.slpvs");
@@ -295,6 +316,7 @@ static void test_culler(void **state)
     sl_scene s;
     sl_viewcells vc;
     tiny(&s, &vc, 60);
+    keep_every(&vc, sanitized() ? 6 : 1); /* the cameras are placed in the cells baked */
     sl_error err;
     char file[300], opt[400];
     path_of(file, sizeof file, "culler.slpvs");
@@ -318,7 +340,8 @@ static void test_culler(void **state)
     sl_rng_seed(&r, 5, 0);
     const sl_viewcell *cells = sl_viewcells_data(vc);
     uint32_t in_cell = 0;
-    for (int k = 0; k < 24; k++) {
+    int cams = sanitized() ? 8 : 24;
+    for (int k = 0; k < cams; k++) {
         const sl_viewcell *cl = &cells[sl_rng_below(&r, sl_viewcells_count(vc))];
         sl_camera cam = sl_camera_default();
         cam.position = (sl_vec3){(cl->tri[0].x + cl->tri[1].x + cl->tri[2].x) / 3,
@@ -326,7 +349,7 @@ static void test_culler(void **state)
         cam.yaw = sl_rng_range(&r, -3.14f, 3.14f);
         cam.width = 256;
         cam.height = 192;
-        if (k == 23)
+        if (k == cams - 1)
             cam.position.z = 50; /* above every cell */
         in_cell += sl_viewcells_locate(vc, NULL, cam.position) != SL_NONE;
         assert_int_equal(sl_culler_cull(c, &cam, ids, n, &count, &err), SL_OK);
@@ -336,7 +359,7 @@ static void test_culler(void **state)
         assert_int_equal(sl_metrics_compare(s, &f, ids, count, &m, NULL, NULL, 0, &err), SL_OK);
         assert_int_equal(m.missed_count, 0);
     }
-    assert_int_equal(in_cell, 23);
+    assert_int_equal(in_cell, (uint32_t)cams - 1);
     sl_oracle_destroy(o);
     sl_culler_destroy(c);
     free(ids);
@@ -384,6 +407,8 @@ static void test_tiny_city_oracle(void **state)
     sl_scene s;
     sl_viewcells vc;
     tiny(&s, &vc, 40);
+    /* under the sanitizers only the cells checked are baked (every 12th) */
+    keep_every(&vc, sanitized() ? 12 : 1);
     sl_error err;
     char file[300];
     path_of(file, sizeof file, "tiny.slpvs");
@@ -395,7 +420,7 @@ static void test_tiny_city_oracle(void **state)
     sl_region_oracle ro = coarse_oracle(s);
     uint32_t n = sl_scene_object_count(s), count, nc = sl_viewcells_count(vc);
     uint32_t *ids = malloc(n * sizeof *ids);
-    uint32_t step = getenv("SL_SANITIZED") ? 12 : 3; /* a third of the cells: the test stays short */
+    uint32_t step = sanitized() ? 1 : 3; /* a third of the cells (all baked under the sanitizers) */
     uint64_t total = 0, visible = 0;
     for (uint32_t c = 0; c < nc; c += step) {
         assert_int_equal(sl_pvs_cell_set(p, c, ids, n, &count, &err), SL_OK);
@@ -544,6 +569,215 @@ static void test_adjustable_horizon(void **state)
     sl_viewcells_destroy(vc);
 }
 
+/* ---- checkpoint, lock and thread limit: a small scene keeps these bakes to milliseconds ---- */
+
+/* Five buildings in a row along y = 10 (height h) and two boxes behind them; n box cells along
+ * the x axis in front. */
+static void row_scene(float h, uint32_t n, sl_scene *s, sl_viewcells *vc)
+{
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, s, &err), SL_OK);
+    for (int i = 0; i < 5; i++)
+        add_building(*s, -25 + 10.0f * (float)i, 10, -17 + 10.0f * (float)i, 12, h);
+    add_box(*s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
+    add_box(*s, 10, 30, 0, 14, 31, 3, SL_KIND_OTHER);
+    sl_viewcell *c = calloc(n, sizeof *c);
+    for (uint32_t i = 0; i < n; i++) {
+        float x0 = -12 + 2.0f * (float)i;
+        c[i].shape = SL_CELL_BOX;
+        c[i].cluster = -1;
+        c[i].z_min = 1;
+        c[i].z_max = 2;
+        c[i].bounds = (sl_aabb){{x0, -1, 1}, {x0 + 2, 1, 2}};
+    }
+    assert_int_equal(sl_viewcells_create(c, n, NULL, vc, &err), SL_OK);
+    free(c);
+}
+
+static bool exists(const char *path) { return access(path, F_OK) == 0; }
+
+/* What a bake started from inside another bake of the same output (from its progress callback:
+ * the first bake holds the lock then) answered. */
+typedef struct nested {
+    sl_scene s;
+    sl_viewcells vc;
+    const char *out;
+    int calls;
+    sl_status plain, resumed;
+    char plain_msg[512], resumed_msg[512];
+} nested;
+
+static bool nested_bake(void *user, const char *stage, uint64_t done, uint64_t total)
+{
+    (void)stage, (void)total;
+    nested *n = user;
+    if (done == 0 || n->calls++ > 0)
+        return true;
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    bo.method_options = "map=64";
+    bo.threads = 1;
+    sl_error err;
+    n->plain = sl_pvs_build(n->s, n->vc, n->out, &bo, NULL, &err);
+    snprintf(n->plain_msg, sizeof n->plain_msg, "%s", err.message);
+    bo.resume = true;
+    n->resumed = sl_pvs_build(n->s, n->vc, n->out, &bo, NULL, &err);
+    snprintf(n->resumed_msg, sizeof n->resumed_msg, "%s", err.message);
+    return true;
+}
+
+/* The checkpoint is written only once a cell is done: a bake that fails in prepare (mappvs on a
+ * scene without BSP) leaves none and does not block the next one; a journal of the same bake
+ * with no whole cell is not worth resuming and is replaced; one with cells blocks a plain bake
+ * with how many cells it holds and the command to delete it; a journal of another bake says what
+ * differs (scene, cells, method or options), one of an older version or a damaged one says so, each
+ * with the command to delete it. The bake lock: a second bake of the same output while the first
+ * runs is told "another bake of OUT is running (pid N)", with --resume too, and the first one
+ * finishes unharmed; the lock file goes with the bake. A thread count above the limit is refused. */
+static void test_checkpoint_lock(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_viewcells vc;
+    row_scene(20, 8, &s, &vc);
+    sl_error err;
+    char ref[300], out[300], ckpt[320], lock[330], rm[360];
+    path_of(ref, sizeof ref, "row_ref.slpvs");
+    path_of(out, sizeof out, "row.slpvs");
+    snprintf(ckpt, sizeof ckpt, "%s.ckpt", out);
+    snprintf(lock, sizeof lock, "%s.lock", ckpt);
+    snprintf(rm, sizeof rm, "rm -- '%s'", ckpt);
+    sl_pvs_build_options bo;
+    memset(&bo, 0, sizeof bo);
+    bo.method_options = "map=64";
+    bo.threads = 1;
+    sl_pvs_build_stats st;
+    assert_int_equal(sl_pvs_build(s, vc, ref, &bo, &st, &err), SL_OK);
+    assert_int_equal(st.cells, 8);
+
+    /* a prepare-time failure leaves no checkpoint and no lock; the next bake runs */
+    bo.method = "mappvs";
+    bo.method_options = NULL;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_UNSUPPORTED);
+    assert_false(exists(ckpt));
+    assert_false(exists(lock));
+    bo.method = NULL;
+    bo.method_options = "map=64";
+    if (sl_pvs_build(s, vc, out, &bo, NULL, &err) != SL_OK)
+        fail_msg("the bake after a failed one: %s", err.message);
+    assert_same_file(ref, out);
+    assert_false(exists(ckpt));
+    assert_false(exists(lock));
+    unlink(out);
+
+    /* a journal holding no whole cell (killed while writing the first) is replaced */
+    bo.stop_after = 1;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_CANCELLED);
+    size_t jn;
+    uint8_t *j = read_file(ckpt, &jn);
+    free(j);
+    assert_true(jn > 64 + 24);
+    assert_int_equal(truncate(ckpt, (off_t)jn - 2), 0);
+    bo.stop_after = 0;
+    if (sl_pvs_build(s, vc, out, &bo, &st, &err) != SL_OK)
+        fail_msg("a journal without a whole cell blocked the bake: %s", err.message);
+    assert_int_equal(st.cells_resumed, 0);
+    assert_same_file(ref, out);
+    unlink(out);
+
+    /* a journal with cells blocks a plain bake and says how to go on */
+    bo.stop_after = 3;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_CANCELLED);
+    bo.stop_after = 0;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "holds 3 of 8 cells"));
+    assert_non_null(strstr(err.message, "--resume"));
+    assert_non_null(strstr(err.message, rm));
+
+    /* another bake's journal: what differs, and the command to delete it */
+    bo.resume = true;
+    bo.method_options = "map=64,eps=2";
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "another method or options"));
+    assert_non_null(strstr(err.message, "map=64"));
+    assert_non_null(strstr(err.message, "eps=2"));
+    assert_null(strstr(err.message, "other view cells"));
+    assert_null(strstr(err.message, "another scene"));
+    assert_non_null(strstr(err.message, rm));
+    bo.method_options = "map=64";
+    sl_scene s2;
+    sl_viewcells vc2;
+    row_scene(20, 9, &s2, &vc2);
+    assert_int_equal(sl_pvs_build(s2, vc2, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "other view cells (8 in the checkpoint, 9 now)"));
+    assert_null(strstr(err.message, "another method"));
+    sl_viewcells_destroy(vc2);
+    sl_scene_destroy(s2);
+    row_scene(15, 8, &s2, &vc2); /* lower buildings: same counts, another scene */
+    assert_int_equal(sl_pvs_build(s2, vc2, out, &bo, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "another scene"));
+    assert_null(strstr(err.message, "other view cells"));
+    assert_non_null(strstr(err.message, rm));
+    sl_viewcells_destroy(vc2);
+    sl_scene_destroy(s2);
+    /* the same inputs resume it */
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, &st, &err), SL_OK);
+    assert_int_equal(st.cells_resumed, 3);
+    assert_same_file(ref, out);
+    assert_false(exists(ckpt));
+    unlink(out);
+
+    /* a journal of an older version, and a damaged one */
+    FILE *f = fopen(ckpt, "wb");
+    assert_non_null(f);
+    uint8_t v1[64] = "SLPVSCKP\x01";
+    assert_int_equal(fwrite(v1, 1, sizeof v1, f), sizeof v1);
+    fclose(f);
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_FORMAT);
+    assert_non_null(strstr(err.message, "journal version 1"));
+    assert_non_null(strstr(err.message, rm));
+    f = fopen(ckpt, "wb");
+    assert_int_equal(fwrite("not a journal", 1, 13, f), 13);
+    fclose(f);
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_FORMAT);
+    assert_non_null(strstr(err.message, "not a PVS checkpoint journal"));
+    unlink(ckpt);
+
+    /* the lock: a bake of the same output from inside the running one (another file description,
+     * as another process would have) is refused with the holder's pid, plain and with --resume */
+    nested n = {s, vc, out, 0, SL_OK, SL_OK, "", ""};
+    bo.resume = false;
+    bo.progress.fn = nested_bake;
+    bo.progress.user = &n;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, &st, &err), SL_OK);
+    bo.progress.fn = NULL;
+    assert_int_equal(n.calls, 8);
+    char running[400];
+    snprintf(running, sizeof running, "another bake of %s is running (pid %ld)", out, (long)getpid());
+    assert_int_not_equal(n.plain, SL_OK);
+    if (!strstr(n.plain_msg, running))
+        fail_msg("plain: '%s' lacks '%s'", n.plain_msg, running);
+    assert_int_not_equal(n.resumed, SL_OK);
+    if (!strstr(n.resumed_msg, running))
+        fail_msg("resumed: '%s' lacks '%s'", n.resumed_msg, running);
+    assert_same_file(ref, out);
+    assert_false(exists(ckpt));
+    assert_false(exists(lock));
+    unlink(out);
+
+    /* the one thread limit */
+    bo.threads = 100000;
+    assert_int_equal(sl_pvs_build(s, vc, out, &bo, NULL, &err), SL_ERROR_LIMIT);
+    assert_non_null(strstr(err.message, "at most"));
+    assert_false(exists(ckpt));
+    assert_int_equal(sl_threads_check(SL_MAX_THREADS, false, "x", &err), SL_OK);
+    assert_int_equal(sl_threads_check(0, true, "x", &err), SL_OK);
+    assert_int_equal(sl_threads_check(0, false, "x", &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_threads_check(SL_MAX_THREADS + 1, false, "x", &err), SL_ERROR_LIMIT);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -564,6 +798,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fusion),
         cmocka_unit_test(test_threads_resume),
+        cmocka_unit_test(test_checkpoint_lock),
         cmocka_unit_test(test_culler),
         cmocka_unit_test(test_tiny_city_oracle),
         cmocka_unit_test(test_shortcuts),

@@ -113,6 +113,23 @@ bool cli_parse_u32(cli_args *a, const char *name, const char *text, uint32_t *ou
     return true;
 }
 
+bool cli_parse_threads(cli_args *a, const char *name, const char *text, bool zero_ok, uint32_t *out)
+{
+    uint64_t v;
+    if (!cli_parse_u64(a, name, text, &v))
+        return false;
+    char what[64];
+    snprintf(what, sizeof what, "--%s", name);
+    sl_error err;
+    if (sl_threads_check(v > UINT32_MAX ? UINT32_MAX : (uint32_t)v, zero_ok, what, &err) != SL_OK) {
+        cli_error(a->cmd, "%s", err.message);
+        a->error = true;
+        return false;
+    }
+    *out = (uint32_t)v;
+    return true;
+}
+
 bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out)
 {
     if (!text)

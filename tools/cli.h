@@ -60,6 +60,9 @@ const char *cli_value(cli_args *a, const char *name, const char *inline_value);
 /* Parse numbers with full validation; report an error and return false on bad text. */
 bool cli_parse_u32(cli_args *a, const char *name, const char *text, uint32_t *out);
 bool cli_parse_u64(cli_args *a, const char *name, const char *text, uint64_t *out);
+/* --threads N: 1..sl_thread_limit() (SL_MAX_THREADS, or the OpenMP runtime's lower limit); 0 too
+ * when zero_ok (the command's default: all cores). Every command parses thread counts with it. */
+bool cli_parse_threads(cli_args *a, const char *name, const char *text, bool zero_ok, uint32_t *out);
 bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out);
 /* Report an unknown option and mark the parse failed. */
 void cli_unknown(cli_args *a, const char *name);

@@ -207,7 +207,7 @@ static int parse(int argc, char **argv, bench_args *g)
         } else if (!strcmp(name, "height")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->height);
         } else if (!strcmp(name, "threads")) {
-            cli_parse_u32(&a, name, cli_value(&a, name, val), &g->threads);
+            cli_parse_threads(&a, name, cli_value(&a, name, val), false, &g->threads);
         } else if (!strcmp(name, "map")) {
             g->map = cli_value(&a, name, val);
         } else if (!strcmp(name, "out")) {
@@ -262,10 +262,6 @@ static int parse(int argc, char **argv, bench_args *g)
     }
     if (!g->width || !g->height || g->width > 16384 || g->height > 16384) {
         cli_error(cmd, "--width/--height must be 1..16384");
-        return 2;
-    }
-    if (g->threads < 1 || g->threads > 64) {
-        cli_error(cmd, "--threads must be 1..64");
         return 2;
     }
     if (g->repeat < 1 || g->repeat > 1000) {

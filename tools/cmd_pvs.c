@@ -76,10 +76,17 @@ static void usage_build(FILE *out)
     fprintf(out,
             "  --options K=V,... the method's options\n\n"
             "running:\n"
-            "  --threads N       OpenMP threads per process (default: all cores)\n"
+            "  --threads N       OpenMP threads per process, 1..%u (SL_MAX_THREADS, or the OpenMP\n"
+            "                    runtime's lower OMP_THREAD_LIMIT; default: all cores)\n"
             "  --mpi             distribute cells over MPI processes (automatic under mpiexec)\n"
+            "  --lease S         MPI: a process holding a chunk S seconds without a result (stopped, hung)\n"
+            "                    has its cells handed to an idle process too; the first result wins, the\n"
+            "                    file is the same (default %g; 0: never)\n"
             "  --resume          continue an interrupted bake from its checkpoint\n"
-            "  --checkpoint F    journal path (default OUT.slpvs.ckpt)\n"
+            "  --checkpoint F    journal path (default OUT.slpvs.ckpt), created with the first finished\n"
+            "                    cell; a bake that fails before leaves none, one that fails later keeps\n"
+            "                    its cells for --resume. A bake holds the lock F.lock while it runs: a\n"
+            "                    second bake of the same output is refused (\"another bake ... (pid N)\")\n"
             "  --keep-checkpoint keep the journal after success\n"
             "  --stop-after N    testing: stop after N newly baked cells (exit 3), leaving the journal\n"
             "  --map NAME        map inside a .pk3\n"
@@ -92,7 +99,8 @@ static void usage_build(FILE *out)
             "  sightline pvs build --city tiny -o tiny.slpvs --cell-size 8 --options eps=1,cell=1\n"
             "  mpiexec -n 2 sightline pvs build city.slscene -o city.slpvs --threads 1\n"
             "  sightline pvs build --city small --along walk.txt --method adjustable -o walk.slpvs\n"
-            "  sightline pvs build oa_dm1.pk3 --map oa_dm1 --cells bsp --method adjustable -o dm1.slpvs\n");
+            "  sightline pvs build oa_dm1.pk3 --map oa_dm1 --cells bsp --method adjustable -o dm1.slpvs\n",
+            SL_MAX_THREADS, CLI_PVS_LEASE_DEFAULT);
 }
 
 static void usage_info(FILE *out)
@@ -229,7 +237,7 @@ static int run_build(int argc, char **argv)
     a.cmd = "pvs build";
     const char *name, *val, *scene_path = NULL, *output = NULL, *cells_kind = NULL, *map = NULL, *city = NULL;
     const char *along = NULL;
-    float radius = 2.0f;
+    float radius = 2.0f, lease = (float)CLI_PVS_LEASE_DEFAULT;
     sl_pvs_build_options bo;
     memset(&bo, 0, sizeof bo);
     sl_viewcell_options vo;
@@ -270,9 +278,11 @@ static int run_build(int argc, char **argv)
         } else if (!strcmp(name, "options")) {
             bo.method_options = cli_value(&a, name, val);
         } else if (!strcmp(name, "threads")) {
-            cli_parse_u32(&a, name, cli_value(&a, name, val), &bo.threads);
+            cli_parse_threads(&a, name, cli_value(&a, name, val), true, &bo.threads);
         } else if (!strcmp(name, "mpi")) {
             mpi = true;
+        } else if (!strcmp(name, "lease")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &lease);
         } else if (!strcmp(name, "resume")) {
             bo.resume = true;
         } else if (!strcmp(name, "checkpoint")) {
@@ -308,6 +318,10 @@ static int run_build(int argc, char **argv)
     if (cells_kind && strcmp(cells_kind, "streets") && strcmp(cells_kind, "grid") && strcmp(cells_kind, "bsp") &&
         strcmp(cells_kind, "adaptive")) {
         cli_error(a.cmd, "--cells: '%s' is not streets, grid, bsp or adaptive", cells_kind);
+        return 2;
+    }
+    if (!(lease >= 0) || lease > 1e6f) {
+        cli_error(a.cmd, "--lease must be 0 (never hand a chunk out twice) or up to 1e6 seconds");
         return 2;
     }
     if (!(radius >= 0) || !isfinite(radius)) {
@@ -372,7 +386,7 @@ static int run_build(int argc, char **argv)
     int rank = 0;
     if (mpi) {
         bo.progress = cli_progress(&ps, true); /* the MPI driver reports nothing per cell */
-        st = cli_pvs_build_mpi(scene, cells, output, &bo, &stats, &rank, &err);
+        st = cli_pvs_build_mpi(scene, cells, output, &bo, (double)lease, &stats, &rank, &err);
     } else {
         bo.progress = cli_progress(&ps, quiet || json);
         st = sl_pvs_build(scene, cells, output, &bo, &stats, &err);

@@ -225,7 +225,7 @@ int sl_cmd_render(int argc, char **argv)
         } else if (!strcmp(name, "images")) {
             images = cli_value(&a, name, val);
         } else if (!strcmp(name, "threads")) {
-            cli_parse_u32(&a, name, cli_value(&a, name, val), &threads);
+            cli_parse_threads(&a, name, cli_value(&a, name, val), false, &threads);
         } else if (!strcmp(name, "map")) {
             map = cli_value(&a, name, val);
         } else if (!strcmp(name, "json")) {
@@ -264,10 +264,6 @@ int sl_cmd_render(int argc, char **argv)
     }
     if ((width == 0) != (height == 0) || width > 16384 || height > 16384) {
         cli_error(cmd, "--width and --height go together, each 1..16384");
-        return 2;
-    }
-    if (threads < 1 || threads > 64) {
-        cli_error(cmd, "--threads must be 1..64");
         return 2;
     }
     if (images) {

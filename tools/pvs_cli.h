@@ -12,10 +12,16 @@
 /* sl_pvs_build across the processes of an MPI job (mpiexec -n N): every process calls it with the
  * same scene, cells and options; process 0 hands out cells dynamically, bakes with its own threads
  * as well, gathers the sets, keeps the journal and writes the file (the same bytes as sl_pvs_build
- * whatever N). Initialises MPI if needed and finalises it if it did. SL_ERROR_UNSUPPORTED when the
- * command was built without MPI. *rank (may be NULL) receives the process's rank. */
+ * whatever N). A chunk a process holds for `lease` seconds (0: for ever) without a result is
+ * handed to an idle process as well, and the first result wins (a stopped or hung process no
+ * longer stalls the bake). Initialises MPI if needed and finalises it if it did.
+ * SL_ERROR_UNSUPPORTED when the command was built without MPI. *rank (may be NULL) receives the
+ * process's rank. */
 sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
-                            sl_pvs_build_stats *stats, int *rank, sl_error *err);
+                            double lease, sl_pvs_build_stats *stats, int *rank, sl_error *err);
+/* The default of `pvs build --lease`: seconds a process may hold a chunk without a result before
+ * an idle process is handed the same cells (tools/pvs_mpi.c). */
+#define CLI_PVS_LEASE_DEFAULT 300.0
 
 /* The cells whose bounds come within `radius` metres of a camera position of `path`, as a new cell
  * set (ids renumbered, order kept). A PVS baked for them covers the path: an eye outside them

@@ -16,11 +16,14 @@
  * costs the bakers almost no core. With one process the thread driver (sl_pvs_build) runs.
  *
  * Messages (MPI_BYTE, tag 1 worker->master, tag 2 master->worker):
- *   worker: u32 want (cells it can take next; 0: it stops), u32 status, char[256] message,
- *           u32 count, then per finished cell: u32 cell, u32 ids, u32 bytes, f64 seconds, bytes
- *   master: u32 n, then n cell numbers (n = 0: no more work)
+ *   worker: u32 want (cells it can take next; 0: it stops), u32 status, char[256] message (the
+ *           error, or "pid N on HOST" when the status is OK), u32 count, then per finished cell:
+ *           u32 cell, u32 ids, u32 bytes, f64 seconds, bytes
+ *   master: u32 n, then n cell numbers (n = 0: no more work); the answer to a request may wait
+ *           while cells are out elsewhere (leases, below), so workers poll for it with sleeps
  * A process that dies takes the job down (mpiexec); the journal keeps every cell process 0 had
- * stored, and `--resume` continues from there with any number of processes. */
+ * stored, and `--resume` continues from there with any number of processes. A process that stops
+ * without dying (SIGSTOP, a hang) loses its lease: see "Leases" below. */
 #include "pvs_cli.h"
 
 #include "region/pvs_internal.h"
@@ -28,13 +31,14 @@
 #include <math.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #ifndef SL_HAVE_MPI
 
 sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
-                            sl_pvs_build_stats *stats, int *rank, sl_error *err)
+                            double lease, sl_pvs_build_stats *stats, int *rank, sl_error *err)
 {
-    (void)scene, (void)cells, (void)output, (void)opt;
+    (void)scene, (void)cells, (void)output, (void)opt, (void)lease;
     if (stats)
         memset(stats, 0, sizeof *stats);
     if (rank)
@@ -83,8 +87,17 @@ static sl_status agree(sl_status st, sl_error *err, int rank)
 }
 
 /* ---- process 0: the queue, the server and the local bakers ----
- * Everything below `lock` is shared by the server thread and the baking threads and touched only
- * inside the critical section sl_pvs_mpi. */
+ * Everything in master_run is shared by the server thread and the baking threads and touched only
+ * inside the critical section sl_pvs_mpi.
+ *
+ * Leases: a chunk handed to a process is leased to it. A process that asks for work when the
+ * queue is empty but cells are still out is not told to stop: its request waits, and once a
+ * cell has been out longer than the lease (a process stopped with SIGSTOP, swapped out, hung)
+ * the cell is handed to it as well; the first result to arrive is kept and later ones for that
+ * cell are dropped (a method's result depends on the cell alone, so the bytes are the same).
+ * Process 0's own threads take such cells too. Once every cell is done the file is written at
+ * once; a process still holding a chunk (frozen) is then waited for, with a note in the log,
+ * since the job ends only when each process does. */
 
 enum { RUN = 0, STOP_ERROR = 1, STOP_CANCELLED = 2, STOP_AFTER = 3 };
 
@@ -96,6 +109,18 @@ typedef struct master_run {
     int stopping;               /* RUN or STOP_* */
     sl_status st;
     sl_error err;               /* the first failure */
+    /* leases */
+    double lease;               /* seconds; 0: never hand a cell out twice */
+    int nproc;
+    int *holder;                /* per cell: the process that has it (-1: none; 0: process 0's threads) */
+    double *given;              /* per cell: when it was handed out */
+    uint8_t *reissued;          /* per cell: handed out more than once (a second result is dropped) */
+    uint32_t *flight, flight_count; /* cells out at other processes, maybe done since */
+    uint32_t *waiting;          /* per process: cells it asked for and still waits for (0: none) */
+    uint8_t *busy;              /* per process: holds a chunk it has not reported yet */
+    double *heard;              /* per process: when it last sent something */
+    char (*who)[64];            /* per process: "pid N on HOST", from its messages */
+    uint32_t duplicates;        /* results dropped because another process was first */
 } master_run;
 
 /* Record the first failure and stop handing out cells (under the lock). */
@@ -112,6 +137,9 @@ static void run_fail(master_run *r, sl_status st, const sl_error *e)
  * that finishes after stop_after was reached is kept: nothing done is lost). Under the lock. */
 static bool run_keeps(const master_run *r) { return r->stopping == RUN || r->stopping == STOP_AFTER; }
 
+/* Nothing more to hand out or wait for: every cell is done, or the bake stops. Under the lock. */
+static bool run_over(const master_run *r) { return r->stopping != RUN || r->b->done_count == r->b->cell_count; }
+
 /* A cell was stored: count it, report progress, check stop_after (under the lock). */
 static void run_counted(master_run *r)
 {
@@ -125,12 +153,48 @@ static void run_counted(master_run *r)
         r->stopping = STOP_AFTER;
 }
 
-/* Up to `want` cells from the queue into out (under the lock). */
-static uint32_t run_take(master_run *r, uint32_t want, uint32_t *out)
+/* Up to `want` cells for process `rank` (0: process 0's own threads) into out: first cells whose
+ * lease ran out at another process, then cells from the queue (under the lock). */
+static uint32_t run_take(master_run *r, uint32_t want, uint32_t *out, int rank, double now)
 {
     uint32_t n = 0;
-    while (r->stopping == RUN && n < want && r->next < r->todo_count)
-        out[n++] = r->todo[r->next++];
+    if (r->stopping != RUN)
+        return 0;
+    if (r->lease > 0) {
+        int from = -1;
+        uint32_t moved = 0;
+        uint32_t keep = 0;
+        for (uint32_t i = 0; i < r->flight_count; i++) {
+            uint32_t c = r->flight[i];
+            if (r->b->done[c] || r->holder[c] <= 0)
+                continue; /* done, or taken over by process 0's threads: out of flight */
+            if (n < want && r->holder[c] != rank && now - r->given[c] >= r->lease && (from < 0 || from == r->holder[c])) {
+                from = r->holder[c];
+                moved++;
+                out[n++] = c;
+                r->reissued[c] = 1;
+                r->holder[c] = rank;
+                r->given[c] = now;
+                if (rank == 0)
+                    continue; /* process 0's threads do not lose leases */
+            }
+            r->flight[keep++] = c;
+        }
+        r->flight_count = keep;
+        if (moved)
+            fprintf(stderr,
+                    "sightline pvs build: process %d (%s) has sent nothing for %.0f s (--lease %g): %u of its cell(s) "
+                    "go to process %d as well; the first result to arrive is kept\n",
+                    from, r->who[from][0] ? r->who[from] : "pid unknown", now - r->heard[from], r->lease, moved, rank);
+    }
+    while (n < want && r->next < r->todo_count) {
+        uint32_t c = r->todo[r->next++];
+        out[n++] = c;
+        r->holder[c] = rank;
+        r->given[c] = now;
+        if (rank > 0)
+            r->flight[r->flight_count++] = c;
+    }
     return n;
 }
 
@@ -151,6 +215,12 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
         msg[256] = 0;
         sl_fail(&e, (sl_status)wst, "process %d: %s", src, msg);
         run_fail(r, (sl_status)wst, &e);
+    } else {
+        /* an OK message carries "pid N on HOST" where an error would carry its text */
+        size_t k = 0;
+        for (; k < sizeof r->who[src] - 1 && buf[8 + k] >= 0x20 && buf[8 + k] < 0x7f; k++)
+            r->who[src][k] = (char)buf[8 + k];
+        r->who[src][k] = 0;
     }
     size_t at = MSG_HEAD;
     for (uint32_t k = 0; k < count; k++) {
@@ -168,8 +238,10 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
             run_fail(r, e.status, &e);
             break;
         }
-        if (run_keeps(r)) {
-            sl_bake *b = r->b;
+        sl_bake *b = r->b;
+        if (cell < b->cell_count && b->done[cell] && r->reissued[cell]) {
+            r->duplicates++; /* handed out twice: the first result won */
+        } else if (run_keeps(r)) {
             sl_status s2 = cell < b->cell_count && !b->done[cell]
                                ? sl_bake_store_encoded(b, cell, buf + at, bytes, ids, secs, true, &e)
                                : sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d returned cell %u twice", src, cell);
@@ -183,52 +255,122 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
     return want;
 }
 
-/* The server (process 0's main thread): answer every worker until each has been told to stop. */
-static void serve(master_run *r, int nproc)
+static void send_work(int dst, const uint32_t *cells, uint32_t n)
 {
-    int active = nproc - 1;
+    uint8_t reply[4 + 4 * MAX_CHUNK];
+    wr32(reply, n);
+    for (uint32_t k = 0; k < n; k++)
+        wr32(reply + 4 + 4 * k, cells[k]);
+    MPI_Send(reply, (int)(4 + 4 * n), MPI_BYTE, dst, TAG_WORK, MPI_COMM_WORLD);
+}
+
+/* The server (process 0's main thread). Phase 1 (drain false): answer every worker; a request
+ * that finds nothing to take waits (r->waiting) until a lease runs out or the bake is over, and
+ * the phase ends when it is over and no request waits. Phase 2 (drain true, after the file is
+ * written): every process still holding a chunk is waited for and told to stop; a silent one is
+ * noted in the log every lease (or 10 s). *active counts the processes not yet told to stop. */
+static void serve(master_run *r, int *active, bool drain)
+{
     uint8_t *buf = NULL;
     size_t cap = 0;
-    uint8_t reply[4 + 4 * MAX_CHUNK];
     uint32_t take[MAX_CHUNK];
-    while (active > 0) {
+    double noted = sl_now();
+    while (*active > 0) {
+        MPI_Status ms;
+        int flag = 0;
+        MPI_Iprobe(MPI_ANY_SOURCE, TAG_RESULT, MPI_COMM_WORLD, &flag, &ms);
+        if (flag) {
+            int size = 0;
+            MPI_Get_count(&ms, MPI_BYTE, &size);
+            if ((size_t)size > cap) {
+                uint8_t *nb = sl_realloc(r->b->a, buf, cap, (size_t)size);
+                if (!nb) /* cannot even read the message: give up on the whole job */
+                    MPI_Abort(MPI_COMM_WORLD, 2);
+                buf = nb;
+                cap = (size_t)size;
+            }
+            int src = ms.MPI_SOURCE;
+            MPI_Recv(buf, size, MPI_BYTE, src, TAG_RESULT, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            uint32_t n = 0;
+            bool stop = false;
+#pragma omp critical(sl_pvs_mpi)
+            {
+                double now = sl_now();
+                r->heard[src] = now;
+                r->busy[src] = 0;
+                if (drain) {
+                    /* the file is written (or the bake failed): results no longer matter, but those
+                     * of a bake stopped by --stop-after go to the journal (nothing done is lost) */
+                    if (r->stopping == STOP_AFTER)
+                        (void)serve_message(r, buf, (size_t)size, src);
+                    stop = true;
+                } else {
+                    uint32_t want = serve_message(r, buf, (size_t)size, src);
+                    n = want ? run_take(r, want, take, src, now) : 0;
+                    if (n == 0 && want && !run_over(r))
+                        r->waiting[src] = want; /* answered when a lease runs out or the bake is over */
+                    else
+                        stop = n == 0;
+                    if (n)
+                        r->busy[src] = 1;
+                }
+            }
+            if (n || stop)
+                send_work(src, take, n);
+            if (stop)
+                (*active)--;
+            continue;
+        }
+        /* nothing came: answer waiting requests whose turn has come, end the phase when over */
+        bool phase_over = false;
+        for (int p = 1; p < r->nproc; p++) {
+            uint32_t n = 0;
+            bool stop = false;
+#pragma omp critical(sl_pvs_mpi)
+            if (r->waiting[p]) {
+                n = run_take(r, r->waiting[p], take, p, sl_now());
+                stop = n == 0 && run_over(r);
+                if (n || stop)
+                    r->waiting[p] = 0;
+                if (n)
+                    r->busy[p] = 1;
+            }
+            if (n || stop)
+                send_work(p, take, n);
+            if (stop)
+                (*active)--;
+        }
+        if (!drain) {
+#pragma omp critical(sl_pvs_mpi)
+            {
+                phase_over = run_over(r);
+                for (int p = 1; p < r->nproc && phase_over; p++)
+                    phase_over = r->waiting[p] == 0;
+            }
+            if (phase_over)
+                break;
+        } else {
+            double now = sl_now(), every = r->lease > 0 ? r->lease : 10;
+            if (now - noted >= every) {
+                noted = now;
+                for (int p = 1; p < r->nproc; p++)
+                    if (r->busy[p])
+                        fprintf(stderr,
+                                "sightline pvs build: %s is complete; waiting for process %d (%s), silent for %.0f "
+                                "s, to end (kill -CONT it if stopped, or end the job)\n",
+                                r->b->output, p, r->who[p][0] ? r->who[p] : "pid unknown", now - r->heard[p]);
+            }
+        }
         /* poll with short sleeps: a blocking probe busy-waits in MPICH and would take a core from
          * the bakers for nothing */
-        MPI_Status ms;
-        for (int flag = 0;;) {
-            MPI_Iprobe(MPI_ANY_SOURCE, TAG_RESULT, MPI_COMM_WORLD, &flag, &ms);
-            if (flag)
-                break;
-            struct timespec ts = {0, 200000};
-            nanosleep(&ts, NULL);
-        }
-        int size = 0;
-        MPI_Get_count(&ms, MPI_BYTE, &size);
-        if ((size_t)size > cap) {
-            uint8_t *nb = sl_realloc(r->b->a, buf, cap, (size_t)size);
-            if (!nb) /* cannot even read the message: give up on the whole job */
-                MPI_Abort(MPI_COMM_WORLD, 2);
-            buf = nb;
-            cap = (size_t)size;
-        }
-        MPI_Recv(buf, size, MPI_BYTE, ms.MPI_SOURCE, TAG_RESULT, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-        uint32_t n;
-#pragma omp critical(sl_pvs_mpi)
-        {
-            uint32_t want = serve_message(r, buf, (size_t)size, ms.MPI_SOURCE);
-            n = run_take(r, want, take);
-        }
-        wr32(reply, n);
-        for (uint32_t k = 0; k < n; k++)
-            wr32(reply + 4 + 4 * k, take[k]);
-        MPI_Send(reply, (int)(4 + 4 * n), MPI_BYTE, ms.MPI_SOURCE, TAG_WORK, MPI_COMM_WORLD);
-        if (n == 0)
-            active--;
+        struct timespec ts = {0, 200000};
+        nanosleep(&ts, NULL);
     }
     sl_free(r->b->a, buf, cap);
 }
 
-/* A baking thread of process 0: cells from the shared queue, one at a time. */
+/* A baking thread of process 0: cells from the shared queue (or whose lease ran out), one at a
+ * time, until the bake is over. */
 static void bake_local(master_run *r)
 {
     sl_bake *b = r->b;
@@ -243,17 +385,28 @@ static void bake_local(master_run *r)
     }
     while (s == SL_OK) {
         uint32_t cell, n;
+        bool over;
 #pragma omp critical(sl_pvs_mpi)
-        n = run_take(r, 1, &cell);
-        if (n == 0)
-            break;
+        {
+            n = run_take(r, 1, &cell, 0, sl_now());
+            over = run_over(r);
+        }
+        if (n == 0) {
+            if (over || r->lease <= 0)
+                break;
+            struct timespec ts = {0, 5 * 1000 * 1000}; /* cells are out elsewhere: wait for a lease to run out */
+            nanosleep(&ts, NULL);
+            continue;
+        }
         sl_pvs_cell_result res = {ids, 0, 0};
         double c0 = sl_now();
         sl_status cs = b->method->cell(w, cell, &res, &e);
         double secs = sl_now() - c0;
 #pragma omp critical(sl_pvs_mpi)
         {
-            if (cs == SL_OK && run_keeps(r)) {
+            if (cs == SL_OK && b->done[cell] && r->reissued[cell]) {
+                r->duplicates++;
+            } else if (cs == SL_OK && run_keeps(r)) {
                 cs = sl_bake_store(b, cell, ids, res.count, secs, &e);
                 if (cs == SL_OK)
                     run_counted(r);
@@ -269,41 +422,98 @@ static void bake_local(master_run *r)
     sl_free(b->a, ids, ((size_t)b->object_count + 1) * sizeof(uint32_t));
 }
 
-static sl_status master(sl_bake *b, const sl_pvs_build_options *opt, int nproc, int threads, sl_error *err)
+/* Process 0: serve and bake until every cell is done, write the file, then wait for the processes
+ * still out (see serve). */
+static sl_status master(sl_bake *b, const char *output, const sl_pvs_build_options *opt, double lease, int nproc,
+                        int threads, sl_error *err)
 {
     master_run r;
     memset(&r, 0, sizeof r);
     r.b = b;
     r.progress = opt ? &opt->progress : NULL;
     r.stop_after = opt ? opt->stop_after : 0;
-    r.todo = sl_alloc(b->a, ((size_t)b->cell_count + 1) * sizeof(uint32_t));
-    if (!r.todo)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
-    for (uint32_t c = 0; c < b->cell_count; c++)
-        if (!b->done[c])
-            r.todo[r.todo_count++] = c;
-    /* thread 0 of the team is the calling (main) thread: it alone calls MPI */
+    r.lease = lease;
+    r.nproc = nproc;
+    size_t nc = (size_t)b->cell_count + 1, np = (size_t)nproc;
+    r.todo = sl_alloc(b->a, nc * sizeof(uint32_t));
+    r.flight = sl_alloc(b->a, nc * sizeof(uint32_t));
+    r.holder = sl_alloc(b->a, nc * sizeof(int));
+    r.given = sl_calloc(b->a, nc, sizeof(double));
+    r.reissued = sl_calloc(b->a, nc, 1);
+    r.waiting = sl_calloc(b->a, np, sizeof(uint32_t));
+    r.busy = sl_calloc(b->a, np, 1);
+    r.heard = sl_calloc(b->a, np, sizeof(double));
+    r.who = sl_calloc(b->a, np, sizeof *r.who);
+    sl_status st = SL_OK;
+    if (!r.todo || !r.flight || !r.holder || !r.given || !r.reissued || !r.waiting || !r.busy || !r.heard || !r.who) {
+        /* the workers are waiting for an answer: tell them to stop before failing */
+        for (int p = 1; p < nproc; p++) {
+            uint8_t buf[MSG_HEAD + 64];
+            MPI_Status ms;
+            MPI_Probe(p, TAG_RESULT, MPI_COMM_WORLD, &ms);
+            int size = 0;
+            MPI_Get_count(&ms, MPI_BYTE, &size);
+            if ((size_t)size > sizeof buf)
+                MPI_Abort(MPI_COMM_WORLD, 2);
+            MPI_Recv(buf, size, MPI_BYTE, p, TAG_RESULT, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            send_work(p, NULL, 0);
+        }
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+    } else {
+        for (uint32_t c = 0; c < b->cell_count; c++) {
+            r.holder[c] = -1;
+            if (!b->done[c])
+                r.todo[r.todo_count++] = c;
+        }
+        double now = sl_now();
+        for (int p = 0; p < nproc; p++)
+            r.heard[p] = now;
+        int active = nproc - 1;
+        /* thread 0 of the team is the calling (main) thread: it alone calls MPI */
 #pragma omp parallel num_threads(threads + 1)
-    {
-        if (omp_get_thread_num() == 0)
-            serve(&r, nproc);
-        else
-            bake_local(&r);
+        {
+            if (omp_get_thread_num() == 0)
+                serve(&r, &active, false);
+            else
+                bake_local(&r);
+        }
+        if (r.stopping == STOP_ERROR) {
+            if (err)
+                *err = r.err;
+            sl_bake_note_kept(b, err);
+            st = r.st;
+        } else if (r.stopping == STOP_CANCELLED) {
+            st = sl_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s",
+                         b->done_count, b->cell_count, b->journal);
+        } else if (r.stopping == STOP_AFTER) {
+            st = sl_fail(err, SL_ERROR_CANCELLED,
+                         "pvs bake: stopped after %u newly baked cells as asked (%u of %u done); resume from %s",
+                         b->baked, b->done_count, b->cell_count, b->journal);
+        } else {
+            st = sl_bake_finish(b, output, opt, err);
+        }
+        if (r.duplicates)
+            fprintf(stderr,
+                    "sightline pvs build: %u cell result(s) arrived after another process had returned the same "
+                    "cell, and were dropped\n",
+                    r.duplicates);
+        if (active > 0) {
+            if (st == SL_OK)
+                fprintf(stderr, "sightline pvs build: %s is complete; %d process(es) still hold a chunk\n", output,
+                        active);
+            serve(&r, &active, true);
+        }
     }
-    sl_free(b->a, r.todo, ((size_t)b->cell_count + 1) * sizeof(uint32_t));
-    if (r.stopping == STOP_ERROR) {
-        if (err)
-            *err = r.err;
-        return r.st;
-    }
-    if (r.stopping == STOP_CANCELLED)
-        return sl_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s", b->done_count,
-                       b->cell_count, b->journal);
-    if (r.stopping == STOP_AFTER)
-        return sl_fail(err, SL_ERROR_CANCELLED,
-                       "pvs bake: stopped after %u newly baked cells as asked (%u of %u done); resume from %s", b->baked,
-                       b->done_count, b->cell_count, b->journal);
-    return SL_OK;
+    sl_free(b->a, r.todo, nc * sizeof(uint32_t));
+    sl_free(b->a, r.flight, nc * sizeof(uint32_t));
+    sl_free(b->a, r.holder, nc * sizeof(int));
+    sl_free(b->a, r.given, nc * sizeof(double));
+    sl_free(b->a, r.reissued, nc);
+    sl_free(b->a, r.waiting, np * sizeof(uint32_t));
+    sl_free(b->a, r.busy, np);
+    sl_free(b->a, r.heard, np * sizeof(double));
+    sl_free(b->a, r.who, np * sizeof *r.who);
+    return st;
 }
 
 /* ---- the other processes ---- */
@@ -329,6 +539,12 @@ static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, 
     wr32(head + 4, (uint32_t)st);
     if (st != SL_OK && err)
         memcpy(head + 8, err->message, SL_MIN(sizeof err->message, (size_t)255));
+    if (st == SL_OK) {
+        char host[40] = "";
+        gethostname(host, sizeof host - 1);
+        host[sizeof host - 1] = 0;
+        snprintf((char *)head + 8, 64, "pid %ld on %s", (long)getpid(), host);
+    }
     wr32(head + 264, st == SL_OK ? nres : 0);
     bool ok = sl_array_push(a, out, 1, head, sizeof head) != NULL;
     for (uint32_t k = 0; k < nres && st == SL_OK && ok; k++) {
@@ -383,7 +599,17 @@ static sl_status worker(sl_bake *b, int threads, sl_error *err)
         }
         uint8_t work[4 + 4 * MAX_CHUNK];
         MPI_Status ms;
-        MPI_Recv(work, sizeof work, MPI_BYTE, 0, TAG_WORK, MPI_COMM_WORLD, &ms);
+        /* poll with short sleeps: the answer may wait for a lease to run out, and a blocking
+         * receive busy-waits in MPICH, taking a core from the processes still baking */
+        MPI_Request rq;
+        MPI_Irecv(work, sizeof work, MPI_BYTE, 0, TAG_WORK, MPI_COMM_WORLD, &rq);
+        for (int flag = 0;;) {
+            MPI_Test(&rq, &flag, &ms);
+            if (flag)
+                break;
+            struct timespec ts = {0, 1000000};
+            nanosleep(&ts, NULL);
+        }
         int got = 0;
         MPI_Get_count(&ms, MPI_BYTE, &got);
         uint32_t n = got >= 4 ? rd32(work) : 0;
@@ -443,7 +669,7 @@ static sl_status worker(sl_bake *b, int threads, sl_error *err)
 }
 
 sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
-                            sl_pvs_build_stats *stats, int *rank_out, sl_error *err)
+                            double lease, sl_pvs_build_stats *stats, int *rank_out, sl_error *err)
 {
     if (stats)
         memset(stats, 0, sizeof *stats);
@@ -476,7 +702,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
     }
     double t0 = MPI_Wtime();
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
-    threads = SL_MAX(1, SL_MIN(threads, (int)MAX_CHUNK));
+    threads = SL_MAX(1, SL_MIN(threads, (int)sl_thread_limit())); /* opt->threads was checked against it */
     /* without FUNNELED the MPI library may not tolerate other threads beside the one calling it:
      * process 0 then only serves */
     int local = provided >= MPI_THREAD_FUNNELED ? threads : 0;
@@ -493,10 +719,8 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
         st = agree(st, err, rank);
     }
     if (st == SL_OK)
-        st = rank == 0 ? master(&b, opt, nproc, local, err) : worker(&b, threads, err);
-    /* the master's verdict (and the file) is the job's; every process takes part */
-    if (rank == 0 && st == SL_OK)
-        st = sl_bake_finish(&b, output, opt, err);
+        st = rank == 0 ? master(&b, output, opt, lease, nproc, local, err) : worker(&b, threads, err);
+    /* the master's verdict (and the file, written by master) is the job's; every process takes part */
     int verdict = (int)st;
     MPI_Bcast(&verdict, 1, MPI_INT, 0, MPI_COMM_WORLD);
     char msg[512];

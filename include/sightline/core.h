@@ -77,6 +77,19 @@ typedef struct sl_progress {
     void *user;
 } sl_progress;
 
+/* The most threads any Sightline call or `sightline` command takes (the PVS bake's threads per
+ * process, the oracle's, the bench's, the renderer's): one limit, so that a request the thread
+ * runtime cannot honour is refused with this number instead of crashing inside it. */
+#define SL_MAX_THREADS 256u
+
+/* The effective thread limit: SL_MAX_THREADS, or less when the OpenMP runtime allows fewer
+ * (omp_get_thread_limit(), OMP_THREAD_LIMIT). Every thread count is checked against it. */
+SL_API uint32_t sl_thread_limit(void);
+
+/* Check a requested thread count (0 means "default", allowed when zero_ok): SL_OK, or
+ * SL_ERROR_LIMIT with a message "WHAT: N threads, at most LIMIT ..." naming the limit. */
+SL_API sl_status sl_threads_check(uint32_t threads, bool zero_ok, const char *what, sl_error *err);
+
 /* Library version as "major.minor.patch". */
 SL_API const char *sl_version_string(void);
 

@@ -40,7 +40,7 @@ typedef struct sl_oracle_t *sl_oracle;
 #define SL_ORACLE_MAX_SIZE 16384u
 #define SL_ORACLE_MAX_PIXELS (1u << 26)
 /* Largest number of rendering threads. */
-#define SL_ORACLE_MAX_THREADS 64u
+#define SL_ORACLE_MAX_THREADS SL_MAX_THREADS /* the one thread limit (core.h) */
 
 typedef struct sl_oracle_options {
     uint32_t width, height;   /* resolution of a camera render; 0 and 0: the camera's own width/height */

@@ -17,7 +17,7 @@
 /* The pool bins and renders a large batch this many triangles at a time, which bounds the queue
  * storage (64 bytes per triangle and bin) whatever the batch size. */
 #define POOL_CHUNK 16384
-#define MAX_THREADS 256
+#define MAX_THREADS SL_MAX_THREADS /* the one limit (core.h) */
 
 struct sl_raster {
     const sl_allocator *alloc;
@@ -112,7 +112,8 @@ sl_status sl_raster_create(const sl_raster_options *options, const sl_allocator 
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: size %ux%u outside 1..%d", o.width, o.height,
                        SL_RT_MAX_DIM);
     if (o.threads > MAX_THREADS)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %u threads, at most %d", o.threads, MAX_THREADS);
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: %u threads, at most %u (SL_MAX_THREADS)", o.threads,
+                       MAX_THREADS);
     if ((unsigned)o.isa > SL_RASTER_ISA_AVX512)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "raster: unknown isa %d", (int)o.isa);
     if (!sl_raster_isa_available(o.isa))

@@ -6,13 +6,21 @@
  * count in it, so the output is the same bytes whatever the thread count, the process count
  * (pvs_mpi.c) or the order cells finished in.
  *
- * The journal ("<output>.ckpt" unless named): a 64-byte header (magic, version, the bake key that
- * ties it to the scene, cells, method and effective options, counts, checksum), then one record per
- * finished cell, appended as soon as the cell is done:
+ * The journal ("<output>.ckpt" unless named), version 2: a 64-byte header (magic, version, cells,
+ * objects, the length of a description, the bake key that ties it to the scene, cells, method and
+ * effective options, and that key's three parts, so that a mismatch can be told: scene, cells,
+ * method+options; a checksum over the header and the description), the description
+ * ("method=NAME options=EFFECTIVE"), then one record per finished cell, appended as soon as the
+ * cell is done:
  *   u32 tag 'CELL' (0x4c4c4543), u32 cell, u32 count, u32 bytes, u64 XXH3-64 of the 16 bytes
  *   before it and the payload, payload (the set as varint gaps, as in the .slpvs blocks).
+ * The journal is created with the first finished cell, never before: a bake that fails before any
+ * cell is done (in prepare, say) leaves none. One that fails later keeps its cells (the message
+ * says so); one that exists is never overwritten without --resume unless it holds no whole cell.
  * A killed process leaves at most one partial record at the end; resume reads records while they
  * are whole and valid, cuts the file after the last good one and bakes only the missing cells.
+ * The bake lock ("<journal>.lock", flock, held from begin to end and dropped by the kernel when
+ * the process dies) keeps a second bake off a journal in use: it is told which process runs.
  * Records are written with write(2) (in the kernel once it returns, so a killed process loses
  * nothing finished) and the file is synced every few seconds (power loss costs seconds). */
 #include "pvs_internal.h"
@@ -21,12 +29,16 @@
 #include <fcntl.h>
 #include <math.h>
 #include <omp.h>
+#include <stdlib.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #define J_MAGIC "SLPVSCKP"
-#define J_VERSION 1u
+#define J_VERSION 2u
 #define J_HEADER 64u
+#define J_MAX_DESC 4096u
 #define J_RECORD 24u
 #define J_TAG 0x4c4c4543u /* "CELL" */
 #define J_SYNC_SECONDS 5.0
@@ -48,15 +60,122 @@ static inline uint64_t rd64(const uint8_t *p)
 
 /* ---- journal ---- */
 
-static void journal_header(const sl_bake *b, uint8_t h[J_HEADER])
+/* "method=NAME options=EFFECTIVE": what the header's method key hashes, kept in the journal so
+ * that a mismatch can be told in words. */
+static int journal_desc(const sl_bake *b, char *out, size_t n)
+{
+    return snprintf(out, n, "method=%s options=%s", b->method->name, b->effective);
+}
+
+static void journal_header(const sl_bake *b, uint8_t h[J_HEADER], const char *desc, uint32_t desc_len)
 {
     memset(h, 0, J_HEADER);
     memcpy(h, J_MAGIC, 8);
     wr32(h + 8, J_VERSION);
     wr32(h + 12, b->cell_count);
     wr32(h + 16, b->object_count);
+    wr32(h + 20, desc_len);
     wr64(h + 24, b->key);
-    wr64(h + 56, sl_hash64(h, 56, 0));
+    wr64(h + 32, b->scene_key);
+    wr64(h + 40, b->cells_key);
+    wr64(h + 48, b->method_key);
+    wr64(h + 56, sl_hash64(desc, desc_len, sl_hash64(h, 56, 0)));
+}
+
+/* `rm -- 'PATH'` for messages, quoted for a POSIX shell. */
+static void rm_command(const char *path, char *out, size_t n)
+{
+    size_t k = 0;
+    const char *head = "rm -- '";
+    for (const char *c = head; *c && k + 1 < n; c++)
+        out[k++] = *c;
+    for (const char *c = path; *c && k + 5 < n; c++) {
+        if (*c == '\'') { /* ' -> '\'' */
+            memcpy(out + k, "'\\''", 4);
+            k += 4;
+        } else {
+            out[k++] = *c;
+        }
+    }
+    if (k + 1 < n)
+        out[k++] = '\'';
+    out[k < n ? k : n - 1] = 0;
+}
+
+/* A journal's description, made safe to print (it is file content). */
+static void printable(const uint8_t *p, size_t len, char *out, size_t n)
+{
+    size_t k = 0;
+    for (size_t i = 0; i < len && k + 4 < n; i++)
+        out[k++] = p[i] >= 0x20 && p[i] < 0x7f ? (char)p[i] : '?';
+    if (len > 0 && k + 4 >= n && n > 4) {
+        memcpy(out + k, "...", 3);
+        k += 3;
+    }
+    out[k] = 0;
+}
+
+typedef enum { J_SAME, J_OTHER, J_BAD } journal_verdict;
+
+/* Does the journal belong to this bake? J_SAME with *records = where its records start; J_OTHER
+ * or J_BAD with the reason in why (what differs, or what is wrong with the file). */
+static journal_verdict journal_examine(const sl_bake *b, const uint8_t *data, size_t size, size_t *records, char *why,
+                                       size_t n)
+{
+    why[0] = 0;
+    if (size < J_HEADER || memcmp(data, J_MAGIC, 8) != 0) {
+        snprintf(why, n, "offset 0: not a PVS checkpoint journal");
+        return J_BAD;
+    }
+    if (rd32(data + 8) != J_VERSION) {
+        snprintf(why, n, "journal version %u (this build reads and writes %u)", rd32(data + 8), J_VERSION);
+        return J_BAD;
+    }
+    uint32_t desc_len = rd32(data + 20);
+    if (desc_len > J_MAX_DESC || desc_len > size - J_HEADER) {
+        snprintf(why, n, "offset 20: a header description of %u bytes in a file of %zu", desc_len, size);
+        return J_BAD;
+    }
+    if (rd64(data + 56) != sl_hash64(data + J_HEADER, desc_len, sl_hash64(data, 56, 0))) {
+        snprintf(why, n, "offset 56: journal header checksum mismatch");
+        return J_BAD;
+    }
+    char desc[SL_OPTS_MAX_CHARS + 128];
+    int dl = journal_desc(b, desc, sizeof desc);
+    if (rd64(data + 24) == b->key && rd32(data + 12) == b->cell_count && rd32(data + 16) == b->object_count &&
+        desc_len == (uint32_t)dl && memcmp(data + J_HEADER, desc, desc_len) == 0) {
+        *records = J_HEADER + desc_len;
+        return J_SAME;
+    }
+    /* say what differs */
+    size_t k = 0;
+#define WHY(...)                                                                                                       \
+    do {                                                                                                               \
+        if (k < n) {                                                                                                   \
+            int w_ = snprintf(why + k, n - k, "%s", k ? "; " : "");                                                    \
+            k += w_ > 0 ? (size_t)w_ : 0;                                                                              \
+        }                                                                                                              \
+        if (k < n) {                                                                                                   \
+            int w_ = snprintf(why + k, n - k, __VA_ARGS__);                                                            \
+            k += w_ > 0 ? (size_t)w_ : 0;                                                                              \
+        }                                                                                                              \
+    } while (0)
+    if (rd64(data + 32) != b->scene_key || rd32(data + 16) != b->object_count)
+        WHY("another scene (%u objects in the checkpoint, %u now%s)", rd32(data + 16), b->object_count,
+            rd32(data + 16) == b->object_count ? ", other contents" : "");
+    if (rd32(data + 12) != b->cell_count || rd64(data + 40) != b->cells_key)
+        WHY("other view cells (%u in the checkpoint, %u now%s)", rd32(data + 12), b->cell_count,
+            rd32(data + 12) == b->cell_count ? ", other shapes" : "");
+    if (rd64(data + 48) != b->method_key || desc_len != (uint32_t)dl || memcmp(data + J_HEADER, desc, desc_len)) {
+        char theirs[160], ours[160];
+        printable(data + J_HEADER, desc_len, theirs, sizeof theirs);
+        printable((const uint8_t *)desc, (size_t)dl, ours, sizeof ours);
+        WHY("another method or options (checkpoint: %s; now: %s)", theirs, ours);
+    }
+    if (k == 0)
+        WHY("another bake key");
+#undef WHY
+    return J_OTHER;
 }
 
 static bool write_all(int fd, const void *data, size_t size)
@@ -74,24 +193,10 @@ static bool write_all(int fd, const void *data, size_t size)
     return true;
 }
 
-/* Read the journal's records into the results; returns the length of its valid prefix. */
-static sl_status journal_replay(sl_bake *b, const uint8_t *data, size_t size, size_t *valid, sl_error *err)
+/* Read the journal's records from `at` into the results; returns the length of its valid prefix. */
+static sl_status journal_replay(sl_bake *b, const uint8_t *data, size_t size, size_t at, size_t *valid,
+                                sl_error *err)
 {
-    uint8_t want[J_HEADER];
-    journal_header(b, want);
-    if (size < J_HEADER || memcmp(data, J_MAGIC, 8) != 0)
-        return sl_fail(err, SL_ERROR_FORMAT, "%s: offset 0: not a PVS checkpoint journal", b->journal);
-    if (rd64(data + 56) != sl_hash64(data, 56, 0))
-        return sl_fail(err, SL_ERROR_FORMAT, "%s: offset 56: journal header checksum mismatch", b->journal);
-    if (rd32(data + 8) != J_VERSION)
-        return sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: journal version %u (this build writes %u)", b->journal,
-                       rd32(data + 8), J_VERSION);
-    if (memcmp(data, want, J_HEADER) != 0)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                       "%s: the checkpoint belongs to another bake (different scene, cells, method or options): "
-                       "delete it or bake with the same inputs",
-                       b->journal);
-    size_t at = J_HEADER;
     sl_status st = SL_OK;
     while (size - at >= J_RECORD) {
         const uint8_t *r = data + at;
@@ -116,45 +221,186 @@ static sl_status journal_replay(sl_bake *b, const uint8_t *data, size_t size, si
     return st;
 }
 
+/* Forget what a journal without a single whole cell had stored (nothing: kept for symmetry). */
+static void forget_resumed(sl_bake *b)
+{
+    for (uint32_t c = 0; c < b->cell_count; c++)
+        if (b->done[c]) {
+            sl_free(b->a, b->enc[c], b->enc_size[c] ? b->enc_size[c] : 1);
+            b->enc[c] = NULL;
+            b->enc_size[c] = b->counts[c] = 0;
+            b->done[c] = 0;
+        }
+    b->done_count = b->resumed = 0;
+}
+
+/* The holder's pid and output from a lock file another process has locked (it writes them just
+ * after taking the lock: wait a little for them). */
+static long lock_holder(int fd, char *output, size_t n)
+{
+    output[0] = 0;
+    char text[4096 + 32];
+    for (int tries = 0; tries < 50; tries++) {
+        ssize_t got = pread(fd, text, sizeof text - 1, 0);
+        if (got > 0) {
+            text[got] = 0;
+            char *end;
+            long pid = strtol(text, &end, 10);
+            if (end != text && *end == '\n' && strchr(end + 1, '\n')) {
+                printable((const uint8_t *)end + 1, (size_t)(strchr(end + 1, '\n') - (end + 1)), output, n);
+                return pid;
+            }
+        }
+        struct timespec ts = {0, 10 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    return -1;
+}
+
+/* The bake lock: an exclusive flock on "<journal>.lock", held for the bake's life and released by
+ * the kernel when the process dies however it dies; the file holds "PID\nOUTPUT\n" for the
+ * message of the bake that finds it taken. The holder removes the file before closing it, so one
+ * that locked a file already removed (its inode is no longer the path's) tries again. */
+static sl_status bake_lock(sl_bake *b, sl_error *err)
+{
+    size_t n = strlen(b->journal) + 6;
+    b->lock_path = sl_alloc(b->a, n);
+    if (!b->lock_path)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+    snprintf(b->lock_path, n, "%s.lock", b->journal);
+    for (int tries = 0; tries < 16; tries++) {
+        int fd = open(b->lock_path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (fd < 0)
+            return sl_fail(err, SL_ERROR_IO, "%s: cannot create the bake lock: %s", b->lock_path, strerror(errno));
+        if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+            int e = errno;
+            if (e == EWOULDBLOCK) {
+                char theirs[256];
+                long pid = lock_holder(fd, theirs, sizeof theirs);
+                close(fd);
+                char who[32] = "pid unknown";
+                if (pid > 0)
+                    snprintf(who, sizeof who, "pid %ld", pid);
+                if (theirs[0] && strcmp(theirs, b->output) != 0)
+                    return sl_fail(err, SL_ERROR_IO,
+                                   "%s: another bake of %s is running (%s) and uses the same checkpoint %s: wait for "
+                                   "it to end, or choose another --checkpoint",
+                                   b->output, theirs, who, b->journal);
+                return sl_fail(err, SL_ERROR_IO,
+                               "%s: another bake of %s is running (%s): wait for it to end (its checkpoint %s is in "
+                               "use; do not resume it while it runs)",
+                               b->output, b->output, who, b->journal);
+            }
+            close(fd);
+            if (e == ENOLCK || e == EOPNOTSUPP || e == ENOSYS)
+                return SL_OK; /* a file system without locks: bake unlocked, as before */
+            return sl_fail(err, SL_ERROR_IO, "%s: cannot lock: %s", b->lock_path, strerror(e));
+        }
+        struct stat held, named;
+        if (fstat(fd, &held) == 0 && stat(b->lock_path, &named) == 0 && held.st_dev == named.st_dev &&
+            held.st_ino == named.st_ino) {
+            char text[4096 + 32];
+            int len = snprintf(text, sizeof text, "%ld\n%s\n", (long)getpid(), b->output);
+            if (len < 0 || (size_t)len >= sizeof text)
+                len = snprintf(text, sizeof text, "%ld\n\n", (long)getpid());
+            if (ftruncate(fd, 0) != 0 || pwrite(fd, text, (size_t)len, 0) != (ssize_t)len) {
+                int e = errno;
+                close(fd);
+                return sl_fail(err, SL_ERROR_IO, "%s: cannot write the bake lock: %s", b->lock_path, strerror(e));
+            }
+            b->lock_fd = fd;
+            return SL_OK;
+        }
+        close(fd); /* locked a file its holder had just removed: take the path's new one */
+    }
+    return sl_fail(err, SL_ERROR_IO, "%s: cannot take the bake lock (it keeps being replaced)", b->lock_path);
+}
+
+static void bake_unlock(sl_bake *b)
+{
+    if (b->lock_fd >= 0) {
+        unlink(b->lock_path); /* while still holding it: see bake_lock */
+        close(b->lock_fd);
+        b->lock_fd = -1;
+    }
+}
+
+/* Take the lock and read an existing journal. Nothing is written here: the journal is created with
+ * the first finished cell (journal_append), so a bake that fails or is stopped before any cell is
+ * done leaves none. */
 static sl_status journal_open(sl_bake *b, const char *output, const sl_pvs_build_options *opt, sl_error *err)
 {
     const char *named = opt && opt->checkpoint ? opt->checkpoint : NULL;
-    size_t n = named ? strlen(named) + 1 : strlen(output) + 6;
+    size_t n = named ? strlen(named) + 1 : strlen(output) + 6, no = strlen(output) + 1;
     b->journal = sl_alloc(b->a, n);
-    if (!b->journal)
+    b->output = sl_alloc(b->a, no);
+    if (!b->journal || !b->output)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     if (named)
         memcpy(b->journal, named, n);
     else
         snprintf(b->journal, n, "%s.ckpt", output);
+    memcpy(b->output, output, no);
+    sl_status st = bake_lock(b, err);
+    if (st != SL_OK)
+        return st;
     bool resume = opt && opt->resume;
     struct stat sb;
-    bool exists = stat(b->journal, &sb) == 0;
-    if (exists && !resume)
+    if (stat(b->journal, &sb) != 0)
+        return SL_OK; /* a fresh bake (with --resume too: nothing to resume yet) */
+    char rm[4200];
+    rm_command(b->journal, rm, sizeof rm);
+    uint8_t *data = NULL;
+    size_t size = 0;
+    st = sl_file_read_all(b->a, b->journal, &data, &size, err);
+    if (st != SL_OK)
+        return st;
+    char why[400];
+    size_t at = 0, valid = 0;
+    journal_verdict v = journal_examine(b, data, size, &at, why, sizeof why);
+    if (v == J_SAME)
+        st = journal_replay(b, data, size, at, &valid, err);
+    sl_free(b->a, data, size);
+    if (v == J_BAD)
+        return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: not a checkpoint this bake can use; delete it to bake afresh: %s",
+                       b->journal, why, rm);
+    if (v == J_OTHER)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                       "%s: a checkpoint of an interrupted bake exists: resume it (--resume) or delete it", b->journal);
-    if (exists) {
-        uint8_t *data = NULL;
-        size_t size = 0;
-        sl_status st = sl_file_read_all(b->a, b->journal, &data, &size, err);
-        if (st != SL_OK)
-            return st;
-        size_t valid = 0;
-        st = journal_replay(b, data, size, &valid, err);
-        sl_free(b->a, data, size);
-        if (st != SL_OK)
-            return st;
-        b->fd = open(b->journal, O_WRONLY | O_CLOEXEC);
-        if (b->fd < 0 || ftruncate(b->fd, (off_t)valid) != 0 || lseek(b->fd, (off_t)valid, SEEK_SET) < 0)
-            return sl_fail(err, SL_ERROR_IO, "%s: cannot reopen the checkpoint: %s", b->journal, strerror(errno));
+                       "%s: the checkpoint belongs to another bake: %s; bake with the inputs it was made with, or "
+                       "delete it to bake afresh: %s",
+                       b->journal, why, rm);
+    if (st != SL_OK)
+        return st;
+    if (b->resumed == 0) {
+        /* the same bake, but not one whole cell (killed while writing the first): nothing to keep */
+        forget_resumed(b);
+        if (unlink(b->journal) != 0 && errno != ENOENT)
+            return sl_fail(err, SL_ERROR_IO, "%s: cannot remove an empty checkpoint: %s", b->journal, strerror(errno));
         return SL_OK;
     }
+    if (!resume)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "%s: a checkpoint of an interrupted bake of the same scene, cells and options holds %u of %u "
+                       "cells: continue it (--resume), or delete it to bake afresh: %s",
+                       b->journal, b->resumed, b->cell_count, rm);
+    b->fd = open(b->journal, O_WRONLY | O_CLOEXEC);
+    if (b->fd < 0 || ftruncate(b->fd, (off_t)valid) != 0 || lseek(b->fd, (off_t)valid, SEEK_SET) < 0)
+        return sl_fail(err, SL_ERROR_IO, "%s: cannot reopen the checkpoint: %s", b->journal, strerror(errno));
+    b->last_sync = sl_now();
+    return SL_OK;
+}
+
+/* Create the journal: the header, then the records (with the first finished cell). */
+static sl_status journal_create(sl_bake *b, sl_error *err)
+{
     b->fd = open(b->journal, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (b->fd < 0)
         return sl_fail(err, SL_ERROR_IO, "%s: cannot create the checkpoint: %s", b->journal, strerror(errno));
+    char desc[SL_OPTS_MAX_CHARS + 128];
+    int dl = journal_desc(b, desc, sizeof desc);
     uint8_t h[J_HEADER];
-    journal_header(b, h);
-    if (!write_all(b->fd, h, sizeof h) || fdatasync(b->fd) != 0)
+    journal_header(b, h, desc, (uint32_t)dl);
+    if (!write_all(b->fd, h, sizeof h) || !write_all(b->fd, desc, (size_t)dl))
         return sl_fail(err, SL_ERROR_IO, "%s: cannot write the checkpoint: %s", b->journal, strerror(errno));
     b->last_sync = sl_now();
     return SL_OK;
@@ -167,6 +413,7 @@ sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const ch
 {
     memset(b, 0, sizeof *b);
     b->fd = -1;
+    b->lock_fd = -1;
     if (!scene || !cells || (writer && !output))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "pvs bake: scene, cells and output must not be NULL");
     b->a = sl_alloc_or_default(opt ? opt->alloc : NULL);
@@ -179,7 +426,11 @@ sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const ch
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "pvs bake: there are no view cells");
     if (b->object_count == UINT32_MAX)
         return sl_fail(err, SL_ERROR_LIMIT, "pvs bake: too many objects");
-    sl_status st = sl_pvs_registry_find(opt ? opt->method : NULL, &b->method, err);
+    /* the one thread limit: libgomp crashed when asked for 100000 threads */
+    sl_status st = sl_threads_check(opt ? opt->threads : 0, true, "pvs bake", err);
+    if (st != SL_OK)
+        return st;
+    st = sl_pvs_registry_find(opt ? opt->method : NULL, &b->method, err);
     if (st != SL_OK)
         return st;
     st = sl_pvs_method_configure(b->method, opt ? opt->method_options : NULL, b->a, &b->config, b->effective, err);
@@ -190,6 +441,9 @@ sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const ch
     b->key = sl_hash64(k, sizeof k, 0);
     b->key = sl_hash64(b->method->name, strlen(b->method->name), b->key);
     b->key = sl_hash64(b->effective, strlen(b->effective), b->key);
+    b->scene_key = k[0];
+    b->cells_key = k[1];
+    b->method_key = sl_hash64(b->effective, strlen(b->effective), sl_hash64(b->method->name, strlen(b->method->name), 0));
     if (writer) {
         size_t nc = b->cell_count;
         b->enc = sl_calloc(b->a, nc, sizeof *b->enc);
@@ -236,6 +490,11 @@ sl_status sl_bake_store_encoded(sl_bake *b, uint32_t cell, const uint8_t *bytes,
 static sl_status journal_append(sl_bake *b, uint32_t cell, const uint8_t *bytes, uint32_t size, uint32_t count,
                                 sl_error *err)
 {
+    if (b->fd < 0) {
+        sl_status st = journal_create(b, err);
+        if (st != SL_OK)
+            return st;
+    }
     uint8_t r[J_RECORD];
     wr32(r, J_TAG);
     wr32(r + 4, cell);
@@ -314,6 +573,15 @@ sl_status sl_bake_finish(sl_bake *b, const char *output, const sl_pvs_build_opti
     return st;
 }
 
+void sl_bake_note_kept(const sl_bake *b, sl_error *err)
+{
+    if (!err || b->fd < 0 || b->done_count == 0)
+        return;
+    size_t k = strnlen(err->message, sizeof err->message);
+    snprintf(err->message + k, sizeof err->message - k, " (%u of %u cells are kept in %s: --resume continues)",
+             b->done_count, b->cell_count, b->journal);
+}
+
 void sl_bake_stats(const sl_bake *b, sl_pvs_build_stats *out)
 {
     out->cells = b->cell_count;
@@ -367,10 +635,16 @@ void sl_bake_end(sl_bake *b)
         (void)fdatasync(b->fd);
         close(b->fd);
     }
+    bake_unlock(b);
+    if (b->lock_path)
+        sl_free(b->a, b->lock_path, strlen(b->lock_path) + 1);
+    if (b->output)
+        sl_free(b->a, b->output, strlen(b->output) + 1);
     if (b->journal)
         sl_free(b->a, b->journal, strlen(b->journal) + 1);
     memset(b, 0, sizeof *b);
     b->fd = -1;
+    b->lock_fd = -1;
 }
 
 /* ---- the OpenMP driver ---- */
@@ -407,8 +681,7 @@ sl_status sl_pvs_build(sl_scene scene, sl_viewcells cells, const char *output, c
         if (!b.done[c])
             todo[nt++] = c;
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
-    if (threads < 1)
-        threads = 1;
+    threads = SL_MAX(1, SL_MIN(threads, (int)sl_thread_limit()));
     shared_run run;
     memset(&run, 0, sizeof run);
     run.b = &b;
@@ -472,6 +745,7 @@ sl_status sl_pvs_build(sl_scene scene, sl_viewcells cells, const char *output, c
         if (err)
             *err = run.first_err;
         st = run.st;
+        sl_bake_note_kept(&b, err);
     } else if (run.stop == 2) {
         st = sl_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s", b.done_count,
                      b.cell_count, b.journal);

@@ -102,9 +102,10 @@ static inline bool sl_pvs_decode(const uint8_t *p, const uint8_t *end, uint32_t 
 ZSTD_customMem sl_zstd_mem(const sl_allocator *a);
 
 /* ---- the bake: what the thread and MPI drivers share (pvs_build.c) ----
- * begin configures and prepares the method; on the writing process it also opens the checkpoint
- * journal (resuming from it when asked). store records a finished cell (encoded in memory, appended
- * to the journal). finish writes the .slpvs in cell order and removes the journal. */
+ * begin configures and prepares the method; on the writing process it also takes the bake lock
+ * and reads the checkpoint journal (resuming from it when asked). store records a finished cell
+ * (encoded in memory, appended to the journal, which the first cell creates). finish writes the
+ * .slpvs in cell order and removes the journal; end releases the lock. */
 typedef struct sl_bake {
     const sl_allocator *a;
     sl_scene scene;
@@ -116,6 +117,7 @@ typedef struct sl_bake {
     uint64_t removed;
     uint32_t cell_count, object_count;
     uint64_t key;               /* what the journal must match: scene, cells, method, options */
+    uint64_t scene_key, cells_key, method_key; /* its parts, to say what differs */
     bool writer;
     /* results, per cell (writer only) */
     uint8_t **enc;
@@ -124,10 +126,14 @@ typedef struct sl_bake {
     uint8_t *done;
     uint32_t done_count, resumed, baked;
     double cell_seconds, max_cell_seconds;
-    /* journal (writer only) */
+    /* journal (writer only): created with the first finished cell (fd -1 until then) */
     int fd;
     char *journal;
     double last_sync;
+    /* the bake lock (writer only): flock on "<journal>.lock", held from begin to end */
+    int lock_fd;
+    char *lock_path;
+    char *output;               /* for messages */
 } sl_bake;
 
 sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const char *output,
@@ -139,6 +145,8 @@ sl_status sl_bake_store(sl_bake *b, uint32_t cell, const uint32_t *ids, uint32_t
 sl_status sl_bake_store_encoded(sl_bake *b, uint32_t cell, const uint8_t *bytes, uint32_t size, uint32_t count,
                                 double seconds, bool journal, sl_error *err);
 sl_status sl_bake_finish(sl_bake *b, const char *output, const sl_pvs_build_options *opt, sl_error *err);
+/* After a failure: add to the message that the finished cells are kept in the journal, if any. */
+void sl_bake_note_kept(const sl_bake *b, sl_error *err);
 void sl_bake_stats(const sl_bake *b, sl_pvs_build_stats *out);
 void sl_bake_end(sl_bake *b);
 
