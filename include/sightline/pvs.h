@@ -21,9 +21,10 @@
  *
  * File (docs/pvs.md has the byte layout): a versioned header and section table with an XXH3-64
  * checksum per section; the view-cell table; per cell the set delta-coded (varint gaps) in blocks
- * of cells compressed with zstd, each block with its own checksum; build metadata. Loading maps
- * the file and checks everything but the compressed blocks, which are checked when first decoded
- * (sl_pvs_verify checks them all). Written to a temporary file and renamed.
+ * of cells compressed with zstd, each block with its own checksum; build metadata. Loading reads
+ * the file (or maps it, on request) and checks everything but the compressed blocks, which are
+ * checked when first decoded (sl_pvs_verify checks them all). Written to a temporary file and
+ * renamed.
  */
 #ifndef SIGHTLINE_PVS_H
 #define SIGHTLINE_PVS_H
@@ -67,9 +68,25 @@ SL_API uint64_t sl_pvs_scene_key(sl_scene scene);
 SL_API sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
                               const uint64_t *offsets, const uint32_t *ids, const char *meta, sl_error *err);
 
-/* Open a .slpvs (memory-mapped; alloc may be NULL). Everything except the compressed blocks is
- * validated; a bad file fails with SL_ERROR_FORMAT naming the file, the offset or cell and why;
- * a newer major version with SL_ERROR_UNSUPPORTED. */
+/* sl_pvs_open flags. */
+enum {
+    /* Map the file (mmap) instead of reading it into memory. Saves the copy, but the handle then
+     * reads the file's pages for as long as it lives: if another process truncates the file or
+     * rewrites it in place (cp over it, a tool writing without rename) while it is open, the next
+     * access to a lost page kills this process with SIGBUS, which the library does not catch.
+     * Only map files nothing else writes while they are open. Replacing a file by rename (what
+     * sl_pvs_write and every Sightline tool do) is safe either way. */
+    SL_PVS_OPEN_MAP = 1u << 0,
+};
+
+/* Open a .slpvs. By default the whole file is read into memory from alloc (may be NULL), so
+ * the handle never touches the file again and whatever happens to it later (truncated,
+ * rewritten, deleted) leaves the handle's data as read; flags: SL_PVS_OPEN_MAP (see above).
+ * Everything except the compressed blocks is validated; a bad file fails with SL_ERROR_FORMAT
+ * naming the file, the offset or cell and why (a short file: "offset 40: truncated: expected N
+ * bytes, file has M"); a newer major version with SL_ERROR_UNSUPPORTED. */
+SL_API sl_status sl_pvs_open(const char *path, uint32_t flags, const sl_allocator *alloc, sl_pvs *out, sl_error *err);
+/* sl_pvs_open(path, 0, alloc, out, err): read, not mapped. */
 SL_API sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err);
 /* The same from bytes in memory (copied). `name` stands for the file name in messages. */
 SL_API sl_status sl_pvs_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc,

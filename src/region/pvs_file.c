@@ -22,8 +22,12 @@
 
 #include "scene/scene_internal.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "the .slpvs reader maps little-endian records directly"
@@ -390,7 +394,8 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
 {
     const uint8_t *b = p->bytes;
     if (p->size < PVS_HEADER)
-        return FAIL_AT(err, p, 0, "file of %llu bytes is shorter than the 64-byte header", (unsigned long long)p->size);
+        return FAIL_AT(err, p, 0, "truncated: expected at least the 64-byte header, file has %llu bytes",
+                       (unsigned long long)p->size);
     if (memcmp(b + H_MAGIC, k_magic, 8) != 0)
         return FAIL_AT(err, p, 0, "not a .slpvs file (bad magic)");
     uint32_t major = rd32(b + H_MAJOR), minor = rd32(b + H_MINOR);
@@ -414,8 +419,11 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
         return FAIL_AT(err, p, H_ENTRY, "section entry size %u is outside 48..4096", entry);
     if (nsec > PVS_MAX_SECTIONS)
         return FAIL_AT(err, p, H_SECTIONS, "%u sections (at most %u)", nsec, PVS_MAX_SECTIONS);
-    if (fsize != p->size)
-        return FAIL_AT(err, p, H_FILE_SIZE, "header says %llu bytes but the file has %llu (truncated or extended)",
+    if (fsize > p->size)
+        return FAIL_AT(err, p, H_FILE_SIZE, "truncated: expected %llu bytes, file has %llu", (unsigned long long)fsize,
+                       (unsigned long long)p->size);
+    if (fsize < p->size)
+        return FAIL_AT(err, p, H_FILE_SIZE, "extended: expected %llu bytes, file has %llu (bytes after the end)",
                        (unsigned long long)fsize, (unsigned long long)p->size);
     uint64_t tsize = (uint64_t)nsec * entry;
     if (table < header_size || table > p->size || tsize > p->size - table)
@@ -654,22 +662,88 @@ static struct sl_pvs_t *new_pvs(const sl_allocator *alloc, const char *name)
     return p;
 }
 
-sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
+/* Read the whole file into a 64-byte aligned buffer of the handle's allocator (the CELL records
+ * are read in place). A file that shrinks while it is read (rewritten in place by another
+ * process) is reported as truncated; one that grows is read up to the size it had at open. */
+static sl_status read_file(struct sl_pvs_t *p, const char *path, sl_error *err)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0)
+        return sl_fail(err, errno == ENOENT ? SL_ERROR_NOT_FOUND : SL_ERROR_IO, "%s: cannot open: %s", path,
+                       strerror(errno));
+    struct stat sb;
+    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_IO, "%s: not a regular file", path);
+    }
+    if (sb.st_size == 0) {
+        close(fd);
+        return fail_at(err, path, 0, "truncated: the file is empty (a .slpvs has at least %u bytes)", PVS_HEADER);
+    }
+    if ((uint64_t)sb.st_size > SIZE_MAX - PVS_ALIGN) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_LIMIT, "%s: file of %llu bytes is too large", path, (unsigned long long)sb.st_size);
+    }
+    size_t n = (size_t)sb.st_size;
+    p->owned = sl_alloc_aligned(&p->alloc, n, PVS_ALIGN);
+    if (!p->owned) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for %zu bytes", path, n);
+    }
+    p->owned_size = n;
+    size_t at = 0;
+    while (at < n) {
+        ssize_t got = pread(fd, p->owned + at, n - at, (off_t)at);
+        if (got < 0 && errno == EINTR)
+            continue;
+        if (got < 0) {
+            int e = errno;
+            close(fd);
+            return sl_fail(err, SL_ERROR_IO, "%s: offset %zu: read failed: %s", path, at, strerror(e));
+        }
+        if (got == 0) {
+            /* the file lost bytes since fstat: someone truncated or is rewriting it */
+            uint64_t now = fstat(fd, &sb) == 0 ? (uint64_t)sb.st_size : (uint64_t)at;
+            close(fd);
+            return fail_at(err, path, at, "truncated while reading: expected %zu bytes, file has %llu", n,
+                           (unsigned long long)now);
+        }
+        at += (size_t)got;
+    }
+    close(fd);
+    p->bytes = p->owned;
+    p->size = n;
+    return SL_OK;
+}
+
+sl_status sl_pvs_open(const char *path, uint32_t flags, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
 {
     if (!path || !out)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_load: path and out must not be NULL");
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_open: path and out must not be NULL");
     *out = NULL;
+    if (flags & ~(uint32_t)SL_PVS_OPEN_MAP)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_open: unknown flags %08x", flags);
     struct sl_pvs_t *p = new_pvs(alloc, path);
     if (!p)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
-    sl_status st = sl_file_map(path, &p->map, err);
+    sl_status st;
+    if (flags & SL_PVS_OPEN_MAP) {
+        st = sl_file_map(path, &p->map, err);
+        p->bytes = p->map.data;
+        p->size = p->map.size;
+    } else {
+        st = read_file(p, path, err);
+    }
     if (st != SL_OK) {
         sl_pvs_destroy(p);
         return st;
     }
-    p->bytes = p->map.data;
-    p->size = p->map.size;
     return open_common(p, out, err);
+}
+
+sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
+{
+    return sl_pvs_open(path, 0, alloc, out, err);
 }
 
 sl_status sl_pvs_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc, sl_pvs *out,
