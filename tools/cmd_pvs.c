@@ -775,12 +775,10 @@ static int run_verify(int argc, char **argv)
         return cli_fail(a.cmd, &err);
     }
     int rc = 0;
-    if (in.object_count != sl_scene_object_count(scene) || in.scene_key != sl_pvs_scene_key(scene)) {
-        cli_error(a.cmd, "%s was not baked for this scene (scene key %016llx, file %016llx)", file,
-                  (unsigned long long)sl_pvs_scene_key(scene), (unsigned long long)in.scene_key);
+    if (sl_pvs_check_scene(p, scene, &err) != SL_OK) {
         sl_scene_destroy(scene);
         sl_pvs_destroy(p);
-        return 1;
+        return cli_fail(a.cmd, &err);
     }
     sl_viewcells cells = sl_pvs_cells(p);
     uint32_t nc = sl_viewcells_count(cells), no = in.object_count;

@@ -56,10 +56,21 @@ typedef struct sl_pvs_info {
     uint64_t file_size;
     uint64_t data_bytes;        /* compressed sets */
     uint64_t raw_bytes;         /* the same, delta-coded before compression */
+    uint32_t scene_key_version; /* format of scene_key (SL_PVS_SCENE_KEY_VERSION when current;
+                                   1 in files of format 1.0) */
 } sl_pvs_info;
 
-/* Fingerprint of what a PVS depends on in a scene: object count, per-object mesh, kind, flags and
- * triangle count, the bounds of static objects, the footprints. */
+/* Format of sl_pvs_scene_key. 2: everything the methods read (below); 1 (files of format 1.0):
+ * boxes, kinds and counts only, so a scene whose triangles moved inside the same boxes, or whose
+ * BSP differed, had the same key. A file or a bake journal with another format is refused. */
+#define SL_PVS_SCENE_KEY_VERSION 2u
+
+/* Fingerprint of what a PVS depends on in a scene (XXH3-64 over the scene's arrays): the meshes
+ * (records, vertex positions, indices), per object its mesh, kind and flags and, for static
+ * objects, its transform and box; the footprints, the occluders and their transforms, the terrain,
+ * the streets, and the BSP (planes, nodes, leaves, leaf objects, cluster PVS). Not normals,
+ * colours, metadata or the placement of dynamic objects. Equal scenes give equal keys whatever
+ * built them. */
 SL_API uint64_t sl_pvs_scene_key(sl_scene scene);
 
 /* Write a PVS: cell i's set is ids[offsets[i] .. offsets[i+1]), strictly ascending, each below
@@ -93,6 +104,11 @@ SL_API sl_status sl_pvs_load_memory(const void *data, size_t size, const char *n
                                     sl_pvs *out, sl_error *err);
 /* Release it. NULL is ignored. */
 SL_API void sl_pvs_destroy(sl_pvs pvs);
+/* SL_OK when pvs was baked for scene: same object count and scene key, the key of the current
+ * format. Else SL_ERROR_INVALID_ARGUMENT with a message that names the file and says to bake it
+ * again (a file of an older key format: "FILE was baked with an older scene key (format 1); bake
+ * it again: sightline pvs build ..."). */
+SL_API sl_status sl_pvs_check_scene(sl_pvs pvs, sl_scene scene, sl_error *err);
 
 /* Header figures (visible counts come from the set table: no decompression). */
 SL_API void sl_pvs_get_info(sl_pvs pvs, sl_pvs_info *info);

@@ -25,7 +25,7 @@
 #include <unistd.h>
 
 #define J_MAGIC "SLPVSCKP"
-#define J_VERSION 1u
+#define J_VERSION 2u /* 2: the bake key holds a scene key of format 2 (SL_PVS_SCENE_KEY_VERSION) */
 #define J_HEADER 64u
 #define J_RECORD 24u
 #define J_TAG 0x4c4c4543u /* "CELL" */
@@ -83,6 +83,11 @@ static sl_status journal_replay(sl_bake *b, const uint8_t *data, size_t size, si
         return sl_fail(err, SL_ERROR_FORMAT, "%s: offset 0: not a PVS checkpoint journal", b->journal);
     if (rd64(data + 56) != sl_hash64(data, 56, 0))
         return sl_fail(err, SL_ERROR_FORMAT, "%s: offset 56: journal header checksum mismatch", b->journal);
+    if (rd32(data + 8) == 1)
+        return sl_fail(err, SL_ERROR_UNSUPPORTED,
+                       "%s: the checkpoint was baked with an older scene key (format 1); bake it again: delete it and run "
+                       "sightline pvs build without --resume",
+                       b->journal);
     if (rd32(data + 8) != J_VERSION)
         return sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: journal version %u (this build writes %u)", b->journal,
                        rd32(data + 8), J_VERSION);
