@@ -212,7 +212,7 @@ static void test_file_refused(void **state)
     sl_scene others[2] = {make_scene(&moved), make_scene(&bsp)};
     for (int i = 0; i < 2; i++) {
         assert_int_equal(sl_pvs_check_scene(p, others[i], &err), SL_ERROR_INVALID_ARGUMENT);
-        assert_non_null(strstr(err.message, "was baked for another scene"));
+        assert_non_null(strstr(err.message, "was not baked for this scene"));
         assert_non_null(strstr(err.message, "bake it again"));
         assert_non_null(strstr(err.message, "sightline pvs build SCENE --method mappvs -o "));
         /* the pvs culler refuses it the same way */
