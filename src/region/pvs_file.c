@@ -13,7 +13,8 @@
  * Neighbouring cells see much the same objects, so a block of consecutive cells compresses well,
  * and decoding one cell costs one block (cached).
  *
- * Load maps the file and validates everything except DATA, whose frames are checked (checksum,
+ * Load reads the file into memory (or maps it on request, SL_PVS_OPEN_MAP) and validates
+ * everything except DATA, whose frames are checked (checksum,
  * exact decompressed size, varint stream of exactly the stated count, ids ascending and below the
  * object count) when a block is first decoded; sl_pvs_verify checks DATA whole. No byte is trusted
  * before it is checked: offsets and sizes are overflow-checked against the file, counts against
