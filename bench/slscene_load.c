@@ -266,7 +266,7 @@ int main(int argc, char **argv)
     for (size_t m = 0; m < SL_COUNTOF(modes) && status == 0; m++) {
         sl_load_options opt;
         memset(&opt, 0, sizeof opt);
-        opt.no_mmap = modes[m].no_mmap;
+        opt.map = !modes[m].no_mmap;
         opt.skip_checksums = modes[m].skip;
         rss_ok &= reset_peak_rss();
         for (int r = -1; r < o.runs; r++) { /* run -1 warms the page cache and the allocator */

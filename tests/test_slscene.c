@@ -380,16 +380,17 @@ static void test_round_trip(void **state)
     sl_allocator a = sl_test_counting_allocator(&c);
     sl_load_options modes[3];
     memset(modes, 0, sizeof modes);
-    modes[1].no_mmap = true;
+    modes[0].map = true;  /* mapped; modes[1]: the default, read */
+    modes[2].map = true;
     modes[2].skip_checksums = true;
     for (int m = 0; m < 3; m++) {
         sl_scene s;
         OK(sl_scene_load(fx->path, &modes[m], &a, &s, E));
         assert_same_scene(ref, s);
         /* mapped bulk arrays are borrowed, records that move are owned */
-        assert_int_equal(s->positions.cap == 0, !modes[m].no_mmap);
+        assert_int_equal(s->positions.cap == 0, modes[m].map);
         assert_true(s->objects.cap > 0 && s->transforms.cap > 0 && s->bounds.cap > 0);
-        assert_int_equal(s->mapping.data != NULL, !modes[m].no_mmap);
+        assert_int_equal(s->mapping.data != NULL, modes[m].map);
         /* saving a loaded scene reproduces the file byte for byte */
         char again[256];
         join(again, sizeof again, fx, "again.slscene");
@@ -485,7 +486,8 @@ static void test_mutate_loaded(void **state)
     sl_test_counter c = {0};
     sl_allocator a = sl_test_counting_allocator(&c);
     sl_scene s, ref = build_full(NULL);
-    OK(sl_scene_load(fx->path, NULL, &a, &s, E));
+    sl_load_options mapped = {.map = true};
+    OK(sl_scene_load(fx->path, &mapped, &a, &s, E));
     assert_int_equal(s->positions.cap, 0);
     assert_int_equal(s->footprints.cap, 0);
     sl_aabb before = sl_scene_object_bounds(s, 3);
@@ -517,7 +519,8 @@ static void test_save_over_own_mapping(void **state)
     join(p, sizeof p, fx, "self.slscene");
     write_file(p, fx->bytes, fx->size);
     sl_scene s, ref = build_full(NULL);
-    OK(sl_scene_load(p, NULL, NULL, &s, E));
+    sl_load_options mapped = {.map = true};
+    OK(sl_scene_load(p, &mapped, NULL, &s, E));
     OK(sl_scene_save(s, p, E));
     assert_same_scene(ref, s);
     assert_true(same_file(p, fx->path));
@@ -649,10 +652,10 @@ static void expect_fail_ex(const fixture *fx, const uint8_t *f, size_t n, sl_sta
     sl_load_options opt;
     memset(&opt, 0, sizeof opt);
     for (int m = 0; m < 2; m++) {
-        opt.no_mmap = m;
+        opt.map = m == 0;
         st = sl_scene_load(p, &opt, &a, &s, &err);
         if (st != status || (want && !strstr(err.message, want)))
-            fail_msg("file (no_mmap=%d): expected %d with \"%s\", got %d: %s", m, status, want ? want : "", st,
+            fail_msg("file (map=%d): expected %d with \"%s\", got %d: %s", m, status, want ? want : "", st,
                      err.message);
         assert_non_null(strstr(err.message, "hostile.slscene"));
         assert_int_equal(c.live, 0);

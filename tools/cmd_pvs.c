@@ -504,6 +504,7 @@ static int run_info(int argc, char **argv)
         char key[32];
         snprintf(key, sizeof key, "%016llx", (unsigned long long)in.scene_key);
         cli_json_string(&j, "scene_key", key);
+        cli_json_uint(&j, "scene_key_format", in.scene_key_version);
         cli_json_object_begin(&j, "meta");
         const char *m = sl_pvs_meta_text(p);
         while (*m) {
@@ -530,7 +531,8 @@ static int run_info(int argc, char **argv)
         printf("  %s on disk: sets %s compressed from %s in %u blocks of %u cells\n",
                cli_bytes(in.file_size, b1, sizeof b1), cli_bytes(in.data_bytes, b2, sizeof b2),
                cli_bytes(in.raw_bytes, b3, sizeof b3), in.block_count, in.block_cells);
-        printf("  scene key %016llx\n", (unsigned long long)in.scene_key);
+        printf("  scene key %016llx (format %u%s)\n", (unsigned long long)in.scene_key, in.scene_key_version,
+               in.scene_key_version < SL_PVS_SCENE_KEY_VERSION ? ", older than this build's: bake it again" : "");
         const char *m = sl_pvs_meta_text(p);
         while (*m) {
             const char *eol = strchr(m, '\n');
@@ -792,12 +794,10 @@ static int run_verify(int argc, char **argv)
         return cli_fail(a.cmd, &err);
     }
     int rc = 0;
-    if (in.object_count != sl_scene_object_count(scene) || in.scene_key != sl_pvs_scene_key(scene)) {
-        cli_error(a.cmd, "%s was not baked for this scene (scene key %016llx, file %016llx)", file,
-                  (unsigned long long)sl_pvs_scene_key(scene), (unsigned long long)in.scene_key);
+    if (sl_pvs_check_scene(p, scene, &err) != SL_OK) {
         sl_scene_destroy(scene);
         sl_pvs_destroy(p);
-        return 1;
+        return cli_fail(a.cmd, &err);
     }
     sl_viewcells cells = sl_pvs_cells(p);
     uint32_t nc = sl_viewcells_count(cells), no = in.object_count;

@@ -21,9 +21,10 @@
  *
  * File (docs/pvs.md has the byte layout): a versioned header and section table with an XXH3-64
  * checksum per section; the view-cell table; per cell the set delta-coded (varint gaps) in blocks
- * of cells compressed with zstd, each block with its own checksum; build metadata. Loading maps
- * the file and checks everything but the compressed blocks, which are checked when first decoded
- * (sl_pvs_verify checks them all). Written to a temporary file and renamed.
+ * of cells compressed with zstd, each block with its own checksum; build metadata. Loading reads
+ * the file (or maps it, on request) and checks everything but the compressed blocks, which are
+ * checked when first decoded (sl_pvs_verify checks them all). Written to a temporary file and
+ * renamed.
  */
 #ifndef SIGHTLINE_PVS_H
 #define SIGHTLINE_PVS_H
@@ -55,10 +56,21 @@ typedef struct sl_pvs_info {
     uint64_t file_size;
     uint64_t data_bytes;        /* compressed sets */
     uint64_t raw_bytes;         /* the same, delta-coded before compression */
+    uint32_t scene_key_version; /* format of scene_key (SL_PVS_SCENE_KEY_VERSION when current;
+                                   1 in files of format 1.0) */
 } sl_pvs_info;
 
-/* Fingerprint of what a PVS depends on in a scene: object count, per-object mesh, kind, flags and
- * triangle count, the bounds of static objects, the footprints. */
+/* Format of sl_pvs_scene_key. 2: everything the methods read (below); 1 (files of format 1.0):
+ * boxes, kinds and counts only, so a scene whose triangles moved inside the same boxes, or whose
+ * BSP differed, had the same key. A file or a bake journal with another format is refused. */
+#define SL_PVS_SCENE_KEY_VERSION 2u
+
+/* Fingerprint of what a PVS depends on in a scene (XXH3-64 over the scene's arrays): the meshes
+ * (records, vertex positions, indices), per object its mesh, kind and flags and, for static
+ * objects, its transform and box; the footprints, the occluders and their transforms, the terrain,
+ * the streets, and the BSP (planes, nodes, leaves, leaf objects, cluster PVS). Not normals,
+ * colours, metadata or the placement of dynamic objects. Equal scenes give equal keys whatever
+ * built them. */
 SL_API uint64_t sl_pvs_scene_key(sl_scene scene);
 
 /* Write a PVS: cell i's set is ids[offsets[i] .. offsets[i+1]), strictly ascending, each below
@@ -67,15 +79,36 @@ SL_API uint64_t sl_pvs_scene_key(sl_scene scene);
 SL_API sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
                               const uint64_t *offsets, const uint32_t *ids, const char *meta, sl_error *err);
 
-/* Open a .slpvs (memory-mapped; alloc may be NULL). Everything except the compressed blocks is
- * validated; a bad file fails with SL_ERROR_FORMAT naming the file, the offset or cell and why;
- * a newer major version with SL_ERROR_UNSUPPORTED. */
+/* sl_pvs_open flags. */
+enum {
+    /* Map the file (mmap) instead of reading it into memory. Saves the copy, but the handle then
+     * reads the file's pages for as long as it lives: if another process truncates the file or
+     * rewrites it in place (cp over it, a tool writing without rename) while it is open, the next
+     * access to a lost page kills this process with SIGBUS, which the library does not catch.
+     * Only map files nothing else writes while they are open. Replacing a file by rename (what
+     * sl_pvs_write and every Sightline tool do) is safe either way. */
+    SL_PVS_OPEN_MAP = 1u << 0,
+};
+
+/* Open a .slpvs. By default the whole file is read into memory from alloc (may be NULL), so
+ * the handle never touches the file again and whatever happens to it later (truncated,
+ * rewritten, deleted) leaves the handle's data as read; flags: SL_PVS_OPEN_MAP (see above).
+ * Everything except the compressed blocks is validated; a bad file fails with SL_ERROR_FORMAT
+ * naming the file, the offset or cell and why (a short file: "offset 40: truncated: expected N
+ * bytes, file has M"); a newer major version with SL_ERROR_UNSUPPORTED. */
+SL_API sl_status sl_pvs_open(const char *path, uint32_t flags, const sl_allocator *alloc, sl_pvs *out, sl_error *err);
+/* sl_pvs_open(path, 0, alloc, out, err): read, not mapped. */
 SL_API sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err);
 /* The same from bytes in memory (copied). `name` stands for the file name in messages. */
 SL_API sl_status sl_pvs_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc,
                                     sl_pvs *out, sl_error *err);
 /* Release it. NULL is ignored. */
 SL_API void sl_pvs_destroy(sl_pvs pvs);
+/* SL_OK when pvs was baked for scene: same object count and scene key, the key of the current
+ * format. Else SL_ERROR_INVALID_ARGUMENT with a message that names the file and says to bake it
+ * again (a file of an older key format: "FILE was baked with an older scene key (format 1); bake
+ * it again: sightline pvs build ..."). */
+SL_API sl_status sl_pvs_check_scene(sl_pvs pvs, sl_scene scene, sl_error *err);
 
 /* Header figures (visible counts come from the set table: no decompression). */
 SL_API void sl_pvs_get_info(sl_pvs pvs, sl_pvs_info *info);

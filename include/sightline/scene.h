@@ -13,8 +13,8 @@
  *    map's own cluster PVS), and string metadata.
  *
  * Units are metres, Z up. A scene is built with the sl_scene_add_* calls, or loaded from a
- * .slscene file (see slscene.h), where its bulk arrays may stay memory-mapped and read-only: the
- * add calls then copy what they need first. Object transforms stay writable (dynamic objects).
+ * .slscene file (see slscene.h), read into memory or, on request, mapped: a mapped scene's bulk
+ * arrays stay read-only in the mapping and the add calls copy what they need first. Object transforms stay writable (dynamic objects).
  *
  * Thread safety: const accessors may run concurrently from any number of threads; mutating calls
  * need exclusive access.

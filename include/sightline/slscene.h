@@ -1,6 +1,6 @@
 /* The native scene file, .slscene: a versioned little-endian binary with a header, a section
  * table and an XXH3 checksum per section and for the table. Bulk sections are 64-byte aligned so
- * that a loaded scene maps them straight from the file (mmap) without copying. The byte layout is
+ * that a loaded scene can map them straight from the file (mmap) without copying, on request. The byte layout is
  * documented in docs/slscene-format.md. Same scene in, byte-identical file out. */
 #ifndef SIGHTLINE_SLSCENE_H
 #define SIGHTLINE_SLSCENE_H
@@ -13,15 +13,24 @@ extern "C" {
 #endif
 
 typedef struct sl_load_options {
-    bool no_mmap;               /* read into owned memory instead of mapping the file */
+    bool no_mmap;               /* obsolete: reading into owned memory is the default; true wins over map */
     bool skip_checksums;        /* trust section checksums (structure is still validated) */
     sl_progress progress;
+    /* Map the file (mmap) and let the scene's arrays point into it instead of reading it into
+     * memory from the allocator: faster (no copy), but the scene then reads the file's pages for
+     * as long as it lives, and if another process truncates or rewrites the file in place (cp over
+     * it, a tool writing without rename) meanwhile, the next access to a lost page kills this
+     * process with SIGBUS (the library installs no signal handler) or reads the other file's
+     * bytes. Only map files nothing writes while they are loaded; replacing a file by rename
+     * (what sl_scene_save and every Sightline tool do) is safe either way. */
+    bool map;
 } sl_load_options;
 
 /* Write a scene to path (atomically: temporary file, then rename). */
 SL_API sl_status sl_scene_save(sl_scene scene, const char *path, sl_error *err);
 
-/* Load a .slscene. opt may be NULL (mmap, checksums verified). Every section is validated before
+/* Load a .slscene. opt may be NULL (read into memory, checksums verified): the scene never
+ * touches the file again, whatever later happens to it. Every section is validated before
  * use; a bad file fails with SL_ERROR_FORMAT naming the file, the offset or element and why. */
 SL_API sl_status sl_scene_load(const char *path, const sl_load_options *opt, const sl_allocator *alloc, sl_scene *out,
                                sl_error *err);

@@ -108,14 +108,8 @@ static sl_status pvs_create(sl_scene scene, const void *config, const sl_allocat
         pvs_destroy(s);
         return st;
     }
-    sl_pvs_info info;
-    sl_pvs_get_info(s->pvs, &info);
-    if (info.object_count != s->object_count || info.scene_key != sl_pvs_scene_key(scene)) {
-        st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                     "pvs: %s was baked for another scene (%u objects, key %016llx; this scene has %u objects, key "
-                     "%016llx): bake it again for this scene",
-                     s->cfg.file, info.object_count, (unsigned long long)info.scene_key, s->object_count,
-                     (unsigned long long)sl_pvs_scene_key(scene));
+    if ((st = sl_pvs_check_scene(s->pvs, scene, err)) != SL_OK) {
+        sl_error_prefix(err, "pvs");
         pvs_destroy(s);
         return st;
     }

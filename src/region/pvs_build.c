@@ -127,6 +127,11 @@ static journal_verdict journal_examine(const sl_bake *b, const uint8_t *data, si
         snprintf(why, n, "offset 0: not a PVS checkpoint journal");
         return J_BAD;
     }
+    if (rd32(data + 8) == 1) {
+        /* version 1 held a scene key of format 1, which missed moved triangles and BSP changes */
+        snprintf(why, n, "the checkpoint was baked with an older scene key (format 1); bake it again");
+        return J_BAD;
+    }
     if (rd32(data + 8) != J_VERSION) {
         snprintf(why, n, "journal version %u (this build reads and writes %u)", rd32(data + 8), J_VERSION);
         return J_BAD;

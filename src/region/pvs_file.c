@@ -13,7 +13,8 @@
  * Neighbouring cells see much the same objects, so a block of consecutive cells compresses well,
  * and decoding one cell costs one block (cached).
  *
- * Load maps the file and validates everything except DATA, whose frames are checked (checksum,
+ * Load reads the file into memory (or maps it on request, SL_PVS_OPEN_MAP) and validates
+ * everything except DATA, whose frames are checked (checksum,
  * exact decompressed size, varint stream of exactly the stated count, ids ascending and below the
  * object count) when a block is first decoded; sl_pvs_verify checks DATA whole. No byte is trusted
  * before it is checked: offsets and sizes are overflow-checked against the file, counts against
@@ -22,15 +23,19 @@
 
 #include "scene/scene_internal.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "the .slpvs reader maps little-endian records directly"
 #endif
 
 #define PVS_MAJOR 1u
-#define PVS_MINOR 0u
+#define PVS_MINOR 1u /* 1.1: PVSH holds the scene key format (2); 1.0 files have format 1 */
 #define PVS_HEADER 64u
 #define PVS_ENTRY 48u
 #define PVS_ALIGN 64u
@@ -56,7 +61,8 @@ enum { H_MAGIC = 0, H_MAJOR = 8, H_MINOR = 12, H_FLAGS = 16, H_HEADER_SIZE = 20,
 enum { E_TAG = 0, E_ELEM = 4, E_COUNT = 8, E_OFFSET = 16, E_SIZE = 24, E_HASH = 32, E_RESERVED = 40 };
 /* PVSH record */
 enum { P_CELLS = 0, P_OBJECTS = 4, P_BLOCK_CELLS = 8, P_BLOCKS = 12, P_SCENE_KEY = 16, P_CELLS_KEY = 24,
-       P_VISIBLE = 32, P_ENCODING = 40, P_MAX_RAW = 44, P_RESERVED = 48 };
+       P_VISIBLE = 32, P_ENCODING = 40, P_MAX_RAW = 44, P_KEY_VERSION = 48, P_RESERVED = 52 };
+enum { P_RESERVED_1_0 = 48 }; /* where the reserved bytes began in format 1.0 */
 /* BLKS record */
 enum { B_OFFSET = 0, B_CSIZE = 8, B_RSIZE = 12, B_HASH = 16, B_RESERVED = 24 };
 
@@ -116,39 +122,108 @@ ZSTD_customMem sl_zstd_mem(const sl_allocator *a)
     return m;
 }
 
-/* ---- the scene key ---- */
+/* ---- the scene key ----
+ *
+ * Format 2 (SL_PVS_SCENE_KEY_VERSION) hashes everything a baking method or the region oracle
+ * reads: the meshes (records, positions, indices), every object's mesh, kind and flags, and for
+ * static objects their transform and world box; footprints, occluders (with their transforms),
+ * the terrain, the streets and the whole BSP (planes, nodes, leaves, leaf objects, cluster PVS).
+ * Left out: normals, colours, metadata, and where dynamic objects are (they move; the PVS does
+ * not depend on it). Each array is hashed whole with its length (XXH3-64 chained by seed), so the
+ * key costs one pass over the scene's bytes. Format 1 hashed boxes, kinds and counts only. */
+
+static uint64_t hash_bytes(const void *data, size_t size, uint64_t h)
+{
+    uint64_t n = size;
+    h = sl_hash64(&n, sizeof n, h);
+    return size ? sl_hash64(data, size, h) : h;
+}
+
+static uint64_t hash_array(const sl_array *arr, size_t elem, uint64_t h)
+{
+    return hash_bytes(arr->data, arr->count * elem, h);
+}
+
+static uint64_t hash_transform(const struct sl_scene_t *s, uint32_t t, uint64_t h)
+{
+    sl_affine m = sl_affine_identity();
+    if (t != SL_NONE && t < s->transforms.count)
+        m = sl_scene_transforms(s)[t];
+    return sl_hash64(m.m, sizeof m.m, h);
+}
 
 uint64_t sl_pvs_scene_key(sl_scene scene)
 {
     if (!scene)
         return 0;
     const struct sl_scene_t *s = scene;
+    uint32_t version = SL_PVS_SCENE_KEY_VERSION;
+    uint64_t h = sl_hash64(&version, sizeof version, 0x534c505653ull);
+    /* geometry */
+    h = hash_array(&s->meshes, sizeof(sl_mesh_rec), h);
+    h = hash_array(&s->positions, sizeof(float), h);
+    h = hash_array(&s->indices, sizeof(uint32_t), h);
+    /* objects */
     uint32_t n = sl_scene_object_count(scene);
-    uint64_t h = sl_hash64(&n, sizeof n, 0x534c505653ull);
+    h = sl_hash64(&n, sizeof n, h);
     const sl_object_rec *objs = sl_scene_objects(s);
-    const sl_mesh_rec *meshes = sl_scene_meshes(s);
     const sl_aabb *bounds = sl_scene_object_bounds_array(scene);
     for (uint32_t i = 0; i < n; i++) {
-        /* dynamic objects move: their boxes are not part of what the PVS depends on */
-        struct {
-            uint32_t mesh, kind, flags, triangles;
-            sl_aabb box;
-        } rec;
-        memset(&rec, 0, sizeof rec);
-        rec.mesh = objs[i].mesh;
-        rec.kind = objs[i].kind;
-        rec.flags = objs[i].flags;
-        rec.triangles = meshes[objs[i].mesh].triangle_count;
-        if (!(objs[i].flags & SL_OBJECT_DYNAMIC))
-            rec.box = bounds[i];
-        h = sl_hash64(&rec, sizeof rec, h);
+        uint32_t rec[4] = {objs[i].mesh, objs[i].kind, objs[i].flags, 0};
+        bool dynamic = (objs[i].flags & SL_OBJECT_DYNAMIC) != 0;
+        rec[3] = dynamic ? 0 : 1;
+        h = sl_hash64(rec, sizeof rec, h);
+        if (!dynamic) {
+            h = hash_transform(s, objs[i].transform, h);
+            h = sl_hash64(&bounds[i], sizeof bounds[i], h);
+        }
     }
-    uint32_t nf = sl_scene_footprint_count(scene);
+    /* footprints */
+    uint32_t nf = (uint32_t)s->footprints.count;
+    h = sl_hash64(&nf, sizeof nf, h);
     for (uint32_t i = 0; i < nf; i++) {
-        sl_footprint_view f = sl_scene_footprint(scene, i);
-        float z[2] = {f.base_z, f.roof_z};
+        const sl_footprint_rec *f = &SL_AT(s->footprints, sl_footprint_rec, i);
+        uint32_t u[3] = {f->first_vertex, f->vertex_count, f->object};
+        float z[2] = {f->base_z, f->roof_z};
+        h = sl_hash64(u, sizeof u, h);
         h = sl_hash64(z, sizeof z, h);
-        h = sl_hash64(f.xy, (size_t)f.vertex_count * 2 * sizeof(float), h);
+    }
+    h = hash_array(&s->footprint_xy, sizeof(float), h);
+    /* occluders */
+    uint32_t no = (uint32_t)s->occluders.count;
+    h = sl_hash64(&no, sizeof no, h);
+    for (uint32_t i = 0; i < no; i++) {
+        const sl_occluder_rec *o = &SL_AT(s->occluders, sl_occluder_rec, i);
+        uint32_t u[2] = {o->mesh, o->object};
+        h = sl_hash64(u, sizeof u, h);
+        h = hash_transform(s, o->transform, h);
+    }
+    /* terrain */
+    {
+        uint32_t t[3] = {s->has_terrain ? 1u : 0u, s->has_terrain ? s->terrain_nx : 0, s->has_terrain ? s->terrain_ny : 0};
+        h = sl_hash64(t, sizeof t, h);
+        if (s->has_terrain) {
+            float g[3] = {s->terrain_origin_x, s->terrain_origin_y, s->terrain_cell};
+            h = sl_hash64(g, sizeof g, h);
+            h = hash_array(&s->terrain_heights, sizeof(float), h);
+        }
+    }
+    /* streets */
+    h = hash_array(&s->street_polys, sizeof(sl_polygon_rec), h);
+    h = hash_array(&s->street_xy, sizeof(float), h);
+    h = hash_array(&s->street_nodes, sizeof(sl_street_node), h);
+    h = hash_array(&s->street_edges, sizeof(sl_street_edge), h);
+    /* BSP */
+    {
+        uint32_t b[3] = {s->has_bsp ? 1u : 0u, s->has_bsp ? s->bsp_cluster_count : 0, s->has_bsp ? s->bsp_cluster_bytes : 0};
+        h = sl_hash64(b, sizeof b, h);
+        if (s->has_bsp) {
+            h = hash_array(&s->bsp_planes, sizeof(sl_plane), h);
+            h = hash_array(&s->bsp_nodes, sizeof(sl_bsp_node), h);
+            h = hash_array(&s->bsp_leaves, sizeof(sl_bsp_leaf), h);
+            h = hash_array(&s->bsp_leaf_objects, sizeof(uint32_t), h);
+            h = hash_array(&s->bsp_pvs, 1, h);
+        }
     }
     return h;
 }
@@ -254,6 +329,7 @@ sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_cou
     wr64(head_rec + P_VISIBLE, total);
     wr32(head_rec + P_ENCODING, PVS_ENCODING_VARINT_ZSTD);
     wr32(head_rec + P_MAX_RAW, max_raw);
+    wr32(head_rec + P_KEY_VERSION, SL_PVS_SCENE_KEY_VERSION);
 
     wsec secs[S_COUNT] = {
         {head_rec, 1, PVS_HEAD_REC, 0, 0},
@@ -333,6 +409,7 @@ struct sl_pvs_t {
     uint64_t off[S_COUNT], len[S_COUNT], hash[S_COUNT];
     uint32_t cell_count, object_count, block_cells, block_count, max_raw;
     uint64_t scene_key, cells_key, visible_total;
+    uint32_t key_version;
     const uint8_t *sets, *blks, *data;
     sl_viewcells cells;
     char *meta;                 /* NUL-terminated copy */
@@ -390,7 +467,8 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
 {
     const uint8_t *b = p->bytes;
     if (p->size < PVS_HEADER)
-        return FAIL_AT(err, p, 0, "file of %llu bytes is shorter than the 64-byte header", (unsigned long long)p->size);
+        return FAIL_AT(err, p, 0, "truncated: expected at least the 64-byte header, file has %llu bytes",
+                       (unsigned long long)p->size);
     if (memcmp(b + H_MAGIC, k_magic, 8) != 0)
         return FAIL_AT(err, p, 0, "not a .slpvs file (bad magic)");
     uint32_t major = rd32(b + H_MAJOR), minor = rd32(b + H_MINOR);
@@ -414,8 +492,11 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
         return FAIL_AT(err, p, H_ENTRY, "section entry size %u is outside 48..4096", entry);
     if (nsec > PVS_MAX_SECTIONS)
         return FAIL_AT(err, p, H_SECTIONS, "%u sections (at most %u)", nsec, PVS_MAX_SECTIONS);
-    if (fsize != p->size)
-        return FAIL_AT(err, p, H_FILE_SIZE, "header says %llu bytes but the file has %llu (truncated or extended)",
+    if (fsize > p->size)
+        return FAIL_AT(err, p, H_FILE_SIZE, "truncated: expected %llu bytes, file has %llu", (unsigned long long)fsize,
+                       (unsigned long long)p->size);
+    if (fsize < p->size)
+        return FAIL_AT(err, p, H_FILE_SIZE, "extended: expected %llu bytes, file has %llu (bytes after the end)",
                        (unsigned long long)fsize, (unsigned long long)p->size);
     uint64_t tsize = (uint64_t)nsec * entry;
     if (table < header_size || table > p->size || tsize > p->size - table)
@@ -518,8 +599,13 @@ static sl_status read_tables(struct sl_pvs_t *p, sl_error *err)
     p->max_raw = rd32(h + P_MAX_RAW);
     if (rd32(h + P_ENCODING) != PVS_ENCODING_VARINT_ZSTD)
         return FAIL_AT(err, p, ho + P_ENCODING, "unknown set encoding %u", rd32(h + P_ENCODING));
-    if (!zero_bytes(h + P_RESERVED, PVS_HEAD_REC - P_RESERVED))
-        return FAIL_AT(err, p, ho + P_RESERVED, "reserved bytes of 'PVSH' are not zero");
+    /* 1.0 had no key format field (its keys are format 1); 1.1 and later state theirs */
+    uint32_t reserved_at = p->minor == 0 ? P_RESERVED_1_0 : P_RESERVED;
+    p->key_version = p->minor == 0 ? 1u : rd32(h + P_KEY_VERSION);
+    if (p->key_version == 0)
+        return FAIL_AT(err, p, ho + P_KEY_VERSION, "scene key format 0 does not exist");
+    if (!zero_bytes(h + reserved_at, PVS_HEAD_REC - reserved_at))
+        return FAIL_AT(err, p, ho + reserved_at, "reserved bytes of 'PVSH' are not zero");
     if (p->object_count == UINT32_MAX)
         return FAIL_AT(err, p, ho + P_OBJECTS, "object count %u is out of range", p->object_count);
     if (p->block_cells == 0 || p->block_cells > PVS_MAX_BLOCK_CELLS)
@@ -654,22 +740,88 @@ static struct sl_pvs_t *new_pvs(const sl_allocator *alloc, const char *name)
     return p;
 }
 
-sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
+/* Read the whole file into a 64-byte aligned buffer of the handle's allocator (the CELL records
+ * are read in place). A file that shrinks while it is read (rewritten in place by another
+ * process) is reported as truncated; one that grows is read up to the size it had at open. */
+static sl_status read_file(struct sl_pvs_t *p, const char *path, sl_error *err)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0)
+        return sl_fail(err, errno == ENOENT ? SL_ERROR_NOT_FOUND : SL_ERROR_IO, "%s: cannot open: %s", path,
+                       strerror(errno));
+    struct stat sb;
+    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_IO, "%s: not a regular file", path);
+    }
+    if (sb.st_size == 0) {
+        close(fd);
+        return fail_at(err, path, 0, "truncated: the file is empty (a .slpvs has at least %u bytes)", PVS_HEADER);
+    }
+    if ((uint64_t)sb.st_size > SIZE_MAX - PVS_ALIGN) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_LIMIT, "%s: file of %llu bytes is too large", path, (unsigned long long)sb.st_size);
+    }
+    size_t n = (size_t)sb.st_size;
+    p->owned = sl_alloc_aligned(&p->alloc, n, PVS_ALIGN);
+    if (!p->owned) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for %zu bytes", path, n);
+    }
+    p->owned_size = n;
+    size_t at = 0;
+    while (at < n) {
+        ssize_t got = pread(fd, p->owned + at, n - at, (off_t)at);
+        if (got < 0 && errno == EINTR)
+            continue;
+        if (got < 0) {
+            int e = errno;
+            close(fd);
+            return sl_fail(err, SL_ERROR_IO, "%s: offset %zu: read failed: %s", path, at, strerror(e));
+        }
+        if (got == 0) {
+            /* the file lost bytes since fstat: someone truncated or is rewriting it */
+            uint64_t now = fstat(fd, &sb) == 0 ? (uint64_t)sb.st_size : (uint64_t)at;
+            close(fd);
+            return fail_at(err, path, at, "truncated while reading: expected %zu bytes, file has %llu", n,
+                           (unsigned long long)now);
+        }
+        at += (size_t)got;
+    }
+    close(fd);
+    p->bytes = p->owned;
+    p->size = n;
+    return SL_OK;
+}
+
+sl_status sl_pvs_open(const char *path, uint32_t flags, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
 {
     if (!path || !out)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_load: path and out must not be NULL");
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_open: path and out must not be NULL");
     *out = NULL;
+    if (flags & ~(uint32_t)SL_PVS_OPEN_MAP)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_open: unknown flags %08x", flags);
     struct sl_pvs_t *p = new_pvs(alloc, path);
     if (!p)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
-    sl_status st = sl_file_map(path, &p->map, err);
+    sl_status st;
+    if (flags & SL_PVS_OPEN_MAP) {
+        st = sl_file_map(path, &p->map, err);
+        p->bytes = p->map.data;
+        p->size = p->map.size;
+    } else {
+        st = read_file(p, path, err);
+    }
     if (st != SL_OK) {
         sl_pvs_destroy(p);
         return st;
     }
-    p->bytes = p->map.data;
-    p->size = p->map.size;
     return open_common(p, out, err);
+}
+
+sl_status sl_pvs_load(const char *path, const sl_allocator *alloc, sl_pvs *out, sl_error *err)
+{
+    return sl_pvs_open(path, 0, alloc, out, err);
 }
 
 sl_status sl_pvs_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc, sl_pvs *out,
@@ -713,6 +865,7 @@ void sl_pvs_get_info(sl_pvs p, sl_pvs_info *info)
     info->block_count = p->block_count;
     info->scene_key = p->scene_key;
     info->cells_key = p->cells_key;
+    info->scene_key_version = p->key_version;
     info->visible_total = p->visible_total;
     info->file_size = p->size;
     info->data_bytes = p->len[S_DATA];
@@ -728,6 +881,32 @@ void sl_pvs_get_info(sl_pvs p, sl_pvs_info *info)
         info->raw_bytes += rd32(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_RSIZE);
     info->mean_visible = p->cell_count ? (double)p->visible_total / p->cell_count : 0;
     info->mean_culled = p->cell_count ? culled / p->cell_count : 0;
+}
+
+sl_status sl_pvs_check_scene(sl_pvs p, sl_scene scene, sl_error *err)
+{
+    if (!p || !scene)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_check_scene: pvs and scene must not be NULL");
+    const char *m = sl_pvs_meta(p, "method");
+    char how[160];
+    snprintf(how, sizeof how, "sightline pvs build SCENE%s%s -o %s", m ? " --method " : "", m ? m : "", p->name);
+    if (p->key_version < SL_PVS_SCENE_KEY_VERSION)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "%s was baked with an older scene key (format %u; this build uses format %u, which also covers "
+                       "triangles and BSP data); bake it again: %s",
+                       p->name, p->key_version, SL_PVS_SCENE_KEY_VERSION, how);
+    if (p->key_version > SL_PVS_SCENE_KEY_VERSION)
+        return sl_fail(err, SL_ERROR_UNSUPPORTED,
+                       "%s was baked with a newer scene key (format %u; this build knows format %u): upgrade Sightline",
+                       p->name, p->key_version, SL_PVS_SCENE_KEY_VERSION);
+    uint32_t n = sl_scene_object_count(scene);
+    uint64_t key = sl_pvs_scene_key(scene);
+    if (p->object_count != n || p->scene_key != key)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "%s was not baked for this scene (it was baked for %u objects, scene key %016llx; this scene has "
+                       "%u objects, key %016llx): bake it again for this scene: %s",
+                       p->name, p->object_count, (unsigned long long)p->scene_key, n, (unsigned long long)key, how);
+    return SL_OK;
 }
 
 sl_viewcells sl_pvs_cells(sl_pvs p) { return p ? p->cells : NULL; }

@@ -12,6 +12,7 @@
  * matrix), so that object transform · mesh vertex = B·W·v for both kinds. See
  * docs/import-export.md. */
 #include "scene_internal.h"
+#include "source_meta.h"
 #include "split.h"
 #include "sightline/import.h"
 
@@ -600,7 +601,7 @@ static sl_status set_metadata(import_ctx *c, sl_error *err)
              aiGetVersionPatch());
     snprintf(scale, sizeof scale, "%.9g", c->scale);
     sl_status st;
-    if ((st = sl_scene_set_meta(c->scene, "source", c->path, err)) != SL_OK ||
+    if ((st = sl_scene_set_source_file(c->scene, c->path, err)) != SL_OK ||
         (st = sl_scene_set_meta(c->scene, "importer", "assimp", err)) != SL_OK ||
         (st = sl_scene_set_meta(c->scene, "assimp.version", assimp_version, err)) != SL_OK ||
         (st = sl_scene_set_meta(c->scene, "assimp.format", buf, err)) != SL_OK ||

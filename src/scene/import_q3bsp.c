@@ -24,6 +24,7 @@
  */
 #include "pk3.h"
 #include "scene_internal.h"
+#include "source_meta.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -1195,7 +1196,7 @@ static sl_status q3_set_metadata(q3_ctx *c, uint32_t cluster_count)
         len -= 4;
     sl_scene_stats stats;
     sl_scene_get_stats(c->scene, &stats);
-    if ((st = sl_scene_set_meta(c->scene, "source", c->name, c->err)) != SL_OK ||
+    if ((st = sl_scene_set_source(c->scene, c->name, c->data, c->size, c->err)) != SL_OK ||
         (st = q3_meta(c, "importer", "quake3-ibsp46")) != SL_OK ||
         (st = q3_meta(c, "q3.map", "%.*s", (int)SL_MIN(len, 200u), base)) != SL_OK ||
         (st = q3_meta(c, "q3.unit_scale", "%.9g", (double)c->scale)) != SL_OK ||

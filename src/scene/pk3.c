@@ -3,6 +3,7 @@
  * Every entry's declared uncompressed size is checked against a limit before anything is
  * allocated, and the bytes read must match it exactly (libzip checks the CRC at the end). */
 #include "pk3.h"
+#include "source_meta.h"
 
 #include "../core/sl_core.h"
 
@@ -220,6 +221,11 @@ sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archiv
     if (st == SL_OK) {
         st = sl_q3bsp_import_memory_limited(bytes, nbytes, name, opt, max_triangles, alloc, out, err);
         sl_free(a, bytes, nbytes ? nbytes : 1);
+        /* `entry` died with the archive handle: its copy in `name` follows "archive:" */
+        if (st == SL_OK && (st = sl_scene_set_source_entry(*out, archive, name + strlen(archive) + 1, err)) != SL_OK) {
+            sl_scene_destroy(*out);
+            *out = NULL;
+        }
     }
     sl_free(a, name, name_len);
     return st;

@@ -956,7 +956,7 @@ sl_status sl_scene_load(const char *path, const sl_load_options *opt, const sl_a
     r.err = err;
     r.fd = -1;
     sl_mapping map = {NULL, 0};
-    if (!opt->no_mmap) {
+    if (opt->map && !opt->no_mmap) {
         sl_status st = sl_file_map(path, &map, err);
         if (st != SL_OK)
             return st;
