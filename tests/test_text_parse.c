@@ -23,7 +23,7 @@ static void test_floats(void **state)
     float keep[3] = {7, 8, 9};
     const char *bad[] = {"",        "1,2",      "1,2,3,4", "1,,3",     "1,2,3,",  ",1,2,3", "1,2,x",
                          "nan,0,0", "inf,0,0",  "0,-inf,0", "3e39,0,0", " 1,2,3", "1,2, 3", "1,2,3 ",
-                         "1;2;3",   "1,2,3\n", "0x,1,2"};
+                         "1;2;3",   "1,2,3\n", "0x,1,2",  "\v1,2,3", "1,\r2,3"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         if (sl_parse_floats(bad[i], keep, 3))
             fail_msg("'%s' was accepted", bad[i]);

@@ -1,6 +1,7 @@
 /* The command line's number-list readers (text_parse.h). */
 #include "text_parse.h"
 
+#include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
 
@@ -18,7 +19,7 @@ static bool parse_list(const char *text, double *v, int max, int *count)
         char *end;
         double x = strtod(p, &end);
         /* strtod skips leading white space: an item must start with the number itself */
-        if (end == p || *p == ' ' || *p == '\t' || *p == '\n' || !isfinite(x) || !isfinite((float)x))
+        if (end == p || isspace((unsigned char)*p) || !isfinite(x) || !isfinite((float)x))
             return false;
         v[n++] = x;
         if (*end == 0)
