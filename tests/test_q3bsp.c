@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <cmocka.h>
 
+#include <glob.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,6 +17,7 @@
 #include "core/sl_core.h"
 #include "scene/pk3.h"
 #include "sightline/import.h"
+#include "sightline/path.h"
 #include "sightline/region.h"
 #include "support/counting_alloc.h"
 
@@ -117,13 +119,14 @@ static uint8_t *bspw_finish(bspw *w, size_t *size)
  * with_vis: 2 clusters, rows of 1 byte: cluster 0 sees {0}, cluster 1 sees {0, 1}.
  * model_leaf: a third leaf that no node reaches, cluster field 0, referencing face 7 (the door),
  * as q3map writes one for every brush model. */
-static uint8_t *tiny_map_ex(size_t *size, bool with_vis, bool model_leaf)
+static uint8_t *tiny_map_ents(size_t *size, bool with_vis, bool model_leaf, const char *ents)
 {
     bspw w = {0};
-    const char *ents = "{\n\"classname\" \"worldspawn\"\n\"message\" \"Tiny test map\"\n\"_farplanedist\" \"1024\"\n}\n"
-                       "{\n\"classname\" \"info_player_deathmatch\"\n\"origin\" \"32 0 16\"\n}\n"
-                       "{\n\"origin\" \"-64 0 16\"\n\"classname\" \"info_player_start\"\n}\n"
-                       "{\n\"classname\" \"func_door\"\n\"model\" \"*1\"\n}\n";
+    if (!ents)
+        ents = "{\n\"classname\" \"worldspawn\"\n\"message\" \"Tiny test map\"\n\"_farplanedist\" \"1024\"\n}\n"
+               "{\n\"classname\" \"info_player_deathmatch\"\n\"origin\" \"32 0 16\"\n}\n"
+               "{\n\"origin\" \"-64 0 16\"\n\"classname\" \"info_player_start\"\n}\n"
+               "{\n\"classname\" \"func_door\"\n\"model\" \"*1\"\n}\n";
     put(&w, L_ENT, ents, strlen(ents) + 1);
     shader(&w, "textures/test/wall", 0, 1);
     shader(&w, "textures/skies/tiny_sky", 0x4, 1);
@@ -187,6 +190,11 @@ static uint8_t *tiny_map_ex(size_t *size, bool with_vis, bool model_leaf)
         put(&w, L_VIS, rows, 2);
     }
     return bspw_finish(&w, size);
+}
+
+static uint8_t *tiny_map_ex(size_t *size, bool with_vis, bool model_leaf)
+{
+    return tiny_map_ents(size, with_vis, model_leaf, NULL);
 }
 
 static uint8_t *tiny_map(size_t *size, bool with_vis) { return tiny_map_ex(size, with_vis, false); }
@@ -991,6 +999,270 @@ static void test_openarena_hostile(void **state)
     free(good);
 }
 
+/* ---- issue 12: readers that trusted too much ---- */
+
+/* Spawn classes of Nexuiz (and Xonotic): team spawns and race starts are spawn points too. */
+static void test_spawn_classes(void **state)
+{
+    (void)state;
+    const char *ents = "{\n\"classname\" \"worldspawn\"\n}\n"
+                       "{\n\"classname\" \"info_player_team1\"\n\"origin\" \"32 0 16\"\n}\n"
+                       "{\n\"classname\" \"info_player_team2\"\n\"origin\" \"64 0 16\"\n}\n"
+                       "{\n\"classname\" \"info_player_team3\"\n\"origin\" \"96 0 16\"\n}\n"
+                       "{\n\"classname\" \"info_player_team4\"\n\"origin\" \"128 0 16\"\n}\n"
+                       "{\n\"origin\" \"-64 0 16\"\n\"classname\" \"info_player_race\"\n}\n"
+                       "{\n\"classname\" \"info_player_nosuch\"\n\"origin\" \"0 0 0\"\n}\n"
+                       "{\n\"classname\" \"func_door\"\n\"model\" \"*1\"\n}\n";
+    size_t size;
+    uint8_t *map = tiny_map_ents(&size, true, false, ents);
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_import_q3bsp_memory(map, size, "teams.bsp", NULL, NULL, &s, &err), SL_OK);
+    assert_string_equal(sl_scene_meta(s, "q3.spawn_count"), "5");
+    assert_string_equal(sl_scene_meta(s, "q3.spawns"),
+                        "1.0000 0.0000 0.5000;2.0000 0.0000 0.5000;3.0000 0.0000 0.5000;4.0000 0.0000 0.5000;"
+                        "-2.0000 0.0000 0.5000");
+    /* and street views, which stand on the spawn points of a map without streets, now exist */
+    sl_path p;
+    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 4, 7, NULL, NULL, &p, &err), SL_OK);
+    assert_int_equal(sl_path_count(p), 4);
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+    free(map);
+}
+
+/* Node and leaf boxes are integers in the file; a unit scale that makes them infinite is refused
+ * against the lump and the element (and a scene's NaN boxes by sl_scene_set_bsp and the .slscene
+ * reader: test_slscene). */
+static void test_bsp_boxes(void **state)
+{
+    (void)state;
+    size_t size;
+    uint8_t *map = tiny_map(&size, true);
+    sl_import_options o = sl_import_defaults();
+    o.unit_scale = 1e37f;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_import_q3bsp_memory(map, size, "huge.bsp", &o, NULL, &s, &err), SL_ERROR_FORMAT);
+    if (!contains(err.message, "huge.bsp: lump 3 (nodes): node 0: mins.x (-128) is not finite once scaled"))
+        fail_msg("%s", err.message);
+    free(map);
+    /* the library's own check, for any scene */
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    sl_plane pl = {0, 0, 1, 0};
+    sl_bsp_node nd = {0, {-1, -2}, {{0, 0, 0}, {1, 1, 1}}};
+    sl_bsp_leaf lf[2] = {{-1, 0, {{0, 0, 0}, {1, 1, 1}}, 0, 0}, {-1, 0, {{0, 0, 0}, {1, 1, 1}}, 0, 0}};
+    sl_bsp_desc d = {0};
+    d.planes = &pl, d.plane_count = 1, d.nodes = &nd, d.node_count = 1, d.leaves = lf, d.leaf_count = 2;
+    assert_int_equal(sl_scene_set_bsp(s, &d, &err), SL_OK);
+    nd.bounds.max.y = NAN;
+    assert_int_equal(sl_scene_set_bsp(s, &d, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_true(contains(err.message, "bsp node 0: maxs.y is NaN"));
+    nd.bounds.max.y = 1;
+    lf[1].bounds.min.z = -INFINITY;
+    assert_int_equal(sl_scene_set_bsp(s, &d, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_true(contains(err.message, "bsp leaf 1: mins.z is infinite"));
+    sl_scene_destroy(s);
+}
+
+typedef struct capped {
+    size_t live, cap;
+} capped;
+static void *cap_alloc(void *u, size_t size, size_t align)
+{
+    capped *c = u;
+    void *p = NULL;
+    if (size > c->cap - c->live || posix_memalign(&p, align < sizeof(void *) ? sizeof(void *) : align, size ? size : 1))
+        return NULL;
+    c->live += size;
+    return p;
+}
+static void cap_free(void *u, void *ptr, size_t size)
+{
+    capped *c = u;
+    c->live -= size;
+    free(ptr);
+}
+static void *cap_realloc(void *u, void *ptr, size_t old_size, size_t new_size, size_t align)
+{
+    void *p = cap_alloc(u, new_size, align);
+    if (p && ptr) {
+        memcpy(p, ptr, SL_MIN(old_size, new_size));
+        cap_free(u, ptr, old_size);
+    }
+    return p;
+}
+
+/* One 99x99 patch (9801 control points, 431 KB) that `faces` faces all reference. */
+static uint8_t *shared_patch_map(size_t *size, int faces)
+{
+    bspw w = {0};
+    const char *ents = "{\n\"classname\" \"worldspawn\"\n}\n";
+    put(&w, L_ENT, ents, strlen(ents) + 1);
+    shader(&w, "textures/test/wall", 0, 1);
+    plane(&w, 0, 0, 1, 0);
+    leaf(&w, 0, -4096, 4096, 0, 0, 0, 0);
+    float box[6] = {-4096, -4096, -128, 4096, 4096, 128};
+    int32_t m0[4] = {0, faces, 0, 0};
+    put(&w, L_MOD, box, sizeof box), put(&w, L_MOD, m0, sizeof m0);
+    for (int j = 0; j < 99; j++)
+        for (int i = 0; i < 99; i++)
+            vert(&w, 16.0f * i, 16.0f * j, (float)((i * 7 + j * 3) % 5), 0, 0, 1);
+    for (int f = 0; f < faces; f++)
+        face(&w, 0, 2, 0, 99 * 99, 0, 0, 99, 99);
+    return bspw_finish(&w, size);
+}
+
+/* A small map must not expand without bound: 200 faces sharing one 99x99 patch asked for 61.5 M
+ * triangles (1.47 GB) from 455 KB; the output is now bounded by the file's size. The importer
+ * runs under a 256 MB allocator cap so that the unbounded version fails fast (out of memory)
+ * instead of succeeding slowly. */
+static void test_patch_expansion(void **state)
+{
+    (void)state;
+    size_t size;
+    uint8_t *map = shared_patch_map(&size, 200);
+    assert_true(size > 440000 && size < 470000);
+    capped cap = {0, (size_t)256 << 20};
+    sl_allocator a = {cap_alloc, cap_realloc, cap_free, &cap};
+    sl_scene s;
+    sl_error err;
+    sl_status st = sl_import_q3bsp_memory(map, size, "shared.bsp", NULL, &a, &s, &err);
+    if (st != SL_ERROR_LIMIT)
+        fail_msg("status %d: %s", st, st == SL_OK ? "imported" : err.message);
+    /* 307 328 triangles a face at level 8; the bound for ~452 KB is ~970 k: face 3 is the first too many */
+    assert_true(contains(err.message, "shared.bsp: lump 13 (faces): face 3: "));
+    assert_true(contains(err.message, "more than 970328 triangles at bezier level 8, the limit for a 452396-byte map"));
+    assert_true(contains(err.message, "-byte map"));
+    assert_null(s);
+    assert_int_equal(cap.live, 0);
+    free(map);
+    /* the same patch used once is a legitimate (large) map: 307 328 triangles */
+    map = shared_patch_map(&size, 1);
+    assert_int_equal(sl_import_q3bsp_memory(map, size, "one.bsp", NULL, &a, &s, &err), SL_OK);
+    sl_scene_stats stats;
+    sl_scene_get_stats(s, &stats);
+    assert_int_equal(stats.triangle_count, 2ull * 392 * 392);
+    sl_scene_destroy(s);
+    free(map);
+}
+
+/* Replace every occurrence of `from` by `to` (same length) in a buffer. */
+static void replace_all(uint8_t *p, size_t n, const char *from, const char *to)
+{
+    size_t k = strlen(from);
+    assert_int_equal(strlen(to), k);
+    for (size_t i = 0; i + k <= n; i++)
+        if (memcmp(p + i, from, k) == 0)
+            memcpy(p + i, to, k);
+}
+
+/* A .pk3 holding two entries of one name is refused with that name, not libzip's bare "File
+ * already exists"; a map in a subfolder loads under the name --list-maps prints, with or without
+ * ".bsp" (Nexuiz's maps/_init/_init). */
+static void test_pk3_names(void **state)
+{
+    (void)state;
+    size_t msize;
+    uint8_t *map = tiny_map(&msize, true);
+    char *pk3 = temp_path(".pk3");
+    int zerr;
+    zip_t *z = zip_open(pk3, ZIP_CREATE | ZIP_TRUNCATE, &zerr);
+    assert_non_null(z);
+    const char *entries[] = {"maps/dupe.bsp", "maps/twin.bsp", "maps/_init/_init.bsp"};
+    for (size_t i = 0; i < SL_COUNTOF(entries); i++) {
+        zip_source_t *src = zip_source_buffer(z, map, msize, 0);
+        assert_non_null(src);
+        assert_true(zip_file_add(z, entries[i], src, 0) >= 0);
+    }
+    assert_int_equal(zip_close(z), 0);
+    size_t zsize;
+    uint8_t *zip = read_file(pk3, &zsize);
+    unlink(pk3);
+    free(pk3);
+    sl_scene s;
+    sl_error err;
+    /* the subfolder map, as listed and without its extension */
+    name_list list = {0};
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "names.pk3", collect, &list, &err), SL_OK);
+    assert_int_equal(list.count, 3);
+    assert_string_equal(list.names[2], "maps/_init/_init.bsp");
+    const char *names[] = {"maps/_init/_init.bsp", "maps/_init/_init", "MAPS/_INIT/_INIT"};
+    for (size_t i = 0; i < SL_COUNTOF(names); i++) {
+        if (sl_pk3_import_memory(zip, zsize, "names.pk3", names[i], SL_PK3_MAX_ENTRY_BYTES, SL_Q3_MAX_TRIANGLES, NULL,
+                                 NULL, &s, &err) != SL_OK)
+            fail_msg("%s: %s", names[i], err.message);
+        sl_scene_destroy(s);
+    }
+    assert_int_equal(sl_pk3_import_memory(zip, zsize, "names.pk3", "maps/_init/other", SL_PK3_MAX_ENTRY_BYTES,
+                                          SL_Q3_MAX_TRIANGLES, NULL, NULL, &s, &err),
+                     SL_ERROR_NOT_FOUND);
+    assert_true(contains(err.message, "entry maps/_init/other.bsp not found"));
+    assert_int_equal(sl_pk3_import_memory(zip, zsize, "names.pk3", "maps/_init/x.jpg", SL_PK3_MAX_ENTRY_BYTES,
+                                          SL_Q3_MAX_TRIANGLES, NULL, NULL, &s, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    /* two entries of one name: the local headers and the central directory both say dupe */
+    replace_all(zip, zsize, "maps/twin.bsp", "maps/dupe.bsp");
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "dupe.pk3", collect, &list, &err), SL_ERROR_FORMAT);
+    if (!contains(err.message, "dupe.pk3: duplicate entry maps/dupe.bsp"))
+        fail_msg("%s", err.message);
+    assert_int_equal(sl_pk3_import_memory(zip, zsize, "dupe.pk3", "dupe", SL_PK3_MAX_ENTRY_BYTES, SL_Q3_MAX_TRIANGLES,
+                                          NULL, NULL, &s, &err),
+                     SL_ERROR_FORMAT);
+    assert_true(contains(err.message, "dupe.pk3: duplicate entry maps/dupe.bsp"));
+    /* a control character in the doubled name is escaped */
+    replace_all(zip, zsize, "maps/dupe.bsp", "maps/d\x1bpe.bsp");
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "esc.pk3", collect, &list, &err), SL_ERROR_FORMAT);
+    assert_true(contains(err.message, "duplicate entry maps/d\\x1bpe.bsp"));
+    assert_false(contains(err.message, "\x1b"));
+    free(zip);
+    free(map);
+}
+
+/* Every map of Nexuiz (the Debian package nexuiz-data, when installed; skipped otherwise) loads
+ * under the name the archive lists, and the maps that have spawn points give random street views. */
+static void test_nexuiz_maps(void **state)
+{
+    (void)state;
+    glob_t g;
+    if (glob("/usr/share/games/nexuiz/data/*.pk3", 0, NULL, &g) != 0) {
+        skip();
+        return;
+    }
+    bool sanitized = getenv("SL_SANITIZED") != NULL;
+    unsigned maps = 0, loaded = 0, with_views = 0, seen = 0;
+    for (size_t k = 0; k < g.gl_pathc; k++) {
+        name_list list = {0};
+        sl_error err;
+        if (sl_pk3_list_maps(g.gl_pathv[k], collect, &list, &err) != SL_OK)
+            fail_msg("%s", err.message);
+        for (int i = 0; i < list.count; i++) {
+            if (sanitized && seen++ % 8)
+                continue;
+            maps++;
+            sl_scene s;
+            if (sl_import_q3bsp(g.gl_pathv[k], list.names[i], NULL, NULL, &s, &err) != SL_OK)
+                fail_msg("%s: %s", list.names[i], err.message);
+            loaded++;
+            unsigned spawns = (unsigned)atoi(sl_scene_meta(s, "q3.spawn_count"));
+            sl_path p;
+            sl_status st = sl_path_random_views(s, SL_VIEWS_STREET, 8, 1, NULL, NULL, &p, &err);
+            if (st == SL_OK) {
+                with_views++;
+                sl_path_destroy(p);
+            } else if (spawns || !strstr(list.names[i], "_init")) {
+                /* only maps/_init/_init (the menu's background map) has no spawn point */
+                fail_msg("%s: %u spawn points and no street views: %s", list.names[i], spawns, err.message);
+            }
+            print_message("%-32s %3u spawns %s\n", list.names[i], spawns, st == SL_OK ? "views" : "no views");
+            sl_scene_destroy(s);
+        }
+    }
+    globfree(&g);
+    print_message("nexuiz: %u maps, %u loaded, %u with street views\n", maps, loaded, with_views);
+    assert_true(maps > 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1000,6 +1272,9 @@ int main(void)
         cmocka_unit_test(test_openarena_maps),    cmocka_unit_test(test_openarena_pvs),
         cmocka_unit_test(test_openarena_split),
         cmocka_unit_test(test_openarena_hostile),
+        cmocka_unit_test(test_spawn_classes),     cmocka_unit_test(test_patch_expansion),
+        cmocka_unit_test(test_bsp_boxes),
+        cmocka_unit_test(test_pk3_names),         cmocka_unit_test(test_nexuiz_maps),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

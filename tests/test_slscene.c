@@ -951,6 +951,20 @@ static void test_content_lies(void **state)
     ((sl_street_edge *)section(f, "SEDG"))[0].width = -1;
     fix_checksums(f);
     expect_fail(fx, f, fx->size, SL_ERROR_FORMAT, "street edge 0: negative width");
+    /* a NaN width is a NaN width, not a node out of range (issue 12) */
+    memcpy(f, fx->bytes, fx->size);
+    ((sl_street_edge *)section(f, "SEDG"))[1].width = NAN;
+    fix_checksums(f);
+    expect_fail(fx, f, fx->size, SL_ERROR_FORMAT, "street edge 1: width is NaN");
+    /* NaN and infinite BSP node and leaf bounds (issue 12) */
+    memcpy(f, fx->bytes, fx->size);
+    ((sl_bsp_node *)section(f, "BNOD"))[1].bounds.min.x = NAN;
+    fix_checksums(f);
+    expect_fail(fx, f, fx->size, SL_ERROR_FORMAT, "bsp node 1: mins.x is NaN");
+    memcpy(f, fx->bytes, fx->size);
+    ((sl_bsp_leaf *)section(f, "BLEF"))[0].bounds.max.z = INFINITY;
+    fix_checksums(f);
+    expect_fail(fx, f, fx->size, SL_ERROR_FORMAT, "bsp leaf 0: maxs.z is infinite");
     /* a street polygon range past its vertices */
     memcpy(f, fx->bytes, fx->size);
     ((sl_polygon_rec *)section(f, "SPOL"))[1].vertex_count = 100;

@@ -6,6 +6,7 @@
 #include "pvs_cli.h"
 
 #include "core/sl_core.h"
+#include "core/text_parse.h"
 #include "sightline/bench.h"
 #include "sightline/path.h"
 
@@ -104,15 +105,8 @@ typedef struct bench_args {
 static bool parse_vec3(const char *text, sl_vec3 *out)
 {
     float v[3];
-    const char *p = text;
-    for (int i = 0; i < 3; i++) {
-        char *end;
-        errno = 0;
-        v[i] = strtof(p, &end);
-        if (end == p || errno || !isfinite(v[i]) || (i < 2 ? *end != ',' : *end != 0))
-            return false;
-        p = end + 1;
-    }
+    if (!sl_parse_floats(text, v, 3)) /* src/core/text_parse.c */
+        return false;
     *out = (sl_vec3){v[0], v[1], v[2]};
     return true;
 }

@@ -4,6 +4,7 @@
 #include "pvs_cli.h"
 
 #include "core/sl_core.h"
+#include "core/text_parse.h"
 
 #include "sightline/gen.h"
 #include "sightline/path.h"
@@ -176,16 +177,10 @@ static bool parse_floats(cli_args *a, const char *name, const char *text, float 
 {
     if (!text)
         return false;
-    const char *p = text;
-    for (int i = 0; i < n; i++) {
-        char *end;
-        out[i] = strtof(p, &end);
-        if (end == p || !isfinite(out[i]) || (i + 1 < n ? *end != ',' : *end != 0)) {
-            cli_error(a->cmd, "--%s: '%s' is not %d comma-separated numbers", name, text, n);
-            a->error = true;
-            return false;
-        }
-        p = end + 1;
+    if (!sl_parse_floats(text, out, n)) { /* src/core/text_parse.c */
+        cli_error(a->cmd, "--%s: '%s' is not %d comma-separated finite numbers", name, text, n);
+        a->error = true;
+        return false;
     }
     return true;
 }

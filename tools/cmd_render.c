@@ -9,6 +9,7 @@
 #include "cli.h"
 
 #include "core/sl_core.h"
+#include "core/text_parse.h"
 #include "sightline/bench.h"
 #include "sightline/path.h"
 #include "sightline/truth.h"
@@ -131,29 +132,7 @@ static void usage(FILE *out)
 /* "x,y,z,yaw,pitch,roll[,fov]" (degrees) into a camera. */
 static bool parse_camera(const char *text, sl_camera *cam)
 {
-    double v[7];
-    int n = 0;
-    bool done = false;
-    const char *p = text;
-    while (n < 7 && !done) {
-        char *end;
-        errno = 0;
-        v[n] = strtod(p, &end);
-        if (end == p || errno || !isfinite(v[n]) || (*end != 0 && *end != ','))
-            return false;
-        n++;
-        done = *end == 0;
-        p = end + 1;
-    }
-    if (!done || n < 6)
-        return false;
-    cam->position = (sl_vec3){(float)v[0], (float)v[1], (float)v[2]};
-    cam->yaw = (float)(v[3] * DEG);
-    cam->pitch = (float)(v[4] * DEG);
-    cam->roll = (float)(v[5] * DEG);
-    if (n == 7)
-        cam->fov_y = (float)(v[6] * DEG);
-    return true;
+    return sl_parse_camera_spec(text, cam); /* src/core/text_parse.c */
 }
 
 /* "A:B", "A:", ":B" or "A". */

@@ -558,5 +558,8 @@ typedef struct sl_occ_replay_report {
  * the whole file first (SL_ERROR_FORMAT naming the offset and the field). */
 sl_status sl_occ_replay(const char *path, sl_raster_isa isa, const sl_allocator *alloc, sl_occ_replay_report *out,
                         sl_error *err);
+/* The same on a recording held in memory (`path` names it in messages; the fuzz target). */
+sl_status sl_occ_replay_memory(const void *data, size_t size, const char *path, sl_raster_isa isa,
+                               const sl_allocator *alloc, sl_occ_replay_report *out, sl_error *err);
 
 #endif

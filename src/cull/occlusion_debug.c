@@ -4,13 +4,15 @@
  * instruction set: the rasterizer is bit-identical across paths and thread counts).
  *
  * Recording format (docs/occlusion.md), little-endian:
- *   header  "SLOCCREC" u32 version=1, u32 width, u32 height, u32 depth (sl_raster_depth),
+ *   header  "SLOCCREC" u32 version=2, u32 width, u32 height, u32 depth (sl_raster_depth),
  *           u32 coverage (sl_raster_coverage), f32 near_w, u32 record_count
  *   record  u32 type: 1 = batch: u32 triangle_count, u32 backface, f32 matrix[16],
  *                         f32 vertices[9 * triangle_count] (3 vertices per triangle)
  *                     2 = query: i32 x0, y0, x1, y1, f32 depth, u32 result (sl_raster_result)
  *                     3 = mesh query: a batch's fields, then u32 result
- * The replayer validates every field before it uses it. */
+ *   trailer u64 XXH3-64 (seed 0) of every byte before it (version 2; version 1 had none, so a
+ *           damaged file could replay as "ok")
+ * The replayer checks the checksum, then validates every field before it uses it. */
 #include "occluders.h"
 
 #include "sightline/image.h"
@@ -102,8 +104,9 @@ sl_status sl_occ_write_levels_png(const char *path, const sl_occ_levels *lv, con
 /* ---- recording ---- */
 
 #define REC_MAGIC "SLOCCREC"
-#define REC_VERSION 1u
+#define REC_VERSION 2u
 #define REC_HEADER 36u
+#define REC_TRAILER 8u
 enum { REC_BATCH = 1, REC_QUERY = 2, REC_MESH_QUERY = 3 };
 
 struct sl_occ_recorder {
@@ -200,11 +203,13 @@ sl_status sl_occ_recorder_save(sl_occ_recorder *r, const char *path, sl_error *e
     if (r->failed)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory while recording", path);
     memcpy((char *)r->bytes.data + 32, &r->records, 4);
+    uint64_t sum = sl_hash64(r->bytes.data, r->bytes.count, 0);
     sl_atomic_file f;
     sl_status st = sl_atomic_open(&r->alloc, path, &f, err);
     if (st != SL_OK)
         return st;
     sl_atomic_write(&f, r->bytes.data, r->bytes.count);
+    sl_atomic_write(&f, &sum, sizeof sum);
     return sl_atomic_commit(&f, err);
 }
 
@@ -212,8 +217,9 @@ sl_status sl_occ_recorder_save(sl_occ_recorder *r, const char *path, sl_error *e
 
 typedef struct reader {
     const uint8_t *p;
-    size_t size, off;
+    size_t size, off; /* size: the header and records, without the checksum */
     const char *path;
+    size_t file_size;
 } reader;
 
 static bool rd(reader *r, void *out, size_t n)
@@ -228,7 +234,7 @@ static bool rd(reader *r, void *out, size_t n)
 static sl_status truncated(const reader *r, const char *what, sl_error *err)
 {
     return sl_fail(err, SL_ERROR_FORMAT, "%s: offset %zu: truncated %s (file is %zu bytes)", r->path, r->off, what,
-                   r->size);
+                   r->file_size);
 }
 
 /* Walk the records; with ctx NULL only validate (and size the index buffer), else replay. */
@@ -334,7 +340,26 @@ sl_status sl_occ_replay(const char *path, sl_raster_isa isa, const sl_allocator 
     sl_status st = sl_file_read_all(alloc, path, &data, &size, err);
     if (st != SL_OK)
         return st;
-    reader r = {data, size, 0, path};
+    st = sl_occ_replay_memory(data, size, path, isa, alloc, out, err);
+    sl_free(alloc, data, size ? size : 1);
+    return st;
+}
+
+sl_status sl_occ_replay_memory(const void *bytes, size_t file_size, const char *path, sl_raster_isa isa,
+                               const sl_allocator *alloc, sl_occ_replay_report *out, sl_error *err)
+{
+    alloc = sl_alloc_or_default(alloc);
+    memset(out, 0, sizeof *out);
+    out->first_mismatch = UINT32_MAX;
+    const uint8_t *data = bytes;
+    if (!path)
+        path = "<memory>";
+    if (!data && file_size)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_occ_replay_memory: data is NULL");
+    sl_status st = SL_OK;
+    /* the records end where the checksum begins */
+    size_t size = file_size >= REC_HEADER + REC_TRAILER ? file_size - REC_TRAILER : file_size;
+    reader r = {data, size, 0, path, file_size};
     char magic[8];
     uint32_t version = 0, w = 0, h = 0, depth = 0, coverage = 0, records = 0;
     float near_w = 0;
@@ -352,8 +377,21 @@ sl_status sl_occ_replay(const char *path, sl_raster_isa isa, const sl_allocator 
         goto done;
     }
     if (version != REC_VERSION) {
-        st = sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: offset 8: version %u (this build reads %u)", path, version,
-                     REC_VERSION);
+        st = sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: offset 8: version %u (this build reads %u%s)", path, version,
+                     REC_VERSION, version == 1 ? "; version 1 has no checksum: record the frame again" : "");
+        goto done;
+    }
+    if (file_size < REC_HEADER + REC_TRAILER) {
+        r.off = file_size;
+        st = truncated(&r, "checksum", err);
+        goto done;
+    }
+    uint64_t stored, sum = sl_hash64(data, size, 0);
+    memcpy(&stored, data + size, sizeof stored);
+    if (stored != sum) {
+        st = sl_fail(err, SL_ERROR_FORMAT,
+                     "%s: offset %zu: checksum mismatch (stored %016llx, content %016llx): the file is damaged", path,
+                     size, (unsigned long long)stored, (unsigned long long)sum);
         goto done;
     }
     if (w < 1 || w > 8192 || h < 1 || h > 8192 || depth > SL_RASTER_DEPTH_LINEAR_Z ||
@@ -398,7 +436,5 @@ done:
     sl_free(alloc, buf, (size_t)w * h * sizeof(float));
     sl_free(alloc, idx, ((size_t)max_tris * 3 + 1) * sizeof(uint32_t));
     sl_raster_destroy(ctx);
-    if (data)
-        sl_free(alloc, data, size ? size : 1);
     return st;
 }

@@ -145,6 +145,15 @@ static journal_verdict journal_examine(const sl_bake *b, const uint8_t *data, si
         snprintf(why, n, "offset 56: journal header checksum mismatch");
         return J_BAD;
     }
+    if (!b->method) {
+        /* the reader alone (sl_bake_journal_check): any description, the counts and key must match */
+        if (rd64(data + 24) != b->key || rd32(data + 12) != b->cell_count || rd32(data + 16) != b->object_count) {
+            snprintf(why, n, "another bake key, cell or object count");
+            return J_OTHER;
+        }
+        *records = J_HEADER + desc_len;
+        return J_SAME;
+    }
     char desc[SL_OPTS_MAX_CHARS + 128];
     int dl = journal_desc(b, desc, sizeof desc);
     if (rd64(data + 24) == b->key && rd32(data + 12) == b->cell_count && rd32(data + 16) == b->object_count &&
@@ -804,6 +813,49 @@ sl_status sl_pvs_bake_cell(sl_scene scene, sl_viewcells cells, uint32_t cell, co
     }
     if (worker)
         b.method->worker_destroy(worker);
+    sl_bake_end(&b);
+    return st;
+}
+
+/* ---- the journal reader alone (fuzz/fuzz_journal.c) ---- */
+
+sl_status sl_bake_journal_check(const uint8_t *data, size_t size, uint32_t cell_count, uint32_t object_count,
+                                uint64_t key, const sl_allocator *alloc, size_t *valid, uint32_t *resumed,
+                                sl_error *err)
+{
+    sl_bake b;
+    memset(&b, 0, sizeof b);
+    b.fd = -1;
+    b.lock_fd = -1;
+    b.a = sl_alloc_or_default(alloc);
+    b.cell_count = cell_count;
+    b.object_count = object_count;
+    b.key = key;
+    b.writer = true;
+    *valid = 0;
+    *resumed = 0;
+    sl_status st = SL_OK;
+    size_t nc = cell_count ? cell_count : 1;
+    b.enc = sl_calloc(b.a, nc, sizeof *b.enc);
+    b.enc_size = sl_calloc(b.a, nc, sizeof *b.enc_size);
+    b.counts = sl_calloc(b.a, nc, sizeof *b.counts);
+    b.done = sl_calloc(b.a, nc, 1);
+    b.scratch = sl_alloc(b.a, ((size_t)object_count + 1) * sizeof(uint32_t));
+    b.journal = sl_alloc(b.a, sizeof "journal");
+    if (!b.enc || !b.enc_size || !b.counts || !b.done || !b.scratch || !b.journal || !data) {
+        st = sl_fail(err, data ? SL_ERROR_OUT_OF_MEMORY : SL_ERROR_INVALID_ARGUMENT, "journal: out of memory or no data");
+    } else {
+        memcpy(b.journal, "journal", sizeof "journal");
+        char why[400];
+        size_t at = 0;
+        journal_verdict v = journal_examine(&b, data, size, &at, why, sizeof why);
+        if (v == J_SAME)
+            st = journal_replay(&b, data, size, at, valid, err);
+        else
+            st = sl_fail(err, v == J_BAD ? SL_ERROR_FORMAT : SL_ERROR_INVALID_ARGUMENT, "journal: %s", why);
+        *resumed = b.resumed;
+    }
+    b.cell_count = (uint32_t)nc;
     sl_bake_end(&b);
     return st;
 }

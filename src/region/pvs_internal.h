@@ -149,5 +149,11 @@ sl_status sl_bake_finish(sl_bake *b, const char *output, const sl_pvs_build_opti
 void sl_bake_note_kept(const sl_bake *b, sl_error *err);
 void sl_bake_stats(const sl_bake *b, sl_pvs_build_stats *out);
 void sl_bake_end(sl_bake *b);
+/* The checkpoint journal's reader on bytes in memory, for a bake of cell_count cells over
+ * object_count objects with bake key `key` (fuzz/fuzz_journal.c): *valid receives the length of
+ * the valid prefix, *resumed the cells read back. */
+sl_status sl_bake_journal_check(const uint8_t *data, size_t size, uint32_t cell_count, uint32_t object_count,
+                                uint64_t key, const sl_allocator *alloc, size_t *valid, uint32_t *resumed,
+                                sl_error *err);
 
 #endif

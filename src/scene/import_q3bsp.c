@@ -117,6 +117,7 @@ typedef struct q3_ctx {
     float scale;
     uint32_t level, split;
     uint64_t max_triangles;
+    bool ratio_bound;  /* max_triangles is q3_ratio_limit's bound, not the caller's budget */
 
     q3_shader *shaders;
     q3_face *faces;
@@ -247,6 +248,24 @@ static sl_status q3_check_planes(q3_ctx *c)
     return SL_OK;
 }
 
+/* Node and leaf boxes are integers in the file, but times a large unit_scale they can overflow
+ * to infinity, which sl_scene_set_bsp refuses: say so against the lump and the element. */
+static sl_status q3_check_boxes(q3_ctx *c)
+{
+    static const int lumps[2] = {Q3_NODES, Q3_LEAVES};
+    static const uint32_t first[2] = {12, 8};
+    static const char *const what[2] = {"node", "leaf"};
+    for (int t = 0; t < 2; t++)
+        for (uint32_t i = 0; i < c->count[lumps[t]]; i++) {
+            const uint8_t *r = rec(c, lumps[t], i) + first[t];
+            for (int k = 0; k < 6; k++)
+                if (!isfinite((float)rd_i32(r + 4 * k) * c->scale))
+                    return q3_bad(c, lumps[t], "%s %u: %s.%c (%d) is not finite once scaled by %g", what[t], i,
+                                  k < 3 ? "mins" : "maxs", "xyz"[k % 3], rd_i32(r + 4 * k), (double)c->scale);
+        }
+    return SL_OK;
+}
+
 static sl_status q3_check_drawverts(q3_ctx *c)
 {
     for (uint32_t i = 0; i < c->count[Q3_DRAWVERTS]; i++) {
@@ -279,8 +298,26 @@ static uint32_t q3_classify(const q3_shader *s, int32_t type)
     return Q3_CLASS_OTHER;
 }
 
+/* The output may grow at most this much per input byte: 65536 triangles plus
+ * size * max(level^2, 8) / 32. Faces own disjoint vertex and meshvert runs in maps q3map writes,
+ * so a patch yields at most 2 level^2 triangles per 3x3 piece, i.e. per 4 control points (176
+ * bytes): level^2 / 88 per byte, and a polygon at most one per 12 bytes of meshverts; the bound
+ * leaves more than twice that. Faces sharing one run (one 99x99 patch referenced by 200 faces)
+ * could otherwise turn a 455 KB file into 61.5 M triangles (1.47 GB). */
+static uint64_t q3_ratio_limit(size_t size, uint32_t level)
+{
+    uint64_t per = SL_MAX((uint64_t)level * level, 8u);
+    return 65536u + (uint64_t)size / 32u * per + (uint64_t)size % 32u * per / 32u;
+}
+
 static sl_status q3_too_many(q3_ctx *c, uint32_t face)
 {
+    if (c->ratio_bound)
+        return sl_fail(c->err, SL_ERROR_LIMIT,
+                       "%s: lump %d (faces): face %u: the map needs more than %llu triangles at bezier level %u, the "
+                       "limit for a %zu-byte map (65536 + bytes x max(level^2, 8) / 32; faces sharing one patch or "
+                       "meshvert run multiply the output)",
+                       c->name, Q3_FACES, face, (unsigned long long)c->max_triangles, c->level, c->size);
     return sl_fail(c->err, SL_ERROR_LIMIT, "%s: lump %d (faces): face %u: the map needs more than %llu triangles at bezier level %u",
                    c->name, Q3_FACES, face, (unsigned long long)c->max_triangles, c->level);
 }
@@ -1086,8 +1123,12 @@ static void q3_copy(char *dst, size_t cap, const char *src)
 
 static bool q3_is_spawn(const char *classname)
 {
+    /* Quake III's deathmatch, single-player and CTF spawns; Nexuiz's (and Xonotic's) team
+     * spawns and race starts: team-only and race maps have no other */
     static const char *const spawns[] = {"info_player_deathmatch", "info_player_start", "team_CTF_redplayer",
-                                         "team_CTF_blueplayer",     "team_CTF_redspawn", "team_CTF_bluespawn"};
+                                         "team_CTF_blueplayer",    "team_CTF_redspawn", "team_CTF_bluespawn",
+                                         "info_player_team1",      "info_player_team2", "info_player_team3",
+                                         "info_player_team4",      "info_player_race"};
     for (size_t i = 0; i < SL_COUNTOF(spawns); i++)
         if (strcasecmp(classname, spawns[i]) == 0)
             return true;
@@ -1240,6 +1281,7 @@ static sl_status q3_import(q3_ctx *c)
     sl_status st;
     uint32_t cluster_count = 0;
     if ((st = q3_read_header(c)) != SL_OK || (st = q3_read_shaders(c)) != SL_OK || (st = q3_check_planes(c)) != SL_OK ||
+        (st = q3_check_boxes(c)) != SL_OK ||
         (st = q3_check_drawverts(c)) != SL_OK || (st = q3_read_faces(c)) != SL_OK || (st = q3_check_refs(c)) != SL_OK ||
         (st = q3_check_vis(c)) != SL_OK || (st = q3_check_leaves(c, &cluster_count)) != SL_OK ||
         (st = q3_mark_world_leaves(c)) != SL_OK)
@@ -1282,6 +1324,11 @@ sl_status sl_q3bsp_import_memory_limited(const void *data, size_t size, const ch
     if (c.level > Q3_MAX_BEZIER_LEVEL)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: bezier_level %u exceeds the maximum %u", c.name, c.level,
                        Q3_MAX_BEZIER_LEVEL);
+    uint64_t ratio = q3_ratio_limit(size, c.level);
+    if (ratio < c.max_triangles) {
+        c.max_triangles = ratio;
+        c.ratio_bound = true;
+    }
     sl_status st = q3_import(&c);
     sl_free(c.a, c.shaders, (size_t)(c.count[Q3_SHADERS] ? c.count[Q3_SHADERS] : 1) * sizeof *c.shaders);
     sl_free(c.a, c.faces, (size_t)(c.count[Q3_FACES] ? c.count[Q3_FACES] : 1) * sizeof *c.faces);

@@ -7,6 +7,7 @@
 
 #include "../core/sl_core.h"
 
+#include <stdlib.h>
 #include <strings.h>
 #include <zip.h>
 
@@ -31,10 +32,16 @@ bool sl_pk3_entry_name(const char *map, char *out, size_t cap)
         base += 5;
     int n;
     if (strchr(base, '/')) {
-        /* some other folder: only a full entry path ending in .bsp makes sense */
-        if (!ends_with_nocase(map, ".bsp"))
+        /* a map in a subfolder or another folder: the full entry path, ".bsp" optional, as
+         * sl_pk3_list_maps lists it (Nexuiz's maps/_init/_init.bsp) */
+        size_t len = strlen(map);
+        if (ends_with_nocase(map, ".bsp"))
+            len -= 4;
+        else if (strchr(strrchr(map, '/'), '.'))
+            return false; /* another kind of file (textures/x.jpg) */
+        if (len == 0 || map[len - 1] == '/')
             return false;
-        n = snprintf(out, cap, "%s", map);
+        n = snprintf(out, cap, "%.*s.bsp", (int)SL_MIN(len, (size_t)INT32_MAX), map);
     } else {
         size_t len = strlen(base);
         if (ends_with_nocase(base, ".bsp"))
@@ -46,8 +53,82 @@ bool sl_pk3_entry_name(const char *map, char *out, size_t cap)
     return n > 0 && (size_t)n < cap;
 }
 
+/* Little-endian fields of the zip headers. */
+static uint32_t zip_u16(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8; }
+static uint32_t zip_u32(const uint8_t *p) { return zip_u16(p) | zip_u16(p + 2) << 16; }
+
+typedef struct zip_name {
+    const uint8_t *p;
+    uint32_t len;
+} zip_name;
+
+static int zip_name_cmp(const void *a, const void *b)
+{
+    const zip_name *x = a, *y = b;
+    int c = memcmp(x->p, y->p, SL_MIN(x->len, y->len));
+    return c ? c : (x->len > y->len) - (x->len < y->len);
+}
+
+/* libzip refuses an archive holding two entries of one name with its bare "File already
+ * exists". Find that name in the central directory (the lowest in byte order when several are
+ * doubled, so the message is deterministic) and write it, escaped, into out; false when the
+ * directory cannot be walked (zip64, damage), and the caller falls back on libzip's text. */
+static bool pk3_find_duplicate(const uint8_t *d, size_t size, const sl_allocator *a, char *out, size_t cap)
+{
+    if (size < 22)
+        return false;
+    size_t eocd = SIZE_MAX;
+    for (size_t back = 0; back <= 65535 && back + 22 <= size; back++) {
+        const uint8_t *p = d + size - 22 - back;
+        if (zip_u32(p) == 0x06054b50u && zip_u16(p + 20) == back) {
+            eocd = size - 22 - back;
+            break;
+        }
+    }
+    if (eocd == SIZE_MAX)
+        return false;
+    uint32_t entries = zip_u16(d + eocd + 10), cd = zip_u32(d + eocd + 16);
+    if (cd > eocd || entries == 0)
+        return false;
+    zip_name *names = sl_alloc(a, (size_t)entries * sizeof *names);
+    if (!names)
+        return false;
+    size_t at = cd;
+    uint32_t n = 0;
+    for (; n < entries; n++) {
+        if (eocd - at < 46 || zip_u32(d + at) != 0x02014b50u)
+            break;
+        uint32_t nl = zip_u16(d + at + 28), xl = zip_u16(d + at + 30), cl = zip_u16(d + at + 32);
+        if (eocd - at - 46 < (size_t)nl + xl + cl)
+            break;
+        names[n] = (zip_name){d + at + 46, nl};
+        at += 46 + (size_t)nl + xl + cl;
+    }
+    bool found = false;
+    if (n == entries) {
+        qsort(names, n, sizeof *names, zip_name_cmp);
+        for (uint32_t i = 1; i < n && !found; i++) {
+            if (zip_name_cmp(&names[i - 1], &names[i]) != 0)
+                continue;
+            found = true;
+            size_t o = 0;
+            for (uint32_t k = 0; k < names[i].len && o + 5 < cap; k++) {
+                uint8_t ch = names[i].p[k];
+                if (ch >= 0x20 && ch < 0x7f && ch != '\\')
+                    out[o++] = (char)ch;
+                else
+                    o += (size_t)snprintf(out + o, cap - o, "\\x%02x", ch);
+            }
+            out[o] = 0;
+        }
+    }
+    sl_free(a, names, (size_t)entries * sizeof *names);
+    return found;
+}
+
 /* Open an archive held in memory; the bytes must outlive the returned handle. */
-static sl_status pk3_open(const void *data, size_t size, const char *archive, zip_t **out, sl_error *err)
+static sl_status pk3_open(const void *data, size_t size, const char *archive, const sl_allocator *a, zip_t **out,
+                          sl_error *err)
 {
     *out = NULL;
     if (!sl_pk3_is_zip(data, size))
@@ -63,6 +144,13 @@ static sl_status pk3_open(const void *data, size_t size, const char *archive, zi
     zip_t *z = zip_open_from_source(src, ZIP_RDONLY | ZIP_CHECKCONS, &ze);
     if (!z) {
         int code = zip_error_code_zip(&ze);
+        char dup[256];
+        if (code == ZIP_ER_EXISTS && pk3_find_duplicate(data, size, a, dup, sizeof dup)) {
+            zip_error_fini(&ze);
+            zip_source_free(src);
+            return sl_fail(err, SL_ERROR_FORMAT, "%s: duplicate entry %s: an archive may not hold two entries of one name",
+                           archive, dup);
+        }
         sl_status st = sl_fail(err, code == ZIP_ER_MEMORY ? SL_ERROR_OUT_OF_MEMORY : SL_ERROR_FORMAT,
                                "%s: not a readable zip archive: %s", archive, zip_error_strerror(&ze));
         zip_error_fini(&ze);
@@ -101,7 +189,7 @@ sl_status sl_pk3_list_maps_memory(const void *data, size_t size, const char *arc
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pk3_list_maps: NULL argument");
     const char *archive = archive_name ? archive_name : "<memory>";
     zip_t *z;
-    sl_status st = pk3_open(data, size, archive, &z, err);
+    sl_status st = pk3_open(data, size, archive, sl_default_allocator(), &z, err);
     if (st != SL_OK)
         return st;
     pk3_each_map(z, fn, user, NULL);
@@ -176,7 +264,7 @@ sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archiv
     const sl_allocator *a = sl_alloc_or_default(alloc);
     const char *archive = archive_name ? archive_name : "<memory>";
     zip_t *z;
-    sl_status st = pk3_open(data, size, archive, &z, err);
+    sl_status st = pk3_open(data, size, archive, a, &z, err);
     if (st != SL_OK)
         return st;
 

@@ -22,8 +22,10 @@ sl_status sl_q3bsp_import_memory_limited(const void *data, size_t size, const ch
 bool sl_pk3_is_zip(const void *head, size_t size);
 
 /* Turn a map name into its archive entry: "oa_dm1", "oa_dm1.bsp", "maps/oa_dm1" and
- * "maps/oa_dm1.bsp" all give "maps/oa_dm1.bsp"; any other path ending in ".bsp" is kept as is.
- * Returns false when the name is empty or does not fit in `cap` bytes. */
+ * "maps/oa_dm1.bsp" all give "maps/oa_dm1.bsp"; any other path keeps its folders and gets ".bsp"
+ * when it has no extension ("maps/_init/_init" gives "maps/_init/_init.bsp", so every name
+ * sl_pk3_list_maps prints loads with or without it). Returns false when the name is empty, ends
+ * in '/', has another extension ("textures/x.jpg") or does not fit in `cap` bytes. */
 bool sl_pk3_entry_name(const char *map, char *out, size_t cap);
 
 /* Import a map from a .pk3 archive held in memory. `map` as in sl_import_q3bsp; NULL or "" picks

@@ -377,14 +377,31 @@ sl_status sl_scene_set_street_graph(sl_scene s, const sl_street_node *nodes, uin
         if (!isfinite(nodes[i].x) || !isfinite(nodes[i].y))
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "street node %u is not finite", i);
     for (uint32_t i = 0; i < edge_count; i++)
-        if (edges[i].a >= node_count || edges[i].b >= node_count || !(edges[i].width >= 0) || !isfinite(edges[i].width))
-            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "street edge %u: bad node index or width", i);
+        if (edges[i].a >= node_count || edges[i].b >= node_count)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "street edge %u: node out of range (node %u, %u nodes)", i,
+                           edges[i].a >= node_count ? edges[i].a : edges[i].b, node_count);
+        else if (!isfinite(edges[i].width) || !(edges[i].width >= 0))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "street edge %u: width %g is %s", i, (double)edges[i].width,
+                           isnan(edges[i].width) ? "NaN" : edges[i].width < 0 ? "negative" : "infinite");
     const sl_allocator *a = A(s);
     sl_array_free(a, &s->street_nodes, sizeof(sl_street_node));
     sl_array_free(a, &s->street_edges, sizeof(sl_street_edge));
     if ((node_count && !sl_array_push(a, &s->street_nodes, sizeof *nodes, nodes, node_count)) ||
         (edge_count && !sl_array_push(a, &s->street_edges, sizeof *edges, edges, edge_count)))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "street graph: out of memory");
+    return SL_OK;
+}
+
+/* A node's or leaf's box: every coordinate finite ("mins.x is NaN", "maxs.z is infinite"). The
+ * lookups and the portal and region methods compare points against these boxes, where a NaN
+ * compares false both ways and an infinity swallows the whole map. */
+static sl_status check_bsp_box(const sl_aabb *b, const char *what, uint32_t i, sl_status code, sl_error *err)
+{
+    const float v[6] = {b->min.x, b->min.y, b->min.z, b->max.x, b->max.y, b->max.z};
+    for (int k = 0; k < 6; k++)
+        if (!isfinite(v[k]))
+            return sl_fail(err, code, "bsp %s %u: %s.%c is %s", what, i, k < 3 ? "mins" : "maxs", "xyz"[k % 3],
+                           isnan(v[k]) ? "NaN" : "infinite");
     return SL_OK;
 }
 
@@ -407,6 +424,9 @@ static sl_status validate_bsp(const sl_bsp_desc *d, uint32_t object_count, sl_st
                         : ((uint32_t)(-(int64_t)ch - 1) >= d->leaf_count))
                 return sl_fail(err, code, "bsp node %u: child %d out of range", i, ch);
         }
+        sl_status st = check_bsp_box(&n->bounds, "node", i, code, err);
+        if (st != SL_OK)
+            return st;
     }
     for (uint32_t i = 0; i < d->leaf_count; i++) {
         const sl_bsp_leaf *l = &d->leaves[i];
@@ -415,6 +435,9 @@ static sl_status validate_bsp(const sl_bsp_desc *d, uint32_t object_count, sl_st
                            d->cluster_count);
         if ((uint64_t)l->first_object + l->object_count > d->leaf_object_count)
             return sl_fail(err, code, "bsp leaf %u: object range out of bounds", i);
+        sl_status st = check_bsp_box(&l->bounds, "leaf", i, code, err);
+        if (st != SL_OK)
+            return st;
     }
     for (uint32_t i = 0; i < d->leaf_object_count; i++)
         if (d->leaf_objects[i] >= object_count)
@@ -817,8 +840,11 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
             return sl_fail(err, SL_ERROR_FORMAT, "street node %zu not finite", i);
     const sl_street_edge *se = (const sl_street_edge *)s->street_edges.data;
     for (size_t i = 0; i < s->street_edges.count; i++)
-        if (se[i].a >= s->street_nodes.count || se[i].b >= s->street_nodes.count || !isfinite(se[i].width))
-            return sl_fail(err, SL_ERROR_FORMAT, "street edge %zu: node out of range", i);
+        if (se[i].a >= s->street_nodes.count || se[i].b >= s->street_nodes.count)
+            return sl_fail(err, SL_ERROR_FORMAT, "street edge %zu: node out of range (node %u, %zu nodes)", i,
+                           se[i].a >= s->street_nodes.count ? se[i].a : se[i].b, s->street_nodes.count);
+        else if (!isfinite(se[i].width))
+            return sl_fail(err, SL_ERROR_FORMAT, "street edge %zu: width is %s", i, isnan(se[i].width) ? "NaN" : "infinite");
     if (s->has_bsp) {
         sl_bsp_view v;
         sl_scene_bsp((sl_scene)s, &v);

@@ -1,0 +1,64 @@
+/* The command line's number-list readers, moved into the library (src/core/text_parse.c) so that
+ * they are tested and fuzzed (fuzz/fuzz_options.c): --point, --volume, --eye and --camera. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <string.h>
+
+#include "core/text_parse.h"
+
+static void test_floats(void **state)
+{
+    (void)state;
+    float v[6] = {0};
+    assert_true(sl_parse_floats("1.5,-2,3e2", v, 3));
+    assert_true(v[0] == 1.5f && v[1] == -2.0f && v[2] == 300.0f);
+    assert_true(sl_parse_floats("-1,-2,-3,4,5.5,6e1", v, 6));
+    assert_true(v[5] == 60.0f);
+    assert_true(sl_parse_floats("1e-50,0,0", v, 3)); /* underflow reads as zero */
+    assert_true(v[0] == 0.0f);
+    float keep[3] = {7, 8, 9};
+    const char *bad[] = {"",        "1,2",      "1,2,3,4", "1,,3",     "1,2,3,",  ",1,2,3", "1,2,x",
+                         "nan,0,0", "inf,0,0",  "0,-inf,0", "3e39,0,0", " 1,2,3", "1,2, 3", "1,2,3 ",
+                         "1;2;3",   "1,2,3\n", "0x,1,2",  "\v1,2,3", "1,\r2,3"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        if (sl_parse_floats(bad[i], keep, 3))
+            fail_msg("'%s' was accepted", bad[i]);
+        assert_true(keep[0] == 7 && keep[1] == 8 && keep[2] == 9);
+    }
+    assert_false(sl_parse_floats(NULL, v, 3));
+    assert_false(sl_parse_floats("1", v, 0));
+    assert_false(sl_parse_floats("1", v, 17));
+}
+
+static void test_camera(void **state)
+{
+    (void)state;
+    sl_camera cam;
+    memset(&cam, 0, sizeof cam);
+    cam.fov_y = 1.0f;
+    assert_true(sl_parse_camera_spec("0,0,1.7,90,-45,0", &cam));
+    assert_true(cam.position.z == 1.7f);
+    assert_true(fabsf(cam.yaw - (float)(M_PI / 2)) < 1e-6f && fabsf(cam.pitch + (float)(M_PI / 4)) < 1e-6f);
+    assert_true(cam.fov_y == 1.0f); /* untouched without a seventh number */
+    assert_true(sl_parse_camera_spec("1,2,3,0,0,0,60", &cam));
+    assert_true(fabsf(cam.fov_y - (float)(M_PI / 3)) < 1e-6f);
+    sl_camera before = cam;
+    /* a double that is finite but not as a float (the old --camera reader let it become inf) */
+    const char *bad[] = {"1e300,0,0,0,0,0", "0,0,0,0,0,0,1e40", "0,0,0,0,0", "0,0,0,0,0,0,0,0", "0,0,0,nan,0,0",
+                         "0,0,0,0,0,0,",   "",                 "a,b,c,d,e,f"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        if (sl_parse_camera_spec(bad[i], &cam))
+            fail_msg("'%s' was accepted", bad[i]);
+        assert_memory_equal(&cam, &before, sizeof cam);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_floats), cmocka_unit_test(test_camera)};
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
