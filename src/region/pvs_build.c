@@ -129,7 +129,7 @@ static journal_verdict journal_examine(const sl_bake *b, const uint8_t *data, si
     }
     if (rd32(data + 8) == 1) {
         /* version 1 held a scene key of format 1, which missed moved triangles and BSP changes */
-        snprintf(why, n, "the checkpoint was baked with an older scene key (format 1); bake it again");
+        snprintf(why, n, "journal version 1: the checkpoint was baked with an older scene key (format 1); bake it again");
         return J_BAD;
     }
     if (rd32(data + 8) != J_VERSION) {

@@ -903,7 +903,7 @@ sl_status sl_pvs_check_scene(sl_pvs p, sl_scene scene, sl_error *err)
     uint64_t key = sl_pvs_scene_key(scene);
     if (p->object_count != n || p->scene_key != key)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                       "%s was not baked for this scene (it was baked for %u objects, scene key %016llx; this scene has "
+                       "%s was not baked for this scene, but for another scene (%u objects, scene key %016llx; this scene has "
                        "%u objects, key %016llx): bake it again for this scene: %s",
                        p->name, p->object_count, (unsigned long long)p->scene_key, n, (unsigned long long)key, how);
     return SL_OK;
