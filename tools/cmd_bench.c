@@ -480,11 +480,16 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
         sl_series_summary os;
         memset(&os, 0, sizeof os);
         double vis = 0, tv = 0;
+        uint32_t outside = 0;
         for (uint32_t f = 0; f < nf; f++) {
             sl_bench_frame fr;
             sl_bench_get_frame(b, f, &fr, NULL);
             if (oms)
                 oms[f] = fr.oracle_ms;
+            if (fr.out_of_domain) {
+                outside++;
+                continue;
+            }
             vis += fr.visible_count;
             tv += (double)fr.triangles_visible;
         }
@@ -496,8 +501,9 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
         cli_json_uint(j, "objects", ss.object_count);
         cli_json_uint(j, "triangles", ss.instanced_triangle_count);
         cli_json_uint(j, "frames", nf);
-        cli_json_double(j, "visible_mean", nf ? vis / nf : 0);
-        cli_json_double(j, "triangles_visible_mean", nf ? tv / nf : 0);
+        cli_json_uint(j, "frames_out_of_domain", outside);
+        cli_json_double(j, "visible_mean", nf > outside ? vis / (nf - outside) : 0);
+        cli_json_double(j, "triangles_visible_mean", nf > outside ? tv / (nf - outside) : 0);
         cli_json_object_begin(j, "oracle_ms");
         cli_json_double(j, "median", os.median);
         cli_json_double(j, "p95", os.p95);

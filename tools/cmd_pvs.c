@@ -832,7 +832,7 @@ static int run_verify(int argc, char **argv)
     const char *file_method = sl_pvs_meta(p, "method");
     bool file_is_map = file_method && !strcmp(file_method, "mappvs");
     uint64_t misses_far = 0, bsp_misses_far = 0;
-    uint32_t unsampled = 0;
+    uint32_t unsampled = 0, outside = 0;
     double over_sum = 0;
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
@@ -858,6 +858,11 @@ static int run_verify(int argc, char **argv)
             cli_progress_done(&ps);
             rc = cli_fail(a.cmd, &err);
             break;
+        }
+        if (v.out_of_domain) {
+            /* every sample in solid or void space: outside the domain, nothing to judge (docs/oracle.md) */
+            outside++;
+            continue;
         }
         uint32_t nb = bsp ? bsp_set(scene, sl_viewcells_data(cells)[c].cluster, mark, bset) : 0;
         uint32_t cell_miss = 0;
@@ -913,6 +918,7 @@ static int run_verify(int argc, char **argv)
         cli_json_uint(&j, "cells", nc);
         cli_json_uint(&j, "checked", checked);
         cli_json_uint(&j, "unsampled", unsampled);
+        cli_json_uint(&j, "out_of_domain", outside);
         cli_json_uint(&j, "misses", misses);
         cli_json_uint(&j, "cells_with_misses", cells_with_miss);
         cli_json_double(&j, "oracle_visible_mean", checked ? (double)oracle_total / checked : 0);
@@ -948,6 +954,10 @@ static int run_verify(int argc, char **argv)
         if (unsampled)
             printf("  %u chosen cells were skipped: no sample point lies in them (BSP leaves without volume)\n",
                    unsampled);
+        if (outside)
+            printf("  %u chosen cells were skipped: outside the domain (every sample in a BSP leaf without a "
+                   "cluster, docs/oracle.md)\n",
+                   outside);
         printf("  mean per cell: oracle %.1f, PVS %.1f objects (over-estimation %.2fx); oracle convergence: %.2f "
                "objects first seen in the last 10%% of samples\n",
                checked ? (double)oracle_total / checked : 0, checked ? (double)set_total / checked : 0, over,

@@ -55,6 +55,9 @@ typedef struct sl_cull_stats {
     const char *phase_names[SL_CULL_MAX_PHASES]; /* static strings ("traverse", "rasterize" ...) */
     double phase_ms[SL_CULL_MAX_PHASES];
     double total_ms;            /* wall time of the whole sl_culler_cull call (filled by the interface) */
+    bool out_of_domain;         /* the eye was outside the domain (a BSP leaf without a cluster, see
+                                   sl_oracle_in_domain in truth.h): the result is the frustum set of
+                                   vfc with its defaults, whatever the method (filled by the interface) */
 } sl_cull_stats;
 
 /* A registered method. Strings are static. */

@@ -360,6 +360,22 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
     return SL_OK;
 }
 
+bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf)
+{
+    if (leaf)
+        *leaf = -1;
+    sl_bsp_view bsp;
+    if (!scene || !sl_scene_bsp(scene, &bsp) || bsp.leaf_count == 0)
+        return true;
+    int32_t l = sl_scene_bsp_find_leaf(scene, eye);
+    if (leaf)
+        *leaf = l;
+    /* without nodes there is no space to be outside of (one leaf holds everything) */
+    if (bsp.node_count == 0 || l < 0 || (uint32_t)l >= bsp.leaf_count)
+        return true;
+    return bsp.leaves[l].cluster >= 0;
+}
+
 /* Common front: size the buffers and clear the frame. */
 static sl_status begin(struct sl_oracle_t *o, uint32_t views, uint32_t w, uint32_t h, sl_oracle_frame *frame,
                        sl_error *err)
@@ -402,6 +418,7 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
         memset(out, 0, sizeof *out);
         return st;
     }
+    out->out_of_domain = !sl_oracle_in_domain(o->scene, cam->position, &out->eye_leaf);
     out->ms = (sl_now() - t0) * 1000.0;
     return SL_OK;
 }
@@ -496,6 +513,7 @@ sl_status sl_oracle_render_cube(sl_oracle o, sl_vec3 eye, uint32_t face_size, fl
         memset(out, 0, sizeof *out);
         return st;
     }
+    out->out_of_domain = !sl_oracle_in_domain(o->scene, eye, &out->eye_leaf);
     out->ms = (sl_now() - t0) * 1000.0;
     return SL_OK;
 }

@@ -18,7 +18,12 @@
  * is a fair random subset: the number of objects it adds first is the convergence figure.
  *
  * CLUSTER cells (Quake III) sample the boxes of the cluster's leaves instead (corners, centres,
- * random points), keeping the points the map's BSP puts in a leaf of the cluster. */
+ * random points), keeping the points the map's BSP puts in a leaf of the cluster.
+ *
+ * The rules are the point oracle's (docs/oracle.md, "One set of rules"): a sample outside the
+ * domain (a BSP leaf without a cluster) is skipped and counted, and a cell all of whose samples are
+ * outside is itself outside the domain (its set is empty and flagged, nothing is judged there); on
+ * a map, a pixel counts only when its sight line stays in open space (open_pixels below). */
 #include "sightline/region.h"
 #include "sightline/truth.h"
 
@@ -633,7 +638,12 @@ static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts,
     }
     r->visible.count = 0;
     uint32_t rendered = 0; /* samples rendered: points touching a surface are skipped */
+    uint32_t outside = 0;  /* samples outside the domain (docs/oracle.md): skipped */
     for (uint32_t k = 0; k < n; k++) {
+        if (!sl_oracle_in_domain(r->scene, pts[k], NULL)) {
+            outside++;
+            continue;
+        }
         float near_plane = sample_near(r, pts[k]);
         if (near_plane == 0)
             continue;
@@ -686,6 +696,8 @@ static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts,
             added++;
     }
     out->sample_count = n;
+    out->samples_out_of_domain = outside;
+    out->out_of_domain = outside > 0 && rendered == 0;
     out->visible_count = (uint32_t)r->visible.count;
     out->visible = r->visible.data;
     out->max_pixels = r->out_pixels.data;
