@@ -11,6 +11,7 @@
 #include "sightline/region.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
+#include "sightline/truth.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -110,8 +111,10 @@ static void usage_query(FILE *out)
                  "Find the view cell holding a point (or take a cell by number) and print its visible set.\n\n"
                  "options:\n"
                  "  --point X,Y,Z  a position (metres)\n"
-                 "  --cell N       a cell number\n"
-                 "  --scene SCENE  the scene, needed to locate points in Quake III cluster cells\n"
+                 "  --cell N       a cell number, 0..cells-1 (others are refused)\n"
+                 "  --scene SCENE  the scene the file was baked for (checked against its scene key);\n"
+                 "                 required with --point for Quake III cluster cells, whose leaves only\n"
+                 "                 the map's BSP tree can find\n"
                  "  --map NAME     map inside a .pk3\n"
                  "  --ids          print the object ids too\n"
                  "  --json         machine-readable output\n"
@@ -574,17 +577,50 @@ static int run_query(int argc, char **argv)
     sl_pvs p;
     if (sl_pvs_load(file, NULL, &p, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
+    sl_viewcells cells = sl_pvs_cells(p);
+    sl_pvs_info in;
+    sl_pvs_get_info(p, &in);
+    uint32_t ncells = sl_viewcells_count(cells);
+    if (has_cell && cell >= ncells) {
+        /* SL_NONE too: it is no cell number, and would read as "no cell holds the point" */
+        if (ncells)
+            cli_error(a.cmd, "cell %u is out of range: %s has %u cells, numbered 0..%u", cell, file, ncells, ncells - 1);
+        else
+            cli_error(a.cmd, "cell %u is out of range: %s has no cells", cell, file);
+        sl_pvs_destroy(p);
+        return 2;
+    }
+    bool clusters = false;
+    for (uint32_t i = 0; i < ncells && !clusters; i++)
+        clusters = sl_viewcells_data(cells)[i].shape == SL_CELL_CLUSTER;
+    if (has_point && clusters && !scene_path) {
+        /* a cluster cell is a set of BSP leaves: only the map's tree tells which leaf holds a point */
+        cli_error(a.cmd,
+                  "%s holds Quake III cluster cells: locating a point needs the map's BSP tree, which the file does "
+                  "not keep; give the scene it was baked for with --scene MAP.bsp (or --scene MAPS.pk3 --map NAME)",
+                  file);
+        sl_pvs_destroy(p);
+        return 2;
+    }
     sl_scene scene = NULL;
     if (scene_path && sl_scene_open(scene_path, map, NULL, &scene, &err) != SL_OK) {
         sl_pvs_destroy(p);
         return cli_fail(a.cmd, &err);
     }
-    sl_viewcells cells = sl_pvs_cells(p);
+    if (scene && (in.object_count != sl_scene_object_count(scene) || in.scene_key != sl_pvs_scene_key(scene))) {
+        cli_error(a.cmd,
+                  "%s was not baked for the scene %s%s%s (the file: %u objects, scene key %016llx; the scene: %u "
+                  "objects, key %016llx): give the scene it was baked for, or bake it again",
+                  file, scene_path, map ? " map " : "", map ? map : "", in.object_count,
+                  (unsigned long long)in.scene_key, sl_scene_object_count(scene),
+                  (unsigned long long)sl_pvs_scene_key(scene));
+        sl_scene_destroy(scene);
+        sl_pvs_destroy(p);
+        return 1;
+    }
     if (has_point)
         cell = sl_viewcells_locate(cells, scene, (sl_vec3){point[0], point[1], point[2]});
     int rc = 0;
-    sl_pvs_info in;
-    sl_pvs_get_info(p, &in);
     uint32_t *set = malloc(((size_t)in.object_count + 1) * sizeof *set), n = 0;
     if (!set) {
         cli_error(a.cmd, "out of memory");
@@ -612,8 +648,10 @@ static int run_query(int argc, char **argv)
         }
         cli_json_end(&j);
     } else if (cell == SL_NONE) {
-        printf("no view cell holds (%g, %g, %g): a renderer falls back to view-frustum culling\n", (double)point[0],
-               (double)point[1], (double)point[2]);
+        bool outside = scene && !sl_oracle_in_domain(scene, (sl_vec3){point[0], point[1], point[2]}, NULL);
+        printf("no view cell holds (%g, %g, %g)%s: a renderer falls back to view-frustum culling\n", (double)point[0],
+               (double)point[1], (double)point[2],
+               outside ? " (it lies in solid or void space of the map: outside the domain, docs/oracle.md)" : "");
     } else {
         const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
         printf("cell %u (%s, box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f): %u of %u objects visible\n", cell,
