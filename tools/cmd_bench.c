@@ -74,6 +74,8 @@ static void usage(FILE *out)
           "  --help               this text\n\n"
           "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
           "naming the scene, frame, method and objects, and the command exits 1 (unless --no-strict).\n"
+          "A frame whose eye lies in solid or void space of a map (a BSP leaf without a cluster) is\n"
+          "outside the domain: it is counted and skipped, no method is judged on it (docs/oracle.md).\n"
           "Exit status: 0 ok, 1 failure or violation, 2 usage error.\n\n"
           "examples:\n"
           "  sightline bench city:small --walk 300\n"
