@@ -13,6 +13,10 @@
  *    to the lower object id, so the image does not depend on the order of drawing;
  *  - faces: both sides of every triangle are drawn, except for objects flagged
  *    SL_OBJECT_CLOSED_CONVEX, whose back faces are skipped (option below);
+ *  - maps (BSP data): an object counts only when a sight line to one of its pixels, from the near
+ *    plane to its surface, never enters solid space (a leaf without a cluster) from open space;
+ *    the id buffer still shows what was drawn. The pixel count of an object that passes is all
+ *    its drawn pixels (an upper bound);
  *  - threads: objects are dealt to threads by a fixed rule, each thread draws into its own buffer
  *    and the buffers are merged with the depth rule, so the result is identical bit for bit
  *    whatever the thread count.
@@ -54,6 +58,10 @@ typedef struct sl_oracle_options {
     uint32_t threads;         /* rendering threads, 1..SL_ORACLE_MAX_THREADS (default 2) */
     bool draw_closed_backfaces; /* false (default): skip back faces of SL_OBJECT_CLOSED_CONVEX objects */
     bool count_overdraw;      /* keep a per-pixel count of covered fragments (depth complexity) */
+    bool see_through_solid;   /* false (default): on a map (BSP data), an object counts only when a
+                                 sight line to one of its pixels, from the near plane on, never
+                                 enters solid space from open space (docs/oracle.md, rule 4); true:
+                                 every drawn pixel counts (the region oracle traces its own) */
 } sl_oracle_options;
 
 /* The defaults: camera resolution, 2 threads, closed back faces skipped, no overdraw counts. */
@@ -75,6 +83,9 @@ typedef struct sl_oracle_frame {
                                      follows the drawing rules but is not the truth; judge nothing
                                      against it */
     int32_t eye_leaf;             /* BSP leaf of the eye, -1 without BSP data */
+    uint32_t hidden_by_solid;     /* objects drawn but left out by the open-space rule (maps: every
+                                     sight line to them enters solid space); their pixels are not
+                                     in covered_pixels */
 } sl_oracle_frame;
 
 /* The buffers of one view of the last render. Row 0 is the top of the image; pixel (x, y) is at
