@@ -6,7 +6,10 @@
  *    a mappvs bake included, returns exactly the frustum set of vfc there with sl_cull_stats.out_of_domain set;
  *  - eyes at the centres of playable leaves, and eyes 0.001 to 0.2 m in front of a wall in the
  *    playable space, are in the domain: nothing is flagged and the bench judges them;
- *  - a region oracle query of a box cell lying wholly in solid space is flagged out of domain;
+ *    looking at the wall, the open-space rule keeps what the near plane's hole shows;
+ *  - a region oracle query of points lying wholly in solid space is flagged out of domain;
+ *  - dm4ish's sealed pockets (clusters without a drawn face): the open-space rule (rule 4) sees
+ *    nothing through the brushes around them, and the pvs culler misses nothing there;
  *  - a scene without BSP data is all domain. */
 #include <setjmp.h>
 #include <stdarg.h>
