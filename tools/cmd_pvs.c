@@ -590,7 +590,7 @@ static int run_query(int argc, char **argv)
         else
             cli_error(a.cmd, "cell %u is out of range: %s has no cells", cell, file);
         sl_pvs_destroy(p);
-        return 2;
+        return 1;
     }
     bool clusters = false;
     for (uint32_t i = 0; i < ncells && !clusters; i++)

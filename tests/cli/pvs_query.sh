@@ -6,7 +6,7 @@
 #  - by --point with --scene: the cell is found; a point in the map's void says it lies outside
 #    the domain;
 #  - with --scene naming another map: refused (exit 1) against the file's scene key;
-#  - by --cell beyond the last cell, 4294967295 included: refused (exit 2) naming the valid range
+#  - by --cell beyond the last cell, 4294967295 included: refused (exit 1) naming the valid range
 #    (4294967295 used to answer for a point (0,0,0)).
 # $1 is the sightline binary.
 set -u
@@ -56,11 +56,11 @@ has "was not baked for the scene" "$tmp/err"
 # cell numbers beyond the last one
 last=$((cells - 1))
 for c in "$cells" 4294967295; do
-    expect 2 "$SL" pvs query "$tmp/q.slpvs" --cell "$c"
+    expect 1 "$SL" pvs query "$tmp/q.slpvs" --cell "$c"
     has "cell $c is out of range" "$tmp/err"
     has "numbered 0..$last" "$tmp/err"
     hasnt "no view cell holds" "$tmp/out"
-    expect 2 "$SL" pvs query "$tmp/q.slpvs" --cell "$c" --json
+    expect 1 "$SL" pvs query "$tmp/q.slpvs" --cell "$c" --json
     hasnt '"cell"' "$tmp/out"
 done
 expect 0 "$SL" pvs query "$tmp/q.slpvs" --cell "$last" --json
