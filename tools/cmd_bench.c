@@ -77,6 +77,8 @@ static void usage(FILE *out)
           "  --help               this text\n\n"
           "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
           "naming the scene, frame, method and objects, and the command exits 1 (unless --no-strict).\n"
+          "A frame whose eye lies in solid or void space of a map (a BSP leaf without a cluster) is\n"
+          "outside the domain: it is counted and skipped, no method is judged on it (docs/oracle.md).\n"
           "Exit status: 0 ok, 1 failure or violation, 2 usage error.\n\n"
           "examples:\n"
           "  sightline bench city:small --walk 300\n"
@@ -452,11 +454,16 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
         sl_series_summary os;
         memset(&os, 0, sizeof os);
         double vis = 0, tv = 0;
+        uint32_t outside = 0;
         for (uint32_t f = 0; f < nf; f++) {
             sl_bench_frame fr;
             sl_bench_get_frame(b, f, &fr, NULL);
             if (oms)
                 oms[f] = fr.oracle_ms;
+            if (fr.out_of_domain) {
+                outside++;
+                continue;
+            }
             vis += fr.visible_count;
             tv += (double)fr.triangles_visible;
         }
@@ -468,8 +475,9 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
         cli_json_uint(j, "objects", ss.object_count);
         cli_json_uint(j, "triangles", ss.instanced_triangle_count);
         cli_json_uint(j, "frames", nf);
-        cli_json_double(j, "visible_mean", nf ? vis / nf : 0);
-        cli_json_double(j, "triangles_visible_mean", nf ? tv / nf : 0);
+        cli_json_uint(j, "frames_out_of_domain", outside);
+        cli_json_double(j, "visible_mean", nf > outside ? vis / (nf - outside) : 0);
+        cli_json_double(j, "triangles_visible_mean", nf > outside ? tv / (nf - outside) : 0);
         cli_json_object_begin(j, "oracle_ms");
         cli_json_double(j, "median", os.median);
         cli_json_double(j, "p95", os.p95);

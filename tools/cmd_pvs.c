@@ -12,6 +12,7 @@
 #include "sightline/region.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
+#include "sightline/truth.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -119,8 +120,10 @@ static void usage_query(FILE *out)
                  "Find the view cell holding a point (or take a cell by number) and print its visible set.\n\n"
                  "options:\n"
                  "  --point X,Y,Z  a position (metres)\n"
-                 "  --cell N       a cell number\n"
-                 "  --scene SCENE  the scene, needed to locate points in Quake III cluster cells\n"
+                 "  --cell N       a cell number, 0..cells-1 (others are refused)\n"
+                 "  --scene SCENE  the scene the file was baked for (checked against its scene key);\n"
+                 "                 required with --point for Quake III cluster cells, whose leaves only\n"
+                 "                 the map's BSP tree can find\n"
                  "  --map NAME     map inside a .pk3\n"
                  "  --ids          print the object ids too\n"
                  "  --json         machine-readable output\n"
@@ -139,7 +142,9 @@ static void usage_verify(FILE *out)
             "Misses are listed with the cell and the object, and make the exit status 1. For Quake III\n"
             "cluster cells the map's own PVS is checked the same way and the sizes compared; objects\n"
             "farther from the cell than the map's vis far plane (_farplanedist, fog maps) are told apart\n"
-            "and do not fail a mappvs file, and clusters without a point to sample are skipped.\n\n"
+            "and do not fail a mappvs file, and clusters without a point to sample are skipped. Samples in\n"
+            "solid or void space of a map are outside the domain (docs/oracle.md) and skipped; a cell with\n"
+            "no other sample is skipped and counted.\n\n"
             "options:\n"
             "  --scene SCENE   the scene the PVS was baked for; --city PRESET [--seed N] generates it\n"
             "  --map NAME      map inside a .pk3\n"
@@ -588,17 +593,50 @@ static int run_query(int argc, char **argv)
     sl_pvs p;
     if (sl_pvs_load(file, NULL, &p, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
+    sl_viewcells cells = sl_pvs_cells(p);
+    sl_pvs_info in;
+    sl_pvs_get_info(p, &in);
+    uint32_t ncells = sl_viewcells_count(cells);
+    if (has_cell && cell >= ncells) {
+        /* SL_NONE too: it is no cell number, and would read as "no cell holds the point" */
+        if (ncells)
+            cli_error(a.cmd, "cell %u is out of range: %s has %u cells, numbered 0..%u", cell, file, ncells, ncells - 1);
+        else
+            cli_error(a.cmd, "cell %u is out of range: %s has no cells", cell, file);
+        sl_pvs_destroy(p);
+        return 1;
+    }
+    bool clusters = false;
+    for (uint32_t i = 0; i < ncells && !clusters; i++)
+        clusters = sl_viewcells_data(cells)[i].shape == SL_CELL_CLUSTER;
+    if (has_point && clusters && !scene_path) {
+        /* a cluster cell is a set of BSP leaves: only the map's tree tells which leaf holds a point */
+        cli_error(a.cmd,
+                  "%s holds Quake III cluster cells: locating a point needs the map's BSP tree, which the file does "
+                  "not keep; give the scene it was baked for with --scene MAP.bsp (or --scene MAPS.pk3 --map NAME)",
+                  file);
+        sl_pvs_destroy(p);
+        return 2;
+    }
     sl_scene scene = NULL;
     if (scene_path && sl_scene_open(scene_path, map, NULL, &scene, &err) != SL_OK) {
         sl_pvs_destroy(p);
         return cli_fail(a.cmd, &err);
     }
-    sl_viewcells cells = sl_pvs_cells(p);
+    if (scene && (in.object_count != sl_scene_object_count(scene) || in.scene_key != sl_pvs_scene_key(scene))) {
+        cli_error(a.cmd,
+                  "%s was not baked for the scene %s%s%s (the file: %u objects, scene key %016llx; the scene: %u "
+                  "objects, key %016llx): give the scene it was baked for, or bake it again",
+                  file, scene_path, map ? " map " : "", map ? map : "", in.object_count,
+                  (unsigned long long)in.scene_key, sl_scene_object_count(scene),
+                  (unsigned long long)sl_pvs_scene_key(scene));
+        sl_scene_destroy(scene);
+        sl_pvs_destroy(p);
+        return 1;
+    }
     if (has_point)
         cell = sl_viewcells_locate(cells, scene, (sl_vec3){point[0], point[1], point[2]});
     int rc = 0;
-    sl_pvs_info in;
-    sl_pvs_get_info(p, &in);
     uint32_t *set = malloc(((size_t)in.object_count + 1) * sizeof *set), n = 0;
     if (!set) {
         cli_error(a.cmd, "out of memory");
@@ -626,8 +664,10 @@ static int run_query(int argc, char **argv)
         }
         cli_json_end(&j);
     } else if (cell == SL_NONE) {
-        printf("no view cell holds (%g, %g, %g): a renderer falls back to view-frustum culling\n", (double)point[0],
-               (double)point[1], (double)point[2]);
+        bool outside = scene && !sl_oracle_in_domain(scene, (sl_vec3){point[0], point[1], point[2]}, NULL);
+        printf("no view cell holds (%g, %g, %g)%s: a renderer falls back to view-frustum culling\n", (double)point[0],
+               (double)point[1], (double)point[2],
+               outside ? " (it lies in solid or void space of the map: outside the domain, docs/oracle.md)" : "");
     } else {
         const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
         printf("cell %u (%s, box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f): %u of %u objects visible\n", cell,
@@ -844,7 +884,7 @@ static int run_verify(int argc, char **argv)
     const char *file_method = sl_pvs_meta(p, "method");
     bool file_is_map = file_method && !strcmp(file_method, "mappvs");
     uint64_t misses_far = 0, bsp_misses_far = 0;
-    uint32_t unsampled = 0;
+    uint32_t unsampled = 0, outside = 0;
     double over_sum = 0;
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
@@ -870,6 +910,11 @@ static int run_verify(int argc, char **argv)
             cli_progress_done(&ps);
             rc = cli_fail(a.cmd, &err);
             break;
+        }
+        if (v.out_of_domain) {
+            /* every sample in solid or void space: outside the domain, nothing to judge (docs/oracle.md) */
+            outside++;
+            continue;
         }
         uint32_t nb = bsp ? bsp_set(scene, sl_viewcells_data(cells)[c].cluster, mark, bset) : 0;
         uint32_t cell_miss = 0;
@@ -925,6 +970,7 @@ static int run_verify(int argc, char **argv)
         cli_json_uint(&j, "cells", nc);
         cli_json_uint(&j, "checked", checked);
         cli_json_uint(&j, "unsampled", unsampled);
+        cli_json_uint(&j, "out_of_domain", outside);
         cli_json_uint(&j, "misses", misses);
         cli_json_uint(&j, "cells_with_misses", cells_with_miss);
         cli_json_double(&j, "oracle_visible_mean", checked ? (double)oracle_total / checked : 0);
@@ -960,6 +1006,10 @@ static int run_verify(int argc, char **argv)
         if (unsampled)
             printf("  %u chosen cells were skipped: no sample point lies in them (BSP leaves without volume)\n",
                    unsampled);
+        if (outside)
+            printf("  %u chosen cells were skipped: outside the domain (every sample in a BSP leaf without a "
+                   "cluster, docs/oracle.md)\n",
+                   outside);
         printf("  mean per cell: oracle %.1f, PVS %.1f objects (over-estimation %.2fx); oracle convergence: %.2f "
                "objects first seen in the last 10%% of samples\n",
                checked ? (double)oracle_total / checked : 0, checked ? (double)set_total / checked : 0, over,

@@ -99,6 +99,9 @@ typedef struct sl_bench_frame {
     uint32_t objects_in_frustum; /* objects the oracle drew */
     uint64_t triangles_in_frustum;
     double oracle_ms;         /* wall time of the oracle render */
+    bool out_of_domain;       /* the eye is outside the domain (sl_oracle_in_domain, docs/oracle.md):
+                                 the frame is counted and skipped, no method runs and its records
+                                 stay invalid */
 } sl_bench_frame;
 
 /* One method on one frame. */
@@ -129,6 +132,8 @@ typedef struct sl_bench_summary {
                                       SL_NONE without */
     uint32_t first_miss_object;    /* its first missed object, SL_NONE without */
     sl_series_summary cull_ms;     /* median, p95, max ... of the per-frame cull times */
+    uint32_t frames_out_of_domain; /* frames of the bench skipped because the eye was outside the
+                                      domain (not in `frames`) */
 } sl_bench_summary;
 
 /* ---- scenes named on a command line ---- */
@@ -160,13 +165,16 @@ SL_API sl_status sl_bench_add_external(sl_bench bench, const char *name, sl_cull
 
 /* Run one frame: render the oracle for cam (its viewport replaced by the options' when set), then
  * every culler method, judging each against the oracle. External methods' records stay invalid
- * until sl_bench_submit. */
+ * until sl_bench_submit. A camera whose eye is outside the domain (the oracle flags it: a BSP leaf
+ * without a cluster) gives a frame marked out_of_domain: it is counted and skipped (no method runs,
+ * every record stays invalid, reports list it as skipped). */
 SL_API sl_status sl_bench_run_frame(sl_bench bench, const sl_camera *cam, sl_error *err);
 /* Run frames first..first+count-1 of a path (count clamped to the path's end); progress reports
  * frames done. */
 SL_API sl_status sl_bench_run_path(sl_bench bench, sl_path path, uint32_t first, uint32_t count, sl_error *err);
 /* Judge an external method's result for the current (last) frame: ids strictly ascending, each
- * below the scene's object count; cull_ms is reported as its time. */
+ * below the scene's object count; cull_ms is reported as its time. On a frame outside the domain
+ * the result is checked and kept as the last result but not judged (the record stays invalid). */
 SL_API sl_status sl_bench_submit(sl_bench bench, uint32_t method, const uint32_t *ids, uint32_t count,
                                  double cull_ms, sl_error *err);
 

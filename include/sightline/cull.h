@@ -8,7 +8,10 @@
  *
  * A method is conservative (it never drops an object that owns a pixel in the exact image: the
  * tests hold it to the oracle of truth.h with zero tolerance) or aggressive (it may drop some; its
- * missed pixels are measured). The guarantee may depend on the options.
+ * missed pixels are measured). The guarantee may depend on the options. It holds inside the
+ * domain of the oracles (docs/oracle.md, "One set of rules"): an eye in solid or void space of a
+ * Quake III map (a BSP leaf without a cluster) is outside it, and there every culler returns its
+ * frustum set (that of vfc) and sets sl_cull_stats.out_of_domain.
  *
  * Contract: the scene must outlive the culler and keep its objects (their number fixed); objects
  * may move (sl_scene_set_object_transform), after which sl_culler_scene_changed lets the method
@@ -55,6 +58,9 @@ typedef struct sl_cull_stats {
     const char *phase_names[SL_CULL_MAX_PHASES]; /* static strings ("traverse", "rasterize" ...) */
     double phase_ms[SL_CULL_MAX_PHASES];
     double total_ms;            /* wall time of the whole sl_culler_cull call (filled by the interface) */
+    bool out_of_domain;         /* the eye was outside the domain (a BSP leaf without a cluster, see
+                                   sl_oracle_in_domain in truth.h): the result is the frustum set of
+                                   vfc with its defaults, whatever the method (filled by the interface) */
 } sl_cull_stats;
 
 /* A registered method. Strings are static. */

@@ -216,6 +216,10 @@ typedef struct sl_region_visibility {
     uint32_t added_last_tenth;  /* objects first seen in the last 10% of the samples (convergence:
                                    0 suggests the density suffices; it never proves it) */
     double ms;                  /* wall time */
+    uint32_t samples_out_of_domain; /* sample points outside the domain (a BSP leaf without a
+                                   cluster, sl_oracle_in_domain): skipped, not rendered */
+    bool out_of_domain;         /* every sample was outside the domain: the region is, and its (empty)
+                                   set judges nothing (docs/oracle.md, "One set of rules") */
 } sl_region_visibility;
 
 /* Create a region oracle over a scene (which must outlive it). opt and alloc may be NULL. */

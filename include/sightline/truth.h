@@ -13,11 +13,22 @@
  *    to the lower object id, so the image does not depend on the order of drawing;
  *  - faces: both sides of every triangle are drawn, except for objects flagged
  *    SL_OBJECT_CLOSED_CONVEX, whose back faces are skipped (option below);
+ *  - maps (BSP data): an object counts only when a sight line to one of its pixels, from the near
+ *    plane to its surface, never enters solid space (a leaf without a cluster) from open space;
+ *    the id buffer still shows what was drawn. The pixel count of an object that passes is all
+ *    its drawn pixels (an upper bound);
  *  - threads: objects are dealt to threads by a fixed rule, each thread draws into its own buffer
  *    and the buffers are merged with the depth rule, so the result is identical bit for bit
  *    whatever the thread count.
  * Cube maps render six 90-degree square faces from a point with exact axis-aligned matrices, so
  * every direction falls into exactly one pixel of exactly one face.
+ *
+ * The domain (docs/oracle.md, "One set of rules", shared with the region oracle of region.h): in a
+ * scene with BSP data (a Quake III map), an eye in a leaf without a cluster (cluster < 0: solid
+ * brush or the sealed void outside the playable space) is OUTSIDE THE DOMAIN. There the drawn
+ * faces are not a closed world (undrawn "caulk" faces, no brushes), so no image is the truth: the
+ * oracle still renders (for display) but flags the frame out_of_domain, the bench skips such
+ * frames and every culler returns its frustum set, flagged in sl_cull_stats.out_of_domain.
  *
  * An oracle reads the scene at each render (transforms may change between renders) and must not
  * outlive it. One oracle is used by one thread at a time; it starts its own helper threads.
@@ -47,6 +58,10 @@ typedef struct sl_oracle_options {
     uint32_t threads;         /* rendering threads, 1..SL_ORACLE_MAX_THREADS (default 2) */
     bool draw_closed_backfaces; /* false (default): skip back faces of SL_OBJECT_CLOSED_CONVEX objects */
     bool count_overdraw;      /* keep a per-pixel count of covered fragments (depth complexity) */
+    bool see_through_solid;   /* false (default): on a map (BSP data), an object counts only when a
+                                 sight line to one of its pixels, from the near plane on, never
+                                 enters solid space from open space (docs/oracle.md, rule 4); true:
+                                 every drawn pixel counts (the region oracle traces its own) */
 } sl_oracle_options;
 
 /* The defaults: camera resolution, 2 threads, closed back faces skipped, no overdraw counts. */
@@ -64,6 +79,13 @@ typedef struct sl_oracle_frame {
                                      pixel centre (counted once per view) */
     uint64_t triangles_in_frustum;/* their triangles, all drawn (counted once per view) */
     double ms;                    /* wall time of the render */
+    bool out_of_domain;           /* the eye is outside the domain (sl_oracle_in_domain): the image
+                                     follows the drawing rules but is not the truth; judge nothing
+                                     against it */
+    int32_t eye_leaf;             /* BSP leaf of the eye, -1 without BSP data */
+    uint32_t hidden_by_solid;     /* objects drawn but left out by the open-space rule (maps: every
+                                     sight line to them enters solid space); their pixels are not
+                                     in covered_pixels */
 } sl_oracle_frame;
 
 /* The buffers of one view of the last render. Row 0 is the top of the image; pixel (x, y) is at
@@ -111,6 +133,12 @@ SL_API sl_camera sl_cube_face_camera(sl_vec3 eye, sl_cube_face face, uint32_t fa
 /* Buffers of view `index` (0 for a camera render, the face for a cube map) of the last render.
  * Fails with SL_ERROR_INVALID_ARGUMENT when there is no such view. */
 SL_API sl_status sl_oracle_get_view(sl_oracle oracle, uint32_t index, sl_oracle_view *out, sl_error *err);
+
+/* Whether eye lies in the domain of the oracles (point and region) and of the cullers' guarantee:
+ * always true for a scene without BSP nodes; otherwise true when the BSP leaf holding eye
+ * (sl_scene_bsp_find_leaf) has a cluster (cluster >= 0, the playable space). leaf (may be NULL)
+ * receives that leaf, or -1 without BSP data. */
+SL_API bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf);
 
 /* ---- metrics -------------------------------------------------------------------------------- */
 

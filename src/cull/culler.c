@@ -3,6 +3,7 @@
 #include "culler_internal.h"
 
 #include "scene/scene_internal.h"
+#include "sightline/truth.h"
 
 #include <ctype.h>
 #include <strings.h>
@@ -19,7 +20,11 @@ struct sl_culler_t {
     sl_cull_guarantee guarantee;
     sl_cull_stats stats;
     char options[SL_OPTS_MAX_CHARS + 1];
+    void *frustum_state;          /* vfc with its defaults, for eyes outside the domain (BSP scenes);
+                                     NULL until needed, and for vfc itself (its own state serves) */
 };
+
+extern const sl_cull_method sl_cull_method_vfc;
 
 const char *sl_cull_guarantee_name(sl_cull_guarantee g)
 {
@@ -346,6 +351,42 @@ sl_status sl_cull_method_check_options(const char *method, const char *options, 
 
 /* ---- the culler ---- */
 
+static void destroy_state(struct sl_culler_t *c)
+{
+    if (c->state)
+        c->method->destroy(c->state);
+    if (c->frustum_state)
+        sl_cull_method_vfc.destroy(c->frustum_state);
+    c->state = c->frustum_state = NULL;
+}
+
+/* The domain rule (docs/oracle.md, "One set of rules"): an eye in a BSP leaf without a cluster
+ * gets the frustum set, from vfc with its default options, whatever the method. Made once per
+ * culler (at creation for a scene with BSP data, else at the first such eye). */
+static sl_status frustum_fallback(struct sl_culler_t *c, sl_error *err)
+{
+    const sl_cull_method *v = &sl_cull_method_vfc;
+    if (c->method == v || c->frustum_state)
+        return SL_OK;
+    sl_opts *opts = sl_alloc(&c->alloc, sizeof *opts);
+    void *config = v->config_size ? sl_alloc(&c->alloc, v->config_size) : NULL;
+    sl_status st = SL_OK;
+    if (!opts || (v->config_size && !config))
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for the frustum fallback", c->method->name);
+    sl_cull_guarantee g;
+    if (st == SL_OK)
+        st = configure(v, NULL, config, opts, &g, err);
+    if (st == SL_OK)
+        st = v->create(c->scene, config, &c->alloc, &c->frustum_state, err);
+    if (st != SL_OK) {
+        c->frustum_state = NULL;
+        sl_error_prefix(err, "%s: frustum fallback for eyes outside the domain", c->method->name);
+    }
+    sl_free(&c->alloc, config, v->config_size);
+    sl_free(&c->alloc, opts, sizeof *opts);
+    return st;
+}
+
 sl_status sl_culler_create(const char *method, sl_scene scene, const char *options, const sl_allocator *alloc,
                            sl_culler *out, sl_error *err)
 {
@@ -376,10 +417,17 @@ sl_status sl_culler_create(const char *method, sl_scene scene, const char *optio
         goto done;
     memcpy(c->options, opts->effective, sizeof c->options);
     st = m->create(scene, config, &c->alloc, &c->state, err);
+    if (st == SL_OK) {
+        sl_bsp_view bsp;
+        if (sl_scene_bsp(scene, &bsp) && bsp.node_count > 0)
+            st = frustum_fallback(c, err);
+    }
 done:
     sl_free(alloc, config, m->config_size);
     sl_free(alloc, opts, sizeof *opts);
     if (st != SL_OK) {
+        if (c)
+            destroy_state(c);
         sl_free(alloc, c, sizeof *c);
         return st;
     }
@@ -391,8 +439,7 @@ void sl_culler_destroy(sl_culler c)
 {
     if (!c)
         return;
-    if (c->state)
-        c->method->destroy(c->state);
+    destroy_state(c);
     sl_allocator a = c->alloc;
     sl_free(&a, c, sizeof *c);
 }
@@ -421,7 +468,16 @@ sl_status sl_culler_cull(sl_culler c, const sl_camera *cam, uint32_t *out_ids, u
                        c->method->name, capacity, n);
     double t0 = sl_now();
     uint32_t count = 0;
-    st = c->method->cull(c->state, cam, out_ids, capacity, &count, &c->stats, err);
+    bool outside = !sl_oracle_in_domain(c->scene, cam->position, NULL);
+    if (outside) {
+        /* no method's guarantee holds there (nor the oracle's truth): the frustum set, flagged */
+        st = frustum_fallback(c, err);
+        if (st == SL_OK)
+            st = sl_cull_method_vfc.cull(c->method == &sl_cull_method_vfc ? c->state : c->frustum_state, cam,
+                                         out_ids, capacity, &count, &c->stats, err);
+    } else {
+        st = c->method->cull(c->state, cam, out_ids, capacity, &count, &c->stats, err);
+    }
     double t1 = sl_now();
     if (st != SL_OK) {
         memset(&c->stats, 0, sizeof c->stats);
@@ -443,6 +499,7 @@ sl_status sl_culler_cull(sl_culler c, const sl_camera *cam, uint32_t *out_ids, u
     c->stats.objects_visible = count;
     c->stats.triangles_visible = triangles;
     c->stats.total_ms = sl_cull_ms(t0, t1);
+    c->stats.out_of_domain = outside;
     *out_count = count;
     return SL_OK;
 }
@@ -467,7 +524,10 @@ sl_status sl_culler_scene_changed(sl_culler c, sl_error *err)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
                        "%s: the scene has %u objects but had %u when the culler was created: create a new culler",
                        c->method->name, n, c->object_count);
-    return c->method->scene_changed ? c->method->scene_changed(c->state, err) : SL_OK;
+    sl_status st = c->method->scene_changed ? c->method->scene_changed(c->state, err) : SL_OK;
+    if (st == SL_OK && c->frustum_state && sl_cull_method_vfc.scene_changed)
+        st = sl_cull_method_vfc.scene_changed(c->frustum_state, err);
+    return st;
 }
 
 sl_cull_guarantee sl_culler_guarantee(sl_culler c) { return c ? c->guarantee : SL_AGGRESSIVE; }

@@ -8,7 +8,9 @@
  * outside the frustum. Two cases fall back to plain view-frustum culling of every object, so the
  * guarantee holds everywhere: an eye in no cell (inside a building, above the eye range, off the
  * streets), and dynamic objects (cars), whose baked positions mean nothing once they move
- * (option dynamic=frustum, the default).
+ * (option dynamic=frustum, the default). An eye outside the domain (solid or void space of a map,
+ * docs/oracle.md) never reaches this method: the culler interface (culler.c) gives it the frustum
+ * set of vfc, flagged in sl_cull_stats.out_of_domain.
  *
  * Steady state allocates nothing: the decoded set of the current cell is kept, and re-decoded only
  * when the eye changes cell (one zstd block, cached by the PVS handle). */

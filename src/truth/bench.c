@@ -351,6 +351,7 @@ sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
     fr.objects_in_frustum = b->truth.objects_in_frustum;
     fr.triangles_in_frustum = b->truth.triangles_in_frustum;
     fr.oracle_ms = b->truth.ms;
+    fr.out_of_domain = b->truth.out_of_domain;
     if (!sl_array_reserve(&b->alloc, &b->records, sizeof(sl_bench_record), b->method_count) ||
         !sl_array_reserve(&b->alloc, &b->frames, sizeof fr, 1))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for the records of frame %u", b->label, fi);
@@ -359,7 +360,8 @@ sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
     for (uint32_t mi = 0; mi < b->method_count; mi++) {
         bench_method *m = &b->methods[mi];
         m->result_count = 0;
-        if (!m->culler)
+        /* outside the domain there is no truth to judge by: the frame is counted and skipped */
+        if (!m->culler || fr.out_of_domain)
             continue;
         sl_bench_record *rec = &recs[mi];
         for (uint32_t r = 0; r < b->opt.repeat; r++) {
@@ -431,6 +433,17 @@ sl_status sl_bench_submit(sl_bench b, uint32_t method, const uint32_t *ids, uint
     if (count)
         memcpy(m->result, ids, (size_t)count * sizeof(uint32_t));
     m->result_count = count;
+    if (SL_AT(b->frames, sl_bench_frame, fi).out_of_domain) {
+        /* keep it as the last result, judge nothing: the record stays invalid */
+        for (uint32_t i = 0; i < count; i++)
+            if (ids[i] >= b->object_count || (i && ids[i] <= ids[i - 1])) {
+                m->result_count = 0;
+                return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                               "sl_bench_submit: %s: entry %u (object %u) is out of range or out of order", m->name, i,
+                               ids[i]);
+            }
+        return SL_OK;
+    }
     sl_bench_record fresh;
     memset(&fresh, 0, sizeof fresh);
     fresh.cull_ms = fresh.cull_ms_min = cull_ms;
@@ -516,6 +529,8 @@ sl_status sl_bench_summarize(sl_bench b, uint32_t method, sl_bench_summary *out,
     size_t n = 0;
     for (uint32_t f = 0; f < nf; f++) {
         const sl_bench_record *r = bench_rec(b, f, method);
+        if (SL_AT(b->frames, sl_bench_frame, f).out_of_domain)
+            out->frames_out_of_domain++;
         if (!r->valid)
             continue;
         const sl_cull_metrics *m = &r->metrics;

@@ -54,7 +54,7 @@ static const char csv_header[] =
     "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,cull_ms_min,"
     "objects_drawn,triangles_drawn,visible_exact,triangles_visible,missed_objects,missed_pixels,extra_objects,"
     "overestimation,objects_in_frustum,triangles_in_frustum,covered_pixels,oracle_ms,objects_tested,nodes_visited,"
-    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed\n";
+    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped\n";
 
 sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
 {
@@ -71,6 +71,14 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
         for (uint32_t fi = 0; fi < b->frames.count; fi++) {
             const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, fi);
             const sl_camera *c = &fr->camera;
+            if (fr->out_of_domain) {
+                /* one row for the skipped frame: where it was, no method, the reason last */
+                csv_text(&f, b->label);
+                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain\n", fr->source,
+                    (double)fr->time, (double)c->position.x, (double)c->position.y, (double)c->position.z,
+                    c->yaw * RAD2DEG, c->pitch * RAD2DEG, c->roll * RAD2DEG);
+                continue;
+            }
             for (uint32_t mi = 0; mi < b->method_count; mi++) {
                 const sl_bench_record *r = bench_rec(b, fi, mi);
                 if (!r->valid)
@@ -97,7 +105,7 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
                 out(&f, ",");
                 for (uint32_t k = 0; k < r->missed_kept; k++)
                     out(&f, "%s%u:%u", k ? ";" : "", r->missed_ids[k], r->missed_pixels[k]);
-                out(&f, "\n");
+                out(&f, ",\n");
             }
         }
     }
@@ -154,7 +162,22 @@ sl_status sl_bench_write_json(const sl_bench *benches, uint32_t count, const cha
             out(&f, ",\"guarantee\":\"%s\",\"external\":%s}", sl_cull_guarantee_name(b->methods[mi].guarantee),
                 b->methods[mi].culler ? "false" : "true");
         }
-        out(&f, "]}");
+        /* frames skipped because the eye was outside the domain (docs/oracle.md) */
+        uint32_t skipped = 0;
+        out(&f, "],\"skipped_frames\":[");
+        for (uint32_t fi = 0; fi < b->frames.count; fi++) {
+            const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, fi);
+            if (!fr->out_of_domain)
+                continue;
+            out(&f, "%s{\"frame\":%u,\"reason\":\"out_of_domain\",\"x\":", skipped++ ? "," : "", fr->source);
+            json_num(&f, fr->camera.position.x);
+            out(&f, ",\"y\":");
+            json_num(&f, fr->camera.position.y);
+            out(&f, ",\"z\":");
+            json_num(&f, fr->camera.position.z);
+            out(&f, "}");
+        }
+        out(&f, "],\"frames_out_of_domain\":%u}", skipped);
     }
     out(&f, "],\n\"rows\":[");
     bool first = true;
@@ -255,15 +278,19 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
         sl_scene_stats ss;
         sl_scene_get_stats(b->scene, &ss);
         char g1[48], g2[48], g3[48];
-        size_t nf = b->frames.count;
+        size_t nf = b->frames.count, outside = 0;
         double vis = 0, tv = 0;
         double *oms = sl_alloc(&b->alloc, SL_MAX(nf, 1) * sizeof(double));
         for (size_t i = 0; i < nf; i++) {
             const sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, i);
-            vis += fr->visible_count;
-            tv += (double)fr->triangles_visible;
             if (oms)
                 oms[i] = fr->oracle_ms;
+            if (fr->out_of_domain) {
+                outside++;
+                continue;
+            }
+            vis += fr->visible_count;
+            tv += (double)fr->triangles_visible;
         }
         sl_series_summary os;
         memset(&os, 0, sizeof os);
@@ -276,10 +303,13 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
                 grouped(g2, sizeof g2, (double)ss.instanced_triangle_count), nf);
         if (f0)
             fprintf(fp, " at %ux%u", f0->camera.width, f0->camera.height);
+        if (outside)
+            fprintf(fp, " (%zu skipped: eye outside the domain, in solid or void space)", outside);
+        size_t judged = nf - outside;
         fprintf(fp, "; exact visible set %s objects and %s triangles per frame (mean); oracle %.1f ms median, %.1f ms "
                     "p95.\n\n",
-                grouped(g1, sizeof g1, nf ? vis / (double)nf : 0), grouped(g3, sizeof g3, nf ? tv / (double)nf : 0),
-                os.median, os.p95);
+                grouped(g1, sizeof g1, judged ? vis / (double)judged : 0),
+                grouped(g3, sizeof g3, judged ? tv / (double)judged : 0), os.median, os.p95);
         fprintf(fp, "| method | guarantee | frames | objects drawn | triangles drawn | exact visible | over-estimation "
                     "| missed objects | missed pixels | cull ms median | cull ms p95 | cull ms max |\n");
         fprintf(fp, "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n");

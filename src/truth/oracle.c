@@ -15,6 +15,7 @@
  */
 #include "sightline/truth.h"
 
+#include "open_space.h"
 #include "raster_ref.h"
 #include "scene/scene_internal.h"
 
@@ -308,6 +309,143 @@ static int cmp_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* ---- sight lines through solid space (maps) ---- */
+
+/* Front-to-back walk of p0-p1 below `node`: false once the segment enters solid after open space
+ * (*seen_open records open space met so far). */
+static bool walk_open(const sl_bsp_view *bsp, int32_t node, const double p0[3], const double p1[3], bool *seen_open)
+{
+    while (node >= 0) {
+        const sl_bsp_node *nd = &bsp->nodes[node];
+        const sl_plane *pl = &bsp->planes[nd->plane];
+        double d0 = pl->a * p0[0] + pl->b * p0[1] + pl->c * p0[2] + pl->d;
+        double d1 = pl->a * p1[0] + pl->b * p1[1] + pl->c * p1[2] + pl->d;
+        if ((d0 >= 0) == (d1 >= 0)) {
+            node = nd->children[d0 >= 0 ? 0 : 1];
+            continue;
+        }
+        double t = d0 / (d0 - d1), mid[3];
+        for (int k = 0; k < 3; k++)
+            mid[k] = p0[k] + t * (p1[k] - p0[k]);
+        return walk_open(bsp, nd->children[d0 >= 0 ? 0 : 1], p0, mid, seen_open) &&
+               walk_open(bsp, nd->children[d0 >= 0 ? 1 : 0], mid, p1, seen_open);
+    }
+    if (bsp->leaves[-(node + 1)].cluster >= 0) {
+        *seen_open = true;
+        return true;
+    }
+    return !*seen_open;
+}
+
+bool sl_bsp_sight_line_open(const sl_bsp_view *bsp, const double p0[3], const double p1[3], bool solid_start)
+{
+    if (!bsp->node_count)
+        return true;
+    bool seen_open = !solid_start;
+    return walk_open(bsp, 0, p0, p1, &seen_open);
+}
+
+/* Inverse of a column-major 4x4 matrix in double (cofactors); false when singular. */
+static bool invert4(const float *m, double inv[16])
+{
+    double a[16];
+    for (int i = 0; i < 16; i++)
+        a[i] = m[i];
+    inv[0] = a[5] * a[10] * a[15] - a[5] * a[11] * a[14] - a[9] * a[6] * a[15] + a[9] * a[7] * a[14] +
+             a[13] * a[6] * a[11] - a[13] * a[7] * a[10];
+    inv[4] = -a[4] * a[10] * a[15] + a[4] * a[11] * a[14] + a[8] * a[6] * a[15] - a[8] * a[7] * a[14] -
+             a[12] * a[6] * a[11] + a[12] * a[7] * a[10];
+    inv[8] = a[4] * a[9] * a[15] - a[4] * a[11] * a[13] - a[8] * a[5] * a[15] + a[8] * a[7] * a[13] +
+             a[12] * a[5] * a[11] - a[12] * a[7] * a[9];
+    inv[12] = -a[4] * a[9] * a[14] + a[4] * a[10] * a[13] + a[8] * a[5] * a[14] - a[8] * a[6] * a[13] -
+              a[12] * a[5] * a[10] + a[12] * a[6] * a[9];
+    inv[1] = -a[1] * a[10] * a[15] + a[1] * a[11] * a[14] + a[9] * a[2] * a[15] - a[9] * a[3] * a[14] -
+             a[13] * a[2] * a[11] + a[13] * a[3] * a[10];
+    inv[5] = a[0] * a[10] * a[15] - a[0] * a[11] * a[14] - a[8] * a[2] * a[15] + a[8] * a[3] * a[14] +
+             a[12] * a[2] * a[11] - a[12] * a[3] * a[10];
+    inv[9] = -a[0] * a[9] * a[15] + a[0] * a[11] * a[13] + a[8] * a[1] * a[15] - a[8] * a[3] * a[13] -
+             a[12] * a[1] * a[11] + a[12] * a[3] * a[9];
+    inv[13] = a[0] * a[9] * a[14] - a[0] * a[10] * a[13] - a[8] * a[1] * a[14] + a[8] * a[2] * a[13] +
+              a[12] * a[1] * a[10] - a[12] * a[2] * a[9];
+    inv[2] = a[1] * a[6] * a[15] - a[1] * a[7] * a[14] - a[5] * a[2] * a[15] + a[5] * a[3] * a[14] +
+             a[13] * a[2] * a[7] - a[13] * a[3] * a[6];
+    inv[6] = -a[0] * a[6] * a[15] + a[0] * a[7] * a[14] + a[4] * a[2] * a[15] - a[4] * a[3] * a[14] -
+             a[12] * a[2] * a[7] + a[12] * a[3] * a[6];
+    inv[10] = a[0] * a[5] * a[15] - a[0] * a[7] * a[13] - a[4] * a[1] * a[15] + a[4] * a[3] * a[13] +
+              a[12] * a[1] * a[7] - a[12] * a[3] * a[5];
+    inv[14] = -a[0] * a[5] * a[14] + a[0] * a[6] * a[13] + a[4] * a[1] * a[14] - a[4] * a[2] * a[13] -
+              a[12] * a[1] * a[6] + a[12] * a[2] * a[5];
+    inv[3] = -a[1] * a[6] * a[11] + a[1] * a[7] * a[10] + a[5] * a[2] * a[11] - a[5] * a[3] * a[10] -
+             a[9] * a[2] * a[7] + a[9] * a[3] * a[6];
+    inv[7] = a[0] * a[6] * a[11] - a[0] * a[7] * a[10] - a[4] * a[2] * a[11] + a[4] * a[3] * a[10] +
+             a[8] * a[2] * a[7] - a[8] * a[3] * a[6];
+    inv[11] = -a[0] * a[5] * a[11] + a[0] * a[7] * a[9] + a[4] * a[1] * a[11] - a[4] * a[3] * a[9] -
+              a[8] * a[1] * a[7] + a[8] * a[3] * a[5];
+    inv[15] = a[0] * a[5] * a[10] - a[0] * a[6] * a[9] - a[4] * a[1] * a[10] + a[4] * a[2] * a[9] +
+              a[8] * a[1] * a[6] - a[8] * a[2] * a[5];
+    double det = a[0] * inv[0] + a[1] * inv[4] + a[2] * inv[8] + a[3] * inv[12];
+    if (!(fabs(det) > 0) || !isfinite(det))
+        return false;
+    for (int i = 0; i < 16; i++)
+        inv[i] /= det;
+    return true;
+}
+
+/* The world point of NDC (x, y, z) through the inverse view-projection; false at infinity. */
+static bool unproject(const double inv[16], double x, double y, double z, double out[3])
+{
+    double w = inv[3] * x + inv[7] * y + inv[11] * z + inv[15];
+    if (!(fabs(w) > 0))
+        return false;
+    for (int k = 0; k < 3; k++)
+        out[k] = (inv[k] * x + inv[4 + k] * y + inv[8 + k] * z + inv[12 + k]) / w;
+    return true;
+}
+
+#define OPEN_BIT 0x80000000u
+
+/* Rule 4 of docs/oracle.md: on a map, an object counts only when one of its pixels is seen along a
+ * sight line that, from the near plane to just before the surface (2 mm or 0.01% short), never
+ * enters solid space from open space. Marks OPEN_BIT in o->counts of such objects; the pixels of
+ * an object are traced until one passes. */
+static void mark_open(struct sl_oracle_t *o, const sl_bsp_view *bsp)
+{
+    size_t px = (size_t)o->width * o->height;
+    for (uint32_t v = 0; v < o->view_count; v++) {
+        double inv[16];
+        bool ok = invert4(o->view_proj[v].m, inv);
+        const uint32_t *ids = o->ids + v * px;
+        const float *depth = o->depth + v * px;
+        for (uint32_t y = 0; y < o->height; y++)
+            for (uint32_t x = 0; x < o->width; x++) {
+                size_t i = (size_t)y * o->width + x;
+                uint32_t id = ids[i];
+                if (id == SL_NONE || (o->counts[id] & OPEN_BIT))
+                    continue;
+                double nx = 2.0 * (x + 0.5) / o->width - 1.0, ny = 1.0 - 2.0 * (y + 0.5) / o->height;
+                double a[3], b[3];
+                if (!ok || !unproject(inv, nx, ny, -1.0, a) || !unproject(inv, nx, ny, 1.0 - 2.0 * depth[i], b)) {
+                    o->counts[id] |= OPEN_BIT; /* cannot tell: keep it (the safe side for a judge) */
+                    continue;
+                }
+                double len2 = 0, dir[3];
+                for (int k = 0; k < 3; k++) {
+                    dir[k] = b[k] - a[k];
+                    len2 += dir[k] * dir[k];
+                }
+                double keep = 1.0 - fmax(1e-4, 2e-3 / fmax(sqrt(len2), 1e-9));
+                if (keep <= 0) {
+                    o->counts[id] |= OPEN_BIT;
+                    continue;
+                }
+                for (int k = 0; k < 3; k++)
+                    b[k] = a[k] + keep * dir[k];
+                if (sl_bsp_sight_line_open(bsp, a, b, true))
+                    o->counts[id] |= OPEN_BIT;
+            }
+    }
+}
+
 /* Count pixels per object over all views of the render and fill the frame's visible set. */
 static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_error *err)
 {
@@ -340,14 +478,28 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
         if (!sl_array_reserve(&o->alloc, &o->visible_pixels, sizeof(uint32_t), o->visible.count))
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the visible set");
     }
+    sl_bsp_view bsp;
+    bool rule4 = st == SL_OK && !o->opt.see_through_solid && sl_scene_bsp(o->scene, &bsp) && bsp.node_count > 0;
+    if (rule4)
+        mark_open(o, &bsp);
     /* put every counter back to zero, whatever happened */
     if (st == SL_OK) {
         uint32_t *pix = o->visible_pixels.data;
+        size_t k = 0;
         for (size_t i = 0; i < o->visible.count; i++) {
-            pix[i] = o->counts[vis[i]];
+            uint32_t c = o->counts[vis[i]];
             o->counts[vis[i]] = 0;
+            if (rule4 && !(c & OPEN_BIT)) {
+                /* drawn, but only along sight lines through solid space */
+                covered -= c;
+                frame->hidden_by_solid++;
+                continue;
+            }
+            vis[k] = vis[i];
+            pix[k++] = c & ~OPEN_BIT;
         }
-        o->visible_pixels.count = o->visible.count;
+        o->visible.count = k;
+        o->visible_pixels.count = k;
     } else {
         memset(o->counts, 0, o->counts_cap * sizeof(uint32_t));
         o->visible.count = 0;
@@ -358,6 +510,22 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
     frame->pixels = o->visible_pixels.data;
     frame->covered_pixels = covered;
     return SL_OK;
+}
+
+bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf)
+{
+    if (leaf)
+        *leaf = -1;
+    sl_bsp_view bsp;
+    if (!scene || !sl_scene_bsp(scene, &bsp) || bsp.leaf_count == 0)
+        return true;
+    int32_t l = sl_scene_bsp_find_leaf(scene, eye);
+    if (leaf)
+        *leaf = l;
+    /* without nodes there is no space to be outside of (one leaf holds everything) */
+    if (bsp.node_count == 0 || l < 0 || (uint32_t)l >= bsp.leaf_count)
+        return true;
+    return bsp.leaves[l].cluster >= 0;
 }
 
 /* Common front: size the buffers and clear the frame. */
@@ -404,6 +572,7 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
         memset(out, 0, sizeof *out);
         return st;
     }
+    out->out_of_domain = !sl_oracle_in_domain(o->scene, cam->position, &out->eye_leaf);
     out->ms = (sl_now() - t0) * 1000.0;
     return SL_OK;
 }
@@ -498,6 +667,7 @@ sl_status sl_oracle_render_cube(sl_oracle o, sl_vec3 eye, uint32_t face_size, fl
         memset(out, 0, sizeof *out);
         return st;
     }
+    out->out_of_domain = !sl_oracle_in_domain(o->scene, eye, &out->eye_leaf);
     out->ms = (sl_now() - t0) * 1000.0;
     return SL_OK;
 }

@@ -18,10 +18,16 @@
  * is a fair random subset: the number of objects it adds first is the convergence figure.
  *
  * CLUSTER cells (Quake III) sample the boxes of the cluster's leaves instead (corners, centres,
- * random points), keeping the points the map's BSP puts in a leaf of the cluster. */
+ * random points), keeping the points the map's BSP puts in a leaf of the cluster.
+ *
+ * The rules are the point oracle's (docs/oracle.md, "One set of rules"): a sample outside the
+ * domain (a BSP leaf without a cluster) is skipped and counted, and a cell all of whose samples are
+ * outside is itself outside the domain (its set is empty and flagged, nothing is judged there); on
+ * a map, a pixel counts only when its sight line stays in open space (open_pixels below). */
 #include "sightline/region.h"
 #include "sightline/truth.h"
 
+#include "open_space.h"
 #include "region/region_internal.h"
 #include "scene/scene_internal.h"
 
@@ -104,6 +110,7 @@ sl_status sl_region_oracle_create(sl_scene scene, const sl_region_oracle_options
     r->opt = o;
     sl_oracle_options po = sl_oracle_default_options();
     po.threads = o.threads;
+    po.see_through_solid = true; /* the open-space rule is applied below, from each sample itself */
     sl_status st = sl_oracle_create(scene, &po, alloc, &r->oracle, err);
     if (st != SL_OK) {
         sl_free(alloc, r, sizeof *r);
@@ -512,28 +519,6 @@ static float sample_near(const struct sl_region_oracle_t *r, sl_vec3 p)
 
 /* ---- Quake III maps: sight lines through the map's solid space ---- */
 
-/* Whether the segment p0-p1 stays in leaves with a cluster (the open space of a Quake III map)
- * below BSP node `node`. The side rule is sl_scene_bsp_find_leaf's (front when d >= 0). */
-static bool segment_open(const sl_bsp_view *bsp, int32_t node, const double p0[3], const double p1[3])
-{
-    while (node >= 0) {
-        const sl_bsp_node *nd = &bsp->nodes[node];
-        const sl_plane *pl = &bsp->planes[nd->plane];
-        double d0 = pl->a * p0[0] + pl->b * p0[1] + pl->c * p0[2] + pl->d;
-        double d1 = pl->a * p1[0] + pl->b * p1[1] + pl->c * p1[2] + pl->d;
-        if ((d0 >= 0) == (d1 >= 0)) {
-            node = nd->children[d0 >= 0 ? 0 : 1];
-            continue;
-        }
-        double t = d0 / (d0 - d1), mid[3];
-        for (int k = 0; k < 3; k++)
-            mid[k] = p0[k] + t * (p1[k] - p0[k]);
-        return segment_open(bsp, nd->children[d0 >= 0 ? 0 : 1], p0, mid) &&
-               segment_open(bsp, nd->children[d0 >= 0 ? 1 : 0], mid, p1);
-    }
-    return bsp->leaves[-(node + 1)].cluster >= 0;
-}
-
 /* Per object of the last cube map: its pixels when at least one of them is seen through the map's
  * open space, else 0, into r->sample_pixels (entries of objects not in the frame stay 0).
  *
@@ -591,7 +576,7 @@ static sl_status open_pixels(struct sl_region_oracle_t *r, const sl_bsp_view *bs
                 }
                 for (int k = 0; k < 3; k++)
                     end[k] = e[k] + keep * dir[k];
-                if (segment_open(bsp, 0, e, end))
+                if (sl_bsp_sight_line_open(bsp, e, end, false))
                     *cnt |= OPEN_BIT;
             }
     }
@@ -633,7 +618,12 @@ static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts,
     }
     r->visible.count = 0;
     uint32_t rendered = 0; /* samples rendered: points touching a surface are skipped */
+    uint32_t outside = 0;  /* samples outside the domain (docs/oracle.md): skipped */
     for (uint32_t k = 0; k < n; k++) {
+        if (!sl_oracle_in_domain(r->scene, pts[k], NULL)) {
+            outside++;
+            continue;
+        }
         float near_plane = sample_near(r, pts[k]);
         if (near_plane == 0)
             continue;
@@ -686,6 +676,8 @@ static sl_status render_points(struct sl_region_oracle_t *r, const sl_vec3 *pts,
             added++;
     }
     out->sample_count = n;
+    out->samples_out_of_domain = outside;
+    out->out_of_domain = outside > 0 && rendered == 0;
     out->visible_count = (uint32_t)r->visible.count;
     out->visible = r->visible.data;
     out->max_pixels = r->out_pixels.data;
