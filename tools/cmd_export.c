@@ -28,7 +28,8 @@ static bool is_refused(const char *id)
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline export SCENE OUT [--format ID] [--up y|z] [--map NAME] [--json] [--quiet]\n"
+            "usage: sightline export SCENE OUT [--format ID] [--up y|z] [--map NAME]\n"
+            "                        [--allow-external PATH] [--json] [--quiet]\n"
             "       sightline export --list-formats [--json]\n\n"
             "Write a scene in a format other tools open, through assimp: one node per object with its\n"
             "transform, one mesh per instanced mesh (shared), one material per colour. The format comes\n"
@@ -41,6 +42,7 @@ static void usage(FILE *out)
             "  --format ID      assimp export id (see --list-formats), e.g. obj, gltf2, glb2, plyb, stlb\n"
             "  --up y|z         up axis written (default y, what most tools expect; glTF is always y)\n"
             "  --map NAME       map inside a .pk3\n"
+            CLI_ALLOW_EXTERNAL_HELP
             "  --list-formats   list assimp's export formats and exit\n"
             "  --json           machine-readable summary on stdout\n"
             "  --quiet          no progress output\n"
@@ -107,6 +109,7 @@ int sl_cmd_export(int argc, char **argv)
 {
     cli_args a;
     cli_args_init(&a, argc, argv);
+    cli_import imp = {0};
     const char *name, *val, *input = NULL, *output = NULL, *format = NULL, *up = NULL, *map = NULL;
     bool json = false, quiet = false, listing = false;
     while (cli_next(&a, &name, &val)) {
@@ -136,6 +139,7 @@ int sl_cmd_export(int argc, char **argv)
             listing = true;
         } else if (!strcmp(name, "json")) {
             json = true;
+        } else if (cli_import_option(&a, name, val, &imp)) {
         } else if (!strcmp(name, "quiet")) {
             quiet = true;
         } else {
@@ -160,7 +164,9 @@ int sl_cmd_export(int argc, char **argv)
     sl_error err;
     sl_scene scene;
     double t0 = sl_now();
-    if (sl_scene_open(input, map, NULL, &scene, &err) != SL_OK)
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&imp, &io);
+    if (sl_scene_open_with(input, map, &io, NULL, &scene, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     double t1 = sl_now();
     if (sl_export_assimp(scene, output, format, axis, &err) != SL_OK) {
