@@ -137,8 +137,10 @@ static struct aiFile *aio_open(struct aiFileIO *io, const char *name, const char
     sl_aio *x = (sl_aio *)(void *)io->UserData;
     if (!name || !mode || !name[0])
         return NULL;
+    /* the reference as the model wrote it: without the model's folder assimp put before it */
     char shown[200];
-    sl_escape_text(name, 150, shown, sizeof shown);
+    size_t gl = strlen(x->given_dir);
+    sl_escape_text(gl && !strncmp(name, x->given_dir, gl) && name[gl] ? name + gl : name, 150, shown, sizeof shown);
     if (strchr(mode, 'w') || strchr(mode, 'a') || strchr(mode, '+')) {
         refuse(x, SL_ERROR_FORMAT, "assimp tried to open '%s' for writing; an import only reads", shown);
         return NULL;
@@ -233,6 +235,11 @@ sl_status sl_aio_init(sl_aio *x, const char *model, const char *const *allowed_p
     /* the folder of the path as given (assimp resolves references against it), canonical */
     const char *slash = strrchr(model, '/');
     char dir[PATH_MAX];
+    size_t given = slash ? (size_t)(slash - model) + 1 : 0;
+    if (given < sizeof x->given_dir) {
+        memcpy(x->given_dir, model, given);
+        x->given_dir[given] = 0;
+    }
     if (!slash)
         strcpy(dir, ".");
     else if (slash == model)

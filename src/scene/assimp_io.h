@@ -31,6 +31,8 @@ typedef struct sl_aio {
     const sl_allocator *a;
     char model[4096];           /* the model's canonical path */
     char folder[4096];          /* its folder, canonical, with a trailing '/' */
+    char given_dir[4096];       /* its folder as given, with the '/' ("" for a bare name): assimp
+                                   puts it before references, messages take it off again */
     sl_aio_root *roots;         /* folders and files allowed besides the model's folder */
     uint32_t root_count, root_cap;
     uint64_t max_file_bytes;
