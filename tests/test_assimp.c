@@ -810,6 +810,16 @@ static void test_ply_counts(void **state)
     snprintf(path, sizeof path, "%s/many.ply", dir);
     write_file(path, many, sizeof many - 1);
     expect_import_error(path, SL_ERROR_LIMIT, "element vertex: 99999999999 declared");
+    /* a malformed header that made assimp 5.2 read out of bounds (SIGSEGV; fuzz/fuzz_assimp.c) */
+    expect_import_error(DATA "ply_bad_header.ply", SL_ERROR_FORMAT, "PLY header line 3: unknown keyword");
+    static const char early[] = "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n";
+    snprintf(path, sizeof path, "%s/early.ply", dir);
+    write_file(path, early, sizeof early - 1);
+    expect_import_error(path, SL_ERROR_FORMAT, "PLY header line 3: property before any element");
+    /* a face without indices: assimp 5.2's post-processing freed the scene twice (SIGSEGV) */
+    expect_import_error(DATA "ply_empty_face.ply", SL_ERROR_FORMAT, "face 0 has no vertex indices");
+    /* no end_header: assimp 5.2 never returned */
+    expect_import_error(DATA "ply_no_end_header.ply", SL_ERROR_FORMAT, "no end_header before the end of the file");
     /* a valid file is untouched by the check */
     sl_scene s;
     sl_error err;

@@ -604,8 +604,9 @@ typedef struct ply_element {
 /* Check the element counts a PLY header declares against what the rest of the file can hold (an
  * element needs at least its scalar sizes and list counts in binary, two characters a value in
  * ASCII) and against the vertex limit of a mesh, so that a hostile header fails with the numbers
- * instead of std::bad_alloc. Files that are not PLY, and headers this does not understand, are
- * left to assimp. */
+ * instead of std::bad_alloc. The header itself is checked strictly (known keywords and types, a
+ * property after its element), since assimp 5.2 reads out of bounds on some malformed ones. Files
+ * that are not PLY are left to assimp. */
 static sl_status ply_check(const char *path, uint64_t file_size, const sl_allocator *a, sl_error *err)
 {
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
@@ -625,7 +626,7 @@ static sl_status ply_check(const char *path, uint64_t file_size, const sl_alloca
         if (r <= 0)
             break;
         n += (size_t)r;
-        if (n >= 4 && memcmp(buf, "ply", 3) != 0)
+        if (n >= 3 && memcmp(buf, "ply", 3) != 0 && memcmp(buf, "PLY", 3) != 0)
             break;
         if (memmem(buf, n, "end_header", 10))
             break;
@@ -633,61 +634,86 @@ static sl_status ply_check(const char *path, uint64_t file_size, const sl_alloca
     close(fd);
     buf[n] = 0;
     sl_status st = SL_OK;
-    if (n < 4 || memcmp(buf, "ply", 3) != 0 || (buf[3] != '\n' && buf[3] != '\r'))
+    /* assimp's PLY reader takes any file starting with "ply" or "PLY" */
+    if (n < 3 || (memcmp(buf, "ply", 3) != 0 && memcmp(buf, "PLY", 3) != 0))
         goto done;
     bool binary = false, have_format = false;
     ply_element el[64];
-    uint32_t ne = 0;
+    uint32_t ne = 0, line_no = 1;
     size_t header_end = 0;
-    for (char *line = buf; line < buf + n;) {
+    const char *bad = NULL; /* what is wrong with line line_no (never the file's own text) */
+    for (char *line = buf; line < buf + n; line_no++) {
         char *eol = memchr(line, '\n', (size_t)(buf + n - line));
         if (!eol)
-            goto done; /* no end_header in the first MiB */
+            break; /* no end_header: below */
         *eol = 0;
         char *save = NULL, *kw = strtok_r(line, " \t\r", &save);
         char *next = eol + 1;
-        if (kw && !strcmp(kw, "end_header")) {
+        line = next;
+        if (line_no == 1) {
+            if (!kw || (strcmp(kw, "ply") && strcmp(kw, "PLY")) || strtok_r(NULL, " \t\r", &save)) {
+                bad = "the first line must be 'ply'";
+                break;
+            }
+            continue;
+        }
+        if (!kw || !strcmp(kw, "comment") || !strcmp(kw, "obj_info"))
+            continue;
+        if (!strcmp(kw, "end_header")) {
             header_end = (size_t)(next - buf);
             break;
         }
-        if (kw && !strcmp(kw, "format")) {
+        if (!strcmp(kw, "format")) {
             const char *f = strtok_r(NULL, " \t\r", &save);
-            if (!f)
-                goto done;
-            binary = strcmp(f, "ascii") != 0;
+            if (!f || (strcmp(f, "ascii") && strcmp(f, "binary_little_endian") && strcmp(f, "binary_big_endian")))
+                bad = "unknown format (ascii, binary_little_endian or binary_big_endian)";
+            binary = f && strcmp(f, "ascii") != 0;
             have_format = true;
-        } else if (kw && !strcmp(kw, "element")) {
+        } else if (!strcmp(kw, "element")) {
             const char *name = strtok_r(NULL, " \t\r", &save), *count = strtok_r(NULL, " \t\r", &save);
             char *end;
-            if (!name || !count || ne == SL_COUNTOF(el))
-                goto done;
             errno = 0;
-            unsigned long long v = strtoull(count, &end, 10);
-            if (*end || errno || count[0] == '-')
-                goto done;
-            snprintf(el[ne].name, sizeof el[ne].name, "%s", name);
-            el[ne].count = v;
-            el[ne].min_bytes = 0;
-            ne++;
-        } else if (kw && !strcmp(kw, "property")) {
-            const char *t = strtok_r(NULL, " \t\r", &save);
-            if (!t || !ne)
-                goto done;
-            unsigned size;
-            if (!strcmp(t, "list")) {
-                const char *ct = strtok_r(NULL, " \t\r", &save);
-                size = ct ? ply_type_size(ct) : 0; /* the count; a list may be empty */
+            unsigned long long v = count ? strtoull(count, &end, 10) : 0;
+            if (!name || !count || *end || errno || count[0] == '-' || count[0] == '+') {
+                bad = "element needs a name and a count";
+            } else if (ne == SL_COUNTOF(el)) {
+                bad = "more than 64 elements";
             } else {
+                snprintf(el[ne].name, sizeof el[ne].name, "%s", name);
+                el[ne].count = v;
+                el[ne].min_bytes = 0;
+                ne++;
+            }
+        } else if (!strcmp(kw, "property")) {
+            const char *t = strtok_r(NULL, " \t\r", &save);
+            unsigned size = 0;
+            if (t && !strcmp(t, "list")) {
+                const char *ct = strtok_r(NULL, " \t\r", &save), *it = strtok_r(NULL, " \t\r", &save);
+                size = ct && it && ply_type_size(it) ? ply_type_size(ct) : 0; /* the count; a list may be empty */
+            } else if (t) {
                 size = ply_type_size(t);
             }
-            if (!size)
-                goto done;
-            el[ne - 1].min_bytes += binary ? size : 2;
+            if (!ne)
+                bad = "property before any element";
+            else if (!size || !strtok_r(NULL, " \t\r", &save))
+                bad = "property needs a known type and a name";
+            else
+                el[ne - 1].min_bytes += binary ? size : 2;
+        } else {
+            bad = "unknown keyword";
         }
-        line = next;
+        if (bad)
+            break;
     }
-    if (!header_end || !have_format)
+    if (!bad && !header_end) /* assimp 5.2 loops for ever on such a file (fuzz/fuzz_assimp.c) */
+        bad = n >= HEADER_MAX ? "no end_header in the first MiB" : "no end_header before the end of the file";
+    if (!bad && !have_format)
+        bad = "no format line", line_no = 2;
+    if (bad) {
+        /* assimp 5.2 reads past its buffers on some malformed headers (found by fuzz/fuzz_assimp.c) */
+        st = sl_fail(err, SL_ERROR_FORMAT, "%s: PLY header line %u: %s", path, line_no, bad);
         goto done;
+    }
     uint64_t left = file_size > header_end ? file_size - header_end : 0, need = 0;
     for (uint32_t i = 0; i < ne; i++) {
         char name[100];
@@ -728,6 +754,35 @@ static sl_status assimp_failure(const char *path, sl_error *err)
     char safe[300];
     sl_escape_text(msg, 200, safe, sizeof safe);
     return sl_fail(err, SL_ERROR_FORMAT, "%s: %s", path, safe);
+}
+
+/* Every face has indices, and every index names a vertex of its mesh. */
+static sl_status check_faces(const char *path, const struct aiScene *ai, sl_error *err)
+{
+    for (unsigned int mi = 0; mi < ai->mNumMeshes; mi++) {
+        const struct aiMesh *m = ai->mMeshes[mi];
+        if (!m || !m->mNumFaces)
+            continue;
+        char label[160];
+        if (!m->mFaces) {
+            mesh_label(ai, mi, label, sizeof label);
+            return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: %u faces but no face array", path, label, m->mNumFaces);
+        }
+        for (unsigned int f = 0; f < m->mNumFaces; f++) {
+            const struct aiFace *face = &m->mFaces[f];
+            if (!face->mNumIndices || !face->mIndices) {
+                mesh_label(ai, mi, label, sizeof label);
+                return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: face %u has no vertex indices", path, label, f);
+            }
+            for (unsigned int k = 0; k < face->mNumIndices; k++)
+                if (face->mIndices[k] >= m->mNumVertices) {
+                    mesh_label(ai, mi, label, sizeof label);
+                    return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: face %u: index %u out of range (%u vertices)", path, label,
+                                   f, face->mIndices[k], m->mNumVertices);
+                }
+        }
+    }
+    return SL_OK;
 }
 
 /* ---- entry point ---- */
@@ -901,6 +956,13 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
                     (ai->mMeshes[mi]->mPrimitiveTypes & (aiPrimitiveType_TRIANGLE | aiPrimitiveType_POLYGON));
     if (!any_faces) {
         st = sl_fail(err, SL_ERROR_FORMAT, "%s: no triangles (%u meshes, only points and lines)", path, ai->mNumMeshes);
+        aiReleaseImport(ai);
+        return st;
+    }
+    /* ... and the faces that pass the first validation but fail the one after post-processing
+     * (double free, found by fuzz/fuzz_assimp.c): a face without indices, an index past the
+     * vertices */
+    if ((st = check_faces(path, ai, err)) != SL_OK) {
         aiReleaseImport(ai);
         return st;
     }
