@@ -288,6 +288,18 @@ static void test_fifo_and_size(void **state)
     free(dir);
 }
 
+/* An OBJ's material library must be text: one with NUL bytes crashed assimp 5.2's MTL reader
+ * (SIGSEGV; found by fuzz/fuzz_assimp.c). */
+static void test_binary_material_library(void **state)
+{
+    (void)state;
+    sl_error err;
+    float extent = 0;
+    assert_int_equal(import(MODEL "nul_mtllib.obj", NULL, 0, 0, &extent, &err), SL_ERROR_FORMAT);
+    if (!strstr(err.message, "'nul.mtl' holds NUL bytes"))
+        fail_msg("unexpected message '%s'", err.message);
+}
+
 /* A relative model path: its folder is the current directory's. */
 static void test_relative_path(void **state)
 {
@@ -317,6 +329,7 @@ int main(void)
         cmocka_unit_test(test_symlinks_and_absolute),
         cmocka_unit_test(test_fifo_and_size),
         cmocka_unit_test(test_relative_path),
+        cmocka_unit_test(test_binary_material_library),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -7,6 +7,7 @@
 #include <limits.h>
 #include <stdarg.h>
 #include <stdlib.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -132,6 +133,23 @@ static bool canonical(const char *path, char out[PATH_MAX])
     return true;
 }
 
+/* Does the file hold a NUL byte (or fail to read)? */
+static bool has_nul(int fd, uint64_t size)
+{
+    char buf[65536];
+    for (uint64_t at = 0; at < size;) {
+        ssize_t r = pread(fd, buf, (size_t)SL_MIN(size - at, (uint64_t)sizeof buf), (off_t)at);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            return true;
+        if (memchr(buf, 0, (size_t)r))
+            return true;
+        at += (uint64_t)r;
+    }
+    return false;
+}
+
 static struct aiFile *aio_open(struct aiFileIO *io, const char *name, const char *mode)
 {
     sl_aio *x = (sl_aio *)(void *)io->UserData;
@@ -177,6 +195,12 @@ static struct aiFile *aio_open(struct aiFileIO *io, const char *name, const char
         close(fd);
         refuse(x, SL_ERROR_LIMIT, "'%s': %llu bytes, more than the limit of %llu", shown, (unsigned long long)sb.st_size,
                (unsigned long long)x->max_file_bytes);
+        return NULL;
+    }
+    if (x->text_references && strcmp(canon, x->model) != 0 && has_nul(fd, (uint64_t)sb.st_size)) {
+        close(fd);
+        /* assimp 5.2's MTL reader crashes on some (fuzz/fuzz_assimp.c) */
+        refuse(x, SL_ERROR_FORMAT, "reference '%s' holds NUL bytes: not a text file (refused)", shown);
         return NULL;
     }
     in_file *in = sl_calloc(x->a, 1, sizeof *in);
@@ -251,6 +275,8 @@ sl_status sl_aio_init(sl_aio *x, const char *model, const char *const *allowed_p
     if (!realpath(dir, canon) || strlen(canon) + 2 > sizeof x->folder)
         return sl_fail(err, SL_ERROR_IO, "%s: cannot resolve the model's folder: %s", model, strerror(errno ? errno : ENAMETOOLONG));
     snprintf(x->folder, sizeof x->folder, "%s%s", canon, canon[strlen(canon) - 1] == '/' ? "" : "/");
+    const char *base = slash ? slash + 1 : model, *dot = strrchr(base, '.');
+    x->text_references = dot && !strcasecmp(dot, ".obj");
     if (!allowed_count)
         return SL_OK;
     if (!allowed_paths)

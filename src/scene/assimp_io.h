@@ -36,6 +36,7 @@ typedef struct sl_aio {
     sl_aio_root *roots;         /* folders and files allowed besides the model's folder */
     uint32_t root_count, root_cap;
     uint64_t max_file_bytes;
+    bool text_references;       /* an OBJ model: what it references (material libraries) is text */
     uint32_t opens, open_files;
     /* the first refusal, recorded for the import's error (escaped text only) */
     bool refused;
