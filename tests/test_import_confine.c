@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/escape.h"
 #include "sightline/import.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
@@ -300,6 +301,29 @@ static void test_binary_material_library(void **state)
         fail_msg("unexpected message '%s'", err.message);
 }
 
+/* What reaches a message or a listing from a file: C-style escapes for control bytes, C1
+ * controls, bytes that are not UTF-8 and backslashes; well-formed UTF-8 unchanged; cut short with
+ * "...". */
+static void test_escape_text(void **state)
+{
+    (void)state;
+    char buf[64];
+    assert_string_equal(sl_escape_text("maps/a\x1b[2Jb\n.bsp", 100, buf, sizeof buf), "maps/a\\x1b[2Jb\\x0a.bsp");
+    assert_string_equal(sl_escape_text("caf\xc3\xa9 \xe2\x82\xac", 100, buf, sizeof buf), "caf\xc3\xa9 \xe2\x82\xac");
+    assert_string_equal(sl_escape_text("c1\xc2\x9b del\x7f", 100, buf, sizeof buf), "c1\\xc2\\x9b del\\x7f");
+    assert_string_equal(sl_escape_text("bad\xff\xfe over\xc0\xaf sur\xed\xa0\x80", 100, buf, sizeof buf),
+                        "bad\\xff\\xfe over\\xc0\\xaf sur\\xed\\xa0\\x80");
+    assert_string_equal(sl_escape_text("a\\b", 100, buf, sizeof buf), "a\\\\b");
+    assert_string_equal(sl_escape_text("abcdefgh", 4, buf, sizeof buf), "abcd...");
+    assert_string_equal(sl_escape_text("truncated \xe2\x82", 100, buf, sizeof buf), "truncated \\xe2\\x82");
+    /* the buffer bounds the output, never splitting an escape */
+    char small[12];
+    sl_escape_text("\x01\x02\x03\x04\x05", 100, small, sizeof small);
+    assert_string_equal(small, "\\x01\\x02...");
+    assert_int_equal(sl_utf8_sequence((const unsigned char *)"\xf0\x9f\x98\x80", 4), 4);
+    assert_int_equal(sl_utf8_sequence((const unsigned char *)"\xf4\x90\x80\x80", 4), 0); /* past U+10FFFF */
+}
+
 /* A relative model path: its folder is the current directory's. */
 static void test_relative_path(void **state)
 {
@@ -330,6 +354,7 @@ int main(void)
         cmocka_unit_test(test_fifo_and_size),
         cmocka_unit_test(test_relative_path),
         cmocka_unit_test(test_binary_material_library),
+        cmocka_unit_test(test_escape_text),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
