@@ -61,6 +61,16 @@ has "needs a value" "$tmp/err"
 expect 0 "$SL" import "$model/inside.obj" -o "$tmp/y.slscene" --quiet
 expect 0 "$SL" info "$model/inside.gltf"
 
+# the other commands that open scenes refuse and allow the same way
+expect 1 "$SL" path gen "$model/up_buffer.gltf" -o "$tmp/p.txt" --kind flyover --quiet
+has "outside the model's folder" "$tmp/err"
+expect 0 "$SL" path gen "$model/up_buffer.gltf" -o "$tmp/p.txt" --kind flyover --quiet --allow-external "$secret"
+expect 1 "$SL" pvs build "$model/up_buffer.gltf" -o "$tmp/p.slpvs" --quiet
+has "outside the model's folder" "$tmp/err"
+expect 1 "$SL" radar "$model/up_mtllib.obj"
+has "outside the model's folder" "$tmp/err"
+no_secret
+
 # every command whose scene argument can be an assimp file takes the option
 for c in import info export bench render radar "path gen" "path random" "pvs build" "pvs query" "pvs verify"; do
     expect 0 "$SL" $c --help
