@@ -22,6 +22,9 @@ const char *__lsan_default_suppressions(void);
 /* assimp is built without frame pointers: a leak of its C++ objects may end its stack in
  * operator new (libstdc++, which only assimp uses here) before reaching libassimp itself */
 const char *__lsan_default_suppressions(void) { return "leak:libassimp.so\nleak:libstdc++.so\n"; }
+/* ... and without a "Suppressions used" table after every input that leaked inside assimp */
+const char *__lsan_default_options(void);
+const char *__lsan_default_options(void) { return "print_suppressions=0"; }
 
 static char folder[64];
 
