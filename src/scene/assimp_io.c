@@ -185,6 +185,19 @@ static struct aiFile *aio_open(struct aiFileIO *io, const char *name, const char
     int fd = open(canon, O_RDONLY | O_NONBLOCK | O_NOFOLLOW | O_NOCTTY | O_CLOEXEC);
     if (fd < 0)
         return NULL;
+    /* a folder on the way swapped for a symlink between realpath and open: check what was
+     * opened (where /proc tells) */
+    char proc[64], opened[PATH_MAX];
+    snprintf(proc, sizeof proc, "/proc/self/fd/%d", fd);
+    ssize_t ol = readlink(proc, opened, sizeof opened - 1);
+    if (ol > 0) {
+        opened[ol] = 0;
+        if (!allowed(x, opened)) {
+            close(fd);
+            refuse(x, SL_ERROR_FORMAT, "reference '%s' changed while it was opened: refused", shown);
+            return NULL;
+        }
+    }
     struct stat sb;
     if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
         close(fd);
