@@ -1,7 +1,9 @@
 /* Shared command-line helpers: errors, option parsing, progress bar, JSON writer. */
 #include "cli.h"
 
+#include "core/escape.h"
 #include "core/sl_core.h"
+#include "sightline/import.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -155,6 +157,33 @@ void cli_unknown(cli_args *a, const char *name)
     a->error = true;
 }
 
+/* ---- --allow-external ---- */
+
+bool cli_import_option(cli_args *a, const char *name, const char *inline_value, cli_import *imp)
+{
+    if (!name || strcmp(name, "allow-external") != 0)
+        return false;
+    const char *v = cli_value(a, name, inline_value);
+    if (!v)
+        return true;
+    if (!v[0]) {
+        cli_error(a->cmd, "--allow-external needs a path");
+        a->error = true;
+    } else if (imp->count == CLI_ALLOW_EXTERNAL_MAX) {
+        cli_error(a->cmd, "--allow-external: at most %d paths", CLI_ALLOW_EXTERNAL_MAX);
+        a->error = true;
+    } else {
+        imp->allow[imp->count++] = v;
+    }
+    return true;
+}
+
+void cli_import_apply(const cli_import *imp, sl_import_options *opt)
+{
+    opt->allow_external = imp->count ? imp->allow : NULL;
+    opt->allow_external_count = imp->count;
+}
+
 /* ---- progress ---- */
 
 static double now_s(void)
@@ -219,13 +248,23 @@ static void json_sep(cli_json *j)
 static void json_str(FILE *out, const char *s)
 {
     fputc('"', out);
-    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
-        if (*p == '"' || *p == '\\')
-            fprintf(out, "\\%c", *p);
-        else if (*p < 0x20)
-            fprintf(out, "\\u%04x", *p);
-        else
-            fputc(*p, out);
+    /* control characters (C0, DEL, C1) as \\u escapes; a byte that is not well-formed UTF-8 as the
+     * \\u escape of its Latin-1 code point, so that the output stays valid JSON */
+    for (const unsigned char *p = (const unsigned char *)s; *p;) {
+        size_t n = sl_utf8_sequence(p, strnlen((const char *)p, 4));
+        if (*p == '"' || *p == '\\') {
+            fprintf(out, "\\%c", *p++);
+        } else if (*p < 0x20 || *p == 0x7f) {
+            fprintf(out, "\\u%04x", *p++);
+        } else if (n) {
+            fwrite(p, 1, n, out);
+            p += n;
+        } else if (p[0] == 0xc2 && p[1] >= 0x80 && p[1] <= 0x9f) {
+            fprintf(out, "\\u%04x", p[1]);
+            p += 2;
+        } else {
+            fprintf(out, "\\u%04x", *p++);
+        }
     }
     fputc('"', out);
 }

@@ -67,6 +67,26 @@ bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out
 /* Report an unknown option and mark the parse failed. */
 void cli_unknown(cli_args *a, const char *name);
 
+/* ---- --allow-external PATH (repeatable): commands whose scene argument can be an assimp file ----
+ * A model's references (glTF buffers and images, OBJ material libraries ...) resolve only inside
+ * the model's folder unless these allow more (sl_import_options.allow_external). */
+#define CLI_ALLOW_EXTERNAL_MAX 64
+typedef struct cli_import {
+    const char *allow[CLI_ALLOW_EXTERNAL_MAX];
+    uint32_t count;
+} cli_import;
+/* Handle --allow-external (true when name was it; a missing value or too many mark the parse
+ * failed). */
+bool cli_import_option(cli_args *a, const char *name, const char *inline_value, cli_import *imp);
+/* Import options carrying the allowed paths (borrowed from imp, which must outlive the open). */
+struct sl_import_options;
+void cli_import_apply(const cli_import *imp, struct sl_import_options *opt);
+/* The --help line for it. */
+#define CLI_ALLOW_EXTERNAL_HELP                                                                         \
+    "  --allow-external PATH  let an assimp model's references (buffers, images, material\n"            \
+    "                     libraries) resolve inside PATH (a folder, or one file) as well as in the\n"   \
+    "                     model's own folder; repeatable (docs/import-export.md)\n"
+
 /* ---- progress ----
  * A progress bar on stderr when stderr is a terminal, CI is unset and --quiet/--json were not
  * given; silent otherwise. Pass &cli_progress(...) as the library's sl_progress. */

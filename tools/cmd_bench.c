@@ -8,6 +8,7 @@
 #include "core/sl_core.h"
 #include "core/text_parse.h"
 #include "sightline/bench.h"
+#include "sightline/import.h"
 #include "sightline/path.h"
 
 #include <errno.h>
@@ -59,7 +60,8 @@ static void usage(FILE *out)
           "  --width W --height H viewport of every camera and oracle resolution (default 1024x768,\n"
           "                       replacing a path file's)\n"
           "  --threads T          oracle threads (default 2); methods always run on one thread\n"
-          "  --map NAME           map inside a .pk3\n\n"
+          "  --map NAME           map inside a .pk3\n"
+          CLI_ALLOW_EXTERNAL_HELP "\n"
           "output:\n"
           "  --out DIR            output folder (default bench-out): frames.csv, frames.json,\n"
           "                       summary.md, summary.json, and per scene LABEL-cull-time.svg,\n"
@@ -101,6 +103,7 @@ typedef struct bench_args {
     float fps;
     bool has_walk, has_eye, no_plots, json, quiet, strict;
     sl_vec3 eye;
+    cli_import import;          /* --allow-external */
 } bench_args;
 
 /* "x,y,z" into three finite floats. */
@@ -225,6 +228,7 @@ static int parse(int argc, char **argv, bench_args *g)
             g->strict = true;
         } else if (!strcmp(name, "no-strict")) {
             g->strict = false;
+        } else if (cli_import_option(&a, name, val, &g->import)) {
         } else if (!strcmp(name, "quiet")) {
             g->quiet = true;
         } else {
@@ -634,7 +638,9 @@ int sl_cmd_bench(int argc, char **argv)
     for (uint32_t si = 0; si < g.scene_count && !status; si++) {
         sl_scene s = NULL;
         char label[128];
-        sl_status st = sl_bench_open_scene(g.scenes[si], g.map, &prog, NULL, &s, label, sizeof label, &err);
+        sl_import_options io = sl_import_defaults();
+        cli_import_apply(&g.import, &io);
+        sl_status st = sl_bench_open_scene_with(g.scenes[si], g.map, &io, &prog, NULL, &s, label, sizeof label, &err);
         cli_progress_done(&ps);
         if (st != SL_OK) {
             status = cli_fail(cmd, &err);

@@ -28,19 +28,23 @@ static bool is_refused(const char *id)
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline export SCENE OUT [--format ID] [--up y|z] [--map NAME] [--json] [--quiet]\n"
+            "usage: sightline export SCENE OUT [--format ID] [--up y|z] [--map NAME]\n"
+            "                        [--allow-external PATH] [--json] [--quiet]\n"
             "       sightline export --list-formats [--json]\n\n"
             "Write a scene in a format other tools open, through assimp: one node per object with its\n"
             "transform, one mesh per instanced mesh (shared), one material per colour. The format comes\n"
             "from OUT's extension (.obj, .gltf = glTF 2.0 with a .bin beside it, .glb = binary glTF 2.0,\n"
             ".ply, .stl, .dae, .fbx, ...) unless --format names an assimp export id. Side files (.mtl,\n"
-            ".bin) are written next to OUT; nothing is left behind when the export fails.\n\n"
+            ".bin) are written next to OUT; nothing is left behind when the export fails. The same\n"
+            "scene gives the same bytes: COLLADA and FBX carry the fixed date 1970-01-01 instead of\n"
+            "the time of writing.\n\n"
             "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), or any file\n"
             "assimp reads.\n\n"
             "options:\n"
             "  --format ID      assimp export id (see --list-formats), e.g. obj, gltf2, glb2, plyb, stlb\n"
             "  --up y|z         up axis written (default y, what most tools expect; glTF is always y)\n"
             "  --map NAME       map inside a .pk3\n"
+            CLI_ALLOW_EXTERNAL_HELP
             "  --list-formats   list assimp's export formats and exit\n"
             "  --json           machine-readable summary on stdout\n"
             "  --quiet          no progress output\n"
@@ -107,6 +111,7 @@ int sl_cmd_export(int argc, char **argv)
 {
     cli_args a;
     cli_args_init(&a, argc, argv);
+    cli_import imp = {0};
     const char *name, *val, *input = NULL, *output = NULL, *format = NULL, *up = NULL, *map = NULL;
     bool json = false, quiet = false, listing = false;
     while (cli_next(&a, &name, &val)) {
@@ -136,6 +141,7 @@ int sl_cmd_export(int argc, char **argv)
             listing = true;
         } else if (!strcmp(name, "json")) {
             json = true;
+        } else if (cli_import_option(&a, name, val, &imp)) {
         } else if (!strcmp(name, "quiet")) {
             quiet = true;
         } else {
@@ -163,7 +169,9 @@ int sl_cmd_export(int argc, char **argv)
     sl_error err;
     sl_scene scene;
     double t0 = sl_now();
-    if (sl_scene_open(input, map, NULL, &scene, &err) != SL_OK)
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&imp, &io);
+    if (sl_scene_open_with(input, map, &io, NULL, &scene, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     double t1 = sl_now();
     if (sl_export_assimp(scene, output, format, axis, &err) != SL_OK) {

@@ -3,6 +3,7 @@
  * other file to assimp. */
 #include "cli.h"
 
+#include "core/escape.h"
 #include "core/sl_core.h"
 #include "sightline/import.h"
 #include "sightline/scene.h"
@@ -16,7 +17,7 @@ static void usage(FILE *out)
 {
     fprintf(out,
             "usage: sightline import INPUT [-o OUT.slscene] [--map NAME] [--list-maps] [--scale S] [--up y|z]\n"
-            "                        [--split N] [--bezier N] [--json] [--quiet]\n\n"
+            "                        [--split N] [--bezier N] [--allow-external PATH] [--json] [--quiet]\n\n"
             "Import a 3D file into a Sightline scene (.slscene): OBJ, glTF 2.0 (.gltf/.glb), PLY, FBX,\n"
             "COLLADA, 3DS and every other format assimp reads, or a Quake III map (.bsp, or a .pk3\n"
             "archive). Each node with meshes becomes one object; meshes shared by several nodes stay\n"
@@ -26,12 +27,16 @@ static void usage(FILE *out)
             "                     current directory; for a .pk3, the map's name)\n"
             "  --map NAME         map inside a .pk3 (\"oa_dm1\" or \"maps/oa_dm1.bsp\"); may be left out\n"
             "                     when the archive holds a single map\n"
-            "  --list-maps        list the maps inside a .pk3 and exit\n"
+            "  --list-maps        list the maps inside a .pk3 and exit (control bytes and non-UTF-8\n"
+            "                     in entry names are printed as \\xNN)\n"
             "  --scale S          metres per file unit (default 1 for assimp formats, 1/32 for Quake III)\n"
             "  --up y|z           up axis of an assimp file (default y: rotated to Z-up)\n"
             "  --split N          split meshes larger than N triangles into spatially compact objects of\n"
             "                     about N triangles (0: one object per node; Quake III has its own default)\n"
             "  --bezier N         Quake III patch tessellation level (default 8)\n"
+            CLI_ALLOW_EXTERNAL_HELP
+            "                     Without it, a reference leaving the model's folder (a '../' path,\n"
+            "                     an absolute path, a symlink pointing out) fails the import.\n"
             "  --json             machine-readable summary on stdout\n"
             "  --quiet            no progress output\n"
             "  --help             this text\n\n"
@@ -77,10 +82,14 @@ static void print_map(void *user, const char *entry)
 {
     map_list *l = user;
     l->count++;
-    if (l->json)
+    if (l->json) {
         cli_json_string(l->j, NULL, entry);
-    else
-        printf("%s\n", entry);
+    } else {
+        /* entry names come from the archive: escape control bytes and non-UTF-8 (\xNN) so that
+         * nothing in a name reaches the terminal as a control sequence */
+        char buf[4096];
+        printf("%s\n", sl_escape_text(entry, SIZE_MAX, buf, sizeof buf));
+    }
 }
 
 static int list_maps(const char *cmd, const char *input, bool json)
@@ -108,6 +117,7 @@ int sl_cmd_import(int argc, char **argv)
 {
     cli_args a;
     cli_args_init(&a, argc, argv);
+    cli_import imp = {0};
     const char *name, *val, *input = NULL, *output = NULL, *map = NULL, *up = NULL;
     bool json = false, quiet = false, listing = false, have_bezier = false;
     sl_import_options opt = sl_import_defaults();
@@ -145,6 +155,7 @@ int sl_cmd_import(int argc, char **argv)
         } else if (!strcmp(name, "bezier")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &opt.bezier_level);
             have_bezier = true;
+        } else if (cli_import_option(&a, name, val, &imp)) {
         } else if (!strcmp(name, "json")) {
             json = true;
         } else if (!strcmp(name, "quiet")) {
@@ -182,6 +193,7 @@ int sl_cmd_import(int argc, char **argv)
     if (listing)
         return list_maps(a.cmd, input, json);
     opt.up_axis = up && !strcmp(up, "z") ? SL_UP_Z : SL_UP_Y;
+    cli_import_apply(&imp, &opt);
 
     char outbuf[1024];
     if (!output) {

@@ -2,6 +2,7 @@
  * streets, terrain, BSP leaves/clusters and the map's own PVS, metadata. */
 #include "cli.h"
 
+#include "sightline/import.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
 
@@ -10,7 +11,7 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline info SCENE [--map NAME] [--json] [--quiet]\n\n"
+            "usage: sightline info SCENE [--map NAME] [--allow-external PATH] [--json] [--quiet]\n\n"
             "Print what a scene holds: objects, meshes and triangles (stored and instanced), per-kind\n"
             "counts, bounds, memory, footprints, occluders, street network, terrain, Quake III BSP\n"
             "leaves and clusters with statistics of the map's own cluster PVS, and metadata.\n\n"
@@ -18,6 +19,7 @@ static void usage(FILE *out)
             "assimp reads.\n\n"
             "options:\n"
             "  --map NAME   map inside a .pk3 (\"oa_dm1\" or \"maps/oa_dm1.bsp\")\n"
+            CLI_ALLOW_EXTERNAL_HELP
             "  --json       machine-readable output on stdout\n"
             "  --quiet      no progress output\n"
             "  --help       this text\n\n"
@@ -59,6 +61,7 @@ int sl_cmd_info(int argc, char **argv)
 {
     cli_args a;
     cli_args_init(&a, argc, argv);
+    cli_import imp = {0};
     const char *name, *val, *input = NULL, *map = NULL;
     bool json = false, quiet = false;
     while (cli_next(&a, &name, &val)) {
@@ -73,6 +76,7 @@ int sl_cmd_info(int argc, char **argv)
             return 0;
         } else if (!strcmp(name, "map")) {
             map = cli_value(&a, name, val);
+        } else if (cli_import_option(&a, name, val, &imp)) {
         } else if (!strcmp(name, "json")) {
             json = true;
         } else if (!strcmp(name, "quiet")) {
@@ -90,7 +94,9 @@ int sl_cmd_info(int argc, char **argv)
     (void)quiet;
     sl_error err;
     sl_scene scene;
-    if (sl_scene_open(input, map, NULL, &scene, &err) != SL_OK)
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&imp, &io);
+    if (sl_scene_open_with(input, map, &io, NULL, &scene, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     sl_scene_stats st;
     sl_scene_get_stats(scene, &st);

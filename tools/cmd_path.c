@@ -2,6 +2,7 @@
  * and inspect or validate path files. The file format is in docs/paths.md and in `--help`. */
 #include "cli.h"
 
+#include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
@@ -78,6 +79,7 @@ static void usage_gen(FILE *out)
             "  --far F           far plane in metres (default 5000)\n"
             "  --ortho H         orthographic projection with a view volume H metres high\n"
             "  --map NAME        map inside a .pk3\n"
+            "  --allow-external PATH  an assimp model's references may resolve inside PATH too (sightline import --help)\n"
             "  --json            print the path's statistics as JSON on stdout\n"
             "  --quiet           no progress output\n"
             "  --help            this text\n\n"
@@ -104,7 +106,8 @@ static void usage_random(FILE *out)
             "  --seed N          random seed (default 1)\n"
             "  -o, --output F    path file to write (required)\n"
             "  --eye-height H, --lane-offset F, --altitude A, --look-down DEG, --fov DEG, --width W,\n"
-            "  --height H, --near N, --far F, --ortho H, --map NAME, --json, --quiet: as for `path gen`\n"
+            "  --height H, --near N, --far F, --ortho H, --map NAME, --allow-external PATH, --json,\n"
+            "  --quiet: as for `path gen`\n"
             "  --help            this text\n\n"
             "examples:\n"
             "  sightline path random city.slscene --kind street --count 1000 --seed 1 -o views.txt\n"
@@ -311,8 +314,11 @@ static int run_gen(int argc, char **argv, bool random_views)
     float fps = 0;
     bool has_frames = false, has_fps = false, head_bob = false;
     const char *name, *val;
+    cli_import imp = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name && !strcmp(val, "-o")) {
+        if (cli_import_option(&a, name, val, &imp)) {
+            continue;
+        } else if (!name && !strcmp(val, "-o")) {
             g.output = cli_value(&a, "o", NULL);
         } else if (!name) {
             if (g.scene) {
@@ -380,7 +386,9 @@ static int run_gen(int argc, char **argv, bool random_views)
 
     sl_error err;
     sl_scene scene;
-    if (sl_scene_open(g.scene, g.map, NULL, &scene, &err) != SL_OK)
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&imp, &io);
+    if (sl_scene_open_with(g.scene, g.map, &io, NULL, &scene, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     sl_path path;
     sl_status st = random_views ? sl_path_random_views(scene, vk, g.count, g.seed, &g.opt, NULL, &path, &err)

@@ -7,6 +7,7 @@
 #include "core/text_parse.h"
 
 #include "sightline/gen.h"
+#include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
@@ -92,6 +93,7 @@ static void usage_build(FILE *out)
             "  --keep-checkpoint keep the journal after success\n"
             "  --stop-after N    testing: stop after N newly baked cells (exit 3), leaving the journal\n"
             "  --map NAME        map inside a .pk3\n"
+            "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
             "  --seed N          --city: generator seed (default 1)\n"
             "  --json            machine-readable summary on stdout\n"
             "  --quiet           no progress bar\n"
@@ -125,6 +127,7 @@ static void usage_query(FILE *out)
                  "                 required with --point for Quake III cluster cells, whose leaves only\n"
                  "                 the map's BSP tree can find\n"
                  "  --map NAME     map inside a .pk3\n"
+                 "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
                  "  --ids          print the object ids too\n"
                  "  --json         machine-readable output\n"
                  "  --help         this text\n\n"
@@ -148,6 +151,7 @@ static void usage_verify(FILE *out)
             "options:\n"
             "  --scene SCENE   the scene the PVS was baked for; --city PRESET [--seed N] generates it\n"
             "  --map NAME      map inside a .pk3\n"
+            "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
             "  --cells N       random cells to check with the oracle (default 20 with a scene)\n"
             "  --all           every cell\n"
             "  --seed N        cell choice and oracle sampling seed (default 1)\n"
@@ -163,6 +167,9 @@ static void usage_verify(FILE *out)
 
 /* ---- shared helpers ---- */
 
+/* --allow-external of the subcommand being run (one per process; read by load_scene). */
+static cli_import pvs_import;
+
 static sl_status load_scene(const char *path, const char *map, const char *city, uint64_t seed, sl_scene *out,
                             sl_error *err)
 {
@@ -175,7 +182,9 @@ static sl_status load_scene(const char *path, const char *map, const char *city,
         o.seed = seed;
         return sl_gen_city(&o, NULL, out, err);
     }
-    return sl_scene_open(path, map, NULL, out, err);
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&pvs_import, &io);
+    return sl_scene_open_with(path, map, &io, NULL, out, err);
 }
 
 static bool parse_floats(cli_args *a, const char *name, const char *text, float *out, int n)
@@ -246,6 +255,8 @@ static int run_build(int argc, char **argv)
     bool has_volume = false, json = false, quiet = false, mpi = false;
     uint64_t seed = 1;
     while (cli_next(&a, &name, &val)) {
+        if (cli_import_option(&a, name, val, &pvs_import))
+            continue;
         if (!name && !strcmp(val, "-o")) {
             output = cli_value(&a, "o", NULL);
         } else if (!name) {
@@ -557,6 +568,8 @@ static int run_query(int argc, char **argv)
     bool has_point = false, has_cell = false, json = false, ids = false;
     uint32_t cell = 0;
     while (cli_next(&a, &name, &val)) {
+        if (cli_import_option(&a, name, val, &pvs_import))
+            continue;
         if (!name) {
             if (file) {
                 cli_unknown(&a, NULL);
@@ -619,7 +632,9 @@ static int run_query(int argc, char **argv)
         return 2;
     }
     sl_scene scene = NULL;
-    if (scene_path && sl_scene_open(scene_path, map, NULL, &scene, &err) != SL_OK) {
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&pvs_import, &io);
+    if (scene_path && sl_scene_open_with(scene_path, map, &io, NULL, &scene, &err) != SL_OK) {
         sl_pvs_destroy(p);
         return cli_fail(a.cmd, &err);
     }
@@ -758,6 +773,8 @@ static int run_verify(int argc, char **argv)
     float spacing = 1.0f;
     uint64_t seed = 1;
     while (cli_next(&a, &name, &val)) {
+        if (cli_import_option(&a, name, val, &pvs_import))
+            continue;
         if (!name) {
             if (file) {
                 cli_unknown(&a, NULL);

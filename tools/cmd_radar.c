@@ -3,6 +3,7 @@
  * table of the thesis (a 60-degree sector for several grid sizes); an exact line-of-sight check. */
 #include "cli.h"
 
+#include "sightline/import.h"
 #include "sightline/radar.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
@@ -48,6 +49,7 @@ static void usage(FILE *out)
             "                    transmitter: each one in sight must have been reported (default 0)\n"
             "  --json            print the results as JSON on stdout\n"
             "  --quiet           no progress output\n"
+            CLI_ALLOW_EXTERNAL_HELP
             "  --help            this text\n\n"
             "examples:\n"
             "  sightline radar -o echo.png\n"
@@ -106,6 +108,7 @@ int sl_cmd_radar(int argc, char **argv)
 {
     cli_args a;
     cli_args_init(&a, argc, argv);
+    cli_import imp = {0};
     const char *input = NULL, *output = NULL, *name, *val;
     sl_radar_terrain_options to = sl_radar_terrain_defaults();
     sl_radar_options ro = sl_radar_default_options();
@@ -190,6 +193,7 @@ int sl_cmd_radar(int argc, char **argv)
             table = true;
         } else if (!strcmp(name, "json")) {
             json = true;
+        } else if (cli_import_option(&a, name, val, &imp)) {
         } else if (!strcmp(name, "quiet")) {
             quiet = true;
         } else {
@@ -226,7 +230,9 @@ int sl_cmd_radar(int argc, char **argv)
     bool generated = !input;
     double t0 = sl_now();
     if (input) {
-        if (sl_scene_open(input, NULL, NULL, &scene, &err) != SL_OK)
+        sl_import_options io = sl_import_defaults();
+        cli_import_apply(&imp, &io);
+        if (sl_scene_open_with(input, NULL, &io, NULL, &scene, &err) != SL_OK)
             return cli_fail(a.cmd, &err);
         if (!sl_scene_terrain(scene, &terrain)) {
             cli_error(a.cmd, "%s: the scene has no terrain height field", input);

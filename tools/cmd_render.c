@@ -11,6 +11,7 @@
 #include "core/sl_core.h"
 #include "core/text_parse.h"
 #include "sightline/bench.h"
+#include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/truth.h"
 #include "truth/plot.h"
@@ -120,6 +121,7 @@ static void usage(FILE *out)
                  "                    written\n"
                  "  --threads T       oracle threads (default 2)\n"
                  "  --map NAME        map inside a .pk3\n"
+                 CLI_ALLOW_EXTERNAL_HELP
                  "  --json            list the files written as JSON on stdout\n"
                  "  --quiet           no progress bar\n"
                  "  --help            this text\n\n"
@@ -175,6 +177,7 @@ int sl_cmd_render(int argc, char **argv)
     const char *cmd = argv[0];
     cli_args a;
     cli_args_init(&a, argc, argv);
+    cli_import imp = {0};
     const char *name, *val, *scene_spec = NULL, *camera_text = NULL, *path_file = NULL, *frames = NULL;
     const char *out_dir = "render-out", *images = NULL, *map = NULL;
     uint32_t width = 0, height = 0, threads = 2;
@@ -209,6 +212,7 @@ int sl_cmd_render(int argc, char **argv)
             map = cli_value(&a, name, val);
         } else if (!strcmp(name, "json")) {
             json = true;
+        } else if (cli_import_option(&a, name, val, &imp)) {
         } else if (!strcmp(name, "quiet")) {
             quiet = true;
         } else if (find_mode(name) >= 0 && !val) {
@@ -305,7 +309,9 @@ int sl_cmd_render(int argc, char **argv)
     sl_progress prog = cli_progress(&ps, quiet || json);
     sl_scene scene = NULL;
     char label[128];
-    if (sl_bench_open_scene(scene_spec, map, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&imp, &io);
+    if (sl_bench_open_scene_with(scene_spec, map, &io, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
         cli_progress_done(&ps);
         cli_outdir_abort(&od);
         sl_path_destroy(path);

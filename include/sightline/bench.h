@@ -146,6 +146,11 @@ typedef struct sl_bench_summary {
 SL_API sl_status sl_bench_open_scene(const char *spec, const char *map, const sl_progress *progress,
                                      const sl_allocator *alloc, sl_scene *out, char *label, size_t label_size,
                                      sl_error *err);
+/* The same with import options for files (sl_scene_open_with; opt may be NULL). */
+struct sl_import_options;
+SL_API sl_status sl_bench_open_scene_with(const char *spec, const char *map, const struct sl_import_options *opt,
+                                          const sl_progress *progress, const sl_allocator *alloc, sl_scene *out,
+                                          char *label, size_t label_size, sl_error *err);
 
 /* ---- lifetime ---- */
 

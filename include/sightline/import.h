@@ -28,12 +28,26 @@ typedef struct sl_import_options {
                                    spatially compact objects of about this many triangles */
     uint32_t bezier_level;      /* Quake III patch tessellation level per bezier (0 means 8) */
     sl_progress progress;
+    /* assimp files: what the references inside a model (glTF buffers and images, OBJ material
+     * libraries, any file assimp opens besides the model) may resolve to. By default only files
+     * inside the model's own folder (after symlinks and '..'); each entry here allows one more
+     * folder (everything below it) or, when it names a file, that file. A reference resolving
+     * anywhere else fails the import, naming the reference and the folder. The list and its
+     * strings are borrowed for the call only: the importer copies what it needs (canonical
+     * paths) through its allocator and frees them before returning. */
+    const char *const *allow_external;
+    uint32_t allow_external_count;
+    /* assimp files: the largest file assimp may open (the model or a reference); 0 means 4 GiB.
+     * Only regular files are opened (never a FIFO or a device), read-only. */
+    uint64_t max_file_bytes;
 } sl_import_options;
 
 /* Default options (all zero). */
 SL_API sl_import_options sl_import_defaults(void);
 
-/* Import any file assimp reads into a new scene. */
+/* Import any file assimp reads into a new scene. Every file assimp opens goes through a
+ * read-only IO system confined as opt->allow_external says; assimp's messages are passed on with
+ * control bytes and non-UTF-8 bytes escaped and cut short, never with raw file content. */
 SL_API sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const sl_allocator *alloc,
                                   sl_scene *out, sl_error *err);
 

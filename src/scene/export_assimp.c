@@ -18,8 +18,10 @@
 #include <assimp/cfileio.h>
 #include <assimp/material.h>
 #include <assimp/scene.h>
+#include <assimp/version.h>
 
 #include <ctype.h>
+#include <errno.h>
 #include <limits.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -124,17 +126,112 @@ static sl_status resolve_format(const char *path, const char *format, char *id, 
     return SL_OK;
 }
 
+/* ---- the same bytes for the same scene ---- */
+
+/* Overwrite the n bytes after the first `key` in [p, end) with `value` when they are exactly n
+ * characters of [0-9:T-] (a COLLADA xs:dateTime). */
+static void replace_date(uint8_t *p, size_t size, const char *key, const char *value)
+{
+    size_t kl = strlen(key), vl = strlen(value);
+    uint8_t *at = memmem(p, size, key, kl);
+    if (!at || (size_t)(at - p) + kl + vl > size)
+        return;
+    uint8_t *v = at + kl;
+    for (size_t i = 0; i < vl; i++)
+        if (!isdigit(v[i]) && v[i] != '-' && v[i] != ':' && v[i] != 'T')
+            return;
+    memcpy(v, value, vl);
+}
+
+/* COLLADA and FBX files carry the time they were written (<created>/<modified>; FBX's
+ * CreationTimeStamp Year..Millisecond): replaced by 1970-01-01 00:00:00, in place and at the same
+ * length, so that exporting the same scene twice gives the same bytes. FBX's FileId and
+ * CreationTime are constants in assimp 5.2 already. */
+static void normalize_timestamps(const char *format, const sl_allocator *a, sl_array *mem)
+{
+    uint8_t *p = mem->data;
+    size_t size = mem->count;
+    if (!p)
+        return;
+    if (!strcmp(format, "collada")) {
+        replace_date(p, size, "<created>", "1970-01-01T00:00:00");
+        replace_date(p, size, "<modified>", "1970-01-01T00:00:00");
+        return;
+    }
+    static const struct { const char *name; int32_t value; } fields[] = {
+        {"Year", 1970}, {"Month", 1}, {"Day", 1}, {"Hour", 0}, {"Minute", 0}, {"Second", 0}, {"Millisecond", 0},
+    };
+    uint8_t *ts = memmem(p, size, "CreationTimeStamp", 17);
+    if (!ts)
+        return;
+    size_t left = size - (size_t)(ts - p);
+    size_t window = SL_MIN(left, (size_t)1024); /* the node's children follow at once */
+    if (!strcmp(format, "fbx")) {
+        /* binary: each child is a node record ending in its name (length byte, name) followed by
+         * one property of type 'I' (int32, little-endian) */
+        for (size_t k = 0; k < SL_COUNTOF(fields); k++) {
+            size_t nl = strlen(fields[k].name);
+            for (size_t i = 1; i + nl + 5 <= window; i++)
+                if (ts[i - 1] == nl && !memcmp(ts + i, fields[k].name, nl) && ts[i + nl] == 'I') {
+                    uint32_t v = (uint32_t)fields[k].value;
+                    uint8_t le[4] = {(uint8_t)v, (uint8_t)(v >> 8), (uint8_t)(v >> 16), (uint8_t)(v >> 24)};
+                    memcpy(ts + i + nl + 1, le, 4);
+                    break;
+                }
+        }
+        return;
+    }
+    /* ASCII FBX: "Name: digits" lines, the digits replaced (the length may change: nothing in
+     * an ASCII FBX file points at byte offsets); a value that cannot shrink in place is left as is
+     * unless the array can grow */
+    size_t ts_at = (size_t)(ts - p);
+    for (size_t k = 0; k < SL_COUNTOF(fields); k++) {
+        char key[24], digits[16];
+        snprintf(key, sizeof key, "\t%s: ", fields[k].name);
+        size_t kl = strlen(key);
+        p = mem->data;
+        size_t win = SL_MIN(mem->count - ts_at, (size_t)1024);
+        uint8_t *at = memmem(p + ts_at, win, key, kl);
+        if (!at)
+            continue;
+        size_t v = (size_t)(at - p) + kl, e = v;
+        while (e < mem->count && isdigit(p[e]))
+            e++;
+        size_t width = e - v, dl = (size_t)snprintf(digits, sizeof digits, "%d", (int)fields[k].value);
+        if (!width)
+            continue;
+        if (dl > width) {
+            if (!sl_array_push(a, mem, 1, NULL, dl - width))
+                continue;
+            p = mem->data;
+            memmove(p + v + dl, p + e, mem->count - (dl - width) - e);
+        } else if (dl < width) {
+            memmove(p + v + dl, p + e, mem->count - e);
+            mem->count -= width - dl;
+        }
+        memcpy(p + v, digits, dl);
+    }
+}
+
 /* ---- file output through sl_atomic ---- */
 
 typedef struct out_file {
     struct aiFile file;         /* handed to assimp; file.UserData points back here */
     sl_atomic_file af;
     bool committed;
+    int errnum;                 /* errno of the first failed write, 0 if none */
+    /* COLLADA and FBX are held in memory and written on commit, once the time of writing that
+     * assimp puts into them has been replaced by a fixed one (normalize_timestamps) */
+    bool buffered;
+    const sl_allocator *alloc;
+    sl_array mem;               /* uint8_t */
+    size_t pos;
 } out_file;
 
 typedef struct export_io {
     struct aiFileIO io;         /* io.UserData points back here */
     const sl_allocator *a;
+    const char *format;         /* assimp export id */
     sl_array files;             /* out_file *, in the order assimp opened them */
     sl_error err;               /* first failure seen inside a callback */
     bool failed;
@@ -142,14 +239,36 @@ typedef struct export_io {
 
 static out_file *file_of(struct aiFile *f) { return (out_file *)(void *)f->UserData; }
 
+static void write_failed(out_file *of, int e)
+{
+    if (!of->errnum)
+        of->errnum = e ? e : EIO;
+    of->af.failed = true;
+}
+
 static size_t io_write(struct aiFile *f, const char *buf, size_t size, size_t count)
 {
     out_file *of = file_of(f);
     if (of->af.failed || !size || !count)
         return 0;
+    if (of->buffered) {
+        size_t bytes, end;
+        if (!sl_mul_size(size, count, &bytes) || !sl_add_size(of->pos, bytes, &end)) {
+            write_failed(of, EFBIG);
+            return 0;
+        }
+        if (end > of->mem.count && !sl_array_push(of->alloc, &of->mem, 1, NULL, end - of->mem.count)) {
+            write_failed(of, ENOMEM);
+            return 0;
+        }
+        memcpy((uint8_t *)of->mem.data + of->pos, buf, bytes);
+        of->pos = end;
+        return count;
+    }
+    errno = 0;
     size_t n = fwrite(buf, size, count, of->af.fp);
     if (n != count)
-        of->af.failed = true;
+        write_failed(of, errno);
     return n;
 }
 
@@ -161,16 +280,22 @@ static size_t io_read(struct aiFile *f, char *buf, size_t size, size_t count)
 
 static size_t io_tell(struct aiFile *f)
 {
-    long p = ftell(file_of(f)->af.fp);
+    out_file *of = file_of(f);
+    if (of->buffered)
+        return of->pos;
+    long p = ftell(of->af.fp);
     return p < 0 ? 0 : (size_t)p;
 }
 
 static size_t io_size(struct aiFile *f)
 {
     out_file *of = file_of(f);
+    if (of->buffered)
+        return of->mem.count;
     struct stat st;
+    errno = 0;
     if (fflush(of->af.fp) != 0 || fstat(fileno(of->af.fp), &st) != 0) {
-        of->af.failed = true;
+        write_failed(of, errno);
         return 0;
     }
     return (size_t)st.st_size;
@@ -179,6 +304,14 @@ static size_t io_size(struct aiFile *f)
 static enum aiReturn io_seek(struct aiFile *f, size_t offset, enum aiOrigin origin)
 {
     out_file *of = file_of(f);
+    if (of->buffered) {
+        size_t base = origin == aiOrigin_SET ? 0 : origin == aiOrigin_CUR ? of->pos : of->mem.count;
+        size_t target = base + offset; /* negative offsets arrive wrapped around */
+        if (target > of->mem.count)
+            return aiReturn_FAILURE;
+        of->pos = target;
+        return aiReturn_SUCCESS;
+    }
     int whence = origin == aiOrigin_SET ? SEEK_SET : origin == aiOrigin_CUR ? SEEK_CUR : SEEK_END;
     if (offset > (size_t)LONG_MAX || fseek(of->af.fp, (long)offset, whence) != 0)
         return aiReturn_FAILURE;
@@ -188,8 +321,9 @@ static enum aiReturn io_seek(struct aiFile *f, size_t offset, enum aiOrigin orig
 static void io_flush(struct aiFile *f)
 {
     out_file *of = file_of(f);
-    if (fflush(of->af.fp) != 0)
-        of->af.failed = true;
+    errno = 0;
+    if (!of->buffered && fflush(of->af.fp) != 0)
+        write_failed(of, errno);
 }
 
 static struct aiFile *io_open(struct aiFileIO *io, const char *name, const char *mode)
@@ -221,6 +355,8 @@ static struct aiFile *io_open(struct aiFileIO *io, const char *name, const char 
     of->file.SeekProc = io_seek;
     of->file.FlushProc = io_flush;
     of->file.UserData = (aiUserData)(void *)of;
+    of->buffered = !strcmp(x->format, "collada") || !strncmp(x->format, "fbx", 3);
+    of->alloc = x->a;
     sl_array_push(x->a, &x->files, sizeof of, &of, 1);
     return &of->file;
 }
@@ -239,9 +375,19 @@ static sl_status finish_files(export_io *x, const char *path, bool ok, sl_error 
     size_t n = x->files.count;
     out_file **files = x->files.data;
     if (ok) {
-        for (size_t i = 0; i < n && ok; i++)
-            if (files[i]->af.failed)
-                ok = false, st = sl_fail(err, SL_ERROR_IO, "%s: write failed", files[i]->af.path);
+        for (size_t i = 0; i < n && ok; i++) {
+            out_file *of = files[i];
+            if (of->buffered && !of->af.failed) {
+                normalize_timestamps(x->format, x->a, &of->mem);
+                errno = 0;
+                sl_atomic_write(&of->af, of->mem.data, of->mem.count);
+                if (of->af.failed)
+                    write_failed(of, errno);
+            }
+            if (of->af.failed)
+                ok = false, st = sl_fail(err, SL_ERROR_IO, "%s: write failed: %s (assimp's '%s' exporter was writing it)",
+                                         of->af.path, strerror(of->errnum ? of->errnum : EIO), x->format);
+        }
         for (int pass = 0; pass < 2 && ok; pass++)
             for (size_t i = 0; i < n && ok; i++) {
                 out_file *of = files[i];
@@ -272,6 +418,7 @@ static sl_status finish_files(export_io *x, const char *path, bool ok, sl_error 
         } else {
             sl_atomic_abort(&of->af);
         }
+        sl_array_free(x->a, &of->mem, 1);
         sl_free(x->a, of, sizeof *of);
     }
     sl_array_free(x->a, &x->files, sizeof(out_file *));
@@ -368,6 +515,25 @@ static struct aiMesh *make_mesh(arena *ar, const sl_mesh_view *mv, uint32_t mate
     m->mMaterialIndex = material;
     set_ai_string(&m->mName, name);
     return m;
+}
+
+/* Does a face share a vertex with another (or use one twice)? Also true when out of memory (the
+ * flag then only costs assimp a MakeVerboseFormat). */
+static bool mesh_shares_vertices(const sl_allocator *a, const struct aiMesh *m)
+{
+    if ((uint64_t)3 * m->mNumFaces > m->mNumVertices)
+        return true;
+    uint8_t *seen = sl_calloc(a, m->mNumVertices ? m->mNumVertices : 1, 1);
+    if (!seen)
+        return true;
+    bool shared = false;
+    for (unsigned int f = 0; f < m->mNumFaces && !shared; f++)
+        for (unsigned int k = 0; k < m->mFaces[f].mNumIndices && !shared; k++) {
+            unsigned int v = m->mFaces[f].mIndices[k];
+            shared = seen[v]++ != 0;
+        }
+    sl_free(a, seen, m->mNumVertices ? m->mNumVertices : 1);
+    return shared;
 }
 
 /* Object transform in the output frame: Q·T·Q⁻¹ with Q the Z-up to Y-up rotation. */
@@ -518,8 +684,14 @@ static sl_status build_ai_scene(sl_scene s, bool yup, bool share, arena *ar, str
     sc->mNumMeshes = nmesh;
     sc->mMaterials = mats;
     sc->mNumMaterials = nmat;
-    /* vertices are shared between faces: tells the exporter to run MakeVerboseFormat if needed */
-    sc->mFlags = AI_SCENE_FLAGS_NON_VERBOSE_FORMAT;
+    /* vertices shared between faces: tells the exporter to run MakeVerboseFormat. Only when some
+     * vertex really is shared: assimp 5.2 skips MakeVerboseFormat for a scene that is verbose
+     * already but keeps the flag, and then GenFaceNormals (STL, OBJ) throws "post-processing order
+     * mismatch" and the export fails without a word (a one-triangle scene did) */
+    bool shared = false;
+    for (uint32_t i = 0; i < nmesh && !shared; i++)
+        shared = mesh_shares_vertices(a, meshes[i]);
+    sc->mFlags = shared ? AI_SCENE_FLAGS_NON_VERBOSE_FORMAT : 0;
     *out = sc;
     counts->meshes = nmesh, counts->materials = nmat, counts->nodes = nnode;
 done:
@@ -555,6 +727,7 @@ sl_status sl_export_assimp(sl_scene scene, const char *path, const char *format,
     export_io x;
     memset(&x, 0, sizeof x);
     x.a = a;
+    x.format = id;
     x.io.OpenProc = io_open;
     x.io.CloseProc = io_close;
     x.io.UserData = (aiUserData)(void *)&x;
@@ -568,7 +741,11 @@ sl_status sl_export_assimp(sl_scene scene, const char *path, const char *format,
                 *err = x.err;
         }
         else if (r != aiReturn_SUCCESS)
-            st = sl_fail(err, SL_ERROR_IO, "%s: assimp's '%s' exporter failed", path, id);
+            /* assimp's C interface keeps the exporter's reason to itself; say what is known */
+            st = sl_fail(err, SL_ERROR_IO,
+                         "%s: assimp's '%s' exporter failed (%zu file%s opened, no write error; assimp %u.%u does not "
+                         "tell the reason through its C interface)",
+                         path, id, x.files.count, x.files.count == 1 ? "" : "s", aiGetVersionMajor(), aiGetVersionMinor());
         else
             st = sl_fail(err, SL_ERROR_INTERNAL, "%s: assimp's '%s' exporter wrote no file", path, id);
     }

@@ -13,6 +13,8 @@
  * docs/import-export.md. */
 #include "scene_internal.h"
 #include "source_meta.h"
+#include "assimp_io.h"
+#include "core/escape.h"
 #include "split.h"
 #include "sightline/import.h"
 
@@ -25,8 +27,11 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
+#include <stdlib.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 /* A 3x4 row-major affine map in double precision (products of deep node chains stay accurate). */
 typedef struct dmat { double m[12]; } dmat;
@@ -126,6 +131,19 @@ static void dmat_cofactor3(const dmat *a, double c[9])
 }
 
 /* ---- names and colours ---- */
+
+/* "position.y is NaN" / "normal.x is +inf": the first non-finite component of v. */
+static const char *nonfinite_component(const char *attribute, const struct aiVector3D *v, char *buf, size_t size)
+{
+    const float c[3] = {v->x, v->y, v->z};
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(c[i])) {
+            snprintf(buf, size, "%s.%c is %s", attribute, "xyz"[i], isnan(c[i]) ? "NaN" : c[i] > 0 ? "+inf" : "-inf");
+            return buf;
+        }
+    snprintf(buf, size, "%s is not finite", attribute);
+    return buf;
+}
 
 static const char *node_name(const struct aiNode *n) { return n->mName.length ? n->mName.data : "(unnamed)"; }
 
@@ -349,9 +367,11 @@ static sl_status merge_meshes(import_ctx *c, const node_rec *nr, const dmat *m, 
         for (unsigned int v = 0; v < am->mNumVertices; v++) {
             const struct aiVector3D *p = &am->mVertices[v];
             if (!isfinite(p->x) || !isfinite(p->y) || !isfinite(p->z)) {
+                char what[48];
                 mesh_label(c->ai, mi, label, sizeof label);
-                return sl_fail(err, SL_ERROR_FORMAT, "%s: node '%s': %s: vertex %u is not finite (%g %g %g)", c->path,
-                               node_name(n), label, v, (double)p->x, (double)p->y, (double)p->z);
+                return sl_fail(err, SL_ERROR_FORMAT, "%s: node '%s': %s: vertex %u: %s (%g %g %g)", c->path, node_name(n), label,
+                               v, nonfinite_component("position", p, what, sizeof what), (double)p->x, (double)p->y,
+                               (double)p->z);
             }
             const double *r = m->m;
             for (int i = 0; i < 3; i++) {
@@ -359,9 +379,12 @@ static sl_status merge_meshes(import_ctx *c, const node_rec *nr, const dmat *m, 
                 dp[3 * (size_t)v + i] = (float)w;
             }
             if (!sl_finite3(dp + 3 * (size_t)v)) {
+                const float *q = dp + 3 * (size_t)v;
+                struct aiVector3D w = {q[0], q[1], q[2]};
+                char what[48];
                 mesh_label(c->ai, mi, label, sizeof label);
-                return sl_fail(err, SL_ERROR_FORMAT, "%s: node '%s': %s: vertex %u is not finite after the node transform",
-                               c->path, node_name(n), label, v);
+                return sl_fail(err, SL_ERROR_FORMAT, "%s: node '%s': %s: vertex %u: %s after the node transform", c->path,
+                               node_name(n), label, v, nonfinite_component("position", &w, what, sizeof what));
             }
             if (dn) {
                 const struct aiVector3D *q = &am->mNormals[v];
@@ -546,11 +569,218 @@ static sl_status check_finite(const char *path, const struct aiScene *ai, const 
             const struct aiVector3D *p = &m->mVertices[v];
             if (isfinite(p->x) && isfinite(p->y) && isfinite(p->z))
                 continue;
-            char label[160];
+            char label[160], what[48];
             mesh_label(ai, mi, label, sizeof label);
             const struct aiNode *n = node_with_mesh(ai, mi, a);
-            return sl_fail(err, SL_ERROR_FORMAT, "%s: node '%s': %s: vertex %u is not finite (%g %g %g)", path,
-                           n ? node_name(n) : "(none)", label, v, (double)p->x, (double)p->y, (double)p->z);
+            return sl_fail(err, SL_ERROR_FORMAT, "%s: node '%s': %s: vertex %u: %s (%g %g %g)", path, n ? node_name(n) : "(none)",
+                           label, v, nonfinite_component("position", p, what, sizeof what), (double)p->x, (double)p->y,
+                           (double)p->z);
+        }
+    }
+    return SL_OK;
+}
+
+/* ---- PLY element counts, checked before assimp allocates for them ---- */
+
+/* Smallest size of one value of a PLY scalar type, 0 for an unknown type. */
+static unsigned ply_type_size(const char *t)
+{
+    static const struct { const char *name; unsigned size; } types[] = {
+        {"char", 1},  {"int8", 1},   {"uchar", 1},  {"uint8", 1},   {"short", 2},   {"int16", 2},  {"ushort", 2},
+        {"uint16", 2}, {"int", 4},   {"int32", 4},  {"uint", 4},    {"uint32", 4},  {"float", 4},  {"float32", 4},
+        {"double", 8}, {"float64", 8},
+    };
+    for (size_t i = 0; i < SL_COUNTOF(types); i++)
+        if (!strcmp(t, types[i].name))
+            return types[i].size;
+    return 0;
+}
+
+typedef struct ply_element {
+    char name[64];
+    uint64_t count;
+    uint64_t min_bytes;         /* smallest encoding of one element */
+} ply_element;
+
+/* Check the element counts a PLY header declares against what the rest of the file can hold (an
+ * element needs at least its scalar sizes and list counts in binary, two characters a value in
+ * ASCII) and against the vertex limit of a mesh, so that a hostile header fails with the numbers
+ * instead of std::bad_alloc. The header itself is checked strictly (known keywords and types, a
+ * property after its element), since assimp 5.2 reads out of bounds on some malformed ones. Files
+ * that are not PLY are left to assimp. */
+static sl_status ply_check(const char *path, uint64_t file_size, const sl_allocator *a, sl_error *err)
+{
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+    if (fd < 0)
+        return SL_OK; /* assimp reports it */
+    enum { HEADER_MAX = 1 << 20 };
+    char *buf = sl_alloc(a, HEADER_MAX + 1);
+    if (!buf) {
+        close(fd);
+        return SL_OK;
+    }
+    size_t n = 0;
+    while (n < HEADER_MAX) {
+        ssize_t r = read(fd, buf + n, HEADER_MAX - n);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            break;
+        n += (size_t)r;
+        if (n >= 3 && memcmp(buf, "ply", 3) != 0 && memcmp(buf, "PLY", 3) != 0)
+            break;
+        if (memmem(buf, n, "end_header", 10))
+            break;
+    }
+    close(fd);
+    buf[n] = 0;
+    sl_status st = SL_OK;
+    /* assimp's PLY reader takes any file starting with "ply" or "PLY" */
+    if (n < 3 || (memcmp(buf, "ply", 3) != 0 && memcmp(buf, "PLY", 3) != 0))
+        goto done;
+    bool binary = false, have_format = false;
+    ply_element el[64];
+    uint32_t ne = 0, line_no = 1;
+    size_t header_end = 0;
+    const char *bad = NULL; /* what is wrong with line line_no (never the file's own text) */
+    for (char *line = buf; line < buf + n; line_no++) {
+        char *eol = memchr(line, '\n', (size_t)(buf + n - line));
+        if (!eol)
+            break; /* no end_header: below */
+        *eol = 0;
+        char *save = NULL, *kw = strtok_r(line, " \t\r", &save);
+        char *next = eol + 1;
+        line = next;
+        if (line_no == 1) {
+            if (!kw || (strcmp(kw, "ply") && strcmp(kw, "PLY")) || strtok_r(NULL, " \t\r", &save)) {
+                bad = "the first line must be 'ply'";
+                break;
+            }
+            continue;
+        }
+        if (!kw || !strcmp(kw, "comment") || !strcmp(kw, "obj_info"))
+            continue;
+        if (!strcmp(kw, "end_header")) {
+            header_end = (size_t)(next - buf);
+            break;
+        }
+        if (!strcmp(kw, "format")) {
+            const char *f = strtok_r(NULL, " \t\r", &save);
+            if (!f || (strcmp(f, "ascii") && strcmp(f, "binary_little_endian") && strcmp(f, "binary_big_endian")))
+                bad = "unknown format (ascii, binary_little_endian or binary_big_endian)";
+            binary = f && strcmp(f, "ascii") != 0;
+            have_format = true;
+        } else if (!strcmp(kw, "element")) {
+            const char *name = strtok_r(NULL, " \t\r", &save), *count = strtok_r(NULL, " \t\r", &save);
+            char *end;
+            errno = 0;
+            unsigned long long v = count ? strtoull(count, &end, 10) : 0;
+            if (!name || !count || *end || errno || count[0] == '-' || count[0] == '+') {
+                bad = "element needs a name and a count";
+            } else if (ne == SL_COUNTOF(el)) {
+                bad = "more than 64 elements";
+            } else {
+                snprintf(el[ne].name, sizeof el[ne].name, "%s", name);
+                el[ne].count = v;
+                el[ne].min_bytes = 0;
+                ne++;
+            }
+        } else if (!strcmp(kw, "property")) {
+            const char *t = strtok_r(NULL, " \t\r", &save);
+            unsigned size = 0;
+            if (t && !strcmp(t, "list")) {
+                const char *ct = strtok_r(NULL, " \t\r", &save), *it = strtok_r(NULL, " \t\r", &save);
+                size = ct && it && ply_type_size(it) ? ply_type_size(ct) : 0; /* the count; a list may be empty */
+            } else if (t) {
+                size = ply_type_size(t);
+            }
+            if (!ne)
+                bad = "property before any element";
+            else if (!size || !strtok_r(NULL, " \t\r", &save))
+                bad = "property needs a known type and a name";
+            else
+                el[ne - 1].min_bytes += binary ? size : 2;
+        } else {
+            bad = "unknown keyword";
+        }
+        if (bad)
+            break;
+    }
+    if (!bad && !header_end) /* assimp 5.2 loops for ever on such a file (fuzz/fuzz_assimp.c) */
+        bad = n >= HEADER_MAX ? "no end_header in the first MiB" : "no end_header before the end of the file";
+    if (!bad && !have_format)
+        bad = "no format line", line_no = 2;
+    if (bad) {
+        /* assimp 5.2 reads past its buffers on some malformed headers (found by fuzz/fuzz_assimp.c) */
+        st = sl_fail(err, SL_ERROR_FORMAT, "%s: PLY header line %u: %s", path, line_no, bad);
+        goto done;
+    }
+    uint64_t left = file_size > header_end ? file_size - header_end : 0, need = 0;
+    for (uint32_t i = 0; i < ne; i++) {
+        char name[100];
+        sl_escape_text(el[i].name, 60, name, sizeof name);
+        if (!strcmp(el[i].name, "vertex") && el[i].count > UINT32_MAX) {
+            st = sl_fail(err, SL_ERROR_LIMIT, "%s: element vertex: %llu declared, more than the 2^32-1 vertices a mesh can hold",
+                         path, (unsigned long long)el[i].count);
+            goto done;
+        }
+        uint64_t each = el[i].min_bytes ? el[i].min_bytes : 1;
+        uint64_t room = left > need ? (left - need) / each : 0;
+        if (el[i].count > room) {
+            st = sl_fail(err, SL_ERROR_FORMAT,
+                         "%s: element %s: %llu declared, the file can hold at most %llu (%llu bytes after the header, at least "
+                         "%llu bytes each%s)",
+                         path, name, (unsigned long long)el[i].count, (unsigned long long)room, (unsigned long long)left,
+                         (unsigned long long)each, i ? ", after the elements before it" : "");
+            goto done;
+        }
+        need += el[i].count * each;
+    }
+done:
+    sl_free(a, buf, HEADER_MAX + 1);
+    return st;
+}
+
+/* ---- assimp's messages ---- */
+
+/* An import failure with assimp's reason, escaped and cut short: assimp quotes tokens of the file
+ * in some messages, and the file is untrusted. std::bad_alloc is said as what it is. */
+static sl_status assimp_failure(const char *path, sl_error *err)
+{
+    const char *msg = aiGetErrorString();
+    if (!msg || !msg[0])
+        return sl_fail(err, SL_ERROR_FORMAT, "%s: assimp could not read the file", path);
+    if (strstr(msg, "bad_alloc"))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: assimp ran out of memory reading the file (std::bad_alloc)", path);
+    char safe[300];
+    sl_escape_text(msg, 200, safe, sizeof safe);
+    return sl_fail(err, SL_ERROR_FORMAT, "%s: %s", path, safe);
+}
+
+/* Every face has indices, and every index names a vertex of its mesh. */
+static sl_status check_faces(const char *path, const struct aiScene *ai, sl_error *err)
+{
+    for (unsigned int mi = 0; mi < ai->mNumMeshes; mi++) {
+        const struct aiMesh *m = ai->mMeshes[mi];
+        if (!m || !m->mNumFaces)
+            continue;
+        char label[160];
+        if (!m->mFaces) {
+            mesh_label(ai, mi, label, sizeof label);
+            return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: %u faces but no face array", path, label, m->mNumFaces);
+        }
+        for (unsigned int f = 0; f < m->mNumFaces; f++) {
+            const struct aiFace *face = &m->mFaces[f];
+            if (!face->mNumIndices || !face->mIndices) {
+                mesh_label(ai, mi, label, sizeof label);
+                return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: face %u has no vertex indices", path, label, f);
+            }
+            for (unsigned int k = 0; k < face->mNumIndices; k++)
+                if (face->mIndices[k] >= m->mNumVertices) {
+                    mesh_label(ai, mi, label, sizeof label);
+                    return sl_fail(err, SL_ERROR_FORMAT, "%s: %s: face %u: index %u out of range (%u vertices)", path, label,
+                                   f, face->mIndices[k], m->mNumVertices);
+                }
         }
     }
     return SL_OK;
@@ -639,8 +869,15 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
         return sl_fail(err, errno == ENOENT ? SL_ERROR_NOT_FOUND : SL_ERROR_IO, "%s: cannot open: %s", path, strerror(errno));
     if (!S_ISREG(sb.st_mode))
         return sl_fail(err, SL_ERROR_IO, "%s: not a regular file", path);
+    uint64_t max_file = opt->max_file_bytes ? opt->max_file_bytes : SL_ASSIMP_MAX_FILE_BYTES;
+    if ((uint64_t)sb.st_size > max_file)
+        return sl_fail(err, SL_ERROR_LIMIT, "%s: %llu bytes, more than the limit of %llu", path, (unsigned long long)sb.st_size,
+                       (unsigned long long)max_file);
 
     const sl_allocator *a = sl_alloc_or_default(alloc);
+    sl_status st = ply_check(path, (uint64_t)sb.st_size, a, err);
+    if (st != SL_OK)
+        return st;
     import_ctx c;
     memset(&c, 0, sizeof c);
     c.path = path;
@@ -669,10 +906,20 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
      * with an angle limit, but costs ~5 s per million triangles (SpatialSort over unjoined
      * vertices, measured on a 980k-triangle OBJ: 7.2 s of post-processing with it, 2.4 s
      * without). */
-    sl_status st;
-    struct aiPropertyStore *props = aiCreatePropertyStore();
-    if (!props)
+    /* every file assimp opens, the model included, goes through the confined IO system */
+    sl_aio *io = sl_alloc(a, sizeof *io);
+    if (!io)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    if ((st = sl_aio_init(io, path, opt->allow_external, opt->allow_external_count, max_file, a, err)) != SL_OK) {
+        sl_free(a, io, sizeof *io);
+        return st;
+    }
+    struct aiPropertyStore *props = aiCreatePropertyStore();
+    if (!props) {
+        sl_aio_free(io);
+        sl_free(a, io, sizeof *io);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    }
     aiSetImportPropertyInteger(props, AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
     aiSetImportPropertyInteger(props, AI_CONFIG_PP_RVC_FLAGS,
                                aiComponent_TEXCOORDS | aiComponent_COLORS | aiComponent_TANGENTS_AND_BITANGENTS |
@@ -680,11 +927,22 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
                                    aiComponent_CAMERAS);
     /* read and validate first, without post-processing: JoinIdenticalVertices would merge a NaN
      * vertex into a finite one and hide it */
-    const struct aiScene *ai = aiImportFileExWithProperties(path, aiProcess_ValidateDataStructure, NULL, props);
+    const struct aiScene *ai = aiImportFileExWithProperties(path, aiProcess_ValidateDataStructure, &io->io, props);
     aiReleasePropertyStore(props);
-    if (!ai) {
-        const char *msg = aiGetErrorString();
-        return sl_fail(err, SL_ERROR_FORMAT, "%s: %s", path, msg && msg[0] ? msg : "assimp could not read the file");
+    /* a refused reference fails the import even where assimp carried on without it (a missing
+     * OBJ material library is only a warning to assimp) */
+    if (io->refused) {
+        char shown[200];
+        st = sl_fail(err, io->refused_status, "%s: %s", sl_escape_text(path, 150, shown, sizeof shown), io->refused_message);
+    } else if (!ai) {
+        st = assimp_failure(path, err);
+    }
+    sl_aio_free(io);
+    sl_free(a, io, sizeof *io);
+    if (st != SL_OK) {
+        if (ai)
+            aiReleaseImport(ai);
+        return st;
     }
     if ((st = check_finite(path, ai, a, err)) != SL_OK) {
         aiReleaseImport(ai);
@@ -699,6 +957,13 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
                     (ai->mMeshes[mi]->mPrimitiveTypes & (aiPrimitiveType_TRIANGLE | aiPrimitiveType_POLYGON));
     if (!any_faces) {
         st = sl_fail(err, SL_ERROR_FORMAT, "%s: no triangles (%u meshes, only points and lines)", path, ai->mNumMeshes);
+        aiReleaseImport(ai);
+        return st;
+    }
+    /* ... and the faces that pass the first validation but fail the one after post-processing
+     * (double free, found by fuzz/fuzz_assimp.c): a face without indices, an index past the
+     * vertices */
+    if ((st = check_faces(path, ai, err)) != SL_OK) {
         aiReleaseImport(ai);
         return st;
     }

@@ -767,10 +767,31 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
         return sl_fail(err, SL_ERROR_FORMAT, "vertex/normal/index array sizes are inconsistent");
     uint64_t nv = s->positions.count / 3, ni = s->indices.count;
     const float *pos = sl_scene_positions(s), *nrm = (const float *)s->normals.data;
-    for (uint64_t i = 0; i < 3 * nv; i++)
-        if (!isfinite(pos[i]) || !isfinite(nrm[i]))
-            return sl_fail(err, SL_ERROR_FORMAT, "vertex %llu: not finite", (unsigned long long)(i / 3));
     const sl_mesh_rec *m = sl_scene_meshes(s);
+    for (uint64_t i = 0; i < 3 * nv; i++)
+        if (!isfinite(pos[i]) || !isfinite(nrm[i])) {
+            /* say which attribute and component, and where the vertex belongs */
+            uint64_t v = i / 3;
+            bool p = !isfinite(pos[i]);
+            float x = p ? pos[i] : nrm[i];
+            char where[96] = "";
+            for (size_t k = 0; k < s->meshes.count; k++)
+                if (v >= m[k].first_vertex && v - m[k].first_vertex < m[k].vertex_count) {
+                    size_t obj = SIZE_MAX;
+                    const sl_object_rec *o = sl_scene_objects(s);
+                    for (size_t j = 0; j < s->objects.count && obj == SIZE_MAX; j++)
+                        if (o[j].mesh == k)
+                            obj = j;
+                    if (obj != SIZE_MAX)
+                        snprintf(where, sizeof where, " (object %zu, mesh %zu vertex %llu)", obj, k,
+                                 (unsigned long long)(v - m[k].first_vertex));
+                    else
+                        snprintf(where, sizeof where, " (mesh %zu vertex %llu)", k, (unsigned long long)(v - m[k].first_vertex));
+                    break;
+                }
+            return sl_fail(err, SL_ERROR_FORMAT, "vertex %llu%s: %s.%c is %s", (unsigned long long)v, where,
+                           p ? "position" : "normal", "xyz"[i % 3], isnan(x) ? "NaN" : x > 0 ? "+inf" : "-inf");
+        }
     const uint32_t *idx = sl_scene_indices(s);
     for (size_t i = 0; i < s->meshes.count; i++) {
         if (m[i].first_vertex > nv || m[i].vertex_count > nv - m[i].first_vertex || m[i].first_index % 3 ||

@@ -44,6 +44,13 @@ static void make_label(char *label, size_t size, const char *text, size_t len)
 sl_status sl_bench_open_scene(const char *spec, const char *map, const sl_progress *progress,
                               const sl_allocator *alloc, sl_scene *out, char *label, size_t label_size, sl_error *err)
 {
+    return sl_bench_open_scene_with(spec, map, NULL, progress, alloc, out, label, label_size, err);
+}
+
+sl_status sl_bench_open_scene_with(const char *spec, const char *map, const struct sl_import_options *opt,
+                                   const sl_progress *progress, const sl_allocator *alloc, sl_scene *out, char *label,
+                                   size_t label_size, sl_error *err)
+{
     if (!spec || !out)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_open_scene: spec and out must not be NULL");
     *out = NULL;
@@ -85,7 +92,7 @@ sl_status sl_bench_open_scene(const char *spec, const char *map, const sl_progre
         make_label(label, label_size, text, strlen(text));
         return SL_OK;
     }
-    sl_status st = sl_scene_open(spec, map, alloc, out, err);
+    sl_status st = sl_scene_open_with(spec, map, opt, alloc, out, err);
     if (st != SL_OK)
         return st;
     const char *base = strrchr(spec, '/');
