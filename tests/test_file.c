@@ -14,6 +14,7 @@
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -326,6 +327,50 @@ static void test_descriptor_paths(void **state)
     assert_true(S_ISCHR(st.st_mode));
 }
 
+/* A write that fails (here: past the file size limit, SIGXFSZ ignored, so write(2) fails with
+ * EFBIG) is reported by commit with that write's reason, not with whatever errno holds by commit
+ * time; the temporary is removed and the old file stays. */
+static void test_write_error_reported(void **state)
+{
+    (void)state;
+    char file[256];
+    in_dir(file, sizeof file, "big.bin");
+    write_file(file, "old");
+    struct rlimit old;
+    assert_int_equal(getrlimit(RLIMIT_FSIZE, &old), 0);
+    void (*old_handler)(int) = signal(SIGXFSZ, SIG_IGN);
+    struct rlimit small = old;
+    small.rlim_cur = 4096;
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &small), 0);
+    sl_atomic_file f;
+    sl_error err;
+    sl_status opened = sl_atomic_open(NULL, file, &f, &err);
+    static uint8_t block[65536];
+    bool failed = false;
+    if (opened == SL_OK) {
+        for (int i = 0; i < 4; i++)
+            sl_atomic_write(&f, block, sizeof block);
+        failed = f.failed;
+        errno = 0; /* as after any later call that succeeded, or one that failed for another reason */
+    }
+    sl_status st = opened == SL_OK ? sl_atomic_commit(&f, &err) : opened;
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &old), 0);
+    signal(SIGXFSZ, old_handler);
+    assert_int_equal(opened, SL_OK);
+    assert_true(failed);
+    assert_int_equal(st, SL_ERROR_IO);
+    if (!strstr(err.message, strerror(EFBIG)))
+        fail_msg("'%s' does not give the failing write's reason '%s'", err.message, strerror(EFBIG));
+    assert_content(file, "old");
+    DIR *d = opendir(g_dir);
+    assert_non_null(d);
+    struct dirent *e;
+    while ((e = readdir(d)))
+        if (strstr(e->d_name, ".tmp."))
+            fail_msg("temporary %s left", e->d_name);
+    closedir(d);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -334,6 +379,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_symlink_outputs, setup, teardown),
         cmocka_unit_test_setup_teardown(test_stale_temporaries, setup, teardown),
         cmocka_unit_test_setup_teardown(test_descriptor_paths, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_write_error_reported, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -399,8 +399,12 @@ void sl_atomic_write(sl_atomic_file *f, const void *data, size_t size)
 {
     if (f->failed || !f->fp || size == 0)
         return;
-    if (fwrite(data, 1, size, f->fp) != size)
+    errno = 0;
+    if (fwrite(data, 1, size, f->fp) != size) {
+        /* the reason now, not whatever errno holds by commit time */
+        f->error = errno ? errno : EIO;
         f->failed = true;
+    }
 }
 
 sl_status sl_atomic_commit(sl_atomic_file *f, sl_error *err)
@@ -408,7 +412,9 @@ sl_status sl_atomic_commit(sl_atomic_file *f, sl_error *err)
     if (!f->fp)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "atomic file not open");
     int e = 0;
-    if (f->failed || fflush(f->fp) != 0)
+    if (f->failed)
+        e = f->error ? f->error : EIO;
+    else if ((errno = 0, fflush(f->fp) != 0))
         e = errno ? errno : EIO;
     /* a device or a pipe may not sync: that is no failure of the write */
     if (!e && fsync(fileno(f->fp)) != 0 && !(f->direct && (errno == EINVAL || errno == EROFS || errno == ENOTSUP)))

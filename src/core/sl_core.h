@@ -115,10 +115,11 @@ typedef struct sl_atomic_file {
     char *tmp_path; /* NULL when direct */
     const sl_allocator *alloc;
     bool failed;
+    int error;      /* errno of the write that set failed (reported by commit), 0 if none */
     bool direct;    /* written through; stays set after commit or abort */
 } sl_atomic_file;
 sl_status sl_atomic_open(const sl_allocator *a, const char *path, sl_atomic_file *out, sl_error *err);
-/* Write bytes; errors are sticky and reported by commit. */
+/* Write bytes; errors are sticky and reported by commit, with the errno of the failing write. */
 void sl_atomic_write(sl_atomic_file *f, const void *data, size_t size);
 sl_status sl_atomic_commit(sl_atomic_file *f, sl_error *err);
 void sl_atomic_abort(sl_atomic_file *f);
