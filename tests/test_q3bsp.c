@@ -1219,6 +1219,48 @@ static void test_pk3_names(void **state)
     free(map);
 }
 
+/* Entry names come from the archive: the messages of the pk3 reader (an entry over the size
+ * limit) and of the map reader (a map too short for its header) escape them, so that an escape
+ * sequence or a newline in a name never reaches the terminal raw. */
+static void test_pk3_escaped_names(void **state)
+{
+    (void)state;
+    /* libzip hands names that are not UTF-8 over as CP437 turned to UTF-8 (ESC becomes an arrow),
+     * but UTF-8 ones as they are: a C1 CSI (U+009B), CR and LF reach the messages */
+    static const char evil[] = "maps/e\xc2\x9b" "31mvil\r\nname\x7f.bsp";
+    static const char shown[] = "maps/e\\xc2\\x9b" "31mvil\\x0d\\x0aname\\x7f.bsp";
+    char *pk3 = temp_path(".pk3");
+    int zerr;
+    zip_t *z = zip_open(pk3, ZIP_CREATE | ZIP_TRUNCATE, &zerr);
+    assert_non_null(z);
+    static const char junk[] = "not a map, too short for the header";
+    zip_source_t *src = zip_source_buffer(z, junk, sizeof junk - 1, 0);
+    assert_non_null(src);
+    assert_true(zip_file_add(z, evil, src, ZIP_FL_ENC_RAW) >= 0);
+    assert_int_equal(zip_close(z), 0);
+    size_t zsize;
+    uint8_t *zip = read_file(pk3, &zsize);
+    unlink(pk3);
+    free(pk3);
+    sl_scene s;
+    sl_error err;
+    /* the pk3 reader: over the entry size limit */
+    assert_int_equal(sl_pk3_import_memory(zip, zsize, "evil.pk3", NULL, 8, SL_Q3_MAX_TRIANGLES, NULL, NULL, &s, &err),
+                     SL_ERROR_LIMIT);
+    if (!contains(err.message, shown) || contains(err.message, "\x9b") || contains(err.message, "\n") ||
+        contains(err.message, "\r") || contains(err.message, "\x7f"))
+        fail_msg("pk3 reader: '%s' does not name the entry escaped (%s)", err.message, shown);
+    /* the map reader: its name is "archive:entry" */
+    assert_int_equal(sl_pk3_import_memory(zip, zsize, "evil.pk3", NULL, SL_PK3_MAX_ENTRY_BYTES, SL_Q3_MAX_TRIANGLES,
+                                          NULL, NULL, &s, &err),
+                     SL_ERROR_FORMAT);
+    if (!contains(err.message, shown) || contains(err.message, "\x9b") || contains(err.message, "\n") ||
+        contains(err.message, "\r") || contains(err.message, "\x7f"))
+        fail_msg("map reader: '%s' does not name the entry escaped (%s)", err.message, shown);
+    assert_true(contains(err.message, "evil.pk3:maps/e"));
+    free(zip);
+}
+
 /* Every map of Nexuiz (the Debian package nexuiz-data, when installed; skipped otherwise) loads
  * under the name the archive lists, and the maps that have spawn points give random street views. */
 static void test_nexuiz_maps(void **state)
@@ -1275,6 +1317,7 @@ int main(void)
         cmocka_unit_test(test_spawn_classes),     cmocka_unit_test(test_patch_expansion),
         cmocka_unit_test(test_bsp_boxes),
         cmocka_unit_test(test_pk3_names),         cmocka_unit_test(test_nexuiz_maps),
+        cmocka_unit_test(test_pk3_escaped_names),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

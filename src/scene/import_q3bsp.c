@@ -26,6 +26,8 @@
 #include "scene_internal.h"
 #include "source_meta.h"
 
+#include "../core/escape.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <strings.h>
@@ -106,7 +108,9 @@ typedef struct q3_key {
 } q3_key;
 
 typedef struct q3_ctx {
-    const char *name;
+    const char *name;       /* for messages: `source` escaped (a pk3 entry's name comes from the archive) */
+    const char *source;     /* as given: the file or "archive:entry", for the metadata */
+    char shown[600];
     sl_error *err;
     const sl_allocator *a;
     const sl_progress *progress;
@@ -1228,8 +1232,8 @@ static sl_status q3_set_metadata(q3_ctx *c, uint32_t cluster_count)
         goto done;
     }
     /* the map name: the last path component (after '/' or the archive's ':'), without ".bsp" */
-    const char *base = c->name;
-    for (const char *s = c->name; *s; s++)
+    const char *base = c->source;
+    for (const char *s = c->source; *s; s++)
         if (*s == '/' || *s == ':' || *s == '\\')
             base = s + 1;
     size_t len = strlen(base);
@@ -1237,7 +1241,7 @@ static sl_status q3_set_metadata(q3_ctx *c, uint32_t cluster_count)
         len -= 4;
     sl_scene_stats stats;
     sl_scene_get_stats(c->scene, &stats);
-    if ((st = sl_scene_set_source(c->scene, c->name, c->data, c->size, c->err)) != SL_OK ||
+    if ((st = sl_scene_set_source(c->scene, c->source, c->data, c->size, c->err)) != SL_OK ||
         (st = q3_meta(c, "importer", "quake3-ibsp46")) != SL_OK ||
         (st = q3_meta(c, "q3.map", "%.*s", (int)SL_MIN(len, 200u), base)) != SL_OK ||
         (st = q3_meta(c, "q3.unit_scale", "%.9g", (double)c->scale)) != SL_OK ||
@@ -1308,7 +1312,8 @@ sl_status sl_q3bsp_import_memory_limited(const void *data, size_t size, const ch
     sl_import_options o = opt ? *opt : sl_import_defaults();
     q3_ctx c;
     memset(&c, 0, sizeof c);
-    c.name = name ? name : "<memory>";
+    c.source = name ? name : "<memory>";
+    c.name = sl_escape_text(c.source, 500, c.shown, sizeof c.shown);
     c.err = err;
     c.a = sl_alloc_or_default(alloc);
     c.progress = &o.progress;

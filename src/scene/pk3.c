@@ -5,6 +5,7 @@
 #include "pk3.h"
 #include "source_meta.h"
 
+#include "../core/escape.h"
 #include "../core/sl_core.h"
 
 #include <stdlib.h>
@@ -198,11 +199,15 @@ sl_status sl_pk3_list_maps_memory(const void *data, size_t size, const char *arc
 }
 
 /* Read entry idx whole into memory from `a`, refusing entries larger than max_bytes. */
-static sl_status pk3_read_entry(zip_t *z, zip_int64_t idx, const char *archive, const char *entry, size_t max_bytes,
+static sl_status pk3_read_entry(zip_t *z, zip_int64_t idx, const char *archive, const char *raw_entry, size_t max_bytes,
                                 const sl_allocator *a, uint8_t **out, size_t *out_size, sl_error *err)
 {
     *out = NULL;
     *out_size = 0;
+    /* the entry's name comes from the archive: escaped for every message (control bytes, bad UTF-8) */
+    char shown[300];
+    sl_escape_text(raw_entry, 200, shown, sizeof shown);
+    const char *entry = shown;
     zip_stat_t zs;
     zip_stat_init(&zs);
     if (zip_stat_index(z, (zip_uint64_t)idx, 0, &zs) != 0 || !(zs.valid & ZIP_STAT_SIZE))
@@ -280,13 +285,16 @@ sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archiv
     } else {
         if (!sl_pk3_entry_name(map, wanted, sizeof wanted)) {
             zip_discard(z);
-            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: \"%.200s\" is not a map name (NAME or maps/NAME.bsp)",
-                           archive, map);
+            char shown[300];
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: \"%s\" is not a map name (NAME or maps/NAME.bsp)",
+                           archive, sl_escape_text(map, 200, shown, sizeof shown));
         }
         idx = zip_name_locate(z, wanted, ZIP_FL_NOCASE);
         if (idx < 0) {
             zip_discard(z);
-            return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: entry %s not found", archive, wanted);
+            char shown[300];
+            return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: entry %s not found", archive,
+                           sl_escape_text(wanted, 200, shown, sizeof shown));
         }
     }
     const char *entry = zip_get_name(z, (zip_uint64_t)idx, 0);
@@ -309,7 +317,8 @@ sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archiv
     if (st == SL_OK) {
         st = sl_q3bsp_import_memory_limited(bytes, nbytes, name, opt, max_triangles, alloc, out, err);
         sl_free(a, bytes, nbytes ? nbytes : 1);
-        /* `entry` died with the archive handle: its copy in `name` follows "archive:" */
+        /* `entry` died with the archive handle: its copy in `name` follows "archive:" (the map
+         * reader escapes the name in its messages) */
         if (st == SL_OK && (st = sl_scene_set_source_entry(*out, archive, name + strlen(archive) + 1, err)) != SL_OK) {
             sl_scene_destroy(*out);
             *out = NULL;
