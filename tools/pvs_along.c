@@ -7,7 +7,6 @@
 #include "sightline/region.h"
 
 #include <string.h>
-#include <unistd.h>
 
 /* The frames first..first+count-1 of `path` (count clamped to its end) as a new path with the same
  * intrinsics: the cameras whose cells are baked. Poses of a valid path append without error. */
@@ -74,12 +73,12 @@ sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, uint32_t first, uint3
     sl_viewcells_destroy(all);
     sl_path_destroy(run);
     if (st == SL_OK && near) {
-        /* a journal left by an interrupted run belongs to this output: start afresh */
-        char journal[4500];
-        snprintf(journal, sizeof journal, "%s.ckpt", file);
-        unlink(journal);
         sl_pvs_build_options bo;
         memset(&bo, 0, sizeof bo);
+        /* a journal left by an interrupted run belongs to this output: start afresh. The bake
+         * removes it under its lock, so the journal of a bake of this file that runs is never
+         * removed: that bake is reported ("another bake of FILE is running (pid N)") */
+        bo.fresh = true;
         bo.method = CLI_PVS_ALONG_METHOD;
         bo.progress = *prog;
         sl_pvs_build_stats stats;

@@ -46,7 +46,8 @@ typedef struct cli_pvs_along {
 /* Bake into `file` the PVS of the street cells within CLI_PVS_ALONG_RADIUS of the cameras of the
  * frames first..first+count-1 of `path` (the frames that will be run: count UINT32_MAX or past the
  * end means to the last frame; first must be a frame of the path) with CLI_PVS_ALONG_METHOD (a
- * journal left by an interrupted run is discarded first), so that the pvs culler runs along those
+ * journal left by an interrupted run is discarded, under the bake lock: a bake of `file` that
+ * runs is reported, never disturbed), so that the pvs culler runs along those
  * frames; elsewhere it finds no cell and culls by the frustum. SL_OK with out->why set and nothing
  * written when the pvs culler's file= option cannot name `file` (a comma, '=' or white space), when
  * the scene has no street polygons, or when no cell is near those frames. A failed bake is an

@@ -154,6 +154,10 @@ typedef struct sl_pvs_build_options {
                                    cells, leaving the journal behind; 0: never */
     sl_progress progress;       /* called under a lock, from whichever thread finished a cell */
     const sl_allocator *alloc;  /* called from several threads at once: must be thread-safe */
+    bool fresh;                 /* remove a journal left by an earlier bake of this output and bake
+                                   afresh; done under the bake lock, so the journal of a bake that
+                                   runs is never touched (that bake is reported instead); not with
+                                   resume */
 } sl_pvs_build_options;
 
 typedef struct sl_pvs_build_stats {

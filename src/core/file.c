@@ -201,6 +201,70 @@ static char *dangling_target(const sl_allocator *a, const char *path)
     return NULL;
 }
 
+char *sl_file_resolve_links(const sl_allocator *a, const char *path, sl_error *err)
+{
+    struct stat lst, st;
+    char *out = NULL;
+    if (lstat(path, &lst) != 0 || !S_ISLNK(lst.st_mode)) {
+        out = sl_strdup(a, path);
+    } else if (stat(path, &st) == 0) {
+        char *real = realpath(path, NULL);
+        if (!real)
+            return (void)sl_fail(err, SL_ERROR_IO, "%s: cannot resolve its symbolic links: %s", path, strerror(errno)),
+                   NULL;
+        out = sl_strdup(a, real);
+        free(real);
+    } else if (errno == ENOENT) {
+        out = dangling_target(a, path);
+        if (!out)
+            return (void)sl_fail(err, SL_ERROR_IO, "%s: cannot resolve its symbolic links: %s", path,
+                                 strerror(errno ? errno : ENOMEM)),
+                   NULL;
+    } else {
+        return (void)sl_fail(err, SL_ERROR_IO, "%s: cannot resolve its symbolic links: %s", path, strerror(errno)),
+               NULL;
+    }
+    if (!out)
+        sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    return out;
+}
+
+sl_status sl_file_open_regular(const char *path, int flags, const char *what, int *fd_out, sl_error *err)
+{
+    *fd_out = -1;
+    /* O_NONBLOCK: a FIFO fails (no reader) or opens at once, and is refused below, never waited for */
+    int fd = open(path, flags | O_NOFOLLOW | O_NONBLOCK | O_NOCTTY | O_CLOEXEC, 0644);
+    struct stat st;
+    if (fd < 0) {
+        int e = errno;
+        if (lstat(path, &st) == 0 && !S_ISREG(st.st_mode))
+            return sl_fail(err, SL_ERROR_IO, "%s: cannot use it as %s: it is %s, not a regular file (remove it, or "
+                                             "give another path)",
+                           path, what, sl_file_kind_name(st.st_mode));
+        return sl_fail(err, e == ENOENT ? SL_ERROR_NOT_FOUND : SL_ERROR_IO, "%s: cannot open %s: %s", path, what,
+                       strerror(e));
+    }
+    if (fstat(fd, &st) != 0) {
+        int e = errno;
+        close(fd);
+        return sl_fail(err, SL_ERROR_IO, "%s: cannot open %s: %s", path, what, strerror(e));
+    }
+    if (!S_ISREG(st.st_mode)) {
+        close(fd);
+        return sl_fail(err, SL_ERROR_IO, "%s: cannot use it as %s: it is %s, not a regular file (remove it, or give "
+                                         "another path)",
+                       path, what, sl_file_kind_name(st.st_mode));
+    }
+    int fl = fcntl(fd, F_GETFL);
+    if (fl < 0 || fcntl(fd, F_SETFL, fl & ~O_NONBLOCK) != 0) {
+        int e = errno;
+        close(fd);
+        return sl_fail(err, SL_ERROR_IO, "%s: cannot open %s: %s", path, what, strerror(e));
+    }
+    *fd_out = fd;
+    return SL_OK;
+}
+
 bool sl_atomic_temp_name_pid(const char *base, const char *name, long *pid_out)
 {
     size_t bl = strlen(base);

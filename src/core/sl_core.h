@@ -92,6 +92,15 @@ uint64_t sl_hash64(const void *data, size_t size, uint64_t seed); /* XXH3-64 */
 sl_status sl_file_open_read(const char *path, int *fd, uint64_t *size, sl_error *err);
 /* "a directory", "a FIFO", "a character device", ... for a st_mode. */
 const char *sl_file_kind_name(unsigned mode);
+/* A file the library keeps open and rewrites in place (a bake journal, its lock): opened with
+ * open(2) flags (O_WRONLY or O_RDWR, O_CREAT, O_TRUNC) plus O_NOFOLLOW (a symbolic link there is
+ * refused: resolve it first) and O_NONBLOCK (cleared again: a FIFO never blocks), and refused
+ * unless it is a regular file: "PATH: cannot use it as WHAT: it is a FIFO, not a regular file". */
+sl_status sl_file_open_regular(const char *path, int flags, const char *what, int *fd, sl_error *err);
+/* path with its symbolic links resolved as the atomic writer resolves an output's (the file a
+ * chain of links ends at; for a dangling link, the file it would create), or path itself when
+ * it is no link or does not exist; from sl_strdup(a). NULL with err set on failure. */
+char *sl_file_resolve_links(const sl_allocator *a, const char *path, sl_error *err);
 
 /* Read a whole (regular) file into memory allocated with a. */
 sl_status sl_file_read_all(const sl_allocator *a, const char *path, uint8_t **out, size_t *size, sl_error *err);

@@ -283,9 +283,11 @@ static sl_status bake_lock(sl_bake *b, sl_error *err)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     snprintf(b->lock_path, n, "%s.lock", b->journal);
     for (int tries = 0; tries < 16; tries++) {
-        int fd = open(b->lock_path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-        if (fd < 0)
-            return sl_fail(err, SL_ERROR_IO, "%s: cannot create the bake lock: %s", b->lock_path, strerror(errno));
+        /* a regular file, never through a link nor a FIFO (see sl_file_open_regular) */
+        int fd;
+        sl_status st = sl_file_open_regular(b->lock_path, O_RDWR | O_CREAT, "the bake lock", &fd, err);
+        if (st != SL_OK)
+            return st;
         if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
             int e = errno;
             if (e == EWOULDBLOCK) {
@@ -355,11 +357,26 @@ static sl_status journal_open(sl_bake *b, const char *output, const sl_pvs_build
     else
         snprintf(b->journal, n, "%s.ckpt", output);
     memcpy(b->output, output, no);
+    /* a journal named through symbolic links is the file they end at (as for outputs), and its
+     * lock lies beside that file: bakes that name it through different links share one lock */
+    char *real = sl_file_resolve_links(b->a, b->journal, err);
+    if (!real)
+        return SL_ERROR_IO;
+    sl_free(b->a, b->journal, n);
+    b->journal = real;
+    bool resume = opt && opt->resume;
+    if (resume && opt->fresh)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "pvs bake: resume and fresh exclude each other");
     sl_status st = bake_lock(b, err);
     if (st != SL_OK)
         return st;
-    bool resume = opt && opt->resume;
     struct stat sb;
+    if (opt && opt->fresh && lstat(b->journal, &sb) == 0 && S_ISREG(sb.st_mode)) {
+        /* under the lock: a journal of an earlier bake, never that of one that runs */
+        if (unlink(b->journal) != 0 && errno != ENOENT)
+            return sl_fail(err, SL_ERROR_IO, "%s: cannot remove the checkpoint of an earlier bake: %s", b->journal,
+                           strerror(errno));
+    }
     if (stat(b->journal, &sb) != 0)
         return SL_OK; /* a fresh bake (with --resume too: nothing to resume yet) */
     char rm[4200];
@@ -397,8 +414,9 @@ static sl_status journal_open(sl_bake *b, const char *output, const sl_pvs_build
                        "%s: a checkpoint of an interrupted bake of the same scene, cells and options holds %u of %u "
                        "cells: continue it (--resume), or delete it to bake afresh: %s",
                        b->journal, b->resumed, b->cell_count, rm);
-    b->fd = open(b->journal, O_WRONLY | O_CLOEXEC);
-    if (b->fd < 0 || ftruncate(b->fd, (off_t)valid) != 0 || lseek(b->fd, (off_t)valid, SEEK_SET) < 0)
+    if ((st = sl_file_open_regular(b->journal, O_WRONLY, "the checkpoint", &b->fd, err)) != SL_OK)
+        return st;
+    if (ftruncate(b->fd, (off_t)valid) != 0 || lseek(b->fd, (off_t)valid, SEEK_SET) < 0)
         return sl_fail(err, SL_ERROR_IO, "%s: cannot reopen the checkpoint: %s", b->journal, strerror(errno));
     b->last_sync = sl_now();
     return SL_OK;
@@ -407,9 +425,11 @@ static sl_status journal_open(sl_bake *b, const char *output, const sl_pvs_build
 /* Create the journal: the header, then the records (with the first finished cell). */
 static sl_status journal_create(sl_bake *b, sl_error *err)
 {
-    b->fd = open(b->journal, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (b->fd < 0)
-        return sl_fail(err, SL_ERROR_IO, "%s: cannot create the checkpoint: %s", b->journal, strerror(errno));
+    /* a regular file only: a FIFO or a device put there since the bake began is refused, not
+     * waited for or written into, and a symbolic link is not followed */
+    sl_status st = sl_file_open_regular(b->journal, O_WRONLY | O_CREAT | O_TRUNC, "the checkpoint", &b->fd, err);
+    if (st != SL_OK)
+        return st;
     char desc[SL_OPTS_MAX_CHARS + 128];
     int dl = journal_desc(b, desc, sizeof desc);
     uint8_t h[J_HEADER];
