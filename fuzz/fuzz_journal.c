@@ -5,7 +5,9 @@
  * the target takes those three from the input's own header (version 2: a description follows it) (bounded: at most 4096 cells and
  * 65536 objects) and reads the input three ways: as it is; with a header rebuilt to match (magic,
  * version, zeroed padding, header checksum), so mutations reach the records; and with every
- * record's checksum recomputed as well, so they reach the set decoder. */
+ * record's checksum recomputed as well, so they reach the set decoder. The seeds
+ * (fuzz/seeds/journal) are real version-2 journals of small bakes; their README says how they were
+ * made, and test_bake_files checks that they still read back whole. */
 #include "core/sl_core.h"
 #include "region/pvs_internal.h"
 

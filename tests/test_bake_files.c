@@ -6,6 +6,7 @@
  *   that must not be truncated), a FIFO or a folder, and a journal that became a FIFO after the
  *   bake began (it would have blocked open(2) for ever) are refused with what they are, and left
  *   where they are. A journal named through a symbolic link is the file the link ends at.
+ * - The journal fuzzer's seeds are journals of the current version.
  * Every bake here is of one or two cells of the tiny city; SIGALRM bounds a blocked open(2). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -22,6 +23,7 @@
 #include <unistd.h>
 
 #include "core/sl_core.h"
+#include "region/pvs_internal.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
 #include "sightline/pvs.h"
@@ -263,11 +265,49 @@ static void test_journal_and_lock_regular(void **state)
     sl_scene_destroy(s);
 }
 
+/* The journal fuzzer's seeds (fuzz/seeds/journal, made as its README says) are journals of the
+ * current version that the reader takes whole, with the cells the README lists. */
+static void test_journal_seeds(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *name;
+        uint32_t cells;
+        bool torn;
+    } seeds[] = {{"two_cells.ckpt", 2, false},
+                 {"all_cells.ckpt", 4, false},
+                 {"adjustable_one_cell.ckpt", 1, false},
+                 {"torn_record.ckpt", 1, true},
+                 {"header_only.ckpt", 0, false}};
+    for (size_t i = 0; i < sizeof seeds / sizeof seeds[0]; i++) {
+        char path[512];
+        snprintf(path, sizeof path, "%s/fuzz/seeds/journal/%s", SL_SOURCE_DIR, seeds[i].name);
+        uint8_t *data;
+        size_t size;
+        sl_error err;
+        assert_int_equal(sl_file_read_all(NULL, path, &data, &size, &err), SL_OK);
+        assert_true(size >= 64 && size < 20000);
+        uint32_t cells, objects;
+        uint64_t key;
+        memcpy(&cells, data + 12, 4);
+        memcpy(&objects, data + 16, 4);
+        memcpy(&key, data + 24, 8);
+        size_t valid;
+        uint32_t resumed;
+        if (sl_bake_journal_check(data, size, cells, objects, key, NULL, &valid, &resumed, &err) != SL_OK)
+            fail_msg("%s: %s", seeds[i].name, err.message);
+        if (resumed != seeds[i].cells || (valid == size) == seeds[i].torn)
+            fail_msg("%s: %u cells, %zu of %zu bytes valid", seeds[i].name, resumed, valid, size);
+        sl_free(NULL, data, size);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_along_respects_lock, setup, teardown),
         cmocka_unit_test_setup_teardown(test_journal_and_lock_regular, setup, teardown),
+        cmocka_unit_test(test_journal_seeds),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
