@@ -94,4 +94,11 @@ if command -v python3 >/dev/null; then
     python3 -c 'import json, sys; d = json.load(open(sys.argv[1])); assert len(d["maps"]) == 6' "$tmp/out" ||
         fail "--list-maps --json is not valid JSON"
 fi
+# ... and so do the messages that name an entry (the map reader's, against "archive:entry")
+expect 1 "$SL" import "$data/odd-names.pk3" --map $'maps/new\nline.bsp' -o "$tmp/x.slscene"
+has 'odd-names.pk3:maps/new\\x0aline\.bsp: offset 0' "$tmp/err"
+[ "$(wc -l <"$tmp/err")" -eq 1 ] || fail "a raw newline in the message"
+expect 1 "$SL" import "$data/odd-names.pk3" --map $'maps/c1\xc2\x9b.bsp' -o "$tmp/x.slscene"
+has 'odd-names.pk3:maps/c1\\xc2\\x9b\.bsp: offset 0' "$tmp/err"
+if grep -q $'\xc2\x9b' "$tmp/err"; then fail "a raw C1 control in the message"; fi
 echo "ok"
