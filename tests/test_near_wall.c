@@ -527,10 +527,77 @@ static void test_near_plane_limit(void **state)
     sl_scene_destroy(s);
 }
 
+/* A huge far plane (issue 12 §1): the 2.5D methods declare no depth format, so a camera with far
+ * 1e6, 1e10, 1e20 or 3e38 m is accepted; they must stay conservative there (cullmap missed 10
+ * objects at 1e20 before its view bounded the far plane, docs/urban.md "Any far plane"). Judged by the oracle at the
+ * same far plane where it accepts it (far/near <= 2^24), else at 1e6 m, beyond the city, which sees
+ * the same. Methods that refuse the camera must name the limit. Tiny and small city, street views. */
+static void test_huge_far(void **state)
+{
+    (void)state;
+    static const float fars[] = {1e6f, 1e10f, 1e20f, 3e38f};
+    uint64_t misses = 0;
+    for (int city = 0; city < 2; city++) {
+        sl_city_options co = sl_city_defaults(city ? SL_CITY_SMALL : SL_CITY_TINY);
+        sl_scene s;
+        sl_error err;
+        assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+        sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+        po.intrinsics.width = 160;
+        po.intrinsics.height = 120;
+        sl_path p;
+        uint32_t views = sanitized() ? 3 : 12;
+        assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, views, 31 + (uint64_t)city, &po, NULL, &p, &err),
+                         SL_OK);
+        uint32_t n = sl_scene_object_count(s), *out = malloc(n * sizeof *out), missed[4], mpx[4];
+        sl_oracle o;
+        assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+        sl_culler c[NM];
+        for (size_t i = 0; i < NM; i++)
+            assert_int_equal(sl_culler_create(g_methods[i].name, s, g_methods[i].options, NULL, &c[i], &err), SL_OK);
+        for (uint32_t f = 0; f < sl_path_count(p); f++)
+            for (size_t q = 0; q < SL_COUNTOF(fars); q++) {
+                sl_camera v = sl_path_camera(p, f);
+                v.far_plane = fars[q];
+                sl_camera ref = v;
+                if ((double)ref.far_plane / ref.near_plane > SL_CAMERA_MAX_FAR_NEAR)
+                    ref.far_plane = 1e6f;
+                sl_oracle_frame fr;
+                assert_int_equal(sl_oracle_render(o, &ref, &fr, &err), SL_OK);
+                for (size_t i = 0; i < NM; i++) {
+                    uint32_t k;
+                    sl_status st = sl_culler_cull(c[i], &v, out, n, &k, &err);
+                    if (st != SL_OK) {
+                        if (st != SL_ERROR_INVALID_ARGUMENT || !strstr(err.message, g_methods[i].name) ||
+                            !strstr(err.message, "far"))
+                            fail_msg("%s, far %g: %s", g_methods[i].name, (double)v.far_plane, err.message);
+                        continue;
+                    }
+                    sl_cull_metrics mt;
+                    assert_int_equal(sl_metrics_compare(s, &fr, out, k, &mt, missed, mpx, 4, &err), SL_OK);
+                    if (mt.missed_count)
+                        print_message("%s city: %s%s%s, far %g (view %u): missed %u objects (first %u, %u pixels)\n",
+                                      city ? "small" : "tiny", g_methods[i].name, g_methods[i].options ? " " : "",
+                                      g_methods[i].options ? g_methods[i].options : "", (double)v.far_plane, f,
+                                      mt.missed_count, missed[0], mpx[0]);
+                    misses += mt.missed_count;
+                }
+            }
+        for (size_t i = 0; i < NM; i++)
+            sl_culler_destroy(c[i]);
+        sl_oracle_destroy(o);
+        free(out);
+        sl_path_destroy(p);
+        sl_scene_destroy(s);
+    }
+    assert_int_equal(misses, 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_near_plane_limit),
+        cmocka_unit_test(test_huge_far),
         cmocka_unit_test(test_building_near_wall),
         cmocka_unit_test(test_near_wall_views),
         cmocka_unit_test(test_near_wall_pvs),
