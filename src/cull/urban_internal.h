@@ -139,9 +139,10 @@ struct sl_urban_view {
 
 /* Analyse a (validated) camera. */
 /* The view of a camera. Its far plane is first brought in to just beyond the farthest point of
- * u->world (when nearer than the camera's): the frustum's plan polygon is the hull of its far
- * corners, whose double-precision orientation tests lose the near corners once far/near passes
- * about 1e15 (far 1e20 m missed objects); everything the methods can cull lies within that
+ * u->world (when nearer than the camera's): the frustum's plan polygon is the hull of its
+ * corners, whose double-precision orientation tests lose a near corner once the far corners lie
+ * 1e17 m away or more, and the azimuth range comes from the float far corners (far 1e20 m missed
+ * objects); everything the methods can cull lies within that
  * distance, so the result is the same as with the camera's far plane. */
 void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *cam, sl_urban_view *v);
 /* Box against the frustum planes (with the rounding slack of vfc): false only when outside. */
