@@ -443,6 +443,83 @@ static void test_building_near_wall(void **state)
     assert_int_equal(bad, 0);
 }
 
+/* The pvs culler before the building of judge_building (closed convex, with its footprint): one
+ * box cell in front of its wall (x in [-3, 0], eyes 1-2 m up), baked by the sample method — from
+ * the cell the target behind the building is hidden, so the set leaves it out — and an eye 5 mm
+ * from the wall looking at it, which sees the target through the clipped wall: the near-plane
+ * region reaches into the building, outside every cell, and the culler must keep the target. */
+static void test_building_pvs(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_box(s, (sl_vec3){-40, -40, -0.1f}, (sl_vec3){40, 40, 0}, SL_KIND_GROUND, 0);
+    uint32_t b = add_box(s, (sl_vec3){0, -5, 0}, (sl_vec3){5, 5, 6}, SL_KIND_BUILDING,
+                         SL_OBJECT_OCCLUDER | SL_OBJECT_CLOSED_CONVEX);
+    float xy[8] = {0, -5, 5, -5, 5, 5, 0, 5};
+    sl_footprint_desc fd = {xy, 4, 0.0f, 6.0f, b};
+    assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
+    uint32_t target = add_box(s, (sl_vec3){8, -1, 0}, (sl_vec3){9, 1, 3}, SL_KIND_OTHER, 0);
+    sl_viewcell cell;
+    memset(&cell, 0, sizeof cell);
+    cell.shape = SL_CELL_BOX;
+    cell.cluster = -1;
+    cell.z_min = 1;
+    cell.z_max = 2;
+    cell.bounds = (sl_aabb){{-3, -2, 1}, {0, 2, 2}};
+    sl_viewcells vc;
+    assert_int_equal(sl_viewcells_create(&cell, 1, NULL, &vc, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), ids[8], k;
+    if (sl_pvs_bake_cell(s, vc, 0, "sample", NULL, ids, n, &k, &err) != SL_OK)
+        fail_msg("sample bake: %s", err.message);
+    for (uint32_t i = 0; i < k; i++)
+        assert_int_not_equal(ids[i], target); /* hidden from the whole cell */
+    uint64_t off[2] = {0, k};
+    char file[64], opts[96];
+    snprintf(file, sizeof file, "/tmp/sl_near_wall_building_%ld.slpvs", (long)getpid());
+    assert_int_equal(sl_pvs_write(file, vc, n, sl_pvs_scene_key(s), off, ids, "method=sample\nguarantee=conservative",
+                                  &err),
+                     SL_OK);
+    snprintf(opts, sizeof opts, "file=%s", file);
+    sl_culler c;
+    assert_int_equal(sl_culler_create("pvs", s, opts, NULL, &c, &err), SL_OK);
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    uint32_t bad = 0;
+    static const float gaps[] = {0.005f, 0.05f}, yaws[] = {0.0f, 0.6f};
+    for (size_t g = 0; g < SL_COUNTOF(gaps); g++)
+        for (size_t y = 0; y < SL_COUNTOF(yaws); y++) {
+            sl_camera cam = sl_camera_default();
+            cam.width = 160;
+            cam.height = 120;
+            cam.position = (sl_vec3){-gaps[g], 0, 1.7f};
+            cam.yaw = yaws[y];
+            sl_oracle_frame fr;
+            assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+            bool seen = false;
+            for (uint32_t i = 0; i < fr.visible_count; i++)
+                seen |= fr.visible[i] == target;
+            if (yaws[y] == 0.0f)
+                assert_true(seen); /* through the clipped wall */
+            uint32_t out[8], missed[4], mpx[4];
+            assert_int_equal(sl_culler_cull(c, &cam, out, n, &k, &err), SL_OK);
+            sl_cull_metrics mt;
+            assert_int_equal(sl_metrics_compare(s, &fr, out, k, &mt, missed, mpx, 4, &err), SL_OK);
+            if (mt.missed_count) {
+                bad++;
+                print_message("pvs: eye %.3f m from the wall, yaw %.2f: missed %u objects (first %u, %u pixels)\n",
+                              (double)gaps[g], (double)yaws[y], mt.missed_count, missed[0], mpx[0]);
+            }
+        }
+    sl_oracle_destroy(o);
+    sl_culler_destroy(c);
+    unlink(file);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+    assert_int_equal(bad, 0);
+}
+
 /* A near plane of 1e-30 m is refused, naming the limit, by every method that projects with the
  * float matrix and by the oracle; a sane one is accepted; a far/near ratio beyond 2^24 is refused
  * by the clip-space depth of hzb and the oracle, not by the 1/w of lazygrid; at the accepted limit
@@ -607,6 +684,7 @@ int main(void)
         cmocka_unit_test(test_near_plane_limit),
         cmocka_unit_test(test_huge_far),
         cmocka_unit_test(test_building_near_wall),
+        cmocka_unit_test(test_building_pvs),
         cmocka_unit_test(test_near_wall_views),
         cmocka_unit_test(test_near_wall_pvs),
     };
