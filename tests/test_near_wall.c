@@ -520,6 +520,58 @@ static void test_building_pvs(void **state)
     assert_int_equal(bad, 0);
 }
 
+/* The union itself: two box cells side by side (x in [-4, 0] and [0, 4]) with hand-written sets
+ * {a} and {b}; both objects ahead of the eye. An eye deep in the first cell gets a alone; one 5 cm
+ * from the boundary, looking across it, gets a and b (its near-plane region meets both cells);
+ * back deep in the first cell, a alone again (the union is not kept beyond its cells). */
+static void test_pvs_union(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    uint32_t a = add_box(s, (sl_vec3){10, -1, 0}, (sl_vec3){11, 1, 3}, SL_KIND_OTHER, 0);
+    uint32_t b = add_box(s, (sl_vec3){12, 3, 0}, (sl_vec3){13, 5, 3}, SL_KIND_OTHER, 0);
+    sl_viewcell cell[2];
+    memset(cell, 0, sizeof cell);
+    for (int i = 0; i < 2; i++) {
+        cell[i].shape = SL_CELL_BOX;
+        cell[i].cluster = -1;
+        cell[i].z_min = 1;
+        cell[i].z_max = 2;
+        cell[i].bounds = (sl_aabb){{-4.0f + 4.0f * (float)i, -4, 1}, {4.0f * (float)i, 4, 2}};
+    }
+    sl_viewcells vc;
+    assert_int_equal(sl_viewcells_create(cell, 2, NULL, &vc, &err), SL_OK);
+    uint64_t off[3] = {0, 1, 2};
+    uint32_t ids[2] = {a, b};
+    char file[64], opts[96];
+    snprintf(file, sizeof file, "/tmp/sl_near_wall_union_%ld.slpvs", (long)getpid());
+    assert_int_equal(sl_pvs_write(file, vc, 2, sl_pvs_scene_key(s), off, ids, "method=sample\nguarantee=conservative",
+                                  &err),
+                     SL_OK);
+    snprintf(opts, sizeof opts, "file=%s", file);
+    sl_culler c;
+    assert_int_equal(sl_culler_create("pvs", s, opts, NULL, &c, &err), SL_OK);
+    static const float xs[] = {-2.0f, -0.05f, -2.0f};
+    static const uint32_t want[] = {1, 2, 1};
+    for (size_t i = 0; i < SL_COUNTOF(xs); i++) {
+        sl_camera cam = sl_camera_default();
+        cam.position = (sl_vec3){xs[i], 0, 1.5f};
+        cam.yaw = 0.2f;
+        uint32_t out[2], k;
+        assert_int_equal(sl_culler_cull(c, &cam, out, 2, &k, &err), SL_OK);
+        assert_int_equal(k, want[i]);
+        assert_int_equal(out[0], a);
+        if (k == 2)
+            assert_int_equal(out[1], b);
+    }
+    sl_culler_destroy(c);
+    unlink(file);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+}
+
 /* A near plane of 1e-30 m is refused, naming the limit, by every method that projects with the
  * float matrix and by the oracle; a sane one is accepted; a far/near ratio beyond 2^24 is refused
  * by the clip-space depth of hzb and the oracle, not by the 1/w of lazygrid; at the accepted limit
@@ -685,6 +737,7 @@ int main(void)
         cmocka_unit_test(test_huge_far),
         cmocka_unit_test(test_building_near_wall),
         cmocka_unit_test(test_building_pvs),
+        cmocka_unit_test(test_pvs_union),
         cmocka_unit_test(test_near_wall_views),
         cmocka_unit_test(test_near_wall_pvs),
     };
