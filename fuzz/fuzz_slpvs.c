@@ -78,6 +78,11 @@ static void exercise(const uint8_t *data, size_t size)
     for (uint32_t c = 0; ids && c < in.cell_count && c < 4096; c++)
         (void)sl_pvs_cell_set(p, c, ids, cap, &n, &err);
     (void)sl_viewcells_locate(sl_pvs_cells(p), NULL, (sl_vec3){0, 0, 1});
+    if (ids) { /* the pvs culler's near-plane query over the file's cells */
+        sl_aabb nb = {{-0.2f, -0.2f, 0.8f}, {0.2f, 0.2f, 1.2f}};
+        bool cov;
+        (void)sl_viewcells_overlap(sl_pvs_cells(p), NULL, &nb, ids, cap + 1, &cov);
+    }
     (void)sl_pvs_verify(p, &err);
     free(ids);
     sl_pvs_destroy(p);

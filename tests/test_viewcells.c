@@ -279,6 +279,86 @@ static void test_bsp_clusters(void **state)
     sl_scene_destroy(s);
 }
 
+/* sl_viewcells_overlap (the pvs culler's near-plane region): the cells a box meets, ascending, and
+ * whether they cover it — through the BSP for clusters (a solid leaf uncovers), by volume for
+ * boxes and prisms (a box reaching past the cells, sideways or below the eye range, uncovers). */
+static void test_overlap(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    /* x < 0: cluster 1; 0 <= x < 2: cluster 0; x >= 2: solid */
+    sl_plane planes[2] = {{1, 0, 0, 0}, {1, 0, 0, -2}};
+    sl_bsp_node nodes[2] = {{0, {1, -2}, {{-4, -4, -4}, {4, 4, 4}}}, {1, {-3, -1}, {{0, -4, -4}, {4, 4, 4}}}};
+    sl_bsp_leaf leaves[3] = {{0, 0, {{0, -4, -4}, {2, 4, 4}}, 0, 0},
+                             {1, 0, {{-4, -4, -4}, {0, 4, 4}}, 0, 0},
+                             {-1, 0, {{2, -4, -4}, {4, 4, 4}}, 0, 0}};
+    uint8_t pvs[2] = {0x3, 0x3};
+    sl_bsp_desc bd = {planes, 2, nodes, 2, leaves, 3, NULL, 0, 2, 1, pvs};
+    assert_int_equal(sl_scene_set_bsp(s, &bd, &err), SL_OK);
+    sl_viewcells vc;
+    assert_int_equal(sl_viewcells_from_bsp(s, NULL, &vc, &err), SL_OK);
+    uint32_t out[4];
+    bool cov;
+    sl_aabb b1 = {{0.5f, -1, -1}, {1, 1, 1}}, b2 = {{-0.5f, -1, -1}, {0.5f, 1, 1}}, b3 = {{1.9f, -1, -1}, {2.1f, 1, 1}};
+    assert_int_equal(sl_viewcells_overlap(vc, s, &b1, out, 4, &cov), 1);
+    assert_int_equal(out[0], 0);
+    assert_true(cov);
+    assert_int_equal(sl_viewcells_overlap(vc, s, &b2, out, 4, &cov), 2);
+    assert_int_equal(out[0], 0);
+    assert_int_equal(out[1], 1);
+    assert_true(cov);
+    assert_int_equal(sl_viewcells_overlap(vc, s, &b2, out, 1, &cov), 1); /* does not fit */
+    assert_false(cov);
+    assert_int_equal(sl_viewcells_overlap(vc, s, &b3, out, 4, &cov), 1); /* reaches the solid leaf */
+    assert_int_equal(out[0], 0);
+    assert_false(cov);
+    sl_viewcells_destroy(vc);
+    sl_scene_destroy(s);
+
+    /* two boxes side by side */
+    sl_viewcell c[2];
+    memset(c, 0, sizeof c);
+    for (int i = 0; i < 2; i++) {
+        c[i].shape = SL_CELL_BOX;
+        c[i].cluster = -1;
+        c[i].z_min = 0;
+        c[i].z_max = 1;
+        c[i].bounds = (sl_aabb){{(float)i, 0, 0}, {(float)i + 1, 1, 1}};
+    }
+    assert_int_equal(sl_viewcells_create(c, 2, NULL, &vc, &err), SL_OK);
+    sl_aabb q1 = {{0.9f, 0.2f, 0.2f}, {1.1f, 0.8f, 0.8f}}, q2 = {{1.9f, 0.2f, 0.2f}, {2.1f, 0.8f, 0.8f}};
+    assert_int_equal(sl_viewcells_overlap(vc, NULL, &q1, out, 4, &cov), 2);
+    assert_true(cov);
+    assert_int_equal(sl_viewcells_overlap(vc, NULL, &q2, out, 4, &cov), 1);
+    assert_int_equal(out[0], 1);
+    assert_false(cov);
+    sl_viewcells_destroy(vc);
+
+    /* a square of two prisms, eyes 1 to 2 m up */
+    memset(c, 0, sizeof c);
+    const sl_vec2 tri[2][3] = {{{0, 0}, {4, 0}, {4, 4}}, {{0, 0}, {4, 4}, {0, 4}}};
+    for (int i = 0; i < 2; i++) {
+        c[i].shape = SL_CELL_PRISM;
+        c[i].cluster = -1;
+        memcpy(c[i].tri, tri[i], sizeof tri[i]);
+        c[i].z_min = 1;
+        c[i].z_max = 2;
+        c[i].bounds = (sl_aabb){{0, 0, 1}, {4, 4, 2}};
+    }
+    assert_int_equal(sl_viewcells_create(c, 2, NULL, &vc, &err), SL_OK);
+    sl_aabb p1 = {{1.5f, 1.5f, 1.2f}, {2.5f, 2.5f, 1.8f}}, p2 = {{1.5f, 1.5f, 0.8f}, {2.5f, 2.5f, 1.2f}},
+            p3 = {{3.5f, 1.5f, 1.2f}, {4.5f, 2.5f, 1.8f}};
+    assert_int_equal(sl_viewcells_overlap(vc, NULL, &p1, out, 4, &cov), 2);
+    assert_true(cov);
+    assert_int_equal(sl_viewcells_overlap(vc, NULL, &p2, out, 4, &cov), 2); /* below the eye range */
+    assert_false(cov);
+    assert_int_equal(sl_viewcells_overlap(vc, NULL, &p3, out, 4, &cov), 2); /* off the square */
+    assert_false(cov);
+    sl_viewcells_destroy(vc);
+}
+
 /* sl_viewcells_create refuses each kind of bad record, naming the cell. */
 static void test_validation(void **state)
 {
@@ -375,6 +455,7 @@ int main(void)
         cmocka_unit_test(test_street_cross),  cmocka_unit_test(test_footprint_hole),
         cmocka_unit_test(test_adaptive),      cmocka_unit_test(test_bsp_clusters),
         cmocka_unit_test(test_validation),    cmocka_unit_test(test_tiny_city),
+        cmocka_unit_test(test_overlap),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -103,6 +103,15 @@ SL_API const sl_viewcell *sl_viewcells_data(sl_viewcells cells);
  * BSP decides); other shapes ignore `scene` (may be NULL). Allocation-free; safe from any number
  * of threads at once. */
 SL_API uint32_t sl_viewcells_locate(sl_viewcells cells, sl_scene scene, sl_vec3 p);
+/* The cells meeting box `box` (closed), ascending and without repeats, into out (at most capacity;
+ * returns how many were written). *covered (may be NULL) tells whether those cells cover the whole
+ * box: CLUSTER cells when every BSP leaf the box meets (through the scene's BSP tree) belongs to a
+ * cell — none is solid or void (a leaf without a cluster); PRISM and BOX cells when the volumes of
+ * the box's intersections with the cells add up to the box's (up to 1e-6 of it; cells do not
+ * overlap). False too when the cells do not fit in out. Allocation-free; safe from any number of
+ * threads at once. The pvs culler calls it with the box of its camera's near-plane region. */
+SL_API uint32_t sl_viewcells_overlap(sl_viewcells cells, sl_scene scene, const sl_aabb *box, uint32_t *out,
+                                     uint32_t capacity, bool *covered);
 /* True when point p lies in cell `cell` (closed; CLUSTER cells need the scene). */
 SL_API bool sl_viewcell_contains(sl_viewcells cells, sl_scene scene, uint32_t cell, sl_vec3 p);
 /* Fingerprint (XXH3-64) of the cell records: equal cells, equal key. */

@@ -479,7 +479,7 @@ static uint32_t cullmap_frame(cullmap_state *s, const sl_camera *cam, sl_urban_v
     s->map.stamp = s->cmap.stamp = s->frame;
     s->edges_used = s->edges_hidden = 0;
     s->drawn_count = 0;
-    sl_urban_view_make(cam, v);
+    sl_urban_view_make(u, cam, v);
     double t0 = sl_now();
     /* stale values outside the spans are never read: in_spans guards every read */
     s->have_spans = sl_urban_frustum_spans(u, v, &s->j0, &s->j1, s->x0, s->x1);

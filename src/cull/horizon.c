@@ -229,7 +229,7 @@ sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t 
     }
     s->nodes_visited = s->occlusion_tests = s->objects_tested = s->skipped = 0;
     sl_urban_view v;
-    sl_urban_view_make(cam, &v);
+    sl_urban_view_make(u, cam, &v);
     uint32_t n = 0;
     if (!v.perspective) {
         /* no eye point to build a horizon around: frustum culling over the grid */

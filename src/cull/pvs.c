@@ -12,8 +12,13 @@
  * docs/oracle.md) never reaches this method: the culler interface (culler.c) gives it the frustum
  * set of vfc, flagged in sl_cull_stats.out_of_domain.
  *
+ * Near-plane holes: an eye a few cm from a wall sees, through the near plane's cut, what lies behind
+ * it, which its own cell need not see. The candidates are the union of the sets of every cell the
+ * box of the near-plane region (eye to near plane) meets, or every object when that box leaves the
+ * cells (solid or void leaves, buildings, outside the eye range): docs/pvs.md, "Near-plane holes".
+ *
  * Steady state allocates nothing: the decoded set of the current cell is kept, and re-decoded only
- * when the eye changes cell (one zstd block, cached by the PVS handle). */
+ * when the cells met change (one zstd block per cell, cached by the PVS handle). */
 #include "culler_internal.h"
 
 #include "sightline/accel.h"
@@ -44,6 +49,11 @@ typedef struct pvs_state {
     uint32_t dyn_count;
     uint32_t *scratch;          /* object_count entries */
     uint32_t *tmp;              /* object_count entries */
+    uint32_t cell_count;
+    uint32_t *near_cells;       /* cell_count entries: the cells the near-plane region meets */
+    uint32_t *set_cells;        /* cell_count entries: the cells whose union is in `set` */
+    uint32_t set_cell_count;    /* 0: `set` holds nothing */
+    uint8_t *mark;              /* object_count entries, zero between calls */
 } pvs_state;
 
 static const char g_help[] =
@@ -91,6 +101,10 @@ static void pvs_destroy(void *state)
     sl_free(a, s->dyn, n * sizeof(uint32_t));
     sl_free(a, s->scratch, n * sizeof(uint32_t));
     sl_free(a, s->tmp, n * sizeof(uint32_t));
+    size_t cn = (size_t)s->cell_count + 1;
+    sl_free(a, s->near_cells, cn * sizeof(uint32_t));
+    sl_free(a, s->set_cells, cn * sizeof(uint32_t));
+    sl_free(a, s->mark, n);
     sl_free(a, s, sizeof *s);
 }
 
@@ -132,7 +146,12 @@ static sl_status pvs_create(sl_scene scene, const void *config, const sl_allocat
     s->dyn = sl_alloc(alloc, n * sizeof(uint32_t));
     s->scratch = sl_alloc(alloc, n * sizeof(uint32_t));
     s->tmp = sl_alloc(alloc, n * sizeof(uint32_t));
-    if (!s->set || !s->dyn || !s->scratch || !s->tmp) {
+    s->cell_count = sl_viewcells_count(s->cells);
+    size_t cn = (size_t)s->cell_count + 1;
+    s->near_cells = sl_alloc(alloc, cn * sizeof(uint32_t));
+    s->set_cells = sl_alloc(alloc, cn * sizeof(uint32_t));
+    s->mark = sl_calloc(alloc, n, 1);
+    if (!s->set || !s->dyn || !s->scratch || !s->tmp || !s->near_cells || !s->set_cells || !s->mark) {
         pvs_destroy(s);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory for %u objects", s->object_count);
     }
@@ -163,28 +182,107 @@ static uint32_t frustum_filter(const pvs_state *s, const sl_frustum *fr, const u
     return k;
 }
 
+/* The box of the near-plane region: the part of the frustum between the eye (the eye plane for
+ * an orthographic camera) and the near plane, i.e. the near rectangle and its copy moved back by
+ * the near distance; widened by a margin for float rounding. */
+static sl_aabb near_box(const sl_camera *cam, const sl_frustum *fr)
+{
+    sl_vec3 f, r, u;
+    sl_camera_basis(cam, &f, &r, &u);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double nearv = cam->near_plane;
+    for (int k = 0; k < 4; k++) {
+        const sl_vec3 *c = &fr->corners[k];
+        double p[2][3] = {{c->x, c->y, c->z}, {c->x - nearv * f.x, c->y - nearv * f.y, c->z - nearv * f.z}};
+        for (int j = 0; j < 2; j++)
+            for (int a = 0; a < 3; a++) {
+                lo[a] = fmin(lo[a], p[j][a]);
+                hi[a] = fmax(hi[a], p[j][a]);
+            }
+    }
+    double e[3] = {cam->position.x, cam->position.y, cam->position.z};
+    sl_aabb b;
+    float *bl = &b.min.x, *bh = &b.max.x;
+    for (int a = 0; a < 3; a++) {
+        if (cam->projection == SL_PERSPECTIVE) {
+            lo[a] = fmin(lo[a], e[a]);
+            hi[a] = fmax(hi[a], e[a]);
+        }
+        double m = 1e-4 + 1e-6 * (fabs(lo[a]) + fabs(hi[a]));
+        bl[a] = (float)(lo[a] - m);
+        bh[a] = (float)(hi[a] + m);
+    }
+    return b;
+}
+
+/* Make `set` the union of the sets of cells[0..n) (ascending); nothing to do when it already is. */
+static sl_status load_union(pvs_state *s, const uint32_t *cells, uint32_t n, sl_error *err)
+{
+    if (n == s->set_cell_count && memcmp(cells, s->set_cells, n * sizeof *cells) == 0)
+        return SL_OK;
+    s->set_cell_count = 0;
+    sl_status st;
+    if (n == 1) {
+        if ((st = sl_pvs_cell_set(s->pvs, cells[0], s->set, s->object_count, &s->set_count, err)) != SL_OK)
+            return st;
+    } else {
+        /* mark every member, then collect them in id order and clear the marks */
+        uint32_t total = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t k;
+            if ((st = sl_pvs_cell_set(s->pvs, cells[i], s->tmp, s->object_count, &k, err)) != SL_OK) {
+                memset(s->mark, 0, s->object_count);
+                return st;
+            }
+            for (uint32_t j = 0; j < k; j++) {
+                total += !s->mark[s->tmp[j]];
+                s->mark[s->tmp[j]] = 1;
+            }
+        }
+        uint32_t m = 0;
+        for (uint32_t id = 0; id < s->object_count && m < total; id++)
+            if (s->mark[id]) {
+                s->mark[id] = 0;
+                s->set[m++] = id;
+            }
+        s->set_count = m;
+    }
+    memcpy(s->set_cells, cells, n * sizeof *cells);
+    s->set_cell_count = n;
+    return SL_OK;
+}
+
 static sl_status pvs_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
     pvs_state *s = state;
     double t0 = sl_now();
+    sl_frustum fr = sl_camera_frustum(cam);
     uint32_t cell = sl_viewcells_locate(s->cells, s->scene, cam->position);
     stats->nodes_visited = 1;
-    if (cell != s->cell) {
-        s->cell = SL_NONE;
-        if (cell != SL_NONE) {
-            sl_status st = sl_pvs_cell_set(s->pvs, cell, s->set, s->object_count, &s->set_count, err);
+    /* What the near plane cuts open is seen from the near-plane region, not from the eye alone:
+     * take the union of the sets of every cell that region's box meets; where the box reaches
+     * beyond the cells (solid or void leaves, buildings, outside the eye range), no baked set holds
+     * what a sight line from there shows, and every object is a candidate (docs/pvs.md). */
+    bool all = cell == SL_NONE;
+    if (!all) {
+        sl_aabb nb = near_box(cam, &fr);
+        bool covered;
+        uint32_t nc = sl_viewcells_overlap(s->cells, s->scene, &nb, s->near_cells, s->cell_count, &covered);
+        if (!covered || nc == 0) {
+            all = true;
+        } else {
+            sl_status st = load_union(s, s->near_cells, nc, err);
             if (st != SL_OK)
                 return st;
         }
-        s->cell = cell;
     }
+    s->cell = all ? SL_NONE : cell;
     double t1 = sl_now();
-    sl_frustum fr = sl_camera_frustum(cam);
     bool skip_dyn = s->cfg.dynamic == 0;
     uint32_t n;
-    if (cell == SL_NONE) {
+    if (all) {
         /* outside every cell: every object is a candidate (ids are ascending by construction) */
         for (uint32_t i = 0; i < s->object_count; i++)
             s->scratch[i] = i;

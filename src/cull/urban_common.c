@@ -144,6 +144,24 @@ static void compute_heights(sl_urban_scene *u)
         u->cell_top[c] = top;
         u->node_floor[c] = nf;
     }
+    /* the world box: object boxes, the grid rectangle, the footprints' bases and roofs */
+    double w[2][3] = {{u->min_x, u->min_y, INFINITY}, {u->min_x + u->nx * u->cell, u->min_y + u->ny * u->cell, -INFINITY}};
+    for (uint32_t i = 0; i < u->object_count; i++) {
+        const float *lo = &boxes[i].min.x, *hi = &boxes[i].max.x;
+        if (!(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]))
+            continue; /* empty */
+        for (int a = 0; a < 3; a++) {
+            w[0][a] = fmin(w[0][a], lo[a]);
+            w[1][a] = fmax(w[1][a], hi[a]);
+        }
+    }
+    for (uint32_t f = 0; f < u->fp_count; f++) {
+        w[0][2] = fmin(w[0][2], fmin(u->fps[f].base, u->fps[f].roof));
+        w[1][2] = fmax(w[1][2], fmax(u->fps[f].base, u->fps[f].roof));
+    }
+    if (!(w[0][2] <= w[1][2]))
+        w[0][2] = w[1][2] = 0;
+    memcpy(u->world, w, sizeof w);
     memcpy(u->pyr_top, u->cell_top, (size_t)u->ncells * sizeof(float));
     memcpy(u->pyr_floor, u->node_floor, (size_t)u->ncells * sizeof(float));
     for (uint32_t l = 1; l < u->levels; l++) {
@@ -504,8 +522,21 @@ sl_status sl_urban_scene_refresh(sl_urban_scene *u, sl_error *err)
 
 /* ===== the view ================================================================================= */
 
-void sl_urban_view_make(const sl_camera *cam, sl_urban_view *v)
+void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *camera, sl_urban_view *v)
 {
+    /* the far plane just beyond the world box's farthest corner: a point of the frustum within
+     * that distance of the eye has a depth within it too, so nothing the methods see is lost */
+    sl_camera bounded = *camera;
+    const sl_camera *cam = &bounded;
+    double reach2 = 0, e3[3] = {camera->position.x, camera->position.y, camera->position.z};
+    for (int a = 0; a < 3; a++) {
+        double d = fmax(fabs(u->world[0][a] - e3[a]), fabs(u->world[1][a] - e3[a]));
+        reach2 += d * d;
+    }
+    double reach = sqrt(reach2) * (1 + 1e-3) + 1.0;
+    reach = fmax(reach, 2.0 * camera->near_plane);
+    if (isfinite(reach) && reach < camera->far_plane)
+        bounded.far_plane = (float)reach;
     memset(v, 0, sizeof *v);
     v->perspective = cam->projection == SL_PERSPECTIVE;
     v->eye[0] = cam->position.x;

@@ -102,6 +102,8 @@ typedef struct sl_urban_scene {
     uint32_t *footprint_of;     /* per object: its first footprint or SL_NONE */
     uint32_t *outside;          /* objects not wholly inside the grid (moved out): always tested */
     uint32_t outside_count;
+    double world[2][3];         /* box of everything the methods read: object boxes, the grid, the
+                                   footprints' heights (bounds the far plane, sl_urban_view_make) */
     size_t memory;
 } sl_urban_scene;
 
@@ -136,7 +138,13 @@ struct sl_urban_view {
 };
 
 /* Analyse a (validated) camera. */
-void sl_urban_view_make(const sl_camera *cam, sl_urban_view *v);
+/* The view of a camera. Its far plane is first brought in to just beyond the farthest point of
+ * u->world (when nearer than the camera's): the frustum's plan polygon is the hull of its
+ * corners, whose double-precision orientation tests lose a near corner once the far corners lie
+ * 1e17 m away or more, and the azimuth range comes from the float far corners (far 1e20 m missed
+ * objects); everything the methods can cull lies within that
+ * distance, so the result is the same as with the camera's far plane. */
+void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *cam, sl_urban_view *v);
 /* Box against the frustum planes (with the rounding slack of vfc): false only when outside. */
 bool sl_urban_box_in_frustum(const sl_urban_view *v, const sl_aabb *b);
 

@@ -349,6 +349,196 @@ uint32_t sl_viewcells_locate(sl_viewcells v, sl_scene scene, sl_vec3 p)
     return best;
 }
 
+/* ---- cells meeting a box (the pvs culler's near-plane region) -------------------------------- */
+
+static bool boxes_meet(const sl_aabb *a, const sl_aabb *b)
+{
+    return a->min.x <= b->max.x && a->max.x >= b->min.x && a->min.y <= b->max.y && a->max.y >= b->min.y &&
+           a->min.z <= b->max.z && a->max.z >= b->min.z;
+}
+
+/* Insert id into the ascending list out[0..*n) (no repeats); false when it does not fit. */
+static bool insert_sorted(uint32_t *out, uint32_t capacity, uint32_t *n, uint32_t id)
+{
+    uint32_t lo = 0, hi = *n;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (out[mid] < id)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    if (lo < *n && out[lo] == id)
+        return true;
+    if (*n >= capacity)
+        return false;
+    memmove(out + lo + 1, out + lo, (size_t)(*n - lo) * sizeof *out);
+    out[lo] = id;
+    (*n)++;
+    return true;
+}
+
+/* XY area of triangle t clipped to the rectangle [x0,x1] x [y0,y1] (Sutherland-Hodgman). */
+static double tri_rect_area(const sl_vec2 t[3], double x0, double y0, double x1, double y1)
+{
+    double a[2][16];
+    double b[2][16];
+    uint32_t n = 3;
+    for (int i = 0; i < 3; i++) {
+        a[0][i] = t[i].x;
+        a[1][i] = t[i].y;
+    }
+    for (int side = 0; side < 4; side++) {
+        int axis = side >> 1;
+        double lim = side == 0 ? x0 : side == 1 ? x1 : side == 2 ? y0 : y1;
+        double sgn = (side & 1) ? -1.0 : 1.0; /* inside: sgn * (coord - lim) >= 0 */
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t j = (i + 1) % n;
+            double di = sgn * (a[axis][i] - lim), dj = sgn * (a[axis][j] - lim);
+            if (di >= 0) {
+                b[0][m] = a[0][i];
+                b[1][m] = a[1][i];
+                m++;
+            }
+            if ((di >= 0) != (dj >= 0)) {
+                double u = di / (di - dj);
+                b[0][m] = a[0][i] + u * (a[0][j] - a[0][i]);
+                b[1][m] = a[1][i] + u * (a[1][j] - a[1][i]);
+                m++;
+            }
+        }
+        n = m;
+        if (n < 3)
+            return 0;
+        memcpy(a, b, sizeof a);
+    }
+    double area = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t j = (i + 1) % n;
+        area += a[0][i] * a[1][j] - a[0][j] * a[1][i];
+    }
+    return fabs(area) * 0.5;
+}
+
+/* Volume of the part of cell c (PRISM or BOX) inside box q. */
+static double cell_box_volume(const sl_viewcell *c, const sl_aabb *q)
+{
+    double z0 = fmax(c->bounds.min.z, q->min.z), z1 = fmin(c->bounds.max.z, q->max.z);
+    if (z1 <= z0)
+        return 0;
+    double area;
+    if (c->shape == SL_CELL_BOX) {
+        double w = fmin(c->bounds.max.x, q->max.x) - fmax(c->bounds.min.x, q->min.x);
+        double h = fmin(c->bounds.max.y, q->max.y) - fmax(c->bounds.min.y, q->min.y);
+        area = w > 0 && h > 0 ? w * h : 0;
+    } else {
+        area = tri_rect_area(c->tri, q->min.x, q->min.y, q->max.x, q->max.y);
+    }
+    return area * (z1 - z0);
+}
+
+#define SL_VC_BSP_STACK 512u
+
+uint32_t sl_viewcells_overlap(sl_viewcells v, sl_scene scene, const sl_aabb *box, uint32_t *out, uint32_t capacity,
+                              bool *covered)
+{
+    bool cov = false;
+    uint32_t n = 0;
+    if (covered)
+        *covered = false;
+    if (!v || v->count == 0 || !box || !sl_finite3(&box->min.x) || !sl_finite3(&box->max.x) ||
+        box->min.x > box->max.x || box->min.y > box->max.y || box->min.z > box->max.z)
+        return 0;
+    bool fits = true;
+    sl_bsp_view bsp;
+    if (v->cluster_map && scene && sl_scene_bsp(scene, &bsp)) {
+        /* every leaf the box meets, through the BSP tree; a leaf without a cluster (solid or void),
+         * or without a cell, leaves the box uncovered */
+        cov = true;
+        int32_t stack[SL_VC_BSP_STACK];
+        uint32_t sp = 0;
+        stack[sp++] = bsp.node_count ? 0 : -1;
+        while (sp) {
+            int32_t nd = stack[--sp];
+            if (nd < 0) {
+                uint32_t leaf = (uint32_t)(-(nd + 1));
+                if (leaf >= bsp.leaf_count) {
+                    cov = false;
+                    continue;
+                }
+                int32_t cl = bsp.leaves[leaf].cluster;
+                uint32_t cell = cl >= 0 && (uint32_t)cl < v->cluster_span ? v->cluster_map[cl] : SL_NONE;
+                if (cell == SL_NONE) {
+                    cov = false;
+                    continue;
+                }
+                if (!insert_sorted(out, capacity, &n, cell))
+                    fits = false;
+                continue;
+            }
+            const sl_bsp_node *node = &bsp.nodes[nd];
+            const sl_plane *pl = &bsp.planes[node->plane];
+            /* the plane's extreme values over the box (float, as sl_scene_bsp_find_leaf; a margin
+             * covers the rounding) */
+            double c = (double)pl->a * (0.5 * ((double)box->min.x + box->max.x)) +
+                       (double)pl->b * (0.5 * ((double)box->min.y + box->max.y)) +
+                       (double)pl->c * (0.5 * ((double)box->min.z + box->max.z)) + pl->d;
+            double r = fabs((double)pl->a) * 0.5 * ((double)box->max.x - box->min.x) +
+                       fabs((double)pl->b) * 0.5 * ((double)box->max.y - box->min.y) +
+                       fabs((double)pl->c) * 0.5 * ((double)box->max.z - box->min.z);
+            double slack = 1e-6 * (fabs((double)pl->d) + 1.0);
+            if (sp + 2 > SL_VC_BSP_STACK) {
+                cov = false; /* deeper than the stack: say uncovered (the caller falls back) */
+                fits = false;
+                break;
+            }
+            if (c + r + slack >= 0)
+                stack[sp++] = node->children[0];
+            if (c - r - slack < 0)
+                stack[sp++] = node->children[1];
+        }
+    }
+    /* the other shapes through the cell tree; coverage by volume (cells do not overlap) */
+    double vol = 0;
+    bool others = false;
+    uint32_t tstack[SL_VC_MAX_DEPTH + 1], sp = 0, ni = 0;
+    for (;;) {
+        const sl_vc_node *nn = &v->nodes[ni];
+        if (boxes_meet(&nn->box, box)) {
+            if (nn->count == 0) {
+                tstack[sp++] = nn->first;
+                ni = ni + 1;
+                continue;
+            }
+            for (uint32_t k = nn->first; k < nn->first + nn->count; k++) {
+                uint32_t id = v->order[k];
+                const sl_viewcell *c = &v->cells[id];
+                if (c->shape == SL_CELL_CLUSTER || !boxes_meet(&c->bounds, box))
+                    continue;
+                double cv = cell_box_volume(c, box);
+                /* every cell whose box meets the query box is taken (a superset of the cells it
+                 * touches: conservative for the caller) */
+                others = true;
+                vol += cv;
+                if (!insert_sorted(out, capacity, &n, id))
+                    fits = false;
+            }
+        }
+        if (sp == 0)
+            break;
+        ni = tstack[--sp];
+    }
+    if (others && !v->cluster_map) {
+        double bv = ((double)box->max.x - box->min.x) * ((double)box->max.y - box->min.y) *
+                    ((double)box->max.z - box->min.z);
+        cov = bv > 0 ? vol >= bv * (1.0 - 1e-6) : true;
+    }
+    if (covered)
+        *covered = cov && fits;
+    return n;
+}
+
 void sl_viewcells_get_stats(sl_viewcells v, sl_viewcells_stats *out)
 {
     if (!out)
