@@ -32,7 +32,8 @@ failed=()
 # the sanitizer's or libFuzzer's report of a finding: from its first line to the end of the log
 report() { # report LOG
   local at
-  at=$(grep -n -m1 -E 'runtime error:|^==[0-9]+==(ERROR|WARNING)|^ERROR: libFuzzer|^==[0-9]+== ERROR: libFuzzer|Sanitizer:DEADLYSIGNAL|^SUMMARY: ' "$1" | cut -d: -f1 || true)
+  local first='runtime error:|^==[0-9]+== ?(ERROR|WARNING)|^ERROR: libFuzzer|Sanitizer:DEADLYSIGNAL|^SUMMARY: '
+  at=$(grep -n -m1 -E "$first" "$1" | cut -d: -f1 || true)
   if [ -n "$at" ]; then
     tail -n +"$at" "$1" | head -n 200
   else
@@ -55,7 +56,8 @@ run() { # run NAME SECONDS CORPUS LABEL [libFuzzer flags...]
   unit=$(sed -n 's/.*Test unit written to \(.*\)$/\1/p' "$log" | tail -n 1)
   echo "!! $label: FINDING (exit $rc); full log $log"
   report "$log"
-  echo "!! reproduce: UBSAN_OPTIONS=$UBSAN_OPTIONS${SL_FUZZ_CLI_LIMITS:+ SL_FUZZ_CLI_LIMITS=1} $f ${unit:-$artifacts/$label-*}"
+  local env="UBSAN_OPTIONS=$UBSAN_OPTIONS${SL_FUZZ_CLI_LIMITS:+ SL_FUZZ_CLI_LIMITS=1}"
+  echo "!! reproduce: $env $f ${unit:-$artifacts/$label-*}"
   failed+=("$label")
 }
 for f in build-fuzz/fuzz_*; do
