@@ -4,6 +4,10 @@
 # 512 MiB entries, 64 Mi triangles) so that the large-allocation paths are fuzzed too (default
 # 30 s each, SL_FUZZ_CLI_SECONDS). Ten targets x 35 s + 2 x 30 s is about 7 minutes, which keeps
 # the fuzz stage of CI near its 10-minute budget with the build.
+# Any finding (crash, sanitizer report including UBSan, leak, OOM, timeout) fails the script after
+# the remaining targets have run; the finding's report is printed, its full log is kept in
+# build-fuzz/logs/ and the input in build-fuzz/artifacts/. A clean target prints libFuzzer's last
+# three lines.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-35}
@@ -15,22 +19,52 @@ for src in fuzz/fuzz_*.c; do targets+=(--target "$(basename "$src" .c)"); done
 cmake --build build-fuzz -j"$(nproc)" "${targets[@]}"
 # fuzz_mmap writes each input to a file: keep those in memory where possible
 if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then export TMPDIR=/dev/shm; fi
-run() { # run NAME SECONDS CORPUS [libFuzzer flags...]
-  local name=$1 s=$2 corpus=$3
-  shift 3
-  local f=build-fuzz/$name seeds=fuzz/seeds/${name#fuzz_}
-  mkdir -p "$corpus"
-  if [ -d "$seeds" ]; then
-    "$f" -max_total_time="$s" "$@" "$corpus" "$seeds" 2>&1 | tail -n 3
+# Every finding stops its fuzzer and fails this script: UBSan recovers by default (the targets are
+# built without -fno-sanitize-recover), so without halt_on_error its reports scroll past in a run
+# that ends "Done". Leaks inside assimp itself are suppressed as in the test suite (tests/lsan.supp);
+# options the caller sets come after ours and win.
+export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1${UBSAN_OPTIONS:+:$UBSAN_OPTIONS}"
+export ASAN_OPTIONS="detect_leaks=1:print_summary=1${ASAN_OPTIONS:+:$ASAN_OPTIONS}"
+export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+logs=build-fuzz/logs artifacts=build-fuzz/artifacts
+mkdir -p "$logs" "$artifacts"
+failed=()
+# the sanitizer's or libFuzzer's report of a finding: from its first line to the end of the log
+report() { # report LOG
+  local at
+  local first='runtime error:|^==[0-9]+== ?(ERROR|WARNING)|^ERROR: libFuzzer|Sanitizer:DEADLYSIGNAL|^SUMMARY: '
+  at=$(grep -n -m1 -E "$first" "$1" | cut -d: -f1 || true)
+  if [ -n "$at" ]; then
+    tail -n +"$at" "$1" | head -n 200
   else
-    "$f" -max_total_time="$s" "$@" "$corpus" 2>&1 | tail -n 3
+    tail -n 60 "$1"
   fi
+}
+run() { # run NAME SECONDS CORPUS LABEL [libFuzzer flags...]
+  local name=$1 s=$2 corpus=$3 label=$4
+  shift 4
+  local f=build-fuzz/$name seeds=fuzz/seeds/${name#fuzz_} log=$logs/$label.log rc=0
+  local dirs=("$corpus")
+  [ -d "$seeds" ] && dirs+=("$seeds")
+  mkdir -p "$corpus"
+  "$f" -max_total_time="$s" -artifact_prefix="$artifacts/$label-" "$@" "${dirs[@]}" >"$log" 2>&1 || rc=$?
+  if [ "$rc" -eq 0 ] && ! grep -q -E 'runtime error:|^==[0-9]+==ERROR' "$log"; then
+    tail -n 3 "$log"
+    return 0
+  fi
+  local unit
+  unit=$(sed -n 's/.*Test unit written to \(.*\)$/\1/p' "$log" | tail -n 1)
+  echo "!! $label: FINDING (exit $rc); full log $log"
+  report "$log"
+  local env="UBSAN_OPTIONS=$UBSAN_OPTIONS${SL_FUZZ_CLI_LIMITS:+ SL_FUZZ_CLI_LIMITS=1}"
+  echo "!! reproduce: $env $f ${unit:-$artifacts/$label-*}"
+  failed+=("$label")
 }
 for f in build-fuzz/fuzz_*; do
   [ -x "$f" ] || continue
   name=$(basename "$f")
   echo "== $name (${secs}s)"
-  run "$name" "$secs" "build-fuzz/corpus/$name" -rss_limit_mb=2048 -max_len=1048576
+  run "$name" "$secs" "build-fuzz/corpus/$name" "$name" -rss_limit_mb=2048 -max_len=1048576
 done
 # The CLI's limits: an entry may inflate to 512 MiB (allocated once it passes the size check) and a
 # map may ask for up to 64 Mi triangles (about 1.5 GB of output), so a single allocation may reach
@@ -39,6 +73,11 @@ done
 for name in fuzz_pk3 fuzz_q3bsp; do
   [ -x "build-fuzz/$name" ] || continue
   echo "== $name with the CLI's limits (${cli_secs}s)"
-  SL_FUZZ_CLI_LIMITS=1 run "$name" "$cli_secs" "build-fuzz/corpus/$name-cli" \
+  SL_FUZZ_CLI_LIMITS=1 run "$name" "$cli_secs" "build-fuzz/corpus/$name-cli" "$name-cli" \
     -rss_limit_mb=8192 -malloc_limit_mb=2048 -max_len=4194304 -timeout=120
 done
+if [ "${#failed[@]}" -gt 0 ]; then
+  echo "fuzzing FAILED: findings in ${failed[*]} (each reported above with the command that reproduces it)" >&2
+  exit 1
+fi
+echo "fuzzing: no findings"

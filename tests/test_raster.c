@@ -1337,6 +1337,54 @@ static void test_merge_covering_layer(void **state)
     }
 }
 
+/* The widest screen (SL_RT_MAX_DIM = 8192 pixels, 256 tile columns): triangles as wide as the
+ * screen and wider (clipped), starting at every kind of tile column, through the general kernels
+ * whose per-column depth array holds 256 + 8 entries. Every path must agree with scalar, directly
+ * and through the bins, and (under ASan) no kernel may write or point past that array. Issue 12:
+ * the AVX2/AVX-512 kernels formed the pointer zcol - tx0 before the array whenever tx0 > 0. */
+static void test_widest_screen(void **state)
+{
+    (void)state;
+    const uint32_t W = 8192, H = 24;
+    const int count = sanitized() ? 60 : 200;
+    sl_rng rng;
+    sl_rng_seed(&rng, 12, 8192);
+    float *v = malloc(sizeof(float) * 9 * (size_t)count);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (size_t)count);
+    assert_non_null(v);
+    assert_non_null(ix);
+    for (int t = 0; t < count; t++) {
+        /* one vertex far left or right, the others anywhere: spans of up to the whole width */
+        for (int k = 0; k < 3; k++) {
+            float *p = v + 9 * t + 3 * k;
+            p[0] = k == 0 ? (t % 2 ? -1.3f : 1.3f) : sl_rng_range(&rng, -1.2f, 1.2f);
+            p[1] = sl_rng_range(&rng, -2.0f, 2.0f);
+            p[2] = sl_rng_range(&rng, 0.05f, 0.95f);
+        }
+    }
+    /* a triangle covering the whole screen first, one from tile column 1 to the right edge */
+    const float cover[18] = {-3, -3, 0.9f, 3, -3, 0.9f, 0, 3, 0.9f, -0.99f, -1, 0.5f, 1.5f, -1, 0.5f, 1.5f, 1, 0.5f};
+    for (uint32_t i = 0; i < 3 * (uint32_t)count; i++)
+        ix[i] = i;
+    for (uint32_t threads = 1; threads <= 2; threads++) {
+        sl_raster *ref = NULL;
+        for (int ii = 0; ii < isa_count; ii++) {
+            sl_raster *r = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, threads);
+            render(r, cover, 6, ix, 2, IDENTITY, SL_RASTER_CULL_NONE);
+            render(r, v, 3 * (uint32_t)count, ix, (uint32_t)count, IDENTITY, SL_RASTER_CULL_NONE);
+            if (!ref) {
+                ref = r;
+                continue;
+            }
+            assert_same_buffer(ref, r);
+            sl_raster_destroy(r);
+        }
+        sl_raster_destroy(ref);
+    }
+    free(v);
+    free(ix);
+}
+
 int main(void)
 {
     collect_isas();
@@ -1351,7 +1399,7 @@ int main(void)
         cmocka_unit_test(test_bins_then_direct),      cmocka_unit_test(test_odd_size_and_allocator),
         cmocka_unit_test(test_extreme_inputs),        cmocka_unit_test(test_front_end_paths),
         cmocka_unit_test(test_batched_render_paths),  cmocka_unit_test(test_fill_rule_sizes),
-        cmocka_unit_test(test_merge_covering_layer),
+        cmocka_unit_test(test_merge_covering_layer),  cmocka_unit_test(test_widest_screen),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -285,7 +285,11 @@ SL_RT_T static inline __attribute__((always_inline)) void general_ymm(const sl_r
     uint32_t *const mask = tg->mask;
     sl_rt_tile_depth *const depth = tg->depth;
     const size_t tiles_x = (size_t)tg->tiles_x;
-    /* zcol[tx - tx0] = z0 + zdx*(float)(32*tx - x_ref), 8 columns at a time (tx1 - tx0 <= 256) */
+    /* zcol[tx - tx0] = z0 + zdx*(float)(32*tx - x_ref), 8 columns at a time. The tile range lies
+     * in the padded screen (sl_rt_prepare clamps col0/col1 to [0, pad_w], pad_w <= SL_RT_MAX_DIM),
+     * so tx1 - tx0 <= 256 and the stores reach zcol[255] at most. Indexed as zcol[tx - tx0]: a
+     * pointer zcol - tx0 would lie outside the array, which is undefined even if never read
+     * below tx0 (issue 12: UBSan, fuzz/seeds/occrec/raster_zcol_base.rec). */
     float zcol[SL_RT_MAX_DIM / SL_RT_TILE_W + 8];
     {
         const __m256 z0 = _mm256_set1_ps(t->z0), zdx = _mm256_set1_ps(t->zdx);
@@ -296,7 +300,6 @@ SL_RT_T static inline __attribute__((always_inline)) void general_ymm(const sl_r
             xv = _mm256_add_epi32(xv, _mm256_set1_epi32(8 * SL_RT_TILE_W));
         }
     }
-    const float *zc = zcol - tx0;
     vdda dda;
     vdda_init(&dda, t, ty0 * SL_RT_TILE_H);
     grow g;
@@ -309,14 +312,14 @@ SL_RT_T static inline __attribute__((always_inline)) void general_ymm(const sl_r
             size_t row = (size_t)ty * tiles_x;
             int32_t ea = g.ia < g.ib ? g.ia : g.tb, eb = g.ia < g.ib ? g.ib : g.tb, tx = g.ta;
             for (; tx < ea; tx++)
-                partial_tile(mask, depth, g.xl, g.xr, row, tx, zc[tx], zrow, off, zclamp, ctl);
+                partial_tile(mask, depth, g.xl, g.xr, row, tx, zcol[tx - tx0], zrow, off, zclamp, ctl);
             for (; tx < eb; tx++) {
                 size_t ti = row + (size_t)tx;
-                merge_full_tile(_mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zc[tx] + zrow), off), zclamp),
+                merge_full_tile(_mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zcol[tx - tx0] + zrow), off), zclamp),
                                 mask + ti * SL_RT_SUBTILES, &depth[ti]);
             }
             for (; tx < g.tb; tx++)
-                partial_tile(mask, depth, g.xl, g.xr, row, tx, zc[tx], zrow, off, zclamp, ctl);
+                partial_tile(mask, depth, g.xl, g.xr, row, tx, zcol[tx - tx0], zrow, off, zclamp, ctl);
         }
         g = n;
     }

@@ -158,7 +158,8 @@ SL_RT_T static inline __attribute__((always_inline)) void raster_small_ymm(const
     uint32_t *const mask = tg->mask;
     sl_rt_tile_depth *const depth = tg->depth;
     const size_t tiles_x = (size_t)tg->tiles_x;
-    /* each tile column's z0 + zdx*(float)(x - x_ref), as in raster_avx2 */
+    /* each tile column's z0 + zdx*(float)(x - x_ref), as in general_ymm (indexed zcol[tx - tx0]:
+     * a pointer zcol - tx0 would lie outside the array) */
     float zcol[SL_RT_MAX_DIM / SL_RT_TILE_W + 8];
     {
         const __m256 z0 = _mm256_set1_ps(t->z0), zdx = _mm256_set1_ps(t->zdx);
@@ -169,7 +170,7 @@ SL_RT_T static inline __attribute__((always_inline)) void raster_small_ymm(const
             xv = _mm256_add_epi32(xv, _mm256_set1_epi32(8 * SL_RT_TILE_W));
         }
     }
-    const float *zc = zcol - t->tx0;
+    const int32_t tx0 = t->tx0;
     small_row cur;
     small_row_at(t, t->ty0, &cur);
     for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
@@ -181,7 +182,7 @@ SL_RT_T static inline __attribute__((always_inline)) void raster_small_ymm(const
             size_t row = (size_t)ty * tiles_x;
             for (int32_t tx = cur.ta; tx < cur.tb; tx++) {
                 size_t ti = row + (size_t)tx;
-                __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zc[tx] + zrow), t->off), t->zclamp);
+                __m256 z = _mm256_max_ps(_mm256_add_ps(_mm256_set1_ps(zcol[tx - tx0] + zrow), t->off), t->zclamp);
                 merge_tile(_mm256_shuffle_epi8(row_masks(cur.xl, cur.xr, tx * SL_RT_TILE_W - ox), ctl), z,
                            mask + ti * SL_RT_SUBTILES, &depth[ti]);
             }
