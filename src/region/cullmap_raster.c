@@ -272,35 +272,9 @@ static int clip_poly(const double (*in)[2], int n, const lin *f, double bound, d
     return m;
 }
 
-/* Narrow [*lo, *hi] to the x where f(x, y) >= bound. */
-static inline void narrow(const lin *f, double bound, double y, double *lo, double *hi)
-{
-    double c = f->c + f->cy * y - bound;
-    if (f->cx > 0) {
-        double x = -c * f->inv;
-        *lo = x > *lo ? x : *lo;
-    } else if (f->cx < 0) {
-        double x = -c * f->inv;
-        *hi = x < *hi ? x : *hi;
-    } else if (c < 0)
-        *hi = -INFINITY;
-}
-
-/* floor and ceil of finite values well inside the int64 range, without a libm call. */
-static inline double ffloor(double x)
-{
-    double t = (double)(int64_t)x;
-    return t > x ? t - 1 : t;
-}
-static inline double fceil(double x)
-{
-    double t = (double)(int64_t)x;
-    return t < x ? t + 1 : t;
-}
-
 /* The lines bounding the rows' cell ranges, sorted once per wedge by the side they bound, so that
  * the rows need no branch: x >= -(c + cy y - bound) / cx where cx > 0, x <= that where cx < 0, and
- * the row is empty where c + cy y - bound < 0 for cx = 0 (the arithmetic of narrow()). */
+ * the row is empty where c + cy y - bound < 0 for cx = 0 (f(x, y) >= bound solved for x). */
 typedef struct bline {
     double c, cy, bound, inv;
 } bline;
@@ -323,7 +297,7 @@ static void blines_add(blines *b, const lin *f, double bound)
 
 static inline double bline_x(const bline *q, double y) { return -(q->c + q->cy * y - q->bound) * q->inv; }
 
-/* narrow() by every line. */
+/* Narrow [*lo, *hi] to the x where f(x, y) >= bound for every line. */
 static inline void blines_narrow(const blines *b, double y, double *lo, double *hi)
 {
     double xl = *lo, xr = *hi;
@@ -606,7 +580,8 @@ uint64_t sl_cullmap_raster_wedge(sl_cullmap_grid *map, const double eye[3], cons
                 bl = x0 + (cmin - 1.0) * cell;
             if (br > x0 + (cmax + 2.0) * cell)
                 br = x0 + (cmax + 2.0) * cell;
-            double g0 = ffloor((bl - x0) * inv_cell - 1.5), g1 = fceil((br - x0) * inv_cell + 0.5);
+            double g0 = sl_cullmap_ffloor((bl - x0) * inv_cell - 1.5);
+            double g1 = sl_cullmap_fceil((br - x0) * inv_cell + 0.5);
             g0 = g0 > (double)cmin ? g0 : (double)cmin;
             g1 = g1 < (double)cmax ? g1 : (double)cmax;
             bool any = false;
@@ -616,7 +591,11 @@ uint64_t sl_cullmap_raster_wedge(sl_cullmap_grid *map, const double eye[3], cons
                     any = bits_any(map->band_bits + (size_t)(jb >> bs) * map->words, (int32_t)g0, (int32_t)g1);
                 else {
                     const uint16_t *ub = map->unsat + row;
-                    const float *bz = map->block_z ? map->block_z + row : NULL, *bt = map->block_top + row;
+                    const float *bz = NULL, *bt = NULL; /* block_top is NULL without block_z */
+                    if (map->block_z) {
+                        bz = map->block_z + row;
+                        bt = map->block_top + row;
+                    }
                     for (int32_t bi = (int32_t)g0 >> bs; bi <= ((int32_t)g1 >> bs) && !any; bi++)
                         any = ub[bi] != 0 && !(bz && bz[bi] >= bt[bi]);
                 }
@@ -700,7 +679,8 @@ uint64_t sl_cullmap_raster_wedge(sl_cullmap_grid *map, const double eye[3], cons
                 xr = x0 + (cx1 + 2.0) * cell;
             if (!(xl <= xr))
                 continue;
-            double fi0 = fceil((xl - x0) * inv_cell - 0.5 - 1e-7), fi1 = ffloor((xr - x0) * inv_cell - 0.5 + 1e-7);
+            double fi0 = sl_cullmap_fceil((xl - x0) * inv_cell - 0.5 - 1e-7);
+            double fi1 = sl_cullmap_ffloor((xr - x0) * inv_cell - 0.5 + 1e-7);
             fi0 = fi0 > (double)cx0 ? fi0 : (double)cx0;
             fi1 = fi1 < (double)cx1 ? fi1 : (double)cx1;
             if (!(fi0 <= fi1))
@@ -710,7 +690,8 @@ uint64_t sl_cullmap_raster_wedge(sl_cullmap_grid *map, const double eye[3], cons
             blines_narrow(&fl, y, &fxl, &fxr);
             q->f0 = q->i1 + 1, q->f1 = q->i1;
             if (fxl <= fxr) {
-                double g0 = fceil((fxl - x0) * inv_cell - 0.5 + 1e-6), g1 = ffloor((fxr - x0) * inv_cell - 0.5 - 1e-6);
+                double g0 = sl_cullmap_fceil((fxl - x0) * inv_cell - 0.5 + 1e-6);
+                double g1 = sl_cullmap_ffloor((fxr - x0) * inv_cell - 0.5 - 1e-6);
                 if (g0 <= g1 && g1 >= (double)q->i0 && g0 <= (double)q->i1) {
                     q->f0 = g0 < (double)q->i0 ? q->i0 : (int32_t)g0;
                     q->f1 = g1 > (double)q->i1 ? q->i1 : (int32_t)g1;

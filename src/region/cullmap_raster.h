@@ -120,4 +120,23 @@ void sl_cullmap_clear(sl_cullmap_grid *map, const sl_cullmap_clip *clip);
  * hidden from the region means hidden from every sample). */
 void sl_cullmap_merge_min(sl_cullmap_grid *dst, const sl_cullmap_grid *src, const sl_cullmap_clip *clip);
 
+/* floor and ceil without a libm call (the rasterizer's cell ranges). Exact for every double: a
+ * value of magnitude 2^52 or more is already an integer, and infinities and NaN are returned as they
+ * are, so only values strictly inside (-2^52, 2^52) are converted to int64_t (a conversion of an
+ * infinite or out-of-range value is undefined behaviour). */
+static inline double sl_cullmap_ffloor(double x)
+{
+    if (!(x > -0x1p52 && x < 0x1p52))
+        return x;
+    double t = (double)(int64_t)x;
+    return t > x ? t - 1 : t;
+}
+static inline double sl_cullmap_fceil(double x)
+{
+    if (!(x > -0x1p52 && x < 0x1p52))
+        return x;
+    double t = (double)(int64_t)x;
+    return t < x ? t + 1 : t;
+}
+
 #endif
