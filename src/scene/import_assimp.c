@@ -868,7 +868,7 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
     if (stat(path, &sb) != 0)
         return sl_fail(err, errno == ENOENT ? SL_ERROR_NOT_FOUND : SL_ERROR_IO, "%s: cannot open: %s", path, strerror(errno));
     if (!S_ISREG(sb.st_mode))
-        return sl_fail(err, SL_ERROR_IO, "%s: not a regular file", path);
+        return sl_fail(err, SL_ERROR_IO, "%s: not a regular file (%s)", path, sl_file_kind_name(sb.st_mode));
     uint64_t max_file = opt->max_file_bytes ? opt->max_file_bytes : SL_ASSIMP_MAX_FILE_BYTES;
     if ((uint64_t)sb.st_size > max_file)
         return sl_fail(err, SL_ERROR_LIMIT, "%s: %llu bytes, more than the limit of %llu", path, (unsigned long long)sb.st_size,
