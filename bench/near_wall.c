@@ -3,7 +3,11 @@
  * OpenArena's pak1-maps.pk3 (and, with --city, the small city too).
  *
  *   bench_near_wall [--pk3 PATH] [--views N] [--width W --height H] [--maps N] [--city]
- *                   [--seed S] [--methods LIST]
+ *                   [--model FILE]... [--seed S] [--methods LIST]
+ *
+ * --model FILE adds a model (any file sl_scene_open reads: .slscene, assimp formats) as one more
+ * scene, its meshes split into objects of at most --split N triangles (default 500, 0: one object
+ * per node) so that parts of it can hide others; --maps 0 leaves the pk3 out.
  *
  * Defaults: 100 views per map at 320x240, seed 1, the methods of tests/test_near_wall.c (every
  * conservative one but pvs, frusta and hzb also with all_objects=true); --methods takes
@@ -15,6 +19,7 @@
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/import.h"
+#include "sightline/slscene.h"
 #include "sightline/truth.h"
 
 #include "near_wall_views.h"
@@ -185,6 +190,9 @@ int main(int argc, char **argv)
     int max_maps = MAX_MAPS;
     uint64_t seed = 1;
     bool city = false;
+    const char *models[16];
+    int model_count = 0;
+    uint32_t split = 500;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--pk3") && v)
@@ -203,10 +211,14 @@ int main(int argc, char **argv)
             list = v, i++;
         else if (!strcmp(a, "--city"))
             city = true;
+        else if (!strcmp(a, "--model") && v && model_count < 16)
+            models[model_count++] = v, i++;
+        else if (!strcmp(a, "--split") && v)
+            split = (uint32_t)strtoul(v, NULL, 10), i++;
         else {
             fprintf(stderr,
-                    "usage: %s [--pk3 PATH] [--views N] [--width W --height H] [--maps N] [--city] [--seed S] "
-                    "[--methods LIST]\n",
+                    "usage: %s [--pk3 PATH] [--views N] [--width W --height H] [--maps N] [--city] [--model FILE]... [--split N] "
+                    "[--seed S] [--methods LIST]\n",
                     argv[0]);
             return 2;
         }
@@ -239,7 +251,9 @@ int main(int argc, char **argv)
     maps *mp = calloc(1, sizeof *mp);
     sl_error err;
     int scenes = 0;
-    if (access(pk3, R_OK) == 0) {
+    if (max_maps <= 0) {
+        /* no maps */
+    } else if (access(pk3, R_OK) == 0) {
         if (sl_pk3_list_maps(pk3, collect, mp, &err) != SL_OK)
             die(pk3, &err);
         for (int i = 0; i < mp->count && i < max_maps; i++) {
@@ -264,8 +278,21 @@ int main(int argc, char **argv)
         sl_scene_destroy(s);
         scenes++;
     }
-    printf("%d scenes (%d maps%s), %.0f s\n\n", scenes, city ? scenes - 1 : scenes, city ? " and the small city" : "",
-           (sl_now() - t0));
+    for (int i = 0; i < model_count; i++) {
+        sl_scene s;
+        sl_import_options io = sl_import_defaults();
+        io.split_triangles = split;
+        if (sl_scene_open_with(models[i], NULL, &io, NULL, &s, &err) != SL_OK) {
+            fprintf(stderr, "%s: skipped: %s\n", models[i], err.message);
+            continue;
+        }
+        run_scene(s, models[i], views, seed + 5000 + (uint64_t)i, w, h, ms, nm);
+        sl_scene_destroy(s);
+        scenes++;
+    }
+    int map_scenes = scenes - (city ? 1 : 0) - model_count;
+    printf("%d scenes (%d maps%s, %d models), %.0f s\n\n", scenes, map_scenes < 0 ? 0 : map_scenes,
+           city ? ", the small city" : "", model_count, (sl_now() - t0));
     printf("| method | views | views with a miss | objects missed | median ms | p95 ms |\n");
     printf("|---|---:|---:|---:|---:|---:|\n");
     int status = 0;

@@ -812,7 +812,21 @@ static void test_ply_counts(void **state)
     write_file(path, many, sizeof many - 1);
     expect_import_error(path, SL_ERROR_LIMIT, "element vertex: 99999999999 declared");
     /* a malformed header that made assimp 5.2 read out of bounds (SIGSEGV; fuzz/fuzz_assimp.c) */
-    expect_import_error(DATA "ply_bad_header.ply", SL_ERROR_FORMAT, "PLY header line 3: unknown keyword");
+    expect_import_error(DATA "ply_bad_header.ply", SL_ERROR_FORMAT, "PLY header line 4: property before any element");
+    /* a header line of free text (Blender 2.47's "Created by ...") is skipped, as assimp does */
+    snprintf(path, sizeof path, "%s/freetext.ply", dir);
+    {
+        static const char text[] = "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source file: ''\n"
+                                   "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                                   "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                   "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        write_file(path, text, sizeof text - 1);
+        sl_scene fs;
+        sl_error ferr;
+        if (sl_import_assimp(path, NULL, NULL, &fs, &ferr) != SL_OK)
+            fail_msg("free-text PLY header line refused: %s", ferr.message);
+        sl_scene_destroy(fs);
+    }
     static const char early[] = "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n";
     snprintf(path, sizeof path, "%s/early.ply", dir);
     write_file(path, early, sizeof early - 1);

@@ -163,6 +163,15 @@ static struct aiFile *aio_open(struct aiFileIO *io, const char *name, const char
         refuse(x, SL_ERROR_FORMAT, "assimp tried to open '%s' for writing; an import only reads", shown);
         return NULL;
     }
+    /* a relative reference assimp did not put the model's folder before (LightWave scenes name
+     * their objects bare: "LoadObjectLayer 1 simple_cube.lwo") means the model's folder, not the
+     * current one: without this, a scene loads only when run from its own folder */
+    char joined[PATH_MAX];
+    if (name[0] != '/' && !(gl && strncmp(name, x->given_dir, gl) == 0)) {
+        if ((size_t)snprintf(joined, sizeof joined, "%s%s", x->folder, name) >= sizeof joined)
+            return NULL;
+        name = joined;
+    }
     char canon[PATH_MAX];
     if (!canonical(name, canon))
         return NULL; /* does not exist: assimp reports it or carries on */

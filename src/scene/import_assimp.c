@@ -701,7 +701,11 @@ static sl_status ply_check(const char *path, uint64_t file_size, const sl_alloca
             else
                 el[ne - 1].min_bytes += binary ? size : 2;
         } else {
-            bad = "unknown keyword";
+            /* assimp skips header lines it does not know (Blender 2.47 wrote a bare "Created by
+             * Blender3D ..." line, e.g. assimp-testmodels' Wuson.ply): so do we, when they are text */
+            for (const char *c = kw; c < eol && !bad; c++)
+                if (*c && (*c < 0x20 || *c > 0x7e) && *c != '\t' && *c != '\r')
+                    bad = "unknown keyword in a line that is not text";
         }
         if (bad)
             break;
