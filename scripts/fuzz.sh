@@ -7,7 +7,7 @@
 # Any finding (crash, sanitizer report including UBSan, leak, OOM, timeout) fails the script after
 # the remaining targets have run; the finding's report is printed, its full log is kept in
 # build-fuzz/logs/ and the input in build-fuzz/artifacts/. A clean target prints libFuzzer's last
-# three lines.
+# three lines. Each target runs with -seed=1 (SL_FUZZ_SEED overrides; 0: random) and -timeout=60.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-35}
@@ -47,7 +47,10 @@ run() { # run NAME SECONDS CORPUS LABEL [libFuzzer flags...]
   local dirs=("$corpus")
   [ -d "$seeds" ] && dirs+=("$seeds")
   mkdir -p "$corpus"
-  "$f" -max_total_time="$s" -artifact_prefix="$artifacts/$label-" "$@" "${dirs[@]}" >"$log" 2>&1 || rc=$?
+  # -timeout: one input that runs 60 s is a hang and a finding (libFuzzer's default waits 20 minutes);
+  # -seed: the same run every time (SL_FUZZ_SEED=0 lets libFuzzer pick one, for exploring)
+  "$f" -max_total_time="$s" -timeout=60 -seed="${SL_FUZZ_SEED:-1}" -artifact_prefix="$artifacts/$label-" "$@" \
+    "${dirs[@]}" >"$log" 2>&1 || rc=$?
   if [ "$rc" -eq 0 ] && ! grep -q -E 'runtime error:|^==[0-9]+==ERROR' "$log"; then
     tail -n 3 "$log"
     return 0

@@ -627,7 +627,7 @@ static sl_status ply_check(const char *path, uint64_t file_size, const sl_alloca
         if (r <= 0)
             break;
         n += (size_t)r;
-        if (n >= 3 && memcmp(buf, "ply", 3) != 0 && memcmp(buf, "PLY", 3) != 0)
+        if (n >= 3 && strncasecmp(buf, "ply", 3) != 0)
             break;
         if (memmem(buf, n, "end_header", 10))
             break;
@@ -635,8 +635,9 @@ static sl_status ply_check(const char *path, uint64_t file_size, const sl_alloca
     close(fd);
     buf[n] = 0;
     sl_status st = SL_OK;
-    /* assimp's PLY reader takes any file starting with "ply" or "PLY" */
-    if (n < 3 || (memcmp(buf, "ply", 3) != 0 && memcmp(buf, "PLY", 3) != 0))
+    /* assimp's PLY reader takes any file starting with "ply" in any case ("Ply" too: a fuzzed
+     * "Ply" header without end_header made assimp 5.2 loop for ever) */
+    if (n < 3 || strncasecmp(buf, "ply", 3) != 0)
         goto done;
     bool binary = false, have_format = false;
     ply_element el[64];
@@ -652,7 +653,7 @@ static sl_status ply_check(const char *path, uint64_t file_size, const sl_alloca
         char *next = eol + 1;
         line = next;
         if (line_no == 1) {
-            if (!kw || (strcmp(kw, "ply") && strcmp(kw, "PLY")) || strtok_r(NULL, " \t\r", &save)) {
+            if (!kw || strcasecmp(kw, "ply") || strtok_r(NULL, " \t\r", &save)) {
                 bad = "the first line must be 'ply'";
                 break;
             }
