@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "support/file_clobber.h"
 #include "core/sl_core.h"
 #include "sightline/pvs.h"
 #include "support/counting_alloc.h"
@@ -68,33 +69,6 @@ static void write_pvs(const char *path, uint64_t *off, uint32_t **ids)
     sl_viewcells_destroy(vc);
 }
 
-static long file_size(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    assert_non_null(f);
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fclose(f);
-    return n;
-}
-
-/* Truncate the file in place, then rewrite it in place with other bytes, as `cp other FILE`
- * does: same inode, so a mapping of it loses its pages. */
-static bool clobber_in_place(const char *path, long size)
-{
-    int fd = open(path, O_WRONLY | O_TRUNC);
-    if (fd < 0)
-        return false;
-    uint8_t junk[4096];
-    memset(junk, 0xA5, sizeof junk);
-    /* a quarter of the old size: the later pages of a mapping are gone */
-    bool ok = true;
-    for (long at = 0; at < size / 4 && ok; at += (long)sizeof junk)
-        ok = write(fd, junk, sizeof junk) == (ssize_t)sizeof junk;
-    close(fd);
-    return ok;
-}
-
 /* Every set decodes as written and verify passes: 0, else the first cell that did not (+1).
  * No cmocka assertion: it also runs in a forked child. */
 static int sets_differ(sl_pvs p, const uint64_t *off, const uint32_t *ids)
@@ -128,7 +102,8 @@ static void test_read_survives_rewrite(void **state)
     write_pvs(path, off, &ids);
     free(ids);
     write_pvs(cut, off, &ids);
-    long size = file_size(path);
+    long size = sl_test_file_size(path);
+    assert_true(size > 0);
     assert_true(size > 8 * 4096);
     fflush(NULL);
     pid_t pid = fork();
@@ -145,7 +120,7 @@ static void test_read_survives_rewrite(void **state)
             _exit(3);
         /* one file truncated to nothing (a mapping faults), one rewritten with other bytes (a
          * mapping reads them) */
-        if (truncate(cut, 0) != 0 || !clobber_in_place(path, size))
+        if (truncate(cut, 0) != 0 || !sl_test_clobber_in_place(path, size))
             _exit(7);
         /* blocks are decoded (and their checksums checked) only now */
         if (sets_differ(q, off, ids) || sets_differ(p, off, ids))
@@ -199,7 +174,8 @@ static void test_truncated_message(void **state)
     uint64_t off[NCELL + 1];
     uint32_t *ids;
     write_pvs(path, off, &ids);
-    long size = file_size(path);
+    long size = sl_test_file_size(path);
+    assert_true(size > 0);
     assert_int_equal(truncate(path, size / 2), 0);
     for (int m = 0; m < 2; m++) {
         sl_error err;
@@ -258,7 +234,8 @@ static void test_shrinks_while_read(void **state)
     uint64_t off[NCELL + 1];
     uint32_t *ids;
     write_pvs(path, off, &ids);
-    long size = file_size(path);
+    long size = sl_test_file_size(path);
+    assert_true(size > 0);
     shrink_user u = {path, (size_t)size, 8192, 0};
     sl_allocator a = {shrink_alloc, shrink_realloc, shrink_free, &u};
     sl_error err;

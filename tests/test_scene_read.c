@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "support/file_clobber.h"
 #include "scene/scene_internal.h"
 #include "sightline/gen.h"
 #include "sightline/pvs.h"
@@ -23,32 +24,6 @@
 static char g_dir[256];
 
 static void path_of(char *buf, size_t n, const char *name) { snprintf(buf, n, "%s/%s", g_dir, name); }
-
-static long file_size(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    assert_non_null(f);
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fclose(f);
-    return n;
-}
-
-/* Rewrite the file in place with a quarter of its size of other bytes (what `cp other FILE`
- * does: same inode). No cmocka assertion: runs in the child. */
-static bool clobber_in_place(const char *path, long size)
-{
-    int fd = open(path, O_WRONLY | O_TRUNC);
-    if (fd < 0)
-        return false;
-    uint8_t junk[4096];
-    memset(junk, 0x5A, sizeof junk);
-    bool ok = true;
-    for (long at = 0; at < size / 4 && ok; at += (long)sizeof junk)
-        ok = write(fd, junk, sizeof junk) == (ssize_t)sizeof junk;
-    close(fd);
-    return ok;
-}
 
 /* Save the tiny city twice; return its scene key (which reads every array of the scene). */
 static uint64_t save_city(const char *a, const char *b)
@@ -73,7 +48,8 @@ static void test_read_survives_rewrite(void **state)
     path_of(a, sizeof a, "cut.slscene");
     path_of(b, sizeof b, "rewritten.slscene");
     uint64_t key = save_city(a, b);
-    long size = file_size(b);
+    long size = sl_test_file_size(b);
+    assert_true(size > 0);
     assert_true(size > 64 * 4096);
     fflush(NULL);
     pid_t pid = fork();
@@ -88,7 +64,7 @@ static void test_read_survives_rewrite(void **state)
         sl_scene sa, sb;
         if (sl_scene_load(a, NULL, &al, &sa, &err) != SL_OK || sl_scene_load(b, NULL, &al, &sb, &err) != SL_OK)
             _exit(3);
-        if (truncate(a, 0) != 0 || !clobber_in_place(b, size))
+        if (truncate(a, 0) != 0 || !sl_test_clobber_in_place(b, size))
             _exit(7);
         if (sl_pvs_scene_key(sa) != key || sl_pvs_scene_key(sb) != key)
             _exit(6);
