@@ -7,7 +7,15 @@
  * names it as its buffer, the OBJ as its material library), so that references inside the folder
  * are followed. References out of the folder are refused by the IO system like in the CLI; each
  * file is capped at 2 MiB. assimp's own leaks on some hostile inputs are not ours: see
- * __lsan_default_suppressions below and tests/lsan.supp. */
+ * __lsan_default_suppressions below and tests/lsan.supp.
+ *
+ * The import runs as the CLI runs it: our checks (options, file kind and size, the PLY header)
+ * here, assimp and the conversion in a child process (src/scene/import_isolate.c), whose
+ * scene comes back through the .slscene reader. assimp 5.2 is not instrumented and reads past
+ * its buffers on some inputs (found here: the CI run of 2026-12-01 stopped on a corrupted heap
+ * chunk inside assimp); in the child that costs the child only. What runs in the child is not
+ * seen by this fuzzer's coverage or sanitizers: tests/test_import_isolate.c runs the same
+ * conversion in process under the sanitizers, on the test models. */
 #include "sightline/import.h"
 #include "sightline/scene.h"
 
@@ -81,6 +89,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
     sl_import_options opt = sl_import_defaults();
     opt.max_file_bytes = (uint64_t)2 << 20;
+    opt.timeout_ms = 20000; /* a child that loops is stopped well before libFuzzer's -timeout */
     opt.split_triangles = data[0] >= 128 ? 64 : 0; /* the splitter on half the inputs */
     sl_scene scene;
     sl_error err;

@@ -40,6 +40,19 @@ typedef struct sl_import_options {
     /* assimp files: the largest file assimp may open (the model or a reference); 0 means 4 GiB.
      * Only regular files are opened (never a FIFO or a device), read-only. */
     uint64_t max_file_bytes;
+    /* assimp files: where assimp runs. By default (false) in a child process (fork()): assimp 5.2
+     * reads out of bounds, crashes and loops on some malformed files (PLY and STL among them,
+     * found by fuzzing), which in this process could corrupt its memory or kill it. The child
+     * imports, writes the scene as .slscene into an anonymous memory file and exits; this process
+     * reads that back with the validating .slscene reader. A child that crashes, is killed or
+     * exits without a result fails the import with SL_ERROR_FORMAT naming the signal or status;
+     * progress and cancellation reach `progress` as in this process. The child's allocations
+     * go through `alloc` in the child's copy of this process. true: assimp runs in this process
+     * (debugging; or where fork() is not allowed). */
+    bool in_process;
+    /* isolated assimp import only: kill the child after this many milliseconds and fail with
+     * SL_ERROR_LIMIT (0: no limit) */
+    uint32_t timeout_ms;
 } sl_import_options;
 
 /* Default options (all zero). */
@@ -47,7 +60,11 @@ SL_API sl_import_options sl_import_defaults(void);
 
 /* Import any file assimp reads into a new scene. Every file assimp opens goes through a
  * read-only IO system confined as opt->allow_external says; assimp's messages are passed on with
- * control bytes and non-UTF-8 bytes escaped and cut short, never with raw file content. */
+ * control bytes and non-UTF-8 bytes escaped and cut short, never with raw file content. assimp
+ * runs in a child process unless opt->in_process (see there). Thread safety: may be called from
+ * several threads at once with distinct outputs; the isolated import forks, so a caller whose
+ * other threads hold locks the child needs (other than malloc's, which glibc resets) should
+ * import in process. */
 SL_API sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const sl_allocator *alloc,
                                   sl_scene *out, sl_error *err);
 

@@ -16,6 +16,7 @@
 #include "assimp_io.h"
 #include "core/escape.h"
 #include "split.h"
+#include "import_isolate.h"
 #include "sightline/import.h"
 
 #include <assimp/cimport.h>
@@ -853,16 +854,10 @@ static sl_status set_metadata(import_ctx *c, sl_error *err)
     return SL_OK;
 }
 
-sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const sl_allocator *alloc, sl_scene *out,
-                           sl_error *err)
+/* The import itself, in this process: sl_import_assimp calls it here or in a child process
+ * (import_isolate.c). */
+sl_status sl_import_assimp_check(const char *path, const sl_import_options *opt, const sl_allocator *alloc, sl_error *err)
 {
-    if (!path || !out)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_import_assimp: NULL argument");
-    *out = NULL;
-    sl_import_options defaults;
-    memset(&defaults, 0, sizeof defaults);
-    if (!opt)
-        opt = &defaults;
     if (opt->up_axis != SL_UP_Y && opt->up_axis != SL_UP_Z)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_import_assimp: bad up axis %d", (int)opt->up_axis);
     if (!isfinite(opt->unit_scale) || opt->unit_scale < 0)
@@ -879,10 +874,32 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
         return sl_fail(err, SL_ERROR_LIMIT, "%s: %llu bytes, more than the limit of %llu", path, (unsigned long long)sb.st_size,
                        (unsigned long long)max_file);
 
-    const sl_allocator *a = sl_alloc_or_default(alloc);
-    sl_status st = ply_check(path, (uint64_t)sb.st_size, a, err);
+    return ply_check(path, (uint64_t)sb.st_size, sl_alloc_or_default(alloc), err);
+}
+
+sl_status sl_import_assimp_in_process(const char *path, const sl_import_options *opt, const sl_allocator *alloc,
+                                      sl_scene *out, sl_error *err)
+{
+    if (!path || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_import_assimp: NULL argument");
+    *out = NULL;
+    sl_import_options defaults;
+    memset(&defaults, 0, sizeof defaults);
+    if (!opt)
+        opt = &defaults;
+    sl_status st = sl_import_assimp_check(path, opt, alloc, err);
     if (st != SL_OK)
         return st;
+    return sl_import_assimp_checked(path, opt, alloc, out, err);
+}
+
+sl_status sl_import_assimp_checked(const char *path, const sl_import_options *opt, const sl_allocator *alloc,
+                                   sl_scene *out, sl_error *err)
+{
+    *out = NULL;
+    sl_status st;
+    const sl_allocator *a = sl_alloc_or_default(alloc);
+    uint64_t max_file = opt->max_file_bytes ? opt->max_file_bytes : SL_ASSIMP_MAX_FILE_BYTES;
     import_ctx c;
     memset(&c, 0, sizeof c);
     c.path = path;

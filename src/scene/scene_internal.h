@@ -113,4 +113,8 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err);
 /* Recompute all mesh bounds and object bounds (after a load). */
 void sl_scene_recompute_bounds(struct sl_scene_t *s);
 
+/* Write the scene as .slscene to an open file descriptor (left open; written from its current
+ * offset, straight through); `name` is the destination's name in messages. */
+sl_status sl_scene_save_fd(sl_scene s, int fd, const char *name, sl_error *err);
+
 #endif

@@ -248,10 +248,10 @@ static void free_out(const sl_allocator *a, out_sec *secs, size_t n)
         sl_free(a, secs[i].owned, secs[i].owned_size);
 }
 
-sl_status sl_scene_save(sl_scene s, const char *path, sl_error *err)
+/* Write the scene to `path` through the atomic writer, or, when fd >= 0, to that open file
+ * descriptor (not closed; `path` is then only its name in messages). */
+static sl_status save_to(sl_scene s, const char *path, int fd, sl_error *err)
 {
-    if (!s || !path)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_save: NULL argument");
     const sl_allocator *a = &s->alloc;
     if (s->meta.count > UINT32_MAX)
         return sl_fail(err, SL_ERROR_LIMIT, "%s: too many metadata entries", path);
@@ -356,8 +356,23 @@ sl_status sl_scene_save(sl_scene s, const char *path, sl_error *err)
     wr64(head + H_HEADER_HASH, sl_hash64(head, H_HEADER_HASH, SLS_HASH_SEED));
 
     sl_atomic_file f;
-    st = sl_atomic_open(a, path, &f, err);
-    if (st != SL_OK) {
+    if (fd >= 0) {
+        /* written straight through, as the atomic writer does for a device or a pipe */
+        memset(&f, 0, sizeof f);
+        f.alloc = a;
+        f.direct = true;
+        f.path = sl_strdup(a, path);
+        int dup_fd = f.path ? dup(fd) : -1;
+        f.fp = dup_fd >= 0 ? fdopen(dup_fd, "wb") : NULL;
+        if (!f.fp) {
+            int e = errno;
+            if (dup_fd >= 0)
+                close(dup_fd);
+            sl_atomic_abort(&f);
+            free_out(a, secs, n);
+            return sl_fail(err, SL_ERROR_IO, "%s: cannot write: %s", path, strerror(e));
+        }
+    } else if ((st = sl_atomic_open(a, path, &f, err)) != SL_OK) {
         free_out(a, secs, n);
         return st;
     }
@@ -372,6 +387,20 @@ sl_status sl_scene_save(sl_scene s, const char *path, sl_error *err)
     sl_atomic_write(&f, zeros, (size_t)(file_size - at));
     free_out(a, secs, n);
     return sl_atomic_commit(&f, err); /* removes the temporary file itself on failure */
+}
+
+sl_status sl_scene_save(sl_scene s, const char *path, sl_error *err)
+{
+    if (!s || !path)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_save: NULL argument");
+    return save_to(s, path, -1, err);
+}
+
+sl_status sl_scene_save_fd(sl_scene s, int fd, const char *name, sl_error *err)
+{
+    if (!s || fd < 0 || !name)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_save_fd: bad argument");
+    return save_to(s, name, fd, err);
 }
 
 /* ============================================================================================
