@@ -137,33 +137,6 @@ static bool parse_camera(const char *text, sl_camera *cam)
     return sl_parse_camera_spec(text, cam); /* src/core/text_parse.c */
 }
 
-/* "A:B", "A:", ":B" or "A". */
-static bool parse_range(const char *text, uint32_t *first, uint32_t *end_out)
-{
-    const char *colon = strchr(text, ':');
-    unsigned long long a = 0, b = UINT32_MAX;
-    char *end;
-    if (text[0] != ':') {
-        errno = 0;
-        a = strtoull(text, &end, 10);
-        if (end == text || errno || a >= UINT32_MAX || text[0] == '-' || (colon ? end != colon : *end != 0))
-            return false;
-    }
-    if (!colon) {
-        b = a + 1;
-    } else if (colon[1]) {
-        errno = 0;
-        b = strtoull(colon + 1, &end, 10);
-        if (*end || errno || b > UINT32_MAX || colon[1] == '-')
-            return false;
-    }
-    if (b <= a)
-        return false;
-    *first = (uint32_t)a;
-    *end_out = (uint32_t)b;
-    return true;
-}
-
 static int find_mode(const char *name)
 {
     for (size_t m = 0; m < MODE_COUNT; m++)
@@ -241,7 +214,7 @@ int sl_cmd_render(int argc, char **argv)
         cli_error(cmd, "--frames applies to --path only");
         return 2;
     }
-    if (frames && !parse_range(frames, &first, &end)) {
+    if (frames && !sl_parse_range(frames, &first, &end)) { /* src/core/text_parse.c */
         cli_error(cmd, "--frames '%s': expected A:B with A < B (or A:, :B, A)", frames);
         return 2;
     }
