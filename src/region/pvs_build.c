@@ -133,7 +133,8 @@ static journal_verdict journal_examine(const sl_bake *b, const uint8_t *data, si
         return J_BAD;
     }
     if (rd32(data + 8) != J_VERSION) {
-        snprintf(why, n, "journal version %u (this build reads and writes %u)", rd32(data + 8), J_VERSION);
+        snprintf(why, n, "journal version %u (this build reads and writes %u%s)", rd32(data + 8), J_VERSION,
+                 rd32(data + 8) > J_VERSION ? "; the journal was written by a newer Sightline, which can resume it" : "");
         return J_BAD;
     }
     uint32_t desc_len = rd32(data + 20);
