@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/bytes.h"
 #include "core/sl_core.h"
 #include "cull/occluders.h"
 #include "region/pvs_internal.h"
@@ -24,7 +25,6 @@
 #include "sightline/pvs.h"
 #include "sightline/slscene.h"
 
-static void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
 
 static void expect_message(sl_status got, sl_status want, const sl_error *err, const char *a, const char *b)
 {

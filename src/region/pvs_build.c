@@ -24,6 +24,7 @@
  * Records are written with write(2) (in the kernel once it returns, so a killed process loses
  * nothing finished) and the file is synced every few seconds (power loss costs seconds). */
 #include "pvs_internal.h"
+#include "core/bytes.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -43,20 +44,6 @@
 #define J_TAG 0x4c4c4543u /* "CELL" */
 #define J_SYNC_SECONDS 5.0
 
-static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
-static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, 8); }
-static inline uint32_t rd32(const uint8_t *p)
-{
-    uint32_t v;
-    memcpy(&v, p, 4);
-    return v;
-}
-static inline uint64_t rd64(const uint8_t *p)
-{
-    uint64_t v;
-    memcpy(&v, p, 8);
-    return v;
-}
 
 /* ---- journal ---- */
 

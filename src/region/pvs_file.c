@@ -21,6 +21,7 @@
  * the sections that hold them. */
 #include "pvs_internal.h"
 
+#include "core/bytes.h"
 #include "scene/scene_internal.h"
 
 #include <errno.h>
@@ -76,20 +77,6 @@ static const struct {
     {"BLKS", PVS_BLOCK_REC, true}, {"DATA", 1, true}, {"META", 1, false},
 };
 
-static inline uint32_t rd32(const uint8_t *p)
-{
-    uint32_t v;
-    memcpy(&v, p, 4);
-    return v;
-}
-static inline uint64_t rd64(const uint8_t *p)
-{
-    uint64_t v;
-    memcpy(&v, p, 8);
-    return v;
-}
-static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
-static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, 8); }
 static inline uint64_t align_up(uint64_t v) { return (v + PVS_ALIGN - 1) & ~(uint64_t)(PVS_ALIGN - 1); }
 
 /* ---- zstd through the handle's allocator ---- */

@@ -17,6 +17,7 @@
  * The writer is deterministic: record padding (the `reserved` fields) is written as zero, the
  * gaps between sections are zero and the section order is fixed. */
 #include "scene_internal.h"
+#include "core/bytes.h"
 #include "sightline/slscene.h"
 
 #include <errno.h>
@@ -163,20 +164,6 @@ static const sec_def k_defs[] = {
 };
 #define SLS_NDEFS SL_COUNTOF(k_defs)
 
-static inline uint32_t rd32(const uint8_t *p)
-{
-    uint32_t v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-static inline uint64_t rd64(const uint8_t *p)
-{
-    uint64_t v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, sizeof v); }
-static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, sizeof v); }
 static inline uint64_t align_up(uint64_t v) { return (v + (SLS_ALIGN - 1)) & ~(uint64_t)(SLS_ALIGN - 1); }
 
 static sl_array *scene_array(struct sl_scene_t *s, const sec_def *d) { return (sl_array *)((char *)s + d->array); }
