@@ -141,16 +141,15 @@ static int parse(int argc, char **argv, bench_args *g)
     cli_args a;
     cli_args_init(&a, argc, argv);
     const char *name, *val;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
+        if (cli_common_option(&a, name, val, CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
+        } else if (!name) {
             if (g->scene_count == MAX_SCENES) {
                 cli_error(argv[0], "at most %d scenes", MAX_SCENES);
                 return 2;
             }
             g->scenes[g->scene_count++] = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return -1;
         } else if (!strcmp(name, "walk")) {
             g->has_walk = cli_parse_u32(&a, name, cli_value(&a, name, val), &g->walk);
         } else if (!strcmp(name, "path")) {
@@ -190,8 +189,6 @@ static int parse(int argc, char **argv, bench_args *g)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->height);
         } else if (!strcmp(name, "threads")) {
             cli_parse_threads(&a, name, cli_value(&a, name, val), false, &g->threads);
-        } else if (!strcmp(name, "map")) {
-            g->map = cli_value(&a, name, val);
         } else if (!strcmp(name, "out")) {
             g->out_dir = cli_value(&a, name, val);
         } else if (!strcmp(name, "map-eye")) {
@@ -205,21 +202,23 @@ static int parse(int argc, char **argv, bench_args *g)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->map_size);
         } else if (!strcmp(name, "no-plots")) {
             g->no_plots = true;
-        } else if (!strcmp(name, "json")) {
-            g->json = true;
         } else if (!strcmp(name, "strict")) {
             g->strict = true;
         } else if (!strcmp(name, "no-strict")) {
             g->strict = false;
-        } else if (cli_import_option(&a, name, val, &g->import)) {
-        } else if (!strcmp(name, "quiet")) {
-            g->quiet = true;
-        } else {
+        } else if (!cli_import_option(&a, name, val, &g->import)) {
             cli_unknown(&a, name);
         }
     }
+    if (com.help) {
+        usage(stdout);
+        return -1;
+    }
     if (a.error)
         return 2;
+    g->map = com.map;
+    g->json = com.json;
+    g->quiet = com.quiet;
     const char *cmd = argv[0];
     int kinds = (g->has_walk ? 1 : 0) + (g->path_file ? 1 : 0) + (g->random_kind ? 1 : 0);
     if (!g->scene_count) {

@@ -151,20 +151,13 @@ int sl_cmd_render(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
-    const char *name, *val, *scene_spec = NULL, *camera_text = NULL, *path_file = NULL, *frames = NULL;
-    const char *out_dir = "render-out", *images = NULL, *map = NULL;
+    const char *name, *val, *camera_text = NULL, *path_file = NULL, *frames = NULL;
+    const char *out_dir = "render-out", *images = NULL;
     uint32_t width = 0, height = 0, threads = 2;
-    bool json = false, quiet = false, selected[MODE_COUNT] = {false}, any_selected = false;
+    bool selected[MODE_COUNT] = {false}, any_selected = false;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
-            if (scene_spec) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            scene_spec = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
+        if (cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
         } else if (!strcmp(name, "camera")) {
             camera_text = cli_value(&a, name, val);
         } else if (!strcmp(name, "path")) {
@@ -181,21 +174,18 @@ int sl_cmd_render(int argc, char **argv)
             images = cli_value(&a, name, val);
         } else if (!strcmp(name, "threads")) {
             cli_parse_threads(&a, name, cli_value(&a, name, val), false, &threads);
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
-        } else if (!strcmp(name, "json")) {
-            json = true;
         } else if (cli_import_option(&a, name, val, &imp)) {
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
         } else if (find_mode(name) >= 0 && !val) {
             selected[find_mode(name)] = any_selected = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *scene_spec = com.input, *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if (!scene_spec) {
         cli_error(cmd, "missing SCENE (see --help)");
         return 2;
