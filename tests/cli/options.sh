@@ -3,7 +3,7 @@
 # tools/cli.c): for each command and action, --help (or -h) prints its usage and ends the parse
 # (what follows is not read: exit 0 even with a bad option after it), an unknown option is a usage
 # error, and a second SCENE/FILE where the command takes one is refused; -o and --output and
-# --output=F are the same. $1 is the sightline binary.
+# --output=F are the same; output folders are made with their parents. $1 is the sightline binary.
 set -u
 SL="$1"
 . "$(dirname "$0")/lib/common.sh"
@@ -45,4 +45,16 @@ expect 0 "$SL" info "$tmp/a.slscene" --json
 has '"objects"' "$tmp/out"
 expect 2 "$SL" gen city -o
 has "needs a value" "$tmp/err"
+# output folders (cli_outdir_begin and its one mkdir -p, make_parents in tools/cli.c): missing
+# parents are made, an existing folder is reused, a file in the way is refused by name
+cam="0,0,300,30,-45,0,70"
+expect 0 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/a/b" --quiet
+[ -s "$tmp/o/a/b/frame-00000-id.png" ] || fail "render did not make the missing folders"
+expect 0 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/a/b" --quiet
+: >"$tmp/o/file"
+expect 1 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/file" --quiet
+has "exists and is not a folder" "$tmp/err"
+expect 1 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/file/sub" --quiet
+has "Not a directory" "$tmp/err"
+[ -f "$tmp/o/file" ] || fail "the file in the way was touched"
 echo "options: ok"
