@@ -23,23 +23,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 typedef struct config {
     bool quick, city;
     uint32_t leaf, bins, runs;
 } config;
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median(double *v, uint32_t n)
-{
-    qsort(v, n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /* CPU time of the calling thread: a single-threaded build's cost even on a busy machine. */
 static double thread_cpu(void)
@@ -47,29 +36,6 @@ static double thread_cpu(void)
     struct timespec t;
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
     return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-static void cpu_model(char *out, size_t size)
-{
-    snprintf(out, size, "unknown CPU");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        if (strncmp(line, "model name", 10) == 0) {
-            char *p = strchr(line, ':');
-            if (p) {
-                p++;
-                while (*p == ' ')
-                    p++;
-                p[strcspn(p, "\n")] = 0;
-                snprintf(out, size, "%s", p);
-            }
-            break;
-        }
-    }
-    fclose(f);
 }
 
 /* City-like random boxes: constant density (one box per 400 m² of ground), 2-40 m wide, 3-60 m tall. */
@@ -170,8 +136,9 @@ static bool measure(const char *name, const sl_aabb *boxes, uint32_t n, const co
         sl_grid_destroy(g);
     }
     printf("| %s | %u | %.1f | %.1f | %.1f | %u | %u | %u | %.1f | %.2f | %.2f | %.1f |\n", name, n,
-           median(t1, cfg->runs), median(c1, cfg->runs), median(tall, cfg->runs), st.node_count, st.leaf_count, st.depth, st.sah_cost, median(trav, cfg->runs),
-           median(refit, cfg->runs), median(grid, cfg->runs));
+           bench_median(t1, cfg->runs), bench_median(c1, cfg->runs), bench_median(tall, cfg->runs), st.node_count,
+           st.leaf_count, st.depth, st.sah_cost, bench_median(trav, cfg->runs), bench_median(refit, cfg->runs),
+           bench_median(grid, cfg->runs));
     fflush(stdout);
     sl_bvh_destroy(keep);
     return true;
@@ -219,7 +186,7 @@ int main(int argc, char **argv)
         }
     }
     char cpu[256];
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("Machine: %ld CPUs (nproc), %s. Median of %u runs; leaf size %u, %u bins.\n\n",
            sysconf(_SC_NPROCESSORS_ONLN), cpu, cfg.runs, cfg.leaf ? cfg.leaf : 4, cfg.bins ? cfg.bins : 16);
     print_header();

@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 static uint64_t peak_rss_kib(void)
 {
@@ -37,34 +38,6 @@ static bool reset_peak_rss(void)
         return false;
     bool ok = fputs("5", f) >= 0;
     return fclose(f) == 0 && ok;
-}
-
-static void cpu_model(char *buf, size_t size)
-{
-    snprintf(buf, size, "unknown CPU");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f))
-        if (!strncmp(line, "model name", 10)) {
-            char *p = strchr(line, ':');
-            if (p) {
-                p++;
-                while (*p == ' ' || *p == '\t')
-                    p++;
-                p[strcspn(p, "\n")] = 0;
-                snprintf(buf, size, "%s", p);
-            }
-            break;
-        }
-    fclose(f);
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 static void usage(FILE *out)
@@ -117,7 +90,7 @@ int main(int argc, char **argv)
         vienna_runs = runs;
 
     char cpu[256];
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("machine: %ld cores (nproc), %s\n\n", sysconf(_SC_NPROCESSORS_ONLN), cpu);
     printf("| preset | seed | detail | terrain | runs | median s | min s | triangles | objects | buildings | blocks | "
            "footprints | street polygons | peak RSS MiB |\n");
@@ -158,7 +131,7 @@ int main(int argc, char **argv)
             }
             sl_scene_destroy(scene);
         }
-        qsort(times, (size_t)n, sizeof times[0], cmp_double);
+        qsort(times, (size_t)n, sizeof times[0], bench_cmp_double);
         double median = n % 2 ? times[n / 2] : 0.5 * (times[n / 2 - 1] + times[n / 2]);
         printf("| %s | %llu | %u | %s | %d | %.3f | %.3f | %llu | %u | %s | %s | %u | %u | %.0f%s |\n",
                sl_city_preset_name((sl_city_preset)p), (unsigned long long)seed, o.detail, o.terrain ? "on" : "off", n,

@@ -34,6 +34,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 typedef struct args {
     const char *city;
@@ -64,30 +65,6 @@ typedef struct totals {
     run sum[2];
     uint32_t converged;
 } totals;
-
-static void machine(char *buf, size_t n)
-{
-    char model[160] = "unknown CPU";
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (f) {
-        char line[256];
-        while (fgets(line, sizeof line, f))
-            if (!strncmp(line, "model name", 10)) {
-                const char *c = strchr(line, ':');
-                if (c) {
-                    snprintf(model, sizeof model, "%s", c + 2);
-                    model[strcspn(model, "\n")] = 0;
-                }
-                break;
-            }
-        fclose(f);
-    }
-    double load[3] = {0, 0, 0};
-    if (getloadavg(load, 3) < 0)
-        load[0] = load[1] = load[2] = -1;
-    snprintf(buf, n, "%ld cores (nproc), %s, load average %.2f %.2f %.2f", sysconf(_SC_NPROCESSORS_ONLN), model,
-             load[0], load[1], load[2]);
-}
 
 static int usage(int code)
 {
@@ -471,7 +448,7 @@ int main(int argc, char **argv)
             return usage(2);
     }
     char mach[256];
-    machine(mach, sizeof mach);
+    bench_machine(mach, sizeof mach);
     printf("# bench_gvs: %s\n# eps 5e-5, stop at <= %llu new triangles per %llu rays or %llu rays; RAND = same rays; "
            "%u views of %ux%u, 60 deg fov\n\n",
            mach, (unsigned long long)a.min_new, (unsigned long long)a.window, (unsigned long long)a.max_rays, a.views,
@@ -534,7 +511,7 @@ int main(int argc, char **argv)
             sl_scene_destroy(s);
         }
     }
-    machine(mach, sizeof mach);
+    bench_machine(mach, sizeof mach);
     printf("# at the end: %s\n", mach);
     return rc;
 }

@@ -29,6 +29,7 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 #define MAX_METHODS 24
 #define MAX_MAPS 256
@@ -62,21 +63,6 @@ static void die(const char *what, const sl_error *err)
     exit(2);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double percentile(double *v, size_t n, double p)
-{
-    if (n == 0)
-        return 0;
-    qsort(v, n, sizeof *v, cmp_double);
-    size_t k = (size_t)ceil(p * (double)n);
-    return v[k ? k - 1 : 0];
-}
-
 static void parse_method(const char *spec, method *m)
 {
     memset(m, 0, sizeof *m);
@@ -90,30 +76,6 @@ static void parse_method(const char *spec, method *m)
             if (*c == ':')
                 *c = ',';
     }
-}
-
-static void machine(char *buf, size_t n)
-{
-    char model[160] = "unknown CPU";
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (f) {
-        char line[256];
-        while (fgets(line, sizeof line, f))
-            if (!strncmp(line, "model name", 10)) {
-                const char *c = strchr(line, ':');
-                if (c) {
-                    snprintf(model, sizeof model, "%s", c + 2);
-                    model[strcspn(model, "\n")] = 0;
-                }
-                break;
-            }
-        fclose(f);
-    }
-    double load[3] = {0, 0, 0};
-    if (getloadavg(load, 3) < 0)
-        load[0] = load[1] = load[2] = -1;
-    snprintf(buf, n, "%ld cores (nproc), %s, load average %.2f %.2f %.2f", sysconf(_SC_NPROCESSORS_ONLN), model, load[0],
-             load[1], load[2]);
 }
 
 /* Cull `views` near-wall views of s with every method against the oracle. */
@@ -242,7 +204,7 @@ int main(int argc, char **argv)
     char date[64], mach[320];
     time_t now = time(NULL);
     strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
-    machine(mach, sizeof mach);
+    bench_machine(mach, sizeof mach);
     printf("\ndate: %s\nmachine: %s\nviews: eye 0.001-0.2 m in front of a random surface point, looking towards "
            "it; %u per scene at %ux%u, near 0.1 m, seed %llu\n\n",
            date, mach, views, w, h, (unsigned long long)seed);
@@ -298,7 +260,7 @@ int main(int argc, char **argv)
     int status = 0;
     for (uint32_t i = 0; i < nm; i++) {
         method *m = &ms[i];
-        double med = percentile(m->ms, m->ms_count, 0.5), p95 = percentile(m->ms, m->ms_count, 0.95);
+        double med = bench_percentile(m->ms, m->ms_count, 0.5), p95 = bench_percentile(m->ms, m->ms_count, 0.95);
         printf("| %s | %llu | %llu | %llu | %.3f | %.3f |\n", m->spec, (unsigned long long)m->views,
                (unsigned long long)m->bad_views, (unsigned long long)m->missed, med, p95);
         if (m->missed)

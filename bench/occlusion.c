@@ -33,6 +33,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 #define MAX_METHODS 24
 
@@ -53,21 +54,6 @@ static void die(const char *what, const sl_error *err)
 {
     fprintf(stderr, "bench_occlusion: %s%s%s\n", what, err ? ": " : "", err ? err->message : "");
     exit(2);
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double percentile(double *v, size_t n, double p)
-{
-    if (n == 0)
-        return 0;
-    qsort(v, n, sizeof *v, cmp_double);
-    size_t k = (size_t)ceil(p * (double)n);
-    return v[k ? k - 1 : 0];
 }
 
 /* "name[:key=value[:key=value...]]" into a method (the list itself is comma-separated, so options
@@ -148,7 +134,7 @@ static void walk_times(sl_culler c, sl_path p, uint32_t repeat, uint32_t *out, u
 static double median_time(sl_culler c, sl_path p, uint32_t repeat, uint32_t *out, uint32_t n, double *scratch)
 {
     walk_times(c, p, repeat, out, n, scratch);
-    return percentile(scratch, sl_path_count(p), 0.5);
+    return bench_percentile(scratch, sl_path_count(p), 0.5);
 }
 
 /* Allocator that counts live bytes (for the memory table). */
@@ -312,7 +298,7 @@ int main(int argc, char **argv)
            "missed pixels | pixel queries |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
     for (uint32_t i = 0; i < nm; i++) {
         double *t = times + (size_t)i * frames;
-        double med = percentile(t, frames, 0.5), p95 = percentile(t, frames, 0.95);
+        double med = bench_percentile(t, frames, 0.5), p95 = bench_percentile(t, frames, 0.95);
         printf("| %s | %s | %.3f | %.3f | %.1f | %.2f | %.0f | %.0f | %.0f |\n", methods[i].spec,
                sl_cull_guarantee_name(sl_culler_guarantee(c[i])), med, p95, kept[i] / frames, kept[i] / visible,
                missed[i], missed_px[i], queries[i] / frames);

@@ -21,36 +21,13 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 static double cpu_ms(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
-
-static void machine(char *buf, size_t n)
-{
-    char model[160] = "unknown CPU";
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (f) {
-        char line[256];
-        while (fgets(line, sizeof line, f))
-            if (!strncmp(line, "model name", 10)) {
-                const char *c = strchr(line, ':');
-                if (c) {
-                    snprintf(model, sizeof model, "%s", c + 2);
-                    model[strcspn(model, "\n")] = 0;
-                }
-                break;
-            }
-        fclose(f);
-    }
-    double load[3] = {0, 0, 0};
-    if (getloadavg(load, 3) < 0)
-        load[0] = load[1] = load[2] = -1;
-    snprintf(buf, n, "%ld cores (nproc), %s, load average %.2f %.2f %.2f", sysconf(_SC_NPROCESSORS_ONLN), model, load[0],
-             load[1], load[2]);
 }
 
 static int fail(const char *what, const sl_error *err)
@@ -94,7 +71,7 @@ int main(int argc, char **argv)
         return 2;
     }
     char mach[320];
-    machine(mach, sizeof mach);
+    bench_machine(mach, sizeof mach);
     printf("oracle cost on street-level views (walk sampled every 28 m, eye 1.7 m), %ux%u, %u threads, "
            "%u views per city, seed %llu\n",
            width, height, threads, views, (unsigned long long)seed);
@@ -174,7 +151,7 @@ int main(int argc, char **argv)
         sl_path_destroy(walk);
         sl_scene_destroy(s);
     }
-    machine(mach, sizeof mach);
+    bench_machine(mach, sizeof mach);
     printf("\nmachine at end: %s\n", mach);
     return 0;
 }

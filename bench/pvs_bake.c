@@ -23,12 +23,7 @@
 #include <stdlib.h>
 #include <time.h>
 #include <unistd.h>
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
+#include "bench_common.h"
 
 /* CPU time of the calling thread: the machine is shared, wall time is not a fair per-cell cost. */
 static double thread_seconds(void)
@@ -36,25 +31,6 @@ static double thread_seconds(void)
     struct timespec ts;
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static void cpu_model(char *buf, size_t n)
-{
-    snprintf(buf, n, "unknown");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f))
-        if (!strncmp(line, "model name", 10)) {
-            char *c = strchr(line, ':');
-            if (c) {
-                snprintf(buf, n, "%s", c + 2);
-                buf[strcspn(buf, "\n")] = 0;
-            }
-            break;
-        }
-    fclose(f);
 }
 
 int main(int argc, char **argv)
@@ -99,7 +75,7 @@ int main(int argc, char **argv)
         return 2;
     }
     char cpu[256];
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("machine: %ld cores, %s\n", sysconf(_SC_NPROCESSORS_ONLN), cpu);
     sl_city_options co = sl_city_defaults(p);
     double t0 = sl_now();
@@ -217,7 +193,7 @@ int main(int argc, char **argv)
         double sum = 0;
         for (uint32_t i = 0; i < sample; i++)
             sum += secs[i];
-        qsort(secs, sample, sizeof *secs, cmp_double);
+        qsort(secs, sample, sizeof *secs, bench_cmp_double);
         double mean = sum / sample;
         printf("method %s (%s): prepare %.2f s; %u random cells on 1 thread (CPU time): median %.4f s, "
                "mean %.4f s, p95 %.4f s, "

@@ -23,6 +23,7 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
+#include "bench_common.h"
 
 #define W 1920
 #define H 1080
@@ -48,18 +49,6 @@ static double now(void)
     struct timespec ts;
     clock_gettime(which_clock == CLOCK_PROCESS ? CLOCK_PROCESS_CPUTIME_ID : CLOCK_THREAD_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 static void perspective(float m[16], double fovy, double aspect, double n, double f)
@@ -147,7 +136,7 @@ static double throughput(sl_raster *r, const float P[16], int S, int runs, bool 
     }
     free(v);
     free(ix);
-    return median(t, runs);
+    return bench_median(t, runs);
 }
 
 static double clear_ms(sl_raster *r, int runs)
@@ -160,7 +149,7 @@ static double clear_ms(sl_raster *r, int runs)
             sl_raster_clear(r);
         t[i] = (now() - t0) / reps * 1e3;
     }
-    return median(t, runs);
+    return bench_median(t, runs);
 }
 
 /* Median ns per rectangle query behind a full-screen occluder; every answer must be OCCLUDED. */
@@ -199,30 +188,7 @@ static double query_ns(sl_raster *r, const float P[16], int qw, int qh, int runs
                 reps * NQ);
         exit(1);
     }
-    return median(t, runs);
-}
-
-static void cpu_model(char *out, size_t n)
-{
-    snprintf(out, n, "unknown");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        if (strncmp(line, "model name", 10) == 0) {
-            char *c = strchr(line, ':');
-            if (c) {
-                c++;
-                while (*c == ' ')
-                    c++;
-                c[strcspn(c, "\n")] = 0;
-                snprintf(out, n, "%s", c);
-            }
-            break;
-        }
-    }
-    fclose(f);
+    return bench_median(t, runs);
 }
 
 int main(int argc, char **argv)
@@ -272,7 +238,7 @@ int main(int argc, char **argv)
         }
     }
     char cpu[256];
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("# Occlusion rasterizer, %dx%d, one thread\n\n", W, H);
     printf("machine: nproc %ld, CPU %s; median of %d runs; single-thread times are thread CPU time\n\n",
            sysconf(_SC_NPROCESSORS_ONLN), cpu, runs);

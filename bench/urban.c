@@ -26,6 +26,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include "bench_common.h"
 
 #define MAX_METHODS 8
 
@@ -49,20 +50,6 @@ static double cpu_ms(void)
     struct timespec ts;
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
     return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, size_t n)
-{
-    if (!n)
-        return 0;
-    qsort(v, n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 /* Cull one camera with a method and judge it against the oracle frame. */
@@ -247,8 +234,8 @@ int main(int argc, char **argv)
                 }
             }
             for (int k = 0; k < nm; k++) {
-                run_median[k * runs + r] = median(times + (size_t)k * frames, frames);
-                run_cmedian[k * runs + r] = median(ctimes + (size_t)k * frames, frames);
+                run_median[k * runs + r] = bench_median(times + (size_t)k * frames, frames);
+                run_cmedian[k * runs + r] = bench_median(ctimes + (size_t)k * frames, frames);
             }
             int h = -1, d = -1;
             for (int k = 0; k < nm; k++) {
@@ -267,13 +254,14 @@ int main(int argc, char **argv)
         printf("| method | cull ms/frame, CPU (median) | wall (median) | objects/frame | triangles/frame | "
                "triangles vs vfc |\n|---|---|---|---|---|---|\n");
         for (int k = 0; k < nm; k++) {
-            double med = median(run_median + (size_t)k * runs, runs), cmed = median(run_cmedian + (size_t)k * runs, runs);
+            double med = bench_median(run_median + (size_t)k * runs, runs);
+            double cmed = bench_median(run_cmedian + (size_t)k * runs, runs);
             printf("| %s | %.3f | %.3f | %.0f | %.0f | %.1fx fewer |\n", ms[k].name, cmed, med, objs[k] / frames,
                    tris[k] / frames, tris[0] / fmax(tris[k], 1));
         }
         if (nratio)
             printf("\ndhorizon vs horizon, same runs: horizon CPU time / dhorizon CPU time = %.2f (median of %u runs)\n",
-                   median(ratio_runs, nratio), nratio);
+                   bench_median(ratio_runs, nratio), nratio);
         printf("\n");
         if (check_walk) {
             for (int k = 0; k < nm; k++)

@@ -5,7 +5,8 @@
  *    sl_culler_create runs before it builds anything);
  *  - every registered PVS bake method's configure (sl_pvs_method_check_options);
  *  - the command line's number lists: --point (3 numbers), --volume (6), --eye (3) through
- *    sl_parse_floats and --camera through sl_parse_camera_spec (src/core/text_parse.c).
+ *    sl_parse_floats, --camera through sl_parse_camera_spec and --frames through sl_parse_range
+ *    (src/core/text_parse.c).
  * What the number readers accept must be finite, as floats (the run aborts otherwise). */
 #include "core/sl_core.h"
 #include "core/text_parse.h"
@@ -49,6 +50,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (sl_parse_camera_spec(text, &cam) &&
         (!isfinite(cam.position.x) || !isfinite(cam.position.y) || !isfinite(cam.position.z) || !isfinite(cam.yaw) ||
          !isfinite(cam.pitch) || !isfinite(cam.roll) || !isfinite(cam.fov_y)))
+        abort();
+    uint32_t first, end;
+    if (sl_parse_range(text, &first, &end) && !(first < end && first < UINT32_MAX))
         abort();
     free(text);
     return 0;

@@ -14,6 +14,7 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "core/dvec3.h"
 #include "core/sl_core.h"
 #include "region/gvs_internal.h"
 #include "region/halton.h"
@@ -152,22 +153,11 @@ static void test_halton(void **state)
 
 /* ---- the enlarged polygon ---- */
 
-/* Does the ray from o toward p meet triangle t (Moller-Trumbore, both sides)? */
+/* Does the ray from o toward p meet triangle t (both sides)? */
 static bool ray_hits(const double *o, const double *p, const double *tri)
 {
     double d[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
-    double e1[3], e2[3], s[3];
-    for (int c = 0; c < 3; c++)
-        e1[c] = tri[3 + c] - tri[c], e2[c] = tri[6 + c] - tri[c], s[c] = o[c] - tri[c];
-    double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-    if (fabs(det) < 1e-300)
-        return false;
-    double u = (s[0] * pv[0] + s[1] * pv[1] + s[2] * pv[2]) / det;
-    double qv[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
-    double v = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
-    double tt = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
-    return u >= 0 && v >= 0 && u + v <= 1 && tt > 0;
+    return sl_ray_triangle(o, d, tri, tri + 3, tri + 6, 1e-300, NULL); /* src/core/dvec3.c */
 }
 
 /* From random viewpoints (front and back side) and for random triangles (slivers included), every

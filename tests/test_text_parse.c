@@ -10,6 +10,8 @@
 
 #include "core/text_parse.h"
 
+#include <stdint.h>
+
 static void test_floats(void **state)
 {
     (void)state;
@@ -57,8 +59,47 @@ static void test_camera(void **state)
     }
 }
 
+/* The one --frames reader of `bench` and `render` (the two copies it replaced differed on a first
+ * frame of UINT32_MAX: bench took "4294967295" as frame 2^32-1 alone, whose end wraps to 0; render
+ * refused it). */
+static void test_range(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        uint32_t first, end;
+    } good[] = {
+        {"0:10", 0, 10},           {"3:4", 3, 4},           {"5", 5, 6},
+        {"7:", 7, UINT32_MAX},     {":9", 0, 9},            {":", 0, UINT32_MAX},
+        {"0", 0, 1},               {"007:010", 7, 10},      {"4294967294", 4294967294u, UINT32_MAX},
+        {"0:4294967295", 0, UINT32_MAX}, {"4294967294:4294967295", 4294967294u, UINT32_MAX},
+    };
+    for (size_t i = 0; i < sizeof good / sizeof good[0]; i++) {
+        uint32_t f = 123, e = 456;
+        if (!sl_parse_range(good[i].text, &f, &e))
+            fail_msg("'%s' was refused", good[i].text);
+        if (f != good[i].first || e != good[i].end)
+            fail_msg("'%s' read as %u:%u, not %u:%u", good[i].text, f, e, good[i].first, good[i].end);
+    }
+    static const char *const bad[] = {
+        "",       "a",          "1:a",         "5:5",         "6:5",          "-1",          "1:-2",
+        "+1",     " 1",         "1 ",          "1: 2",        "1:2:3",        "1::",         "0x10",
+        "4294967295", "4294967295:", "4294967296", "0:4294967296", "99999999999999999999", "1.5", ":0",
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        uint32_t f = 123, e = 456;
+        if (sl_parse_range(bad[i], &f, &e))
+            fail_msg("'%s' was accepted as %u:%u", bad[i], f, e);
+        assert_int_equal(f, 123);
+        assert_int_equal(e, 456);
+    }
+    uint32_t f, e;
+    assert_false(sl_parse_range(NULL, &f, &e));
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_floats), cmocka_unit_test(test_camera)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_floats), cmocka_unit_test(test_camera),
+                                       cmocka_unit_test(test_range)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -42,6 +42,74 @@ void cli_args_init(cli_args *a, int argc, char **argv)
     a->error = false;
 }
 
+bool cli_common_option(cli_args *a, const char *name, const char *value, unsigned which, cli_common *c)
+{
+    if (name && !strcmp(name, "help")) {
+        c->help = true;
+        a->i = a->argc; /* the parse ends here */
+        return true;
+    }
+    if (!name) {
+        if ((which & CLI_OUTPUT) && !strcmp(value, "-o")) {
+            c->output = cli_value(a, "o", NULL);
+            return true;
+        }
+        if (!(which & CLI_INPUT))
+            return false;
+        if (c->input)
+            cli_unknown(a, NULL);
+        else
+            c->input = value;
+        return true;
+    }
+    if ((which & CLI_OUTPUT) && !strcmp(name, "output")) {
+        c->output = cli_value(a, name, value);
+    } else if ((which & CLI_MAP) && !strcmp(name, "map")) {
+        c->map = cli_value(a, name, value);
+    } else if ((which & CLI_JSON) && !strcmp(name, "json")) {
+        c->json = true;
+    } else if ((which & CLI_QUIET) && !strcmp(name, "quiet")) {
+        c->quiet = true;
+    } else {
+        return false;
+    }
+    return true;
+}
+
+int cli_parse_done(const cli_args *a, const cli_common *c, void (*usage)(FILE *))
+{
+    if (c->help) {
+        usage(stdout);
+        return 0;
+    }
+    return a->error ? 2 : -1;
+}
+
+int cli_action(int argc, char **argv, const char *cmd, void (*usage)(FILE *), const char *const *names, int count,
+               int *status)
+{
+    *status = 2;
+    if (argc < 2) {
+        usage(stderr);
+        return -1;
+    }
+    const char *action = argv[1];
+    if (!strcmp(action, "--help") || !strcmp(action, "-h") || !strcmp(action, "help")) {
+        usage(stdout);
+        *status = 0;
+        return -1;
+    }
+    for (int i = 0; i < count; i++)
+        if (!strcmp(action, names[i]))
+            return i;
+    char list[256] = "";
+    size_t n = 0;
+    for (int i = 0; i < count && n < sizeof list; i++)
+        n += (size_t)snprintf(list + n, sizeof list - n, "%s%s", i == 0 ? "" : i + 1 == count ? " or " : ", ", names[i]);
+    cli_error(cmd, "unknown action '%s' (%s; see sightline %s --help)", action, list, cmd);
+    return -1;
+}
+
 bool cli_next(cli_args *a, const char **name, const char **inline_value)
 {
     if (a->error || a->i >= a->argc)

@@ -67,6 +67,38 @@ bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out
 /* Report an unknown option and mark the parse failed. */
 void cli_unknown(cli_args *a, const char *name);
 
+/* The options the subcommands share, parsed in one place: every command's loop starts with
+ *     if (cli_common_option(&a, name, val, CLI_INPUT | CLI_JSON, &com)) continue;
+ * and after it
+ *     int parsed = cli_parse_done(&a, &com, usage);  if (parsed >= 0) return parsed;
+ * --help (and -h) is always taken and ends the parse (what follows it is not read, so
+ * `CMD --help --bad` still prints the help). The others only when named in `which`
+ * (tests/cli/options.sh). */
+enum {
+    CLI_INPUT = 1u << 0,  /* one positional argument into c->input; a second is an error */
+    CLI_OUTPUT = 1u << 1, /* -o FILE, --output FILE */
+    CLI_MAP = 1u << 2,    /* --map NAME (a map of a .pk3 archive) */
+    CLI_JSON = 1u << 3,   /* --json */
+    CLI_QUIET = 1u << 4,  /* --quiet */
+};
+typedef struct cli_common {
+    const char *input, *output, *map;
+    bool json, quiet, help;
+} cli_common;
+/* True when name/value (from cli_next) was one of them (a bad one marks the parse failed). */
+bool cli_common_option(cli_args *a, const char *name, const char *value, unsigned which, cli_common *c);
+
+/* The end of a command's parse: -1 to go on, else the exit status to return at once: 0 after
+ * printing usage(stdout) for --help, 2 after a parse error (already reported). */
+int cli_parse_done(const cli_args *a, const cli_common *c, void (*usage)(FILE *));
+
+/* The action of a command that has actions (`sightline pvs build ...`, argv[1]): its index in
+ * names[0..count), or -1 with *status set after printing the usage (to stdout for --help, -h or
+ * help: 0; to stderr when there is no action: 2) or "unknown action 'X' (A, B or C; see sightline
+ * CMD --help)" (2). */
+int cli_action(int argc, char **argv, const char *cmd, void (*usage)(FILE *), const char *const *names, int count,
+               int *status);
+
 /* ---- --allow-external PATH (repeatable): commands whose scene argument can be an assimp file ----
  * A model's references (glTF buffers and images, OBJ material libraries ...) resolve only inside
  * the model's folder unless these allow more (sl_import_options.allow_external). */

@@ -116,30 +116,13 @@ static bool parse_vec3(const char *text, sl_vec3 *out)
     return true;
 }
 
-/* "A:B", "A:", ":B" or "A" into a first frame and a count (UINT32_MAX: to the end). */
-static bool parse_range(const char *text, uint32_t *first, uint32_t *count)
+/* --frames into a first frame and a count (UINT32_MAX: to the end); sl_parse_range reads it. */
+static bool parse_frames(const char *text, uint32_t *first, uint32_t *count)
 {
-    const char *colon = strchr(text, ':');
-    unsigned long long a = 0, b = UINT32_MAX;
-    char *end;
-    if (text[0] != ':') {
-        errno = 0;
-        a = strtoull(text, &end, 10);
-        if (end == text || errno || a > UINT32_MAX || text[0] == '-' || (colon ? end != colon : *end != 0))
-            return false;
-    }
-    if (!colon) {
-        b = a + 1;
-    } else if (colon[1]) {
-        errno = 0;
-        b = strtoull(colon + 1, &end, 10);
-        if (*end || errno || b > UINT32_MAX || colon[1] == '-')
-            return false;
-    }
-    if (b <= a)
+    uint32_t end;
+    if (!sl_parse_range(text, first, &end)) /* src/core/text_parse.c */
         return false;
-    *first = (uint32_t)a;
-    *count = (uint32_t)(b == UINT32_MAX ? UINT32_MAX : b - a);
+    *count = end == UINT32_MAX ? UINT32_MAX : end - *first;
     return true;
 }
 
@@ -158,16 +141,15 @@ static int parse(int argc, char **argv, bench_args *g)
     cli_args a;
     cli_args_init(&a, argc, argv);
     const char *name, *val;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
+        if (cli_common_option(&a, name, val, CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
+        } else if (!name) {
             if (g->scene_count == MAX_SCENES) {
                 cli_error(argv[0], "at most %d scenes", MAX_SCENES);
                 return 2;
             }
             g->scenes[g->scene_count++] = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return -1;
         } else if (!strcmp(name, "walk")) {
             g->has_walk = cli_parse_u32(&a, name, cli_value(&a, name, val), &g->walk);
         } else if (!strcmp(name, "path")) {
@@ -207,8 +189,6 @@ static int parse(int argc, char **argv, bench_args *g)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->height);
         } else if (!strcmp(name, "threads")) {
             cli_parse_threads(&a, name, cli_value(&a, name, val), false, &g->threads);
-        } else if (!strcmp(name, "map")) {
-            g->map = cli_value(&a, name, val);
         } else if (!strcmp(name, "out")) {
             g->out_dir = cli_value(&a, name, val);
         } else if (!strcmp(name, "map-eye")) {
@@ -222,21 +202,23 @@ static int parse(int argc, char **argv, bench_args *g)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->map_size);
         } else if (!strcmp(name, "no-plots")) {
             g->no_plots = true;
-        } else if (!strcmp(name, "json")) {
-            g->json = true;
         } else if (!strcmp(name, "strict")) {
             g->strict = true;
         } else if (!strcmp(name, "no-strict")) {
             g->strict = false;
-        } else if (cli_import_option(&a, name, val, &g->import)) {
-        } else if (!strcmp(name, "quiet")) {
-            g->quiet = true;
-        } else {
+        } else if (!cli_import_option(&a, name, val, &g->import)) {
             cli_unknown(&a, name);
         }
     }
+    if (com.help) {
+        usage(stdout);
+        return -1;
+    }
     if (a.error)
         return 2;
+    g->map = com.map;
+    g->json = com.json;
+    g->quiet = com.quiet;
     const char *cmd = argv[0];
     int kinds = (g->has_walk ? 1 : 0) + (g->path_file ? 1 : 0) + (g->random_kind ? 1 : 0);
     if (!g->scene_count) {
@@ -411,7 +393,7 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
     if (g->path_file) {
         st = sl_path_load(g->path_file, NULL, out, err);
         if (st == SL_OK && g->frames) {
-            parse_range(g->frames, first, count);
+            parse_frames(g->frames, first, count);
             if (*first >= sl_path_count(*out)) {
                 st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: --frames %s starts beyond its %u frames",
                              g->path_file, g->frames, sl_path_count(*out));
@@ -601,7 +583,7 @@ int sl_cmd_bench(int argc, char **argv)
         return 2;
     if (g.frames) {
         uint32_t f0, fc;
-        if (!parse_range(g.frames, &f0, &fc)) {
+        if (!parse_frames(g.frames, &f0, &fc)) {
             cli_error(cmd, "--frames '%s': expected A:B with A < B (or A:, :B, A)", g.frames);
             return 2;
         }

@@ -343,13 +343,12 @@ int sl_cmd_demo(int argc, char **argv)
     const char *name, *val, *preset_name = "small", *out_dir = "demo-out";
     uint64_t seed = 1;
     uint32_t frames = 0, width = 1024, height = 768;
-    bool quick = false, json = false, quiet = false, has_frames = false;
+    bool quick = false, has_frames = false;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
+        if (cli_common_option(&a, name, val, CLI_JSON | CLI_QUIET, &com)) {
+        } else if (!name) {
             cli_unknown(&a, NULL);
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
         } else if (!strcmp(name, "preset")) {
             preset_name = cli_value(&a, name, val);
         } else if (!strcmp(name, "seed")) {
@@ -364,16 +363,14 @@ int sl_cmd_demo(int argc, char **argv)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &height);
         } else if (!strcmp(name, "quick")) {
             quick = true;
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    bool json = com.json, quiet = com.quiet;
     sl_city_preset preset;
     if (sl_city_preset_from_name(preset_name, &preset, NULL) != SL_OK) {
         cli_error(cmd, "--preset '%s' is not tiny, small or vienna", preset_name);

@@ -112,10 +112,12 @@ int sl_cmd_export(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
-    const char *name, *val, *input = NULL, *output = NULL, *format = NULL, *up = NULL, *map = NULL;
-    bool json = false, quiet = false, listing = false;
+    const char *name, *val, *input = NULL, *output = NULL, *format = NULL, *up = NULL;
+    bool listing = false;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
+        if (cli_common_option(&a, name, val, CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
+        } else if (!name) {
             if (!input) {
                 input = val;
             } else if (!output) {
@@ -124,9 +126,6 @@ int sl_cmd_export(int argc, char **argv)
                 cli_unknown(&a, NULL);
                 break;
             }
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
         } else if (!strcmp(name, "format")) {
             format = cli_value(&a, name, val);
         } else if (!strcmp(name, "up")) {
@@ -135,21 +134,17 @@ int sl_cmd_export(int argc, char **argv)
                 cli_error(a.cmd, "--up: '%s' is not y or z", up);
                 a.error = true;
             }
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
         } else if (!strcmp(name, "list-formats")) {
             listing = true;
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (cli_import_option(&a, name, val, &imp)) {
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
-        } else {
+        } else if (!cli_import_option(&a, name, val, &imp)) {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if (listing)
         return list_formats(json);
     if (!input || !output) {

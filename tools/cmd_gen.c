@@ -227,26 +227,20 @@ int sl_cmd_gen(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc - 1, argv + 1);
     a.cmd = cmd;
-    const char *name, *val, *output = NULL;
-    bool json = false, quiet = false, dry_run = false;
+    const char *name, *val;
+    bool dry_run = false;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
+        if (cli_common_option(&a, name, val, CLI_OUTPUT | CLI_JSON | CLI_QUIET, &com))
+            continue;
         if (!name) {
-            if (val && (!strcmp(val, "-o"))) {
-                output = cli_value(&a, "output", NULL);
-                continue;
-            }
             cli_unknown(&a, NULL);
             break;
         }
-        if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(name, "preset")) {
+        if (!strcmp(name, "preset")) {
             cli_value(&a, name, val); /* handled above */
         } else if (!strcmp(name, "seed")) {
             cli_parse_u64(&a, name, cli_value(&a, name, val), &o.seed);
-        } else if (!strcmp(name, "output")) {
-            output = cli_value(&a, name, val);
         } else if (!strcmp(name, "dry-run")) {
             dry_run = true;
         } else if (!strcmp(name, "extent")) {
@@ -257,10 +251,6 @@ int sl_cmd_gen(int argc, char **argv)
             o.river = name[0] == 'r';
         } else if (!strcmp(name, "terrain") || !strcmp(name, "no-terrain")) {
             o.terrain = name[0] == 't';
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
         } else {
             size_t k = 0;
             while (k < SL_COUNTOF(float_opts) && strcmp(name, float_opts[k].name))
@@ -272,8 +262,11 @@ int sl_cmd_gen(int argc, char **argv)
             cli_parse_float(&a, name, cli_value(&a, name, val), (float *)((char *)&o + float_opts[k].offset));
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *output = com.output;
+    bool json = com.json, quiet = com.quiet;
     sl_error err;
     if (sl_city_options_validate(&o, &err) != SL_OK) {
         cli_error(cmd, "%s", err.message);

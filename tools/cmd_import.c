@@ -118,25 +118,12 @@ int sl_cmd_import(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
-    const char *name, *val, *input = NULL, *output = NULL, *map = NULL, *up = NULL;
-    bool json = false, quiet = false, listing = false, have_bezier = false;
+    const char *name, *val, *up = NULL;
+    bool listing = false, have_bezier = false;
+    cli_common com = {0};
     sl_import_options opt = sl_import_defaults();
     while (cli_next(&a, &name, &val)) {
-        if (!name && !strcmp(val, "-o")) {
-            output = cli_value(&a, "o", NULL);
-        } else if (!name) {
-            if (input) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            input = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(name, "output")) {
-            output = cli_value(&a, name, val);
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
+        if (cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
         } else if (!strcmp(name, "list-maps")) {
             listing = true;
         } else if (!strcmp(name, "scale")) {
@@ -155,17 +142,15 @@ int sl_cmd_import(int argc, char **argv)
         } else if (!strcmp(name, "bezier")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &opt.bezier_level);
             have_bezier = true;
-        } else if (cli_import_option(&a, name, val, &imp)) {
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
-        } else {
+        } else if (!cli_import_option(&a, name, val, &imp)) {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *input = com.input, *output = com.output, *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if (!input) {
         cli_error(a.cmd, "missing INPUT (see sightline import --help)");
         return 2;

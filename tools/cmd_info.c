@@ -62,31 +62,17 @@ int sl_cmd_info(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
-    const char *name, *val, *input = NULL, *map = NULL;
-    bool json = false, quiet = false;
-    while (cli_next(&a, &name, &val)) {
-        if (!name) {
-            if (input) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            input = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
-        } else if (cli_import_option(&a, name, val, &imp)) {
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
-        } else {
+    const char *name, *val;
+    cli_common com = {0};
+    while (cli_next(&a, &name, &val))
+        if (!cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com) &&
+            !cli_import_option(&a, name, val, &imp))
             cli_unknown(&a, name);
-        }
-    }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *input = com.input, *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if (!input) {
         cli_error(a.cmd, "missing SCENE (see sightline info --help)");
         return 2;

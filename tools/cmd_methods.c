@@ -44,24 +44,23 @@ int sl_cmd_methods(int argc, char **argv)
     bool json = false;
     const char *only[64];
     uint32_t only_count = 0;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
+        if (cli_common_option(&a, name, val, CLI_JSON, &com)) {
+        } else if (!name) {
             if (only_count == 64) {
                 cli_error(argv[0], "too many method names");
                 return 2;
             }
             only[only_count++] = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(name, "json")) {
-            json = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    json = com.json;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
     sl_error err;
     uint32_t idx[64];
     uint32_t count = 0;

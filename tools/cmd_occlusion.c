@@ -96,28 +96,29 @@ static int cmd_replay(int argc, char **argv)
     cli_args_init(&a, argc, argv);
     a.cmd = "occlusion replay";
     const char *name, *val, *file = NULL, *isa_name = "all";
-    bool json = false;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
+        if (cli_common_option(&a, name, val, CLI_JSON, &com)) {
+        } else if (!name) {
             if (file) {
                 cli_error(a.cmd, "more than one FILE ('%s')", val);
                 a.error = true;
                 break;
             }
             file = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
         } else if (!strcmp(name, "isa")) {
             isa_name = cli_value(&a, name, val);
-        } else if (!strcmp(name, "json")) {
-            json = true;
         } else {
             cli_unknown(&a, name);
         }
     }
+    if (com.help) {
+        usage(stdout);
+        return 0;
+    }
     if (a.error || !isa_name)
         return 2;
+    bool json = com.json;
     if (!file) {
         cli_error(a.cmd, "missing FILE (see sightline occlusion --help)");
         return 2;
@@ -161,16 +162,7 @@ static int cmd_replay(int argc, char **argv)
 
 int sl_cmd_occlusion(int argc, char **argv)
 {
-    if (argc < 2) {
-        usage(stderr);
-        return 2;
-    }
-    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
-        usage(stdout);
-        return 0;
-    }
-    if (!strcmp(argv[1], "replay"))
-        return cmd_replay(argc - 1, argv + 1);
-    cli_error(argv[0], "unknown subcommand '%s' (expected replay; see sightline occlusion --help)", argv[1]);
-    return 2;
+    static const char *const actions[] = {"replay"};
+    int status, k = cli_action(argc, argv, "occlusion", usage, actions, 1, &status);
+    return k < 0 ? status : cmd_replay(argc - 1, argv + 1);
 }

@@ -152,7 +152,7 @@ typedef struct gen_args {
 /* Parse one option common to gen and random; false when the option is not one of them. */
 static bool parse_common(cli_args *a, const char *name, const char *val, gen_args *g)
 {
-    if (!strcmp(name, "output") || !strcmp(name, "o"))
+    if (!strcmp(name, "o")) /* --o FILE, as -o */
         g->output = cli_value(a, name, val);
     else if (!strcmp(name, "kind"))
         g->kind = cli_value(a, name, val);
@@ -178,12 +178,6 @@ static bool parse_common(cli_args *a, const char *name, const char *val, gen_arg
         g->has_far = cli_parse_float(a, name, cli_value(a, name, val), &g->far_plane);
     else if (!strcmp(name, "ortho"))
         g->has_ortho = cli_parse_float(a, name, cli_value(a, name, val), &g->ortho);
-    else if (!strcmp(name, "map"))
-        g->map = cli_value(a, name, val);
-    else if (!strcmp(name, "json"))
-        g->json = true;
-    else if (!strcmp(name, "quiet"))
-        g->quiet = true;
     else
         return false;
     return true;
@@ -315,20 +309,11 @@ static int run_gen(int argc, char **argv, bool random_views)
     bool has_frames = false, has_fps = false, head_bob = false;
     const char *name, *val;
     cli_import imp = {0};
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (cli_import_option(&a, name, val, &imp)) {
+        if (cli_import_option(&a, name, val, &imp) ||
+            cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
             continue;
-        } else if (!name && !strcmp(val, "-o")) {
-            g.output = cli_value(&a, "o", NULL);
-        } else if (!name) {
-            if (g.scene) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            g.scene = val;
-        } else if (!strcmp(name, "help")) {
-            random_views ? usage_random(stdout) : usage_gen(stdout);
-            return 0;
         } else if (parse_common(&a, name, val, &g)) {
         } else if (random_views && !strcmp(name, "count")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g.count);
@@ -344,8 +329,18 @@ static int run_gen(int argc, char **argv, bool random_views)
             cli_unknown(&a, name);
         }
     }
+    if (com.help) {
+        random_views ? usage_random(stdout) : usage_gen(stdout);
+        return 0;
+    }
     if (a.error)
         return 2;
+    g.scene = com.input;
+    g.map = com.map;
+    g.json = com.json;
+    g.quiet = com.quiet;
+    if (com.output)
+        g.output = com.output;
     if (!g.scene || !g.output) {
         cli_error(a.cmd, "missing %s (see sightline %s --help)", !g.scene ? "SCENE" : "-o PATH.txt", a.cmd);
         return 2;
@@ -411,26 +406,19 @@ static int run_info(int argc, char **argv, bool check)
     cli_args a;
     cli_args_init(&a, argc, argv);
     a.cmd = check ? "path check" : "path info";
-    const char *name, *val, *file = NULL;
-    bool json = false;
-    while (cli_next(&a, &name, &val)) {
-        if (!name) {
-            if (file) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            file = val;
-        } else if (!strcmp(name, "help")) {
-            usage_info(stdout, check ? "check" : "info");
-            return 0;
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else {
+    const char *name, *val;
+    cli_common com = {0};
+    while (cli_next(&a, &name, &val))
+        if (!cli_common_option(&a, name, val, CLI_INPUT | CLI_JSON, &com))
             cli_unknown(&a, name);
-        }
+    if (com.help) {
+        usage_info(stdout, check ? "check" : "info");
+        return 0;
     }
     if (a.error)
         return 2;
+    const char *file = com.input;
+    bool json = com.json;
     if (!file) {
         cli_error(a.cmd, "missing PATH.txt (see sightline %s --help)", a.cmd);
         return 2;
@@ -471,23 +459,9 @@ static int run_info(int argc, char **argv, bool check)
 
 int sl_cmd_path(int argc, char **argv)
 {
-    if (argc < 2) {
-        usage_main(stderr);
-        return 2;
-    }
-    const char *action = argv[1];
-    if (!strcmp(action, "--help") || !strcmp(action, "-h") || !strcmp(action, "help")) {
-        usage_main(stdout);
-        return 0;
-    }
-    if (!strcmp(action, "gen"))
-        return run_gen(argc - 1, argv + 1, false);
-    if (!strcmp(action, "random"))
-        return run_gen(argc - 1, argv + 1, true);
-    if (!strcmp(action, "info"))
-        return run_info(argc - 1, argv + 1, false);
-    if (!strcmp(action, "check"))
-        return run_info(argc - 1, argv + 1, true);
-    cli_error("path", "unknown action '%s' (gen, random, info or check; see sightline path --help)", action);
-    return 2;
+    static const char *const actions[] = {"gen", "random", "info", "check"};
+    int status, k = cli_action(argc, argv, "path", usage_main, actions, (int)(sizeof actions / sizeof *actions), &status);
+    if (k < 0)
+        return status;
+    return k < 2 ? run_gen(argc - 1, argv + 1, k == 1) : run_info(argc - 1, argv + 1, k == 3);
 }

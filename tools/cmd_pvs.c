@@ -244,33 +244,22 @@ static int run_build(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     a.cmd = "pvs build";
-    const char *name, *val, *scene_path = NULL, *output = NULL, *cells_kind = NULL, *map = NULL, *city = NULL;
+    const char *name, *val, *cells_kind = NULL, *city = NULL;
     const char *along = NULL;
+    cli_common com = {0};
     float radius = 2.0f, lease = (float)CLI_PVS_LEASE_DEFAULT;
     sl_pvs_build_options bo;
     memset(&bo, 0, sizeof bo);
     sl_viewcell_options vo;
     memset(&vo, 0, sizeof vo);
     float volume[6];
-    bool has_volume = false, json = false, quiet = false, mpi = false;
+    bool has_volume = false, mpi = false;
     uint64_t seed = 1;
     while (cli_next(&a, &name, &val)) {
-        if (cli_import_option(&a, name, val, &pvs_import))
+        if (cli_import_option(&a, name, val, &pvs_import) ||
+            cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com))
             continue;
-        if (!name && !strcmp(val, "-o")) {
-            output = cli_value(&a, "o", NULL);
-        } else if (!name) {
-            if (scene_path) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            scene_path = val;
-        } else if (!strcmp(name, "help")) {
-            usage_build(stdout);
-            return 0;
-        } else if (!strcmp(name, "output")) {
-            output = cli_value(&a, name, val);
-        } else if (!strcmp(name, "cells")) {
+        if (!strcmp(name, "cells")) {
             cells_kind = cli_value(&a, name, val);
         } else if (!strcmp(name, "cell-size")) {
             cli_parse_float(&a, name, cli_value(&a, name, val), &vo.max_edge);
@@ -302,22 +291,19 @@ static int run_build(int argc, char **argv)
             bo.keep_checkpoint = true;
         } else if (!strcmp(name, "stop-after")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &bo.stop_after);
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
         } else if (!strcmp(name, "city")) {
             city = cli_value(&a, name, val);
         } else if (!strcmp(name, "seed")) {
             cli_parse_u64(&a, name, cli_value(&a, name, val), &seed);
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage_build);
+    if (parsed >= 0)
+        return parsed;
+    const char *scene_path = com.input, *output = com.output, *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if ((!scene_path && !city) || (scene_path && city) || !output) {
         cli_error(a.cmd, "%s (see sightline pvs build --help)",
                   !output ? "missing -o OUT.slpvs" : scene_path && city ? "give SCENE or --city, not both" : "missing SCENE");
@@ -458,26 +444,16 @@ static int run_info(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     a.cmd = "pvs info";
-    const char *name, *val, *file = NULL;
-    bool json = false;
-    while (cli_next(&a, &name, &val)) {
-        if (!name) {
-            if (file) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            file = val;
-        } else if (!strcmp(name, "help")) {
-            usage_info(stdout);
-            return 0;
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else {
+    const char *name, *val;
+    cli_common com = {0};
+    while (cli_next(&a, &name, &val))
+        if (!cli_common_option(&a, name, val, CLI_INPUT | CLI_JSON, &com))
             cli_unknown(&a, name);
-        }
-    }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage_info);
+    if (parsed >= 0)
+        return parsed;
+    const char *file = com.input;
+    bool json = com.json;
     if (!file) {
         cli_error(a.cmd, "missing FILE.slpvs (see sightline pvs info --help)");
         return 2;
@@ -563,40 +539,32 @@ static int run_query(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     a.cmd = "pvs query";
-    const char *name, *val, *file = NULL, *scene_path = NULL, *map = NULL;
+    const char *name, *val, *scene_path = NULL;
     float point[3];
-    bool has_point = false, has_cell = false, json = false, ids = false;
+    bool has_point = false, has_cell = false, ids = false;
     uint32_t cell = 0;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (cli_import_option(&a, name, val, &pvs_import))
+        if (cli_import_option(&a, name, val, &pvs_import) ||
+            cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON, &com))
             continue;
-        if (!name) {
-            if (file) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            file = val;
-        } else if (!strcmp(name, "help")) {
-            usage_query(stdout);
-            return 0;
-        } else if (!strcmp(name, "point")) {
+        if (!strcmp(name, "point")) {
             has_point = parse_floats(&a, name, cli_value(&a, name, val), point, 3);
         } else if (!strcmp(name, "cell")) {
             has_cell = cli_parse_u32(&a, name, cli_value(&a, name, val), &cell);
         } else if (!strcmp(name, "scene")) {
             scene_path = cli_value(&a, name, val);
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
         } else if (!strcmp(name, "ids")) {
             ids = true;
-        } else if (!strcmp(name, "json")) {
-            json = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage_query);
+    if (parsed >= 0)
+        return parsed;
+    const char *file = com.input, *map = com.map;
+    bool json = com.json;
     if (!file || has_point == has_cell) {
         cli_error(a.cmd, "%s (see sightline pvs query --help)",
                   !file ? "missing FILE.slpvs" : "give exactly one of --point X,Y,Z and --cell N");
@@ -767,29 +735,20 @@ static int run_verify(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     a.cmd = "pvs verify";
-    const char *name, *val, *file = NULL, *scene_path = NULL, *map = NULL, *city = NULL;
-    bool json = false, quiet = false, all = false;
+    const char *name, *val, *scene_path = NULL, *city = NULL;
+    bool all = false;
+    cli_common com = {0};
     uint32_t ncheck = 20, face = 256, samples = 24;
     float spacing = 1.0f;
     uint64_t seed = 1;
     while (cli_next(&a, &name, &val)) {
-        if (cli_import_option(&a, name, val, &pvs_import))
+        if (cli_import_option(&a, name, val, &pvs_import) ||
+            cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com))
             continue;
-        if (!name) {
-            if (file) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            file = val;
-        } else if (!strcmp(name, "help")) {
-            usage_verify(stdout);
-            return 0;
-        } else if (!strcmp(name, "scene")) {
+        if (!strcmp(name, "scene")) {
             scene_path = cli_value(&a, name, val);
         } else if (!strcmp(name, "city")) {
             city = cli_value(&a, name, val);
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
         } else if (!strcmp(name, "cells")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &ncheck);
         } else if (!strcmp(name, "all")) {
@@ -802,16 +761,15 @@ static int run_verify(int argc, char **argv)
             cli_parse_float(&a, name, cli_value(&a, name, val), &spacing);
         } else if (!strcmp(name, "samples")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &samples);
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage_verify);
+    if (parsed >= 0)
+        return parsed;
+    const char *file = com.input, *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if (!file || (scene_path && city)) {
         cli_error(a.cmd, "%s (see sightline pvs verify --help)", !file ? "missing FILE.slpvs" : "give --scene or --city, not both");
         return 2;
@@ -1051,23 +1009,8 @@ static int run_verify(int argc, char **argv)
 
 int sl_cmd_pvs(int argc, char **argv)
 {
-    if (argc < 2) {
-        usage_main(stderr);
-        return 2;
-    }
-    const char *action = argv[1];
-    if (!strcmp(action, "--help") || !strcmp(action, "-h") || !strcmp(action, "help")) {
-        usage_main(stdout);
-        return 0;
-    }
-    if (!strcmp(action, "build"))
-        return run_build(argc - 1, argv + 1);
-    if (!strcmp(action, "info"))
-        return run_info(argc - 1, argv + 1);
-    if (!strcmp(action, "query"))
-        return run_query(argc - 1, argv + 1);
-    if (!strcmp(action, "verify"))
-        return run_verify(argc - 1, argv + 1);
-    cli_error("pvs", "unknown action '%s' (build, info, query or verify; see sightline pvs --help)", action);
-    return 2;
+    static const char *const actions[] = {"build", "info", "query", "verify"};
+    static int (*const run[])(int, char **) = {run_build, run_info, run_query, run_verify};
+    int status, k = cli_action(argc, argv, "pvs", usage_main, actions, (int)SL_COUNTOF(actions), &status);
+    return k < 0 ? status : run[k](argc - 1, argv + 1);
 }

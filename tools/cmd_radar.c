@@ -109,16 +109,16 @@ int sl_cmd_radar(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
-    const char *input = NULL, *output = NULL, *name, *val;
+    const char *input = NULL, *name, *val;
+    cli_common com = {0};
     sl_radar_terrain_options to = sl_radar_terrain_defaults();
     sl_radar_options ro = sl_radar_default_options();
-    bool have_tx = false, table = false, json = false, quiet = false;
+    bool have_tx = false, table = false;
     double tx = 0, ty = 0;
     float mast = 30, azimuth = 0, width = 360, range = INFINITY;
     uint32_t iw = 1280, ih = 1024, runs = 5, verify = 0;
     while (cli_next(&a, &name, &val)) {
-        if (!name && !strcmp(val, "-o")) {
-            output = cli_value(&a, "o", NULL);
+        if (cli_common_option(&a, name, val, CLI_OUTPUT | CLI_JSON | CLI_QUIET, &com)) {
         } else if (!name && val[0] == '-' && val[1]) {
             cli_error(a.cmd, "unknown option %s (see sightline radar --help)", val);
             a.error = true;
@@ -128,7 +128,7 @@ int sl_cmd_radar(int argc, char **argv)
                 a.error = true;
             }
             input = val;
-        } else if (!strcmp(name, "help") || !strcmp(name, "h")) {
+        } else if (!strcmp(name, "h")) {
             usage(stdout);
             return 0;
         } else if (!strcmp(name, "samples")) {
@@ -175,8 +175,6 @@ int sl_cmd_radar(int argc, char **argv)
             const char *v = cli_value(&a, name, val);
             if (v)
                 cli_parse_u32(&a, name, v, &ro.bins);
-        } else if (!strcmp(name, "output")) {
-            output = cli_value(&a, name, val);
         } else if (!strcmp(name, "size")) {
             const char *v = cli_value(&a, name, val);
             if (v)
@@ -191,17 +189,15 @@ int sl_cmd_radar(int argc, char **argv)
                 cli_parse_u32(&a, name, v, &verify);
         } else if (!strcmp(name, "table")) {
             table = true;
-        } else if (!strcmp(name, "json")) {
-            json = true;
-        } else if (cli_import_option(&a, name, val, &imp)) {
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
-        } else {
+        } else if (!cli_import_option(&a, name, val, &imp)) {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *output = com.output;
+    bool json = com.json, quiet = com.quiet;
     (void)quiet; /* every step reports itself when done; there is no long silent stage to show */
     if (!(width > 0 && width <= 360)) {
         cli_error(a.cmd, "--width %g: must be in (0, 360]", (double)width);

@@ -137,33 +137,6 @@ static bool parse_camera(const char *text, sl_camera *cam)
     return sl_parse_camera_spec(text, cam); /* src/core/text_parse.c */
 }
 
-/* "A:B", "A:", ":B" or "A". */
-static bool parse_range(const char *text, uint32_t *first, uint32_t *end_out)
-{
-    const char *colon = strchr(text, ':');
-    unsigned long long a = 0, b = UINT32_MAX;
-    char *end;
-    if (text[0] != ':') {
-        errno = 0;
-        a = strtoull(text, &end, 10);
-        if (end == text || errno || a >= UINT32_MAX || text[0] == '-' || (colon ? end != colon : *end != 0))
-            return false;
-    }
-    if (!colon) {
-        b = a + 1;
-    } else if (colon[1]) {
-        errno = 0;
-        b = strtoull(colon + 1, &end, 10);
-        if (*end || errno || b > UINT32_MAX || colon[1] == '-')
-            return false;
-    }
-    if (b <= a)
-        return false;
-    *first = (uint32_t)a;
-    *end_out = (uint32_t)b;
-    return true;
-}
-
 static int find_mode(const char *name)
 {
     for (size_t m = 0; m < MODE_COUNT; m++)
@@ -178,20 +151,13 @@ int sl_cmd_render(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
-    const char *name, *val, *scene_spec = NULL, *camera_text = NULL, *path_file = NULL, *frames = NULL;
-    const char *out_dir = "render-out", *images = NULL, *map = NULL;
+    const char *name, *val, *camera_text = NULL, *path_file = NULL, *frames = NULL;
+    const char *out_dir = "render-out", *images = NULL;
     uint32_t width = 0, height = 0, threads = 2;
-    bool json = false, quiet = false, selected[MODE_COUNT] = {false}, any_selected = false;
+    bool selected[MODE_COUNT] = {false}, any_selected = false;
+    cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
-        if (!name) {
-            if (scene_spec) {
-                cli_unknown(&a, NULL);
-                break;
-            }
-            scene_spec = val;
-        } else if (!strcmp(name, "help")) {
-            usage(stdout);
-            return 0;
+        if (cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
         } else if (!strcmp(name, "camera")) {
             camera_text = cli_value(&a, name, val);
         } else if (!strcmp(name, "path")) {
@@ -208,21 +174,18 @@ int sl_cmd_render(int argc, char **argv)
             images = cli_value(&a, name, val);
         } else if (!strcmp(name, "threads")) {
             cli_parse_threads(&a, name, cli_value(&a, name, val), false, &threads);
-        } else if (!strcmp(name, "map")) {
-            map = cli_value(&a, name, val);
-        } else if (!strcmp(name, "json")) {
-            json = true;
         } else if (cli_import_option(&a, name, val, &imp)) {
-        } else if (!strcmp(name, "quiet")) {
-            quiet = true;
         } else if (find_mode(name) >= 0 && !val) {
             selected[find_mode(name)] = any_selected = true;
         } else {
             cli_unknown(&a, name);
         }
     }
-    if (a.error)
-        return 2;
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    const char *scene_spec = com.input, *map = com.map;
+    bool json = com.json, quiet = com.quiet;
     if (!scene_spec) {
         cli_error(cmd, "missing SCENE (see --help)");
         return 2;
@@ -241,7 +204,7 @@ int sl_cmd_render(int argc, char **argv)
         cli_error(cmd, "--frames applies to --path only");
         return 2;
     }
-    if (frames && !parse_range(frames, &first, &end)) {
+    if (frames && !sl_parse_range(frames, &first, &end)) { /* src/core/text_parse.c */
         cli_error(cmd, "--frames '%s': expected A:B with A < B (or A:, :B, A)", frames);
         return 2;
     }

@@ -185,6 +185,8 @@ SL_API sl_status sl_bench_submit(sl_bench bench, uint32_t method, const uint32_t
 
 /* ---- results ---- */
 
+/* The scene the bench judges (borrowed: valid while the bench lives), its label, and the number of
+ * methods added so far. */
 SL_API sl_scene sl_bench_scene(sl_bench bench);
 SL_API const char *sl_bench_label(sl_bench bench);
 SL_API uint32_t sl_bench_method_count(sl_bench bench);

@@ -27,6 +27,10 @@ extern "C" {
 #define SL_API
 #endif
 
+/* The version of these headers: always CMake's project version (CMakeLists.txt refuses to
+ * configure otherwise). Semantic versioning from 1.0 on: the shared libraries' SONAME carries the
+ * major version (libsightline.so.MAJOR), which changes with every incompatible ABI change; the file
+ * formats have versions of their own (docs/versions.md). */
 #define SL_VERSION_MAJOR 0
 #define SL_VERSION_MINOR 1
 #define SL_VERSION_PATCH 0
@@ -90,8 +94,12 @@ SL_API uint32_t sl_thread_limit(void);
  * SL_ERROR_LIMIT with a message "WHAT: N threads, at most LIMIT ..." naming the limit. */
 SL_API sl_status sl_threads_check(uint32_t threads, bool zero_ok, const char *what, sl_error *err);
 
-/* Library version as "major.minor.patch". */
+/* The version of the library linked at run time as "major.minor.patch" (a static string).
+ * Thread-safe. */
 SL_API const char *sl_version_string(void);
+/* The same as numbers; any pointer may be NULL. A program built against other headers can compare
+ * them with SL_VERSION_MAJOR/MINOR/PATCH. Thread-safe. */
+SL_API void sl_version(uint32_t *major, uint32_t *minor, uint32_t *patch);
 
 #ifdef __cplusplus
 }

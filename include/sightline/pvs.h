@@ -138,6 +138,8 @@ typedef struct sl_pvs_method_desc {
     sl_cull_guarantee guarantee;
 } sl_pvs_method_desc;
 
+/* The registered bake methods: how many, and method `index` (SL_ERROR_INVALID_ARGUMENT beyond the
+ * count). The registry is fixed at build time: thread-safe. */
 SL_API uint32_t sl_pvs_method_count(void);
 SL_API sl_status sl_pvs_method_info(uint32_t index, sl_pvs_method_desc *out, sl_error *err);
 /* Check a method's options without a scene (unknown or malformed keys are rejected). */

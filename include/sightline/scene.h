@@ -202,12 +202,15 @@ SL_API sl_status sl_scene_set_object_transform(sl_scene scene, uint32_t object, 
 
 /* --- reading ----------------------------------------------------------------------------------- */
 
+/* How many meshes, objects, building footprints, occluders and street polygons the scene holds. */
 SL_API uint32_t sl_scene_mesh_count(sl_scene scene);
 SL_API uint32_t sl_scene_object_count(sl_scene scene);
 SL_API uint32_t sl_scene_footprint_count(sl_scene scene);
 SL_API uint32_t sl_scene_occluder_count(sl_scene scene);
 SL_API uint32_t sl_scene_street_polygon_count(sl_scene scene);
 
+/* A read-only view of mesh `mesh` / object `object`, borrowed from the scene: valid until the
+ * scene changes or is destroyed. An index beyond the count gives a zeroed view. */
 SL_API sl_mesh_view sl_scene_mesh(sl_scene scene, uint32_t mesh);
 SL_API sl_object_view sl_scene_object(sl_scene scene, uint32_t object);
 /* World bounds of one object (cheaper than sl_scene_object). */

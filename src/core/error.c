@@ -18,13 +18,6 @@ const char *sl_status_string(sl_status status)
     return "unknown status";
 }
 
-const char *sl_version_string(void)
-{
-#define SL_STR2(x) #x
-#define SL_STR(x) SL_STR2(x)
-    return SL_STR(SL_VERSION_MAJOR) "." SL_STR(SL_VERSION_MINOR) "." SL_STR(SL_VERSION_PATCH);
-}
-
 sl_status sl_fail(sl_error *err, sl_status status, const char *fmt, ...)
 {
     if (err) {

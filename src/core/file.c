@@ -459,6 +459,26 @@ sl_status sl_atomic_open(const sl_allocator *a, const char *path, sl_atomic_file
     return SL_OK;
 }
 
+sl_status sl_atomic_open_fd(const sl_allocator *a, int fd, const char *name, sl_atomic_file *out, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    out->alloc = sl_alloc_or_default(a);
+    out->direct = true;
+    out->path = sl_strdup(out->alloc, name);
+    if (!out->path)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", name);
+    int d = dup(fd);
+    out->fp = d >= 0 ? fdopen(d, "wb") : NULL;
+    if (!out->fp) {
+        int e = errno;
+        if (d >= 0)
+            close(d);
+        atomic_release(out);
+        return sl_fail(err, SL_ERROR_IO, "%s: cannot write: %s", name, strerror(e));
+    }
+    return SL_OK;
+}
+
 void sl_atomic_write(sl_atomic_file *f, const void *data, size_t size)
 {
     if (f->failed || !f->fp || size == 0)

@@ -130,6 +130,9 @@ typedef struct sl_atomic_file {
 sl_status sl_atomic_open(const sl_allocator *a, const char *path, sl_atomic_file *out, sl_error *err);
 /* Write bytes; errors are sticky and reported by commit, with the errno of the failing write. */
 void sl_atomic_write(sl_atomic_file *f, const void *data, size_t size);
+/* The writer over an open file descriptor (a duplicate of fd; fd stays open): written straight
+ * through from fd's offset, as for a device or a pipe; name is the file's name in messages. */
+sl_status sl_atomic_open_fd(const sl_allocator *a, int fd, const char *name, sl_atomic_file *out, sl_error *err);
 sl_status sl_atomic_commit(sl_atomic_file *f, sl_error *err);
 void sl_atomic_abort(sl_atomic_file *f);
 /* Whether name is "<base>.tmp.<pid>.<16 hex digits>" (a temporary of the writer); *pid receives pid. */

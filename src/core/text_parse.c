@@ -4,6 +4,7 @@
 #include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* Up to max comma-separated numbers read as doubles, each finite also as a float; *count
  * receives how many. False on anything else (empty items, trailing text, too many). */
@@ -56,5 +57,44 @@ bool sl_parse_camera_spec(const char *text, sl_camera *cam)
     cam->roll = (float)(v[5] * deg);
     if (n == 7)
         cam->fov_y = (float)(v[6] * deg);
+    return true;
+}
+
+/* A decimal number of digits only from p up to stop (or to the end of the text when stop is NULL),
+ * at most UINT32_MAX. */
+static bool parse_u32_digits(const char *p, const char *stop, unsigned long long *out)
+{
+    if (!isdigit((unsigned char)*p))
+        return false;
+    unsigned long long v = 0;
+    for (; stop ? p < stop : *p != 0; p++) {
+        if (!isdigit((unsigned char)*p))
+            return false;
+        v = v * 10 + (unsigned)(*p - '0');
+        if (v > UINT32_MAX)
+            return false;
+    }
+    *out = v;
+    return true;
+}
+
+bool sl_parse_range(const char *text, uint32_t *first, uint32_t *end)
+{
+    if (!text)
+        return false;
+    const char *colon = strchr(text, ':');
+    unsigned long long a = 0, b = UINT32_MAX;
+    if (text != colon && !parse_u32_digits(text, colon, &a))
+        return false;
+    if (a >= UINT32_MAX)
+        return false;
+    if (!colon)
+        b = a + 1;
+    else if (colon[1] && !parse_u32_digits(colon + 1, NULL, &b))
+        return false;
+    if (b <= a)
+        return false;
+    *first = (uint32_t)a;
+    *end = (uint32_t)b;
     return true;
 }

@@ -378,7 +378,11 @@ sl_status sl_occ_replay_memory(const void *bytes, size_t file_size, const char *
     }
     if (version != REC_VERSION) {
         st = sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: offset 8: version %u (this build reads %u%s)", path, version,
-                     REC_VERSION, version == 1 ? "; version 1 has no checksum: record the frame again" : "");
+                     REC_VERSION,
+                     version == 1             ? "; version 1 has no checksum: record the frame again"
+                     : version > REC_VERSION ? "; a newer Sightline wrote it: replay it with that one, or record the "
+                                               "frame again with this one"
+                                             : "");
         goto done;
     }
     if (file_size < REC_HEADER + REC_TRAILER) {

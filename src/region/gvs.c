@@ -28,32 +28,14 @@
  * cells, the options and the cell index; nothing depends on threads or on earlier calls. */
 #include "gvs_internal.h"
 
+#include "core/dvec3.h"
 #include "halton.h"
 #include "pvs_internal.h"
 
 #include <math.h>
 #include <stdlib.h>
 
-/* ---- small double vector helpers ---- */
-
-typedef struct v3 { double x, y, z; } v3;
-
-static inline v3 mk(double x, double y, double z) { return (v3){x, y, z}; }
-static inline v3 add(v3 a, v3 b) { return mk(a.x + b.x, a.y + b.y, a.z + b.z); }
-static inline v3 sub(v3 a, v3 b) { return mk(a.x - b.x, a.y - b.y, a.z - b.z); }
-static inline v3 scl(v3 a, double s) { return mk(a.x * s, a.y * s, a.z * s); }
-static inline double dot(v3 a, v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-static inline v3 cross(v3 a, v3 b) { return mk(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
-static inline double len(v3 a) { return sqrt(dot(a, a)); }
-static inline v3 of_arr(const double *p) { return mk(p[0], p[1], p[2]); }
-static inline v3 of_vec(sl_vec3 p) { return mk(p.x, p.y, p.z); }
-
-/* N(v) of the paper; the zero vector stays zero (degenerate triangles enlarge less, never NaN). */
-static inline v3 unit(v3 a)
-{
-    double l = len(a);
-    return l > 1e-300 ? scl(a, 1.0 / l) : mk(0, 0, 0);
-}
+/* ---- double vectors: src/core/dvec3.h ---- */
 
 /* ---- options ---- */
 
@@ -105,7 +87,7 @@ sl_status sl_gvs_options_check(const sl_gvs_options *o, sl_error *err)
 /* ---- the cell as a sampling domain ---- */
 
 typedef struct face {
-    v3 o, e1, e2, n;            /* point o + u e1 + v e2; n outward, unit */
+    sl_dvec3 o, e1, e2, n;            /* point o + u e1 + v e2; n outward, unit */
     bool tri;                   /* triangle (u + v <= 1) instead of a parallelogram */
     double area;
 } face;
@@ -119,10 +101,10 @@ typedef struct cellgeo {
     face f[6];
     double area;                /* of all faces */
     int nverts;
-    v3 v[8];
+    sl_dvec3 v[8];
     int ndirs;
-    v3 edge_dir[4];             /* distinct edge directions (separating axes) */
-    v3 centre;
+    sl_dvec3 edge_dir[4];             /* distinct edge directions (separating axes) */
+    sl_dvec3 centre;
     double inset;               /* boundary origins are pulled this far inside */
     sl_aabb bounds;
     /* CLUSTER: the cluster's leaves (indices into the BSP leaves) and cumulative box volumes */
@@ -139,9 +121,9 @@ typedef struct qitem {
 
 /* One ABS ray: toward `target` (a vertex of t' or a point of one of its edges). */
 typedef struct sample {
-    v3 target;
-    v3 dir;                     /* target - origin */
-    v3 hit;                     /* valid when tri != SL_NONE */
+    sl_dvec3 target;
+    sl_dvec3 dir;                     /* target - origin */
+    sl_dvec3 hit;                     /* valid when tri != SL_NONE */
     double t;                   /* hit parameter in units of dir */
     uint32_t tri;
 } sample;
@@ -226,7 +208,7 @@ sl_status sl_gvs_create(const sl_es *es, sl_scene scene, const sl_gvs_options *o
     g->nobj = sl_es_object_count(es);
     sl_aabb b = sl_es_bounds(es);
     g->diag = sl_aabb_is_empty(&b) ? 1.0
-                                   : len(mk((double)b.max.x - b.min.x, (double)b.max.y - b.min.y,
+                                   : sl_d3_len(sl_d3((double)b.max.x - b.min.x, (double)b.max.y - b.min.y,
                                             (double)b.max.z - b.min.z));
     if (!(g->diag > 0))
         g->diag = 1.0;
@@ -299,23 +281,23 @@ void sl_gvs_destroy(sl_gvs g)
 
 /* ---- cell setup ---- */
 
-static void set_plane(cellgeo *c, v3 n, v3 p)
+static void set_plane(cellgeo *c, sl_dvec3 n, sl_dvec3 p)
 {
-    n = unit(n);
+    n = sl_d3_unit(n);
     double *q = c->plane[c->nplanes++];
-    q[0] = n.x, q[1] = n.y, q[2] = n.z, q[3] = -dot(n, p);
+    q[0] = n.x, q[1] = n.y, q[2] = n.z, q[3] = -sl_d3_dot(n, p);
 }
 
-static void add_face(cellgeo *c, v3 o, v3 e1, v3 e2, bool tri)
+static void add_face(cellgeo *c, sl_dvec3 o, sl_dvec3 e1, sl_dvec3 e2, bool tri)
 {
     face *f = &c->f[c->nfaces++];
     f->o = o, f->e1 = e1, f->e2 = e2, f->tri = tri;
-    v3 n = cross(e1, e2);
-    f->area = len(n) * (tri ? 0.5 : 1.0);
+    sl_dvec3 n = sl_d3_cross(e1, e2);
+    f->area = sl_d3_len(n) * (tri ? 0.5 : 1.0);
     /* outward: away from the centre */
-    n = unit(n);
-    if (dot(n, sub(o, c->centre)) < 0)
-        n = scl(n, -1);
+    n = sl_d3_unit(n);
+    if (sl_d3_dot(n, sl_d3_sub(o, c->centre)) < 0)
+        n = sl_d3_scale(n, -1);
     f->n = n;
     c->area += f->area;
 }
@@ -332,51 +314,52 @@ static sl_status setup_cell(struct sl_gvs_t *g, sl_viewcells cells, uint32_t cel
     g->leaves.count = g->leaf_cum.count = 0;
     if (vc->shape == SL_CELL_PRISM) {
         c->convex = true;
-        v3 lo[3], hi[3];
+        sl_dvec3 lo[3], hi[3];
         for (int k = 0; k < 3; k++) {
-            lo[k] = mk(vc->tri[k].x, vc->tri[k].y, vc->z_min);
-            hi[k] = mk(vc->tri[k].x, vc->tri[k].y, vc->z_max);
+            lo[k] = sl_d3(vc->tri[k].x, vc->tri[k].y, vc->z_min);
+            hi[k] = sl_d3(vc->tri[k].x, vc->tri[k].y, vc->z_max);
             c->v[k] = lo[k];
             c->v[k + 3] = hi[k];
         }
         c->nverts = 6;
-        c->centre = scl(add(add(add(lo[0], lo[1]), add(lo[2], hi[0])), add(hi[1], hi[2])), 1.0 / 6.0);
+        c->centre = sl_d3_scale(
+            sl_d3_add(sl_d3_add(sl_d3_add(lo[0], lo[1]), sl_d3_add(lo[2], hi[0])), sl_d3_add(hi[1], hi[2])), 1.0 / 6.0);
         /* planes: bottom, top, and one per side (the triangle is counter-clockwise) */
-        set_plane(c, mk(0, 0, 1), lo[0]);
-        set_plane(c, mk(0, 0, -1), hi[0]);
+        set_plane(c, sl_d3(0, 0, 1), lo[0]);
+        set_plane(c, sl_d3(0, 0, -1), hi[0]);
         for (int k = 0; k < 3; k++) {
-            v3 e = sub(lo[(k + 1) % 3], lo[k]);
-            set_plane(c, mk(-e.y, e.x, 0), lo[k]); /* left normal of a CCW edge points inside */
-            c->edge_dir[c->ndirs++] = unit(e);
+            sl_dvec3 e = sl_d3_sub(lo[(k + 1) % 3], lo[k]);
+            set_plane(c, sl_d3(-e.y, e.x, 0), lo[k]); /* left normal of a CCW edge points inside */
+            c->edge_dir[c->ndirs++] = sl_d3_unit(e);
         }
-        c->edge_dir[c->ndirs++] = mk(0, 0, 1);
-        add_face(c, lo[0], sub(lo[1], lo[0]), sub(lo[2], lo[0]), true);
-        add_face(c, hi[0], sub(hi[1], hi[0]), sub(hi[2], hi[0]), true);
+        c->edge_dir[c->ndirs++] = sl_d3(0, 0, 1);
+        add_face(c, lo[0], sl_d3_sub(lo[1], lo[0]), sl_d3_sub(lo[2], lo[0]), true);
+        add_face(c, hi[0], sl_d3_sub(hi[1], hi[0]), sl_d3_sub(hi[2], hi[0]), true);
         for (int k = 0; k < 3; k++)
-            add_face(c, lo[k], sub(lo[(k + 1) % 3], lo[k]), sub(hi[k], lo[k]), false);
+            add_face(c, lo[k], sl_d3_sub(lo[(k + 1) % 3], lo[k]), sl_d3_sub(hi[k], lo[k]), false);
     } else if (vc->shape == SL_CELL_BOX) {
         c->convex = true;
-        v3 lo = of_vec(vc->bounds.min), hi = of_vec(vc->bounds.max);
+        sl_dvec3 lo = sl_d3_of(vc->bounds.min), hi = sl_d3_of(vc->bounds.max);
         for (int i = 0; i < 8; i++)
-            c->v[i] = mk((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
+            c->v[i] = sl_d3((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
         c->nverts = 8;
-        c->centre = scl(add(lo, hi), 0.5);
-        set_plane(c, mk(1, 0, 0), lo);
-        set_plane(c, mk(-1, 0, 0), hi);
-        set_plane(c, mk(0, 1, 0), lo);
-        set_plane(c, mk(0, -1, 0), hi);
-        set_plane(c, mk(0, 0, 1), lo);
-        set_plane(c, mk(0, 0, -1), hi);
-        c->edge_dir[0] = mk(1, 0, 0), c->edge_dir[1] = mk(0, 1, 0), c->edge_dir[2] = mk(0, 0, 1);
+        c->centre = sl_d3_scale(sl_d3_add(lo, hi), 0.5);
+        set_plane(c, sl_d3(1, 0, 0), lo);
+        set_plane(c, sl_d3(-1, 0, 0), hi);
+        set_plane(c, sl_d3(0, 1, 0), lo);
+        set_plane(c, sl_d3(0, -1, 0), hi);
+        set_plane(c, sl_d3(0, 0, 1), lo);
+        set_plane(c, sl_d3(0, 0, -1), hi);
+        c->edge_dir[0] = sl_d3(1, 0, 0), c->edge_dir[1] = sl_d3(0, 1, 0), c->edge_dir[2] = sl_d3(0, 0, 1);
         c->ndirs = 3;
-        v3 d = sub(hi, lo);
+        sl_dvec3 d = sl_d3_sub(hi, lo);
         /* a flat box (a rectangle) keeps its two large faces only: zero-area faces are never picked */
-        add_face(c, lo, mk(0, d.y, 0), mk(0, 0, d.z), false);
-        add_face(c, mk(hi.x, lo.y, lo.z), mk(0, d.y, 0), mk(0, 0, d.z), false);
-        add_face(c, lo, mk(d.x, 0, 0), mk(0, 0, d.z), false);
-        add_face(c, mk(lo.x, hi.y, lo.z), mk(d.x, 0, 0), mk(0, 0, d.z), false);
-        add_face(c, lo, mk(d.x, 0, 0), mk(0, d.y, 0), false);
-        add_face(c, mk(lo.x, lo.y, hi.z), mk(d.x, 0, 0), mk(0, d.y, 0), false);
+        add_face(c, lo, sl_d3(0, d.y, 0), sl_d3(0, 0, d.z), false);
+        add_face(c, sl_d3(hi.x, lo.y, lo.z), sl_d3(0, d.y, 0), sl_d3(0, 0, d.z), false);
+        add_face(c, lo, sl_d3(d.x, 0, 0), sl_d3(0, 0, d.z), false);
+        add_face(c, sl_d3(lo.x, hi.y, lo.z), sl_d3(d.x, 0, 0), sl_d3(0, 0, d.z), false);
+        add_face(c, lo, sl_d3(d.x, 0, 0), sl_d3(0, d.y, 0), false);
+        add_face(c, sl_d3(lo.x, lo.y, hi.z), sl_d3(d.x, 0, 0), sl_d3(0, d.y, 0), false);
     } else {
         sl_bsp_view bsp;
         if (!sl_scene_bsp(g->scene, &bsp))
@@ -410,7 +393,7 @@ static sl_status setup_cell(struct sl_gvs_t *g, sl_viewcells cells, uint32_t cel
                 return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "gvs: out of memory for the leaves of cell %u", cell);
         }
         c->nleaves = (uint32_t)g->leaves.count;
-        c->centre = scl(add(of_vec(vc->bounds.min), of_vec(vc->bounds.max)), 0.5);
+        c->centre = sl_d3_scale(sl_d3_add(sl_d3_of(vc->bounds.min), sl_d3_of(vc->bounds.max)), 0.5);
         c->inset = 1e-3;
     }
     if (c->convex) {
@@ -441,21 +424,22 @@ static uint32_t pick_cum(const double *cum, uint32_t n, double x)
 
 /* A point in the cell's volume from three uniforms (and a fourth for the leaf of a cluster);
  * false when a cluster point falls outside the cluster (solid space, another cluster). */
-static bool volume_point(struct sl_gvs_t *g, const double *u4, v3 *out)
+static bool volume_point(struct sl_gvs_t *g, const double *u4, sl_dvec3 *out)
 {
     const cellgeo *c = &g->cg;
     if (c->shape == SL_CELL_PRISM) {
         double a = u4[1], b = u4[2];
         if (a + b > 1)
             a = 1 - a, b = 1 - b;
-        v3 p = add(c->v[0], add(scl(sub(c->v[1], c->v[0]), a), scl(sub(c->v[2], c->v[0]), b)));
+        sl_dvec3 p = sl_d3_add(c->v[0], sl_d3_add(sl_d3_scale(sl_d3_sub(c->v[1], c->v[0]), a),
+                                                  sl_d3_scale(sl_d3_sub(c->v[2], c->v[0]), b)));
         p.z = c->v[0].z + u4[3] * (c->v[3].z - c->v[0].z);
         *out = p;
         return true;
     }
     if (c->shape == SL_CELL_BOX) {
         const sl_aabb *b = &c->bounds;
-        *out = mk(b->min.x + u4[1] * ((double)b->max.x - b->min.x), b->min.y + u4[2] * ((double)b->max.y - b->min.y),
+        *out = sl_d3(b->min.x + u4[1] * ((double)b->max.x - b->min.x), b->min.y + u4[2] * ((double)b->max.y - b->min.y),
                   b->min.z + u4[3] * ((double)b->max.z - b->min.z));
         return true;
     }
@@ -469,7 +453,7 @@ static bool volume_point(struct sl_gvs_t *g, const double *u4, v3 *out)
     sl_vec3 p = {(float)(b->min.x + u4[1] * ((double)b->max.x - b->min.x)),
                  (float)(b->min.y + u4[2] * ((double)b->max.y - b->min.y)),
                  (float)(b->min.z + u4[3] * ((double)b->max.z - b->min.z))};
-    *out = of_vec(p);
+    *out = sl_d3_of(p);
     /* in the leaf: the same float test as the tree's descent (sl_scene_bsp_find_leaf), so a point
      * accepted here is one the BSP puts in this leaf */
     const uint32_t *pf = g->leaf_pfirst.data;
@@ -492,7 +476,7 @@ bool sl_gvs_cell_point(sl_gvs g, sl_viewcells cells, uint32_t cell, const double
     if (setup_cell(g, cells, cell, NULL) != SL_OK)
         return false;
     for (uint32_t i = 0; i < tries; i++) {
-        v3 p;
+        sl_dvec3 p;
         if (volume_point(g, u + 4 * (size_t)i, &p)) {
             *out = (sl_vec3){(float)p.x, (float)p.y, (float)p.z};
             return true;
@@ -503,32 +487,32 @@ bool sl_gvs_cell_point(sl_gvs g, sl_viewcells cells, uint32_t cell, const double
 
 /* ---- triangles meeting a convex cell (visible by definition, section 5.3) ---- */
 
-static void project(const v3 *p, int n, v3 axis, double *lo, double *hi)
+static void project(const sl_dvec3 *p, int n, sl_dvec3 axis, double *lo, double *hi)
 {
     *lo = INFINITY, *hi = -INFINITY;
     for (int i = 0; i < n; i++) {
-        double d = dot(p[i], axis);
+        double d = sl_d3_dot(p[i], axis);
         *lo = fmin(*lo, d), *hi = fmax(*hi, d);
     }
 }
 
 /* Separating-axis test of a triangle against the convex cell (closed: touching meets). */
-static bool tri_meets_cell(const cellgeo *c, const v3 t[3])
+static bool tri_meets_cell(const cellgeo *c, const sl_dvec3 t[3])
 {
-    v3 axes[6 + 1 + 12];
+    sl_dvec3 axes[6 + 1 + 12];
     int na = 0;
     for (int k = 0; k < c->nplanes; k++)
-        axes[na++] = mk(c->plane[k][0], c->plane[k][1], c->plane[k][2]);
-    v3 e[3] = {sub(t[1], t[0]), sub(t[2], t[1]), sub(t[0], t[2])};
-    axes[na++] = cross(e[0], e[1]);
+        axes[na++] = sl_d3(c->plane[k][0], c->plane[k][1], c->plane[k][2]);
+    sl_dvec3 e[3] = {sl_d3_sub(t[1], t[0]), sl_d3_sub(t[2], t[1]), sl_d3_sub(t[0], t[2])};
+    axes[na++] = sl_d3_cross(e[0], e[1]);
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < c->ndirs; j++)
-            axes[na++] = cross(e[i], c->edge_dir[j]);
+            axes[na++] = sl_d3_cross(e[i], c->edge_dir[j]);
     for (int k = 0; k < na; k++) {
-        double l = len(axes[k]);
+        double l = sl_d3_len(axes[k]);
         if (!(l > 1e-12))
             continue;
-        v3 ax = scl(axes[k], 1.0 / l);
+        sl_dvec3 ax = sl_d3_scale(axes[k], 1.0 / l);
         double a0, a1, b0, b1;
         project(t, 3, ax, &a0, &a1);
         project(c->v, c->nverts, ax, &b0, &b1);
@@ -556,7 +540,7 @@ static bool mark(struct sl_gvs_t *g, uint32_t tri)
 }
 
 /* handle_ray of the paper: a new triangle joins the PVS and, for GVS, the ABS queue. */
-static void handle(struct sl_gvs_t *g, v3 o, v3 dir, const sl_es_hit *h)
+static void handle(struct sl_gvs_t *g, sl_dvec3 o, sl_dvec3 dir, const sl_es_hit *h)
 {
     if (h->triangle == SL_NONE || !mark(g, h->triangle))
         return;
@@ -564,14 +548,14 @@ static void handle(struct sl_gvs_t *g, v3 o, v3 dir, const sl_es_hit *h)
         return;
     qitem q;
     q.o[0] = o.x, q.o[1] = o.y, q.o[2] = o.z;
-    v3 p = add(o, scl(dir, h->t));
+    sl_dvec3 p = sl_d3_add(o, sl_d3_scale(dir, h->t));
     q.hit[0] = p.x, q.hit[1] = p.y, q.hit[2] = p.z;
     q.tri = h->triangle;
     if (!sl_array_push(&g->a, &g->queue, sizeof q, &q, 1))
         g->oom = true;
 }
 
-static sl_es_ray make_ray(v3 o, v3 d)
+static sl_es_ray make_ray(sl_dvec3 o, sl_dvec3 d)
 {
     sl_es_ray r;
     r.org[0] = (float)o.x, r.org[1] = (float)o.y, r.org[2] = (float)o.z;
@@ -594,7 +578,7 @@ static bool reserve_rays(struct sl_gvs_t *g, size_t n)
 }
 
 /* One random ray (section 5.3.1). False when a volume origin missed the cluster (drawn again). */
-static bool random_ray(struct sl_gvs_t *g, const double *x, bool boundary, v3 *o, v3 *d)
+static bool random_ray(struct sl_gvs_t *g, const double *x, bool boundary, sl_dvec3 *o, sl_dvec3 *d)
 {
     const cellgeo *c = &g->cg;
     if (boundary) {
@@ -611,34 +595,35 @@ static bool random_ray(struct sl_gvs_t *g, const double *x, bool boundary, v3 *o
         double u = x[1], v = x[2];
         if (f->tri && u + v > 1)
             u = 1 - u, v = 1 - v;
-        v3 p = add(f->o, add(scl(f->e1, u), scl(f->e2, v)));
-        v3 to_c = sub(c->centre, p);
-        double lc = len(to_c);
+        sl_dvec3 p = sl_d3_add(f->o, sl_d3_add(sl_d3_scale(f->e1, u), sl_d3_scale(f->e2, v)));
+        sl_dvec3 to_c = sl_d3_sub(c->centre, p);
+        double lc = sl_d3_len(to_c);
         if (lc > 0)
-            p = add(p, scl(to_c, fmin(c->inset, lc) / lc));
-        v3 t1 = unit(f->e1), t2 = cross(f->n, t1);
+            p = sl_d3_add(p, sl_d3_scale(to_c, fmin(c->inset, lc) / lc));
+        sl_dvec3 t1 = sl_d3_unit(f->e1), t2 = sl_d3_cross(f->n, t1);
         double phi = 2.0 * M_PI * x[3], st = x[4], ct = sqrt(fmax(0.0, 1.0 - st * st));
         *o = p;
-        *d = add(scl(add(scl(t1, cos(phi)), scl(t2, sin(phi))), ct), scl(f->n, st));
+        *d = sl_d3_add(sl_d3_scale(sl_d3_add(sl_d3_scale(t1, cos(phi)), sl_d3_scale(t2, sin(phi))), ct),
+                       sl_d3_scale(f->n, st));
         return true;
     }
-    v3 p;
+    sl_dvec3 p;
     if (!volume_point(g, x, &p))
         return false;
     /* uniform over the sphere: z = 2 x4 - 1, phi = 2 pi x5 */
     double z = 2.0 * x[4] - 1.0, r = sqrt(fmax(0.0, 1.0 - z * z)), phi = 2.0 * M_PI * x[5];
     *o = p;
-    *d = mk(r * cos(phi), r * sin(phi), z);
+    *d = sl_d3(r * cos(phi), r * sin(phi), z);
     return true;
 }
 
 /* Smallest s >= 1 (at most smax) with L(s) = x + s (p - x) in the cell, pulled inside by the
  * inset; false when the line beyond p misses the cell (the mutated ray is not in the ray set). */
-static bool line_cell(struct sl_gvs_t *g, v3 x, v3 p, double smax, v3 *out)
+static bool line_cell(struct sl_gvs_t *g, sl_dvec3 x, sl_dvec3 p, double smax, sl_dvec3 *out)
 {
     const cellgeo *c = &g->cg;
-    v3 d = sub(p, x);
-    double dl = len(d);
+    sl_dvec3 d = sl_d3_sub(p, x);
+    double dl = sl_d3_len(d);
     if (!(dl > 0))
         return false;
     if (c->convex) {
@@ -660,7 +645,7 @@ static bool line_cell(struct sl_gvs_t *g, v3 x, v3 p, double smax, v3 *out)
         if (!(lo <= hi))
             return false;
         double s = fmin(lo + c->inset / dl, hi);
-        *out = add(x, scl(d, s));
+        *out = sl_d3_add(x, sl_d3_scale(d, s));
         return true;
     }
     /* cluster: clip against each leaf (its box and its half-spaces), keep the nearest entry */
@@ -708,45 +693,45 @@ static bool line_cell(struct sl_gvs_t *g, v3 x, v3 p, double smax, v3 *out)
     }
     if (!isfinite(best))
         return false;
-    *out = add(x, scl(d, best + fmin(c->inset / dl, 0.5 * (best_hi - best))));
+    *out = sl_d3_add(x, sl_d3_scale(d, best + fmin(c->inset / dl, 0.5 * (best_hi - best))));
     return true;
 }
 
 /* Reverse sampling (section 5.3.3) for ABS sample s of queue item q (triangle t with vertices
  * tv): when s hit a triangle clearly in front of t's plane, queue a ray from elsewhere in the
  * cell that passes just beside that occluder toward the point of t's plane that s was aimed at. */
-static void check_discontinuity(struct sl_gvs_t *g, const qitem *q, const v3 tv[3], v3 tn, const sample *s)
+static void check_discontinuity(struct sl_gvs_t *g, const qitem *q, const sl_dvec3 tv[3], sl_dvec3 tn, const sample *s)
 {
     if (s->tri == SL_NONE || s->tri == q->tri)
         return;
-    v3 o = of_arr(q->o);
-    double den = dot(tn, s->dir);
+    sl_dvec3 o = sl_d3_of_array(q->o);
+    double den = sl_d3_dot(tn, s->dir);
     if (fabs(den) < 1e-300)
         return;
-    double tp = dot(tn, sub(tv[0], o)) / den; /* predicted(x) = o + tp dir */
+    double tp = sl_d3_dot(tn, sl_d3_sub(tv[0], o)) / den; /* predicted(x) = o + tp dir */
     if (!(tp > 0) || !isfinite(tp))
         return;
-    double dl = len(s->dir);
+    double dl = sl_d3_len(s->dir);
     double gap = (tp - s->t) * dl;
     if (!(gap > g->o.rs_delta * tp * dl) || !(gap > g->eps_world))
         return;
     g->st.reverse_tries++;
-    v3 x = add(o, scl(s->dir, tp));
+    sl_dvec3 x = sl_d3_add(o, sl_d3_scale(s->dir, tp));
     /* the plane through the origin, hit(x) and hit(x_old) */
-    v3 m = cross(sub(s->hit, o), sub(of_arr(q->hit), o));
-    double ml = len(m);
+    sl_dvec3 m = sl_d3_cross(sl_d3_sub(s->hit, o), sl_d3_sub(sl_d3_of_array(q->hit), o));
+    double ml = sl_d3_len(m);
     if (!(ml > 1e-300)) {
         g->st.reverse_missed++;
         return;
     }
-    m = scl(m, 1.0 / ml);
+    m = sl_d3_scale(m, 1.0 / ml);
     double ov[3][3];
     sl_es_triangle_vertices(g->es, s->tri, ov);
-    v3 w[3] = {of_arr(ov[0]), of_arr(ov[1]), of_arr(ov[2])};
+    sl_dvec3 w[3] = {sl_d3_of_array(ov[0]), sl_d3_of_array(ov[1]), sl_d3_of_array(ov[2])};
     double sd[3];
     for (int k = 0; k < 3; k++)
-        sd[k] = dot(m, sub(w[k], o));
-    v3 ends[2];
+        sd[k] = sl_d3_dot(m, sl_d3_sub(w[k], o));
+    sl_dvec3 ends[2];
     int ne = 0;
     for (int k = 0; k < 3 && ne < 2; k++) {
         int j = (k + 1) % 3;
@@ -754,30 +739,30 @@ static void check_discontinuity(struct sl_gvs_t *g, const qitem *q, const v3 tv[
             ends[ne++] = w[k];
         } else if ((sd[k] < 0) != (sd[j] < 0) && sd[j] != 0) {
             double f = sd[k] / (sd[k] - sd[j]);
-            ends[ne++] = add(w[k], scl(sub(w[j], w[k]), f));
+            ends[ne++] = sl_d3_add(w[k], sl_d3_scale(sl_d3_sub(w[j], w[k]), f));
         }
     }
-    if (ne < 2 || !(len(sub(ends[0], ends[1])) > 0)) {
+    if (ne < 2 || !(sl_d3_len(sl_d3_sub(ends[0], ends[1])) > 0)) {
         g->st.reverse_missed++;
         return;
     }
     /* the end nearer to hit(x) first; the other when the first line misses the cell */
-    if (len(sub(ends[1], s->hit)) < len(sub(ends[0], s->hit))) {
-        v3 t = ends[0];
+    if (sl_d3_len(sl_d3_sub(ends[1], s->hit)) < sl_d3_len(sl_d3_sub(ends[0], s->hit))) {
+        sl_dvec3 t = ends[0];
         ends[0] = ends[1], ends[1] = t;
     }
     for (int e = 0; e < 2; e++) {
-        v3 end = ends[e], away = unit(sub(end, ends[1 - e]));
-        v3 pnew = add(end, scl(away, g->o.eps * len(sub(end, x)) + 1e-9 * g->diag));
-        v3 org;
+        sl_dvec3 end = ends[e], away = sl_d3_unit(sl_d3_sub(end, ends[1 - e]));
+        sl_dvec3 pnew = sl_d3_add(end, sl_d3_scale(away, g->o.eps * sl_d3_len(sl_d3_sub(end, x)) + 1e-9 * g->diag));
+        sl_dvec3 org;
         /* the origin may lie up to twice the scene's diagonal behind p_new (s is in units of
          * |p_new - predicted|) */
-        double seg = len(sub(pnew, x));
+        double seg = sl_d3_len(sl_d3_sub(pnew, x));
         if (!(seg > 0) || !line_cell(g, x, pnew, 1.0 + 2.0 * g->diag / seg, &org))
             continue;
         rsray r;
         r.o[0] = org.x, r.o[1] = org.y, r.o[2] = org.z;
-        r.ray = make_ray(org, sub(x, org));
+        r.ray = make_ray(org, sl_d3_sub(x, org));
         if (!sl_array_push(&g->a, &g->rs, sizeof r, &r, 1))
             g->oom = true;
         return;
@@ -801,16 +786,16 @@ static void flush_reverse(struct sl_gvs_t *g)
     g->st.rays += n;
     g->st.reverse_rays += n;
     for (size_t i = 0; i < n; i++)
-        handle(g, of_arr(r[i].o), mk(r[i].ray.dir[0], r[i].ray.dir[1], r[i].ray.dir[2]), &hits[i]);
+        handle(g, sl_d3_of_array(r[i].o), sl_d3(r[i].ray.dir[0], r[i].ray.dir[1], r[i].ray.dir[2]), &hits[i]);
     g->rs.count = 0;
 }
 
 /* Trace samples [first, first + n) from origin o and handle them. */
-static void trace_samples(struct sl_gvs_t *g, const qitem *q, const v3 tv[3], v3 tn, size_t first, size_t n)
+static void trace_samples(struct sl_gvs_t *g, const qitem *q, const sl_dvec3 tv[3], sl_dvec3 tn, size_t first, size_t n)
 {
     if (!reserve_rays(g, n))
         return;
-    v3 o = of_arr(q->o);
+    sl_dvec3 o = sl_d3_of_array(q->o);
     sample *s = (sample *)g->samples.data + first;
     sl_es_ray *rays = g->rays.data;
     sl_es_hit *hits = g->hits.data;
@@ -823,7 +808,7 @@ static void trace_samples(struct sl_gvs_t *g, const qitem *q, const v3 tv[3], v3
         s[i].tri = hits[i].triangle;
         s[i].t = hits[i].t;
         if (s[i].tri != SL_NONE)
-            s[i].hit = add(o, scl(s[i].dir, s[i].t));
+            s[i].hit = sl_d3_add(o, sl_d3_scale(s[i].dir, s[i].t));
         handle(g, o, s[i].dir, &hits[i]);
         check_discontinuity(g, q, tv, tn, &s[i]);
     }
@@ -835,22 +820,22 @@ static bool needs_split(const struct sl_gvs_t *g, const sample *a, const sample 
 {
     if (a->tri == b->tri || depth >= g->o.max_depth)
         return false;
-    if (a->tri != SL_NONE && b->tri != SL_NONE && len(sub(a->hit, b->hit)) < g->eps_world)
+    if (a->tri != SL_NONE && b->tri != SL_NONE && sl_d3_len(sl_d3_sub(a->hit, b->hit)) < g->eps_world)
         return false;
     /* rays closer than eps in angle: the enlargement's own resolution, nothing finer is sought */
-    double la = len(a->dir), lb = len(b->dir);
-    return len(sub(scl(a->dir, 1.0 / la), scl(b->dir, 1.0 / lb))) >= g->o.eps;
+    double la = sl_d3_len(a->dir), lb = sl_d3_len(b->dir);
+    return sl_d3_len(sl_d3_sub(sl_d3_scale(a->dir, 1.0 / la), sl_d3_scale(b->dir, 1.0 / lb))) >= g->o.eps;
 }
 
-static bool push_sample(struct sl_gvs_t *g, v3 o, v3 target)
+static bool push_sample(struct sl_gvs_t *g, sl_dvec3 o, sl_dvec3 target)
 {
     sample s;
     memset(&s, 0, sizeof s);
     s.target = target;
-    s.dir = sub(target, o);
+    s.dir = sl_d3_sub(target, o);
     s.tri = SL_NONE;
-    if (!(len(s.dir) > 0)) /* the origin lies on t' (a triangle through the cell): nudge */
-        s.dir = mk(0, 0, 1e-9);
+    if (!(sl_d3_len(s.dir) > 0)) /* the origin lies on t' (a triangle through the cell): nudge */
+        s.dir = sl_d3(0, 0, 1e-9);
     if (!sl_array_push(&g->a, &g->samples, sizeof s, &s, 1)) {
         g->oom = true;
         return false;
@@ -863,32 +848,33 @@ static bool push_sample(struct sl_gvs_t *g, v3 o, v3 target)
  * p_i, in order around the triangle. Each d is flipped when it points into the triangle: the paper
  * inverts them for back faces, and testing against the opposite vertex does that and also fixes
  * the sign of the bisector's fallback formula (used when the corner is sharper than 90 degrees). */
-static void enlarge(v3 o, const v3 p[3], double eps, v3 out[9])
+static void enlarge(sl_dvec3 o, const sl_dvec3 p[3], double eps, sl_dvec3 out[9])
 {
-    v3 centroid = scl(add(add(p[0], p[1]), p[2]), 1.0 / 3.0);
+    sl_dvec3 centroid = sl_d3_scale(sl_d3_add(sl_d3_add(p[0], p[1]), p[2]), 1.0 / 3.0);
     for (int i = 0; i < 3; i++) {
-        v3 pi = p[i], prev = p[(i + 2) % 3], next = p[(i + 1) % 3];
-        v3 v = sub(pi, o);
-        v3 dn = unit(cross(v, sub(next, pi)));
-        if (dot(dn, sub(prev, pi)) > 0)
-            dn = scl(dn, -1);
-        v3 dp = unit(cross(v, sub(pi, prev)));
-        if (dot(dp, sub(next, pi)) > 0)
-            dp = scl(dp, -1);
-        v3 dm = dot(dp, dn) > 0 ? unit(add(dp, dn)) : unit(cross(v, sub(dp, dn)));
-        if (dot(dm, sub(pi, centroid)) < 0)
-            dm = scl(dm, -1);
-        double r = eps * len(v);
-        out[3 * i] = add(pi, scl(dp, r));
-        out[3 * i + 1] = add(pi, scl(dm, r));
-        out[3 * i + 2] = add(pi, scl(dn, r));
+        sl_dvec3 pi = p[i], prev = p[(i + 2) % 3], next = p[(i + 1) % 3];
+        sl_dvec3 v = sl_d3_sub(pi, o);
+        sl_dvec3 dn = sl_d3_unit(sl_d3_cross(v, sl_d3_sub(next, pi)));
+        if (sl_d3_dot(dn, sl_d3_sub(prev, pi)) > 0)
+            dn = sl_d3_scale(dn, -1);
+        sl_dvec3 dp = sl_d3_unit(sl_d3_cross(v, sl_d3_sub(pi, prev)));
+        if (sl_d3_dot(dp, sl_d3_sub(next, pi)) > 0)
+            dp = sl_d3_scale(dp, -1);
+        sl_dvec3 dm =
+            sl_d3_dot(dp, dn) > 0 ? sl_d3_unit(sl_d3_add(dp, dn)) : sl_d3_unit(sl_d3_cross(v, sl_d3_sub(dp, dn)));
+        if (sl_d3_dot(dm, sl_d3_sub(pi, centroid)) < 0)
+            dm = sl_d3_scale(dm, -1);
+        double r = eps * sl_d3_len(v);
+        out[3 * i] = sl_d3_add(pi, sl_d3_scale(dp, r));
+        out[3 * i + 1] = sl_d3_add(pi, sl_d3_scale(dm, r));
+        out[3 * i + 2] = sl_d3_add(pi, sl_d3_scale(dn, r));
     }
 }
 
 void sl_gvs_enlarge(const double o[3], const double *tri, double eps, double *out)
 {
-    v3 p[3] = {of_arr(tri), of_arr(tri + 3), of_arr(tri + 6)}, r[9];
-    enlarge(of_arr(o), p, eps, r);
+    sl_dvec3 p[3] = {sl_d3_of_array(tri), sl_d3_of_array(tri + 3), sl_d3_of_array(tri + 6)}, r[9];
+    enlarge(sl_d3_of_array(o), p, eps, r);
     for (int k = 0; k < 9; k++)
         out[3 * k] = r[k].x, out[3 * k + 1] = r[k].y, out[3 * k + 2] = r[k].z;
 }
@@ -898,11 +884,11 @@ static void border_sampling(struct sl_gvs_t *g, const qitem *q)
 {
     double tvd[3][3];
     sl_es_triangle_vertices(g->es, q->tri, tvd);
-    v3 p[3] = {of_arr(tvd[0]), of_arr(tvd[1]), of_arr(tvd[2])};
-    v3 o = of_arr(q->o);
-    v3 tn = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+    sl_dvec3 p[3] = {sl_d3_of_array(tvd[0]), sl_d3_of_array(tvd[1]), sl_d3_of_array(tvd[2])};
+    sl_dvec3 o = sl_d3_of_array(q->o);
+    sl_dvec3 tn = sl_d3_cross(sl_d3_sub(p[1], p[0]), sl_d3_sub(p[2], p[0]));
 
-    v3 ring[9];
+    sl_dvec3 ring[9];
     enlarge(o, p, g->o.eps, ring);
     g->samples.count = 0;
     for (int k = 0; k < 9; k++)
@@ -926,7 +912,7 @@ static void border_sampling(struct sl_gvs_t *g, const qitem *q)
         for (size_t i = 0; i < n; i++) {
             segment *e = &SL_AT(g->segs, segment, i);
             const sample *s = g->samples.data;
-            v3 mid = scl(add(s[e->a].target, s[e->b].target), 0.5);
+            sl_dvec3 mid = sl_d3_scale(sl_d3_add(s[e->a].target, s[e->b].target), 0.5);
             e->mid = (uint32_t)g->samples.count;
             if (!push_sample(g, o, mid))
                 return;
@@ -963,7 +949,7 @@ static void auto_visible(struct sl_gvs_t *g)
         for (uint32_t t = t0; t < t1; t++) {
             double tv[3][3];
             sl_es_triangle_vertices(g->es, t, tv);
-            v3 w[3] = {of_arr(tv[0]), of_arr(tv[1]), of_arr(tv[2])};
+            sl_dvec3 w[3] = {sl_d3_of_array(tv[0]), sl_d3_of_array(tv[1]), sl_d3_of_array(tv[2])};
             if (tri_meets_cell(c, w) && mark(g, t))
                 g->st.auto_visible++;
         }
@@ -1065,7 +1051,7 @@ sl_status sl_gvs_cell(sl_gvs g, sl_viewcells cells, uint32_t cell, sl_gvs_result
         while (made < n) {
             double x[6];
             sl_halton_next(&h, x);
-            v3 o, d;
+            sl_dvec3 o, d;
             if (!random_ray(g, x, boundary, &o, &d)) {
                 g->st.origin_rejects++;
                 /* a cluster whose leaf boxes are (nearly) all solid: give up rather than spin */
@@ -1087,7 +1073,7 @@ sl_status sl_gvs_cell(sl_gvs g, sl_viewcells cells, uint32_t cell, sl_gvs_result
         g->st.random_rays += made;
         const sl_es_hit *hits = g->hits.data;
         for (uint32_t i = 0; i < made; i++)
-            handle(g, of_arr(ro[i].o), mk(rays[i].dir[0], rays[i].dir[1], rays[i].dir[2]), &hits[i]);
+            handle(g, sl_d3_of_array(ro[i].o), sl_d3(rays[i].dir[0], rays[i].dir[1], rays[i].dir[2]), &hits[i]);
         g->rs.count = 0;
         if (g->o.sampler == SL_GVS_GUIDED && g->st.random_rays >= g->o.initial) {
             /* drain the queue: ABS around every new triangle, from the origin that found it */

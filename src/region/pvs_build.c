@@ -24,6 +24,7 @@
  * Records are written with write(2) (in the kernel once it returns, so a killed process loses
  * nothing finished) and the file is synced every few seconds (power loss costs seconds). */
 #include "pvs_internal.h"
+#include "core/bytes.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -43,20 +44,6 @@
 #define J_TAG 0x4c4c4543u /* "CELL" */
 #define J_SYNC_SECONDS 5.0
 
-static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
-static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, 8); }
-static inline uint32_t rd32(const uint8_t *p)
-{
-    uint32_t v;
-    memcpy(&v, p, 4);
-    return v;
-}
-static inline uint64_t rd64(const uint8_t *p)
-{
-    uint64_t v;
-    memcpy(&v, p, 8);
-    return v;
-}
 
 /* ---- journal ---- */
 
@@ -133,7 +120,8 @@ static journal_verdict journal_examine(const sl_bake *b, const uint8_t *data, si
         return J_BAD;
     }
     if (rd32(data + 8) != J_VERSION) {
-        snprintf(why, n, "journal version %u (this build reads and writes %u)", rd32(data + 8), J_VERSION);
+        snprintf(why, n, "journal version %u (this build reads and writes %u%s)", rd32(data + 8), J_VERSION,
+                 rd32(data + 8) > J_VERSION ? "; the journal was written by a newer Sightline, which can resume it" : "");
         return J_BAD;
     }
     uint32_t desc_len = rd32(data + 20);

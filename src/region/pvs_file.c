@@ -21,6 +21,8 @@
  * the sections that hold them. */
 #include "pvs_internal.h"
 
+#include "core/bytes.h"
+#include "core/container.h"
 #include "scene/scene_internal.h"
 
 #include <errno.h>
@@ -76,21 +78,6 @@ static const struct {
     {"BLKS", PVS_BLOCK_REC, true}, {"DATA", 1, true}, {"META", 1, false},
 };
 
-static inline uint32_t rd32(const uint8_t *p)
-{
-    uint32_t v;
-    memcpy(&v, p, 4);
-    return v;
-}
-static inline uint64_t rd64(const uint8_t *p)
-{
-    uint64_t v;
-    memcpy(&v, p, 8);
-    return v;
-}
-static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, 4); }
-static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, 8); }
-static inline uint64_t align_up(uint64_t v) { return (v + PVS_ALIGN - 1) & ~(uint64_t)(PVS_ALIGN - 1); }
 
 /* ---- zstd through the handle's allocator ---- */
 
@@ -234,7 +221,7 @@ uint64_t sl_pvs_scene_key(sl_scene scene)
 
 typedef struct wsec {
     const void *data;
-    uint64_t count, size, offset, hash;
+    uint64_t count, size;
 } wsec;
 
 sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
@@ -332,58 +319,22 @@ sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_cou
     wr32(head_rec + P_KEY_VERSION, SL_PVS_SCENE_KEY_VERSION);
 
     wsec secs[S_COUNT] = {
-        {head_rec, 1, PVS_HEAD_REC, 0, 0},
-        {sl_viewcells_data(cells), nc, (uint64_t)nc * 64, 0, 0},
-        {sets, nc, (uint64_t)nc * PVS_SET_REC, 0, 0},
-        {blks, nb, (uint64_t)nb * PVS_BLOCK_REC, 0, 0},
-        {data.data, data.count, data.count, 0, 0},
-        {meta, meta_len, meta_len, 0, 0},
+        {head_rec, 1, PVS_HEAD_REC},
+        {sl_viewcells_data(cells), nc, (uint64_t)nc * 64},
+        {sets, nc, (uint64_t)nc * PVS_SET_REC},
+        {blks, nb, (uint64_t)nb * PVS_BLOCK_REC},
+        {data.data, data.count, data.count},
+        {meta, meta_len, meta_len},
     };
-    uint64_t at = align_up(PVS_HEADER + (uint64_t)S_COUNT * PVS_ENTRY);
-    uint8_t table[S_COUNT * PVS_ENTRY];
-    memset(table, 0, sizeof table);
+    sl_container_section cs[S_COUNT];
     for (int i = 0; i < S_COUNT; i++) {
-        secs[i].offset = at;
-        secs[i].hash = sl_hash64(secs[i].size ? secs[i].data : "", (size_t)secs[i].size, 0);
-        at = align_up(at + secs[i].size);
-        uint8_t *e = table + i * PVS_ENTRY;
-        memcpy(e + E_TAG, k_secs[i].tag, 4);
-        wr32(e + E_ELEM, k_secs[i].elem);
-        wr64(e + E_COUNT, secs[i].count);
-        wr64(e + E_OFFSET, secs[i].offset);
-        wr64(e + E_SIZE, secs[i].size);
-        wr64(e + E_HASH, secs[i].hash);
+        memcpy(cs[i].tag, k_secs[i].tag, 4);
+        cs[i].elem = k_secs[i].elem;
+        cs[i].count = secs[i].count;
+        cs[i].data = secs[i].data;
+        cs[i].size = secs[i].size;
     }
-    uint64_t file_size = at;
-    uint8_t head[PVS_HEADER];
-    memset(head, 0, sizeof head);
-    memcpy(head + H_MAGIC, k_magic, 8);
-    wr32(head + H_MAJOR, PVS_MAJOR);
-    wr32(head + H_MINOR, PVS_MINOR);
-    wr32(head + H_FLAGS, 0);
-    wr32(head + H_HEADER_SIZE, PVS_HEADER);
-    wr32(head + H_SECTIONS, S_COUNT);
-    wr32(head + H_ENTRY, PVS_ENTRY);
-    wr64(head + H_TABLE, PVS_HEADER);
-    wr64(head + H_FILE_SIZE, file_size);
-    wr64(head + H_TABLE_HASH, sl_hash64(table, sizeof table, 0));
-    wr64(head + H_HEADER_HASH, sl_hash64(head, H_HEADER_HASH, 0));
-
-    sl_atomic_file f;
-    if ((st = sl_atomic_open(a, path, &f, err)) != SL_OK)
-        goto done;
-    static const uint8_t zeros[PVS_ALIGN] = {0};
-    sl_atomic_write(&f, head, sizeof head);
-    sl_atomic_write(&f, table, sizeof table);
-    uint64_t pos = PVS_HEADER + sizeof table;
-    for (int i = 0; i < S_COUNT; i++) {
-        sl_atomic_write(&f, zeros, (size_t)(secs[i].offset - pos));
-        if (secs[i].size)
-            sl_atomic_write(&f, secs[i].data, (size_t)secs[i].size);
-        pos = secs[i].offset + secs[i].size;
-    }
-    sl_atomic_write(&f, zeros, (size_t)(file_size - pos));
-    st = sl_atomic_commit(&f, err);
+    st = sl_container_write(a, path, -1, k_magic, PVS_MAJOR, PVS_MINOR, 0, 0, cs, S_COUNT, err); /* container.h */
 done:
     ZSTD_freeCCtx(cctx);
     sl_free(a, raw, raw_cap);

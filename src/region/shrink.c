@@ -23,6 +23,7 @@
  * every point of it is at least eps from the outside. */
 #include "region_internal.h"
 
+#include "core/dvec3.h"
 #include "geos_util.h"
 #include "scene/scene_internal.h"
 
@@ -461,27 +462,11 @@ static bool point_inside(const float *pos, const uint32_t *idx, uint32_t nt, con
     const double d[3] = {0.8727, 0.3141, 0.3737};
     uint32_t hits = 0;
     for (uint32_t k = 0; k < nt; k++) {
-        const float *a = pos + 3 * (size_t)idx[3 * k], *b = pos + 3 * (size_t)idx[3 * k + 1],
-                    *c = pos + 3 * (size_t)idx[3 * k + 2];
-        double e1[3], e2[3], s[3];
-        for (int i = 0; i < 3; i++) {
-            e1[i] = (double)b[i] - a[i];
-            e2[i] = (double)c[i] - a[i];
-            s[i] = p[i] - a[i];
-        }
-        double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-        double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-        if (fabs(det) < 1e-18)
-            continue;
-        double u = (s[0] * pv[0] + s[1] * pv[1] + s[2] * pv[2]) / det;
-        if (u < 0 || u > 1)
-            continue;
-        double q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
-        double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) / det;
-        if (v < 0 || u + v > 1)
-            continue;
-        if ((e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det > 0)
-            hits++;
+        double v[3][3];
+        for (int j = 0; j < 3; j++)
+            for (int i = 0; i < 3; i++)
+                v[j][i] = pos[3 * (size_t)idx[3 * k + (uint32_t)j] + (size_t)i];
+        hits += sl_ray_triangle(p, d, v[0], v[1], v[2], 1e-18, NULL); /* src/core/dvec3.c */
     }
     return hits & 1;
 }

@@ -17,6 +17,7 @@
  * leaf. For disjoint cells a point meets O(1) boxes per level, so a lookup costs O(log n). */
 #include "region_internal.h"
 
+#include "core/dvec3.h"
 #include "geos_util.h"
 #include "scene/scene_internal.h"
 #include "sightline/accel.h"
@@ -1099,29 +1100,13 @@ typedef struct adapt {
 static bool inside_mesh(const adapt *ad, sl_vec3 p)
 {
     const double d[3] = {0.8727, 0.3141, 0.3737}; /* skewed so that it grazes no axis-aligned edge */
+    const double o[3] = {p.x, p.y, p.z};
     uint32_t hits = 0;
     for (uint32_t k = 0; k < ad->tri_count; k++) {
-        const float *t = ad->tris + 9 * k;
-        double e1[3], e2[3], s[3];
-        for (int i = 0; i < 3; i++) {
-            e1[i] = (double)t[3 + i] - t[i];
-            e2[i] = (double)t[6 + i] - t[i];
-            s[i] = (double)(&p.x)[i] - t[i];
-        }
-        double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-        double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-        if (fabs(det) < 1e-18)
-            continue;
-        double u = (s[0] * pv[0] + s[1] * pv[1] + s[2] * pv[2]) / det;
-        if (u < 0 || u > 1)
-            continue;
-        double q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
-        double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) / det;
-        if (v < 0 || u + v > 1)
-            continue;
-        double t_hit = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det;
-        if (t_hit > 0)
-            hits++;
+        double v[9];
+        for (int i = 0; i < 9; i++)
+            v[i] = ad->tris[9 * k + (uint32_t)i];
+        hits += sl_ray_triangle(o, d, v, v + 3, v + 6, 1e-18, NULL); /* src/core/dvec3.c */
     }
     return hits & 1;
 }

@@ -6,31 +6,23 @@
  * 0.1 m / 5000 m camera is badly conditioned in float, and the planes are built geometrically
  * from the basis (not extracted from the view-projection matrix) for the same reason. */
 #include "sightline/camera.h"
+#include "../core/dvec3.h"
 #include "../core/sl_core.h"
 
 #include <math.h>
 
-typedef struct dvec3 { double x, y, z; } dvec3;
-
-static dvec3 d3(double x, double y, double z) { return (dvec3){x, y, z}; }
-static dvec3 d3_add(dvec3 a, dvec3 b) { return d3(a.x + b.x, a.y + b.y, a.z + b.z); }
-static dvec3 d3_scale(dvec3 a, double s) { return d3(a.x * s, a.y * s, a.z * s); }
-static double d3_dot(dvec3 a, dvec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-static dvec3 d3_of(sl_vec3 v) { return d3(v.x, v.y, v.z); }
-static sl_vec3 v3_of(dvec3 v) { return (sl_vec3){(float)v.x, (float)v.y, (float)v.z}; }
-
 /* Orthonormal camera basis in double. Roll turns up toward right about forward (right-hand rule
  * about +forward): the camera rolls clockwise as the viewer sees it, the image turns the other way. */
-static void basis_d(const sl_camera *cam, dvec3 *f, dvec3 *r, dvec3 *u)
+static void basis_d(const sl_camera *cam, sl_dvec3 *f, sl_dvec3 *r, sl_dvec3 *u)
 {
     double cy = cos(cam->yaw), sy = sin(cam->yaw), cp = cos(cam->pitch), sp = sin(cam->pitch);
     double cr = cos(cam->roll), sr = sin(cam->roll);
-    dvec3 fw = d3(cp * cy, cp * sy, sp);
-    dvec3 r0 = d3(sy, -cy, 0);            /* forward x Z, normalised: well defined even at pitch +-90 */
-    dvec3 u0 = d3(-sp * cy, -sp * sy, cp); /* r0 x forward */
+    sl_dvec3 fw = sl_d3(cp * cy, cp * sy, sp);
+    sl_dvec3 r0 = sl_d3(sy, -cy, 0);            /* forward x Z, normalised: well defined even at pitch +-90 */
+    sl_dvec3 u0 = sl_d3(-sp * cy, -sp * sy, cp); /* r0 x forward */
     *f = fw;
-    *r = d3_add(d3_scale(r0, cr), d3_scale(u0, -sr));
-    *u = d3_add(d3_scale(u0, cr), d3_scale(r0, sr));
+    *r = sl_d3_add(sl_d3_scale(r0, cr), sl_d3_scale(u0, -sr));
+    *u = sl_d3_add(sl_d3_scale(u0, cr), sl_d3_scale(r0, sr));
 }
 
 sl_camera sl_camera_default(void)
@@ -108,26 +100,26 @@ sl_status sl_camera_check_depth(const sl_camera *c, sl_depth_format format, cons
 
 void sl_camera_basis(const sl_camera *cam, sl_vec3 *forward, sl_vec3 *right, sl_vec3 *up)
 {
-    dvec3 f, r, u;
+    sl_dvec3 f, r, u;
     basis_d(cam, &f, &r, &u);
     if (forward)
-        *forward = v3_of(f);
+        *forward = sl_d3_to_vec3(f);
     if (right)
-        *right = v3_of(r);
+        *right = sl_d3_to_vec3(r);
     if (up)
-        *up = v3_of(u);
+        *up = sl_d3_to_vec3(u);
 }
 
 sl_mat4 sl_camera_view(const sl_camera *cam)
 {
-    dvec3 f, r, u, p = d3_of(cam->position);
+    sl_dvec3 f, r, u, p = sl_d3_of(cam->position);
     basis_d(cam, &f, &r, &u);
     sl_mat4 m;
     memset(&m, 0, sizeof m);
     /* rows of the rotation are right, up, -forward (the eye looks down -Z); column-major storage */
-    m.m[0] = (float)r.x, m.m[4] = (float)r.y, m.m[8] = (float)r.z, m.m[12] = (float)-d3_dot(r, p);
-    m.m[1] = (float)u.x, m.m[5] = (float)u.y, m.m[9] = (float)u.z, m.m[13] = (float)-d3_dot(u, p);
-    m.m[2] = (float)-f.x, m.m[6] = (float)-f.y, m.m[10] = (float)-f.z, m.m[14] = (float)d3_dot(f, p);
+    m.m[0] = (float)r.x, m.m[4] = (float)r.y, m.m[8] = (float)r.z, m.m[12] = (float)-sl_d3_dot(r, p);
+    m.m[1] = (float)u.x, m.m[5] = (float)u.y, m.m[9] = (float)u.z, m.m[13] = (float)-sl_d3_dot(u, p);
+    m.m[2] = (float)-f.x, m.m[6] = (float)-f.y, m.m[10] = (float)-f.z, m.m[14] = (float)sl_d3_dot(f, p);
     m.m[15] = 1.0f;
     return m;
 }
@@ -175,45 +167,47 @@ sl_mat4 sl_camera_view_proj(const sl_camera *cam)
 }
 
 /* Plane with inward normal n through point q, normalised. */
-static sl_plane plane_through(dvec3 n, dvec3 q)
+static sl_plane plane_through(sl_dvec3 n, sl_dvec3 q)
 {
-    double len = sqrt(d3_dot(n, n));
-    n = d3_scale(n, 1.0 / len);
-    return (sl_plane){(float)n.x, (float)n.y, (float)n.z, (float)-d3_dot(n, q)};
+    double len = sqrt(sl_d3_dot(n, n));
+    n = sl_d3_scale(n, 1.0 / len);
+    return (sl_plane){(float)n.x, (float)n.y, (float)n.z, (float)-sl_d3_dot(n, q)};
 }
 
 sl_frustum sl_camera_frustum(const sl_camera *cam)
 {
-    dvec3 f, r, u, p = d3_of(cam->position);
+    sl_dvec3 f, r, u, p = sl_d3_of(cam->position);
     basis_d(cam, &f, &r, &u);
     double n = cam->near_plane, fa = cam->far_plane, aspect = aspect_of(cam);
     sl_frustum out;
-    dvec3 nc = d3_add(p, d3_scale(f, n)), fc = d3_add(p, d3_scale(f, fa));
+    sl_dvec3 nc = sl_d3_add(p, sl_d3_scale(f, n)), fc = sl_d3_add(p, sl_d3_scale(f, fa));
     double nh, nw, fh, fw; /* half extents of the near and far rectangles */
     if (cam->projection == SL_ORTHOGRAPHIC) {
         double h = 0.5 * cam->ortho_height, w = h * aspect;
         nh = fh = h, nw = fw = w;
         /* side planes are parallel to forward: inward normals are +-right and +-up */
-        out.planes[0] = plane_through(r, d3_add(p, d3_scale(r, -w)));
-        out.planes[1] = plane_through(d3_scale(r, -1), d3_add(p, d3_scale(r, w)));
-        out.planes[2] = plane_through(u, d3_add(p, d3_scale(u, -h)));
-        out.planes[3] = plane_through(d3_scale(u, -1), d3_add(p, d3_scale(u, h)));
+        out.planes[0] = plane_through(r, sl_d3_add(p, sl_d3_scale(r, -w)));
+        out.planes[1] = plane_through(sl_d3_scale(r, -1), sl_d3_add(p, sl_d3_scale(r, w)));
+        out.planes[2] = plane_through(u, sl_d3_add(p, sl_d3_scale(u, -h)));
+        out.planes[3] = plane_through(sl_d3_scale(u, -1), sl_d3_add(p, sl_d3_scale(u, h)));
     } else {
         double ty = tan(0.5 * cam->fov_y), tx = ty * aspect;
         nh = n * ty, nw = n * tx, fh = fa * ty, fw = fa * tx;
         /* each side plane passes through the eye; its inward normal is orthogonal to the edge
          * direction forward -+ t*axis, e.g. left: (right + tx*forward) . (forward - tx*right) = 0 */
-        out.planes[0] = plane_through(d3_add(r, d3_scale(f, tx)), p);
-        out.planes[1] = plane_through(d3_add(d3_scale(r, -1), d3_scale(f, tx)), p);
-        out.planes[2] = plane_through(d3_add(u, d3_scale(f, ty)), p);
-        out.planes[3] = plane_through(d3_add(d3_scale(u, -1), d3_scale(f, ty)), p);
+        out.planes[0] = plane_through(sl_d3_add(r, sl_d3_scale(f, tx)), p);
+        out.planes[1] = plane_through(sl_d3_add(sl_d3_scale(r, -1), sl_d3_scale(f, tx)), p);
+        out.planes[2] = plane_through(sl_d3_add(u, sl_d3_scale(f, ty)), p);
+        out.planes[3] = plane_through(sl_d3_add(sl_d3_scale(u, -1), sl_d3_scale(f, ty)), p);
     }
     out.planes[4] = plane_through(f, nc);
-    out.planes[5] = plane_through(d3_scale(f, -1), fc);
+    out.planes[5] = plane_through(sl_d3_scale(f, -1), fc);
     const double sx[4] = {-1, 1, 1, -1}, sy[4] = {-1, -1, 1, 1}; /* bl, br, tr, tl */
     for (int i = 0; i < 4; i++) {
-        out.corners[i] = v3_of(d3_add(nc, d3_add(d3_scale(r, sx[i] * nw), d3_scale(u, sy[i] * nh))));
-        out.corners[4 + i] = v3_of(d3_add(fc, d3_add(d3_scale(r, sx[i] * fw), d3_scale(u, sy[i] * fh))));
+        out.corners[i] =
+            sl_d3_to_vec3(sl_d3_add(nc, sl_d3_add(sl_d3_scale(r, sx[i] * nw), sl_d3_scale(u, sy[i] * nh))));
+        out.corners[4 + i] =
+            sl_d3_to_vec3(sl_d3_add(fc, sl_d3_add(sl_d3_scale(r, sx[i] * fw), sl_d3_scale(u, sy[i] * fh))));
     }
     return out;
 }

@@ -57,9 +57,9 @@ static frame wall_frame(gc_v2 a, gc_v2 b)
     return f;
 }
 
-static inline gc_v3 fp(const frame *f, double u, double v, double w)
+static inline sl_dvec3 fp(const frame *f, double u, double v, double w)
 {
-    return gc_v3_make(f->a.x + f->u.x * u + f->w.x * w, f->a.y + f->u.y * u + f->w.y * w, v);
+    return sl_d3(f->a.x + f->u.x * u + f->w.x * w, f->a.y + f->u.y * u + f->w.y * w, v);
 }
 
 /* A wall panel [u0,u1]x[v0,v1] with a recessed opening [wu0,wu1]x[wv0,wv1]: the frame around the
@@ -67,8 +67,8 @@ static inline gc_v3 fp(const frame *f, double u, double v, double w)
 static void panel(gc_mesh *m, const frame *f, double u0, double u1, double v0, double v1, double wu0, double wu1,
                   double wv0, double wv1, bool sill)
 {
-    gc_v3 out = gc_v3_make(f->w.x, f->w.y, 0), uu = gc_v3_make(f->u.x, f->u.y, 0);
-    gc_v3 up = {0, 0, 1}, down = {0, 0, -1};
+    sl_dvec3 out = sl_d3(f->w.x, f->w.y, 0), uu = sl_d3(f->u.x, f->u.y, 0);
+    sl_dvec3 up = {0, 0, 1}, down = {0, 0, -1};
     if (gc_mesh_reserve(m, 8, 8)) {
         uint32_t b = m->nv;
         gc_vert(m, fp(f, u0, v0, 0), out), gc_vert(m, fp(f, u1, v0, 0), out);
@@ -85,14 +85,14 @@ static void panel(gc_mesh *m, const frame *f, double u0, double u1, double v0, d
     gc_quad(m, fp(f, wu0, wv0, 0), fp(f, wu1, wv0, 0), fp(f, wu1, wv0, d), fp(f, wu0, wv0, d), up);
     gc_quad(m, fp(f, wu0, wv1, 0), fp(f, wu1, wv1, 0), fp(f, wu1, wv1, d), fp(f, wu0, wv1, d), down);
     gc_quad(m, fp(f, wu0, wv0, 0), fp(f, wu0, wv1, 0), fp(f, wu0, wv1, d), fp(f, wu0, wv0, d), uu);
-    gc_quad(m, fp(f, wu1, wv0, 0), fp(f, wu1, wv1, 0), fp(f, wu1, wv1, d), fp(f, wu1, wv0, d), gc_scale3(uu, -1));
+    gc_quad(m, fp(f, wu1, wv0, 0), fp(f, wu1, wv1, 0), fp(f, wu1, wv1, d), fp(f, wu1, wv0, d), sl_d3_scale(uu, -1));
     gc_quad(m, fp(f, wu0, wv0, d), fp(f, wu1, wv0, d), fp(f, wu1, wv1, d), fp(f, wu0, wv1, d), out);
     if (sill) {
         double s0 = wu0 - 0.08, s1 = wu1 + 0.08, z0 = wv0 - 0.1, z1 = wv0, w = 0.12;
         gc_quad(m, fp(f, s0, z0, w), fp(f, s1, z0, w), fp(f, s1, z1, w), fp(f, s0, z1, w), out);
         gc_quad(m, fp(f, s0, z1, 0), fp(f, s1, z1, 0), fp(f, s1, z1, w), fp(f, s0, z1, w), up);
         gc_quad(m, fp(f, s0, z0, 0), fp(f, s1, z0, 0), fp(f, s1, z0, w), fp(f, s0, z0, w), down);
-        gc_quad(m, fp(f, s0, z0, 0), fp(f, s0, z1, 0), fp(f, s0, z1, w), fp(f, s0, z0, w), gc_scale3(uu, -1));
+        gc_quad(m, fp(f, s0, z0, 0), fp(f, s0, z1, 0), fp(f, s0, z1, w), fp(f, s0, z0, w), sl_d3_scale(uu, -1));
         gc_quad(m, fp(f, s1, z0, 0), fp(f, s1, z1, 0), fp(f, s1, z1, w), fp(f, s1, z0, w), uu);
     }
 }
@@ -102,7 +102,7 @@ static int bays(const bldg *b, double len) { return (int)floor(len / b->bay); }
 static void wall(gc_mesh *m, const bldg *b, int e, uint32_t detail)
 {
     gc_v2 A = b->f.p[e], B = b->f.p[(e + 1) % b->f.n];
-    gc_v3 none = {0, 0, 0};
+    sl_dvec3 none = {0, 0, 0};
     if (!b->windows[e]) {
         gc_quad(m, gc_at(A, b->base), gc_at(B, b->base), gc_at(B, b->eave), gc_at(A, b->eave), none);
         return;
@@ -141,7 +141,7 @@ static void band(gc_mesh *m, const bldg *b, double delta, double zlo, double zhi
         off[e] = exterior(f->tag[e]) ? -delta : 0.0;
     if (!gc_offset(f->p, n, off, o))
         return;
-    gc_v3 up = {0, 0, 1}, down = {0, 0, -1};
+    sl_dvec3 up = {0, 0, 1}, down = {0, 0, -1};
     for (int e = 0; e < n; e++) {
         if (off[e] == 0)
             continue;
@@ -170,12 +170,12 @@ static void band(gc_mesh *m, const bldg *b, double delta, double zlo, double zhi
             A2 = gc_add2(P0, gc_scale2(U, tlo));
         if (tb > thi)
             B2 = gc_add2(P0, gc_scale2(U, thi));
-        gc_v3 out = gc_v3_make(U.y, -U.x, 0), uu = gc_v3_make(U.x, U.y, 0);
+        sl_dvec3 out = sl_d3(U.y, -U.x, 0), uu = sl_d3(U.x, U.y, 0);
         gc_quad(m, gc_at(A2, zlo), gc_at(B2, zlo), gc_at(B2, zhi), gc_at(A2, zhi), out);
         gc_quad(m, gc_at(A, zhi), gc_at(B, zhi), gc_at(B2, zhi), gc_at(A2, zhi), up);
         gc_quad(m, gc_at(A, zlo), gc_at(B, zlo), gc_at(B2, zlo), gc_at(A2, zlo), down);
         if (off[e0] == 0)
-            gc_quad(m, gc_at(A, zlo), gc_at(A2, zlo), gc_at(A2, zhi), gc_at(A, zhi), gc_scale3(uu, -1));
+            gc_quad(m, gc_at(A, zlo), gc_at(A2, zlo), gc_at(A2, zhi), gc_at(A, zhi), sl_d3_scale(uu, -1));
         if (off[e1] == 0)
             gc_quad(m, gc_at(B, zlo), gc_at(B2, zlo), gc_at(B2, zhi), gc_at(B, zhi), uu);
     }
@@ -184,7 +184,7 @@ static void band(gc_mesh *m, const bldg *b, double delta, double zlo, double zhi
 /* Tower curtain wall: vertical fins at every bay line. */
 static void fins(gc_mesh *m, const bldg *b)
 {
-    gc_v3 up = {0, 0, 1}, down = {0, 0, -1};
+    sl_dvec3 up = {0, 0, 1}, down = {0, 0, -1};
     for (int e = 0; e < b->f.n; e++) {
         gc_v2 A = b->f.p[e], B = b->f.p[(e + 1) % b->f.n];
         double len = gc_len2(gc_sub2(B, A));
@@ -192,12 +192,12 @@ static void fins(gc_mesh *m, const bldg *b)
         if (nb < 2)
             continue;
         frame f = wall_frame(A, B);
-        gc_v3 out = gc_v3_make(f.w.x, f.w.y, 0), uu = gc_v3_make(f.u.x, f.u.y, 0);
+        sl_dvec3 out = sl_d3(f.w.x, f.w.y, 0), uu = sl_d3(f.u.x, f.u.y, 0);
         double z0 = b->base + b->gf, z1 = b->eave, w = 0.35;
         for (int k = 1; k < nb; k++) {
             double u = len * k / nb, u0 = u - 0.12, u1 = u + 0.12;
             gc_quad(m, fp(&f, u0, z0, w), fp(&f, u1, z0, w), fp(&f, u1, z1, w), fp(&f, u0, z1, w), out);
-            gc_quad(m, fp(&f, u0, z0, 0), fp(&f, u0, z1, 0), fp(&f, u0, z1, w), fp(&f, u0, z0, w), gc_scale3(uu, -1));
+            gc_quad(m, fp(&f, u0, z0, 0), fp(&f, u0, z1, 0), fp(&f, u0, z1, w), fp(&f, u0, z0, w), sl_d3_scale(uu, -1));
             gc_quad(m, fp(&f, u1, z0, 0), fp(&f, u1, z1, 0), fp(&f, u1, z1, w), fp(&f, u1, z0, w), uu);
             gc_quad(m, fp(&f, u0, z1, 0), fp(&f, u1, z1, 0), fp(&f, u1, z1, w), fp(&f, u0, z1, w), up);
             gc_quad(m, fp(&f, u0, z0, 0), fp(&f, u1, z0, 0), fp(&f, u1, z0, w), fp(&f, u0, z0, w), down);
@@ -241,7 +241,7 @@ static void roof_sloped(gc_mesh *m, const bldg *b, double r, double rise)
         int e1 = (e + 1) % f->n;
         gc_v2 U = gc_norm2(gc_sub2(f->p[e1], f->p[e]));
         /* slopes face outward and up; a fire wall on a party edge faces outward */
-        gc_v3 want = exterior(f->tag[e]) ? gc_v3_make(U.y, -U.x, 1) : gc_v3_make(U.y, -U.x, 0);
+        sl_dvec3 want = exterior(f->tag[e]) ? sl_d3(U.y, -U.x, 1) : sl_d3(U.y, -U.x, 0);
         gc_quad(m, gc_at(f->p[e], z0), gc_at(f->p[e1], z0), gc_at(in[e1], z1), gc_at(in[e], z1), want);
     }
     gc_cap(m, in, f->n, z1, true);
@@ -259,16 +259,16 @@ static void roof_gable(gc_mesh *m, const bldg *b)
     gc_v2 p0 = f->p[s], p1 = f->p[s + 1], p2 = f->p[(s + 2) & 3], p3 = f->p[(s + 3) & 3];
     double span = 0.5 * (gc_len2(gc_sub2(p1, p0)) + gc_len2(gc_sub2(p3, p2)));
     double z0 = b->eave, z1 = b->eave + 0.5 * span * b->roof_slope;
-    gc_v3 m0 = gc_at(gc_lerp2(p0, p1, 0.5), z1), m2 = gc_at(gc_lerp2(p2, p3, 0.5), z1);
+    sl_dvec3 m0 = gc_at(gc_lerp2(p0, p1, 0.5), z1), m2 = gc_at(gc_lerp2(p2, p3, 0.5), z1);
     gc_v2 u01 = gc_norm2(gc_sub2(p1, p0)), u12 = gc_norm2(gc_sub2(p2, p1)), u23 = gc_norm2(gc_sub2(p3, p2)),
           u30 = gc_norm2(gc_sub2(p0, p3));
-    gc_v3 w1 = gc_v3_make(u12.y, -u12.x, 1), w3 = gc_v3_make(u30.y, -u30.x, 1);
+    sl_dvec3 w1 = sl_d3(u12.y, -u12.x, 1), w3 = sl_d3(u30.y, -u30.x, 1);
     gc_tri(m, gc_at(p1, z0), gc_at(p2, z0), m2, w1);
     gc_tri(m, gc_at(p1, z0), m2, m0, w1);
     gc_tri(m, gc_at(p3, z0), gc_at(p0, z0), m0, w3);
     gc_tri(m, gc_at(p3, z0), m0, m2, w3);
-    gc_tri(m, gc_at(p0, z0), gc_at(p1, z0), m0, gc_v3_make(u01.y, -u01.x, 0));
-    gc_tri(m, gc_at(p2, z0), gc_at(p3, z0), m2, gc_v3_make(u23.y, -u23.x, 0));
+    gc_tri(m, gc_at(p0, z0), gc_at(p1, z0), m0, sl_d3(u01.y, -u01.x, 0));
+    gc_tri(m, gc_at(p2, z0), gc_at(p3, z0), m2, sl_d3(u23.y, -u23.x, 0));
 }
 
 /* Build the mesh, add the object and its footprint. */

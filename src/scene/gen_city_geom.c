@@ -242,23 +242,23 @@ bool gc_mesh_reserve(gc_mesh *m, uint32_t nv, uint32_t nt)
     return true;
 }
 
-void gc_face(gc_mesh *m, const gc_v3 *p, int n, gc_v3 want)
+void gc_face(gc_mesh *m, const sl_dvec3 *p, int n, sl_dvec3 want)
 {
     /* Newell's normal: robust for any planar polygon, and its length is twice the area */
-    gc_v3 nn = {0, 0, 0};
+    sl_dvec3 nn = {0, 0, 0};
     for (int i = 0; i < n; i++) {
-        gc_v3 a = p[i], b = p[(i + 1) % n];
+        sl_dvec3 a = p[i], b = p[(i + 1) % n];
         nn.x += (a.y - b.y) * (a.z + b.z);
         nn.y += (a.z - b.z) * (a.x + b.x);
         nn.z += (a.x - b.x) * (a.y + b.y);
     }
-    double l = sqrt(gc_dot3(nn, nn));
+    double l = sqrt(sl_d3_dot(nn, nn));
     if (!(l > 1e-9))
         return;
-    nn = gc_scale3(nn, 1.0 / l);
-    bool flip = gc_dot3(nn, want) < 0;
+    nn = sl_d3_scale(nn, 1.0 / l);
+    bool flip = sl_d3_dot(nn, want) < 0;
     if (flip)
-        nn = gc_scale3(nn, -1.0);
+        nn = sl_d3_scale(nn, -1.0);
     if (!gc_mesh_reserve(m, (uint32_t)n, (uint32_t)(n - 2)))
         return;
     uint32_t base = m->nv;
@@ -268,15 +268,15 @@ void gc_face(gc_mesh *m, const gc_v3 *p, int n, gc_v3 want)
         gc_tri_idx(m, base, base + (uint32_t)i, base + (uint32_t)i + 1);
 }
 
-void gc_quad(gc_mesh *m, gc_v3 a, gc_v3 b, gc_v3 c, gc_v3 d, gc_v3 want)
+void gc_quad(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 d, sl_dvec3 want)
 {
-    gc_v3 p[4] = {a, b, c, d};
+    sl_dvec3 p[4] = {a, b, c, d};
     gc_face(m, p, 4, want);
 }
 
-void gc_tri(gc_mesh *m, gc_v3 a, gc_v3 b, gc_v3 c, gc_v3 want)
+void gc_tri(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 want)
 {
-    gc_v3 p[3] = {a, b, c};
+    sl_dvec3 p[3] = {a, b, c};
     gc_face(m, p, 3, want);
 }
 
@@ -293,7 +293,7 @@ void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up)
     }
     if (!gc_mesh_reserve(m, (uint32_t)n, (uint32_t)nt))
         return;
-    gc_v3 nn = gc_v3_make(0, 0, up ? 1 : -1);
+    sl_dvec3 nn = sl_d3(0, 0, up ? 1 : -1);
     uint32_t base = m->nv;
     for (int i = 0; i < n; i++)
         gc_vert(m, gc_at(p[i], z), nn);
@@ -307,7 +307,7 @@ void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up)
 
 void gc_prism(gc_mesh *m, const gc_v2 *p, int n, double z0, double z1, bool top, bool bottom)
 {
-    gc_v3 none = {0, 0, 0};
+    sl_dvec3 none = {0, 0, 0};
     for (int i = 0; i < n; i++) {
         gc_v2 a = p[i], b = p[(i + 1) % n];
         gc_quad(m, gc_at(a, z0), gc_at(b, z0), gc_at(b, z1), gc_at(a, z1), none);
@@ -318,7 +318,7 @@ void gc_prism(gc_mesh *m, const gc_v2 *p, int n, double z0, double z1, bool top,
         gc_cap(m, p, n, z0, false);
 }
 
-void gc_box(gc_mesh *m, gc_v3 lo, gc_v3 hi, bool bottom)
+void gc_box(gc_mesh *m, sl_dvec3 lo, sl_dvec3 hi, bool bottom)
 {
     gc_v2 r[4] = {{lo.x, lo.y}, {hi.x, lo.y}, {hi.x, hi.y}, {lo.x, hi.y}};
     gc_prism(m, r, 4, lo.z, hi.z, true, bottom);

@@ -22,9 +22,9 @@
 static void drape(gc_city *c, const gc_v2 *p, int n, double lift)
 {
     gc_mesh *m = &c->mesh;
-    gc_v3 up = {0, 0, 1};
+    sl_dvec3 up = {0, 0, 1};
     if (!c->has_terrain) {
-        gc_v3 pts[4];
+        sl_dvec3 pts[4];
         for (int k = 0; k < n; k++)
             pts[k] = gc_at(p[k], lift);
         gc_face(m, pts, n, up);
@@ -145,7 +145,7 @@ done:
 static void quay_wall(gc_city *c, gc_v2 a, gc_v2 b)
 {
     gc_v2 d = gc_sub2(b, a);
-    gc_v3 want = gc_v3_make(-d.y, d.x, 0);
+    sl_dvec3 want = sl_d3(-d.y, d.x, 0);
     gc_quad(&c->mesh, gc_at(a, GC_WATER_Z), gc_at(b, GC_WATER_Z), gc_at(b, 0.0), gc_at(a, 0.0), want);
 }
 
@@ -170,8 +170,8 @@ static sl_status bridge(gc_city *c, int i, int j)
     gc_v2 q[4];
     gc_edge_quad(c, false, i, j, q);
     double top = 0.15, bot = -0.9;
-    gc_v3 up = {0, 0, 1}, down = {0, 0, -1}, none = {0, 0, 0};
-    gc_v3 t4[4], b4[4];
+    sl_dvec3 up = {0, 0, 1}, down = {0, 0, -1}, none = {0, 0, 0};
+    sl_dvec3 t4[4], b4[4];
     for (int k = 0; k < 4; k++)
         t4[k] = gc_at(q[k], top), b4[k] = gc_at(q[k], bot);
     gc_face(m, t4, 4, up);
@@ -215,10 +215,10 @@ sl_status gc_groundwork(gc_city *c)
                 if (!gc_commit_object(c, SL_KIND_GROUND, 0, COLOR_BANK, NULL))
                     return c->err->status;
                 gc_mesh_reset(&c->mesh);
-                gc_v3 wq[4];
+                sl_dvec3 wq[4];
                 for (int k = 0; k < 4; k++)
                     wq[k] = gc_at(w[k], GC_WATER_Z);
-                gc_face(&c->mesh, wq, 4, gc_v3_make(0, 0, 1));
+                gc_face(&c->mesh, wq, 4, sl_d3(0, 0, 1));
                 if (!gc_commit_object(c, SL_KIND_WATER, 0, COLOR_WATER, NULL))
                     return c->err->status;
                 continue;

@@ -25,6 +25,7 @@
 
 #include "sightline/gen.h"
 #include "scene_internal.h"
+#include "core/dvec3.h"
 
 #include <math.h>
 
@@ -41,7 +42,6 @@
 
 /* ---- vectors ---- */
 typedef struct gc_v2 { double x, y; } gc_v2;
-typedef struct gc_v3 { double x, y, z; } gc_v3;
 
 static inline gc_v2 gc_v2_make(double x, double y) { gc_v2 r = {x, y}; return r; }
 static inline gc_v2 gc_add2(gc_v2 a, gc_v2 b) { return gc_v2_make(a.x + b.x, a.y + b.y); }
@@ -58,16 +58,7 @@ static inline gc_v2 gc_norm2(gc_v2 a)
 }
 /* Left normal of a direction (inward for a CCW polygon's edge). */
 static inline gc_v2 gc_left2(gc_v2 d) { return gc_v2_make(-d.y, d.x); }
-static inline gc_v3 gc_v3_make(double x, double y, double z) { gc_v3 r = {x, y, z}; return r; }
-static inline gc_v3 gc_at(gc_v2 p, double z) { return gc_v3_make(p.x, p.y, z); }
-static inline gc_v3 gc_add3(gc_v3 a, gc_v3 b) { return gc_v3_make(a.x + b.x, a.y + b.y, a.z + b.z); }
-static inline gc_v3 gc_sub3(gc_v3 a, gc_v3 b) { return gc_v3_make(a.x - b.x, a.y - b.y, a.z - b.z); }
-static inline gc_v3 gc_scale3(gc_v3 a, double s) { return gc_v3_make(a.x * s, a.y * s, a.z * s); }
-static inline double gc_dot3(gc_v3 a, gc_v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-static inline gc_v3 gc_cross3(gc_v3 a, gc_v3 b)
-{
-    return gc_v3_make(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
-}
+static inline sl_dvec3 gc_at(gc_v2 p, double z) { return sl_d3(p.x, p.y, z); }
 
 /* ---- 2D polygons (gen_city_geom.c) ---- */
 
@@ -114,7 +105,7 @@ static inline void gc_mesh_reset(gc_mesh *m) { m->nv = m->nt = 0; }
 /* Make room for nv more vertices and nt more triangles; false (and oom set) on failure. */
 bool gc_mesh_reserve(gc_mesh *m, uint32_t nv, uint32_t nt);
 /* Append a vertex (room must be reserved). */
-static inline uint32_t gc_vert(gc_mesh *m, gc_v3 p, gc_v3 n)
+static inline uint32_t gc_vert(gc_mesh *m, sl_dvec3 p, sl_dvec3 n)
 {
     float *d = m->pos + 3 * (size_t)m->nv, *e = m->nrm + 3 * (size_t)m->nv;
     d[0] = (float)p.x, d[1] = (float)p.y, d[2] = (float)p.z;
@@ -129,16 +120,16 @@ static inline void gc_tri_idx(gc_mesh *m, uint32_t a, uint32_t b, uint32_t c)
 /* Planar polygon (n <= 8, convex) with its own vertices, facing by the right-hand rule; when
  * `want` is non-zero the winding is flipped if the face would point away from it. Degenerate
  * faces are skipped. */
-void gc_face(gc_mesh *m, const gc_v3 *p, int n, gc_v3 want);
+void gc_face(gc_mesh *m, const sl_dvec3 *p, int n, sl_dvec3 want);
 /* Quad shorthand for gc_face. */
-void gc_quad(gc_mesh *m, gc_v3 a, gc_v3 b, gc_v3 c, gc_v3 d, gc_v3 want);
-void gc_tri(gc_mesh *m, gc_v3 a, gc_v3 b, gc_v3 c, gc_v3 want);
+void gc_quad(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 d, sl_dvec3 want);
+void gc_tri(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 want);
 /* Horizontal cap of a simple CCW polygon at height z, facing up (or down). */
 void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up);
 /* Vertical prism over a CCW polygon between z0 and z1: the walls, plus caps when asked. */
 void gc_prism(gc_mesh *m, const gc_v2 *p, int n, double z0, double z1, bool top, bool bottom);
 /* Axis-aligned box (local prop coordinates); bottom face optional. */
-void gc_box(gc_mesh *m, gc_v3 lo, gc_v3 hi, bool bottom);
+void gc_box(gc_mesh *m, sl_dvec3 lo, sl_dvec3 hi, bool bottom);
 
 /* ---- the generator's state ---- */
 
@@ -227,7 +218,7 @@ double gc_ground(const gc_city *c, double x, double y);
 /* Lowest terrain height over a simple polygon (exact for the bilinear height field). */
 double gc_ground_min_poly(const gc_city *c, const gc_v2 *p, int n);
 /* Terrain normal at (x,y). */
-gc_v3 gc_ground_normal(const gc_city *c, double x, double y);
+sl_dvec3 gc_ground_normal(const gc_city *c, double x, double y);
 
 /* Add the scratch mesh to the scene; false on error (c->err filled). */
 bool gc_commit_mesh(gc_city *c, uint32_t *mesh_id);

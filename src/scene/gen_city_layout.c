@@ -586,15 +586,15 @@ double gc_ground_min_poly(const gc_city *c, const gc_v2 *p, int n)
     return m;
 }
 
-gc_v3 gc_ground_normal(const gc_city *c, double x, double y)
+sl_dvec3 gc_ground_normal(const gc_city *c, double x, double y)
 {
     if (!c->has_terrain)
-        return gc_v3_make(0, 0, 1);
+        return sl_d3(0, 0, 1);
     double e = 1.0;
     double dx = (gc_ground(c, x + e, y) - gc_ground(c, x - e, y)) / (2 * e);
     double dy = (gc_ground(c, x, y + e) - gc_ground(c, x, y - e)) / (2 * e);
     double l = sqrt(dx * dx + dy * dy + 1);
-    return gc_v3_make(-dx / l, -dy / l, 1 / l);
+    return sl_d3(-dx / l, -dy / l, 1 / l);
 }
 
 /* ---- street network ---- */

@@ -46,11 +46,11 @@ static void icosahedron(gc_mesh *m, double r, double zc)
                        {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
     double s = r / sqrt(1 + g * g);
     for (int k = 0; k < 20; k++) {
-        gc_v3 a = gc_v3_make(v[f[k][0]][0] * s, v[f[k][0]][1] * s, v[f[k][0]][2] * s + zc);
-        gc_v3 b = gc_v3_make(v[f[k][1]][0] * s, v[f[k][1]][1] * s, v[f[k][1]][2] * s + zc);
-        gc_v3 d = gc_v3_make(v[f[k][2]][0] * s, v[f[k][2]][1] * s, v[f[k][2]][2] * s + zc);
-        gc_v3 ctr = gc_scale3(gc_add3(gc_add3(a, b), d), 1.0 / 3);
-        gc_tri(m, a, b, d, gc_v3_make(ctr.x, ctr.y, ctr.z - zc));
+        sl_dvec3 a = sl_d3(v[f[k][0]][0] * s, v[f[k][0]][1] * s, v[f[k][0]][2] * s + zc);
+        sl_dvec3 b = sl_d3(v[f[k][1]][0] * s, v[f[k][1]][1] * s, v[f[k][1]][2] * s + zc);
+        sl_dvec3 d = sl_d3(v[f[k][2]][0] * s, v[f[k][2]][1] * s, v[f[k][2]][2] * s + zc);
+        sl_dvec3 ctr = sl_d3_scale(sl_d3_add(sl_d3_add(a, b), d), 1.0 / 3);
+        gc_tri(m, a, b, d, sl_d3(ctr.x, ctr.y, ctr.z - zc));
     }
 }
 
@@ -61,9 +61,9 @@ static void crown(gc_mesh *m, int n, double r, double zring, double ztop, double
     ngon(p, n, r, 0.3);
     for (int k = 0; k < n; k++) {
         gc_v2 a = p[k], b = p[(k + 1) % n], mid = gc_lerp2(a, b, 0.5);
-        gc_tri(m, gc_at(a, zring), gc_at(b, zring), gc_v3_make(0, 0, ztop), gc_v3_make(mid.x, mid.y, 0.5));
+        gc_tri(m, gc_at(a, zring), gc_at(b, zring), sl_d3(0, 0, ztop), sl_d3(mid.x, mid.y, 0.5));
         if (!cap)
-            gc_tri(m, gc_at(b, zring), gc_at(a, zring), gc_v3_make(0, 0, zbottom), gc_v3_make(mid.x, mid.y, -0.5));
+            gc_tri(m, gc_at(b, zring), gc_at(a, zring), sl_d3(0, 0, zbottom), sl_d3(mid.x, mid.y, -0.5));
     }
     if (cap)
         gc_cap(m, p, n, zring, false);
@@ -73,21 +73,21 @@ static void car_body(gc_mesh *m, double len, double wid, double zb, double zt, d
                      double ct1, double ztop)
 {
     double hl = 0.5 * len, hw = 0.5 * wid;
-    gc_box(m, gc_v3_make(-hl, -hw, zb), gc_v3_make(hl, hw, zt), false);
+    gc_box(m, sl_d3(-hl, -hw, zb), sl_d3(hl, hw, zt), false);
     /* cabin: bottom [cb0,cb1] x +-0.95 hw at zt, top [ct0,ct1] x +-0.8 hw at ztop */
     double wb = 0.95 * hw, wt = 0.8 * hw;
-    gc_v3 b0 = {cb0, -wb, zt}, b1 = {cb1, -wb, zt}, b2 = {cb1, wb, zt}, b3 = {cb0, wb, zt};
-    gc_v3 t0 = {ct0, -wt, ztop}, t1 = {ct1, -wt, ztop}, t2 = {ct1, wt, ztop}, t3 = {ct0, wt, ztop};
-    gc_quad(m, t0, t1, t2, t3, gc_v3_make(0, 0, 1));
-    gc_quad(m, b1, b2, t2, t1, gc_v3_make(1, 0, 0.5));
-    gc_quad(m, b3, b0, t0, t3, gc_v3_make(-1, 0, 0.5));
-    gc_quad(m, b0, b1, t1, t0, gc_v3_make(0, -1, 0.2));
-    gc_quad(m, b2, b3, t3, t2, gc_v3_make(0, 1, 0.2));
+    sl_dvec3 b0 = {cb0, -wb, zt}, b1 = {cb1, -wb, zt}, b2 = {cb1, wb, zt}, b3 = {cb0, wb, zt};
+    sl_dvec3 t0 = {ct0, -wt, ztop}, t1 = {ct1, -wt, ztop}, t2 = {ct1, wt, ztop}, t3 = {ct0, wt, ztop};
+    gc_quad(m, t0, t1, t2, t3, sl_d3(0, 0, 1));
+    gc_quad(m, b1, b2, t2, t1, sl_d3(1, 0, 0.5));
+    gc_quad(m, b3, b0, t0, t3, sl_d3(-1, 0, 0.5));
+    gc_quad(m, b0, b1, t1, t0, sl_d3(0, -1, 0.2));
+    gc_quad(m, b2, b3, t3, t2, sl_d3(0, 1, 0.2));
     double wx = hl - 0.75, wy = hw - 0.05;
     for (int sx = -1; sx <= 1; sx += 2)
         for (int sy = -1; sy <= 1; sy += 2) {
             double cx = sx * wx, cy = sy * (wy - 0.11);
-            gc_box(m, gc_v3_make(cx - 0.32, cy - 0.11, 0), gc_v3_make(cx + 0.32, cy + 0.11, 0.62), false);
+            gc_box(m, sl_d3(cx - 0.32, cy - 0.11, 0), sl_d3(cx + 0.32, cy + 0.11, 0.62), false);
         }
 }
 
@@ -117,8 +117,8 @@ static bool make_meshes(gc_city *c)
         gc_v2 p[6];
         ngon(p, 6, 0.08, 0);
         gc_prism(m, p, 6, 0, 5.2, true, false);
-        gc_box(m, gc_v3_make(0.05, -0.04, 5.0), gc_v3_make(1.3, 0.04, 5.1), true);
-        gc_box(m, gc_v3_make(1.0, -0.18, 4.85), gc_v3_make(1.5, 0.18, 5.05), true);
+        gc_box(m, sl_d3(0.05, -0.04, 5.0), sl_d3(1.3, 0.04, 5.1), true);
+        gc_box(m, sl_d3(1.0, -0.18, 4.85), sl_d3(1.5, 0.18, 5.05), true);
         if (!gc_commit_mesh(c, &c->lamp_mesh))
             return false;
     }

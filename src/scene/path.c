@@ -1184,7 +1184,9 @@ sl_status sl_path_parse(const void *data, size_t size, const char *name, const s
             if (!strcmp(buf, header_line))
                 continue;
             if (!strncmp(buf, "# sightline-path ", 17))
-                st = perr(&c, SL_ERROR_UNSUPPORTED, "path format version '%.20s' is not supported (this build reads 1)",
+                st = perr(&c, SL_ERROR_UNSUPPORTED,
+                          "path format version '%.20s' is not supported (this build reads 1; a file of a newer "
+                          "version needs the newer Sightline that wrote it)",
                           buf + 17);
             else
                 st = perr(&c, SL_ERROR_FORMAT, "not a sightline path file (the first line must be '%s')", header_line);

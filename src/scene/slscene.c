@@ -17,6 +17,8 @@
  * The writer is deterministic: record padding (the `reserved` fields) is written as zero, the
  * gaps between sections are zero and the section order is fixed. */
 #include "scene_internal.h"
+#include "core/bytes.h"
+#include "core/container.h"
 #include "sightline/slscene.h"
 
 #include <errno.h>
@@ -163,21 +165,6 @@ static const sec_def k_defs[] = {
 };
 #define SLS_NDEFS SL_COUNTOF(k_defs)
 
-static inline uint32_t rd32(const uint8_t *p)
-{
-    uint32_t v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-static inline uint64_t rd64(const uint8_t *p)
-{
-    uint64_t v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-static inline void wr32(uint8_t *p, uint32_t v) { memcpy(p, &v, sizeof v); }
-static inline void wr64(uint8_t *p, uint64_t v) { memcpy(p, &v, sizeof v); }
-static inline uint64_t align_up(uint64_t v) { return (v + (SLS_ALIGN - 1)) & ~(uint64_t)(SLS_ALIGN - 1); }
 
 static sl_array *scene_array(struct sl_scene_t *s, const sec_def *d) { return (sl_array *)((char *)s + d->array); }
 static const sl_array *scene_array_c(const struct sl_scene_t *s, const sec_def *d)
@@ -192,7 +179,7 @@ static const sl_array *scene_array_c(const struct sl_scene_t *s, const sec_def *
 typedef struct out_sec {
     const sec_def *def;
     const void *data;
-    uint64_t count, size, offset, hash;
+    uint64_t count, size;
     void *owned; /* staging copy (zeroed padding, serialized records), freed after writing */
     size_t owned_size;
 } out_sec;
@@ -321,72 +308,18 @@ static sl_status save_to(sl_scene s, const char *path, int fd, sl_error *err)
         return st;
     }
 
-    /* Layout: header, table, then the sections in table order, each on a 64-byte boundary. */
-    uint64_t table_size = (uint64_t)n * SLS_ENTRY_SIZE;
-    uint64_t pos = align_up(SLS_HEADER_SIZE + table_size);
+    /* header, table, then the sections in table order, each on a 64-byte boundary (container.h) */
+    sl_container_section cs[SLS_NDEFS];
     for (size_t i = 0; i < n; i++) {
-        secs[i].offset = pos;
-        secs[i].hash = sl_hash64(secs[i].data, (size_t)secs[i].size, SLS_HASH_SEED);
-        pos = align_up(pos + secs[i].size);
+        memcpy(cs[i].tag, secs[i].def->tag, 4);
+        cs[i].elem = secs[i].def->elem;
+        cs[i].count = secs[i].count;
+        cs[i].data = secs[i].data;
+        cs[i].size = secs[i].size;
     }
-    uint64_t file_size = pos;
-
-    uint8_t head[SLS_HEADER_SIZE + SLS_NDEFS * SLS_ENTRY_SIZE];
-    memset(head, 0, sizeof head);
-    uint8_t *table = head + SLS_HEADER_SIZE;
-    for (size_t i = 0; i < n; i++) {
-        uint8_t *e = table + i * SLS_ENTRY_SIZE;
-        memcpy(e + E_TAG, secs[i].def->tag, 4);
-        wr32(e + E_ELEM, secs[i].def->elem);
-        wr64(e + E_COUNT, secs[i].count);
-        wr64(e + E_OFFSET, secs[i].offset);
-        wr64(e + E_SIZE, secs[i].size);
-        wr64(e + E_HASH, secs[i].hash);
-    }
-    memcpy(head + H_MAGIC, k_magic, 8);
-    wr32(head + H_MAJOR, SLS_MAJOR);
-    wr32(head + H_MINOR, SLS_MINOR);
-    wr32(head + H_FLAGS, flags);
-    wr32(head + H_HEADER_SIZE, SLS_HEADER_SIZE);
-    wr32(head + H_SECTION_COUNT, (uint32_t)n);
-    wr32(head + H_ENTRY_SIZE, SLS_ENTRY_SIZE);
-    wr64(head + H_TABLE_OFFSET, SLS_HEADER_SIZE);
-    wr64(head + H_FILE_SIZE, file_size);
-    wr64(head + H_TABLE_HASH, sl_hash64(table, (size_t)table_size, SLS_HASH_SEED));
-    wr64(head + H_HEADER_HASH, sl_hash64(head, H_HEADER_HASH, SLS_HASH_SEED));
-
-    sl_atomic_file f;
-    if (fd >= 0) {
-        /* written straight through, as the atomic writer does for a device or a pipe */
-        memset(&f, 0, sizeof f);
-        f.alloc = a;
-        f.direct = true;
-        f.path = sl_strdup(a, path);
-        int dup_fd = f.path ? dup(fd) : -1;
-        f.fp = dup_fd >= 0 ? fdopen(dup_fd, "wb") : NULL;
-        if (!f.fp) {
-            int e = errno;
-            if (dup_fd >= 0)
-                close(dup_fd);
-            sl_atomic_abort(&f);
-            free_out(a, secs, n);
-            return sl_fail(err, SL_ERROR_IO, "%s: cannot write: %s", path, strerror(e));
-        }
-    } else if ((st = sl_atomic_open(a, path, &f, err)) != SL_OK) {
-        free_out(a, secs, n);
-        return st;
-    }
-    static const uint8_t zeros[SLS_ALIGN] = {0};
-    uint64_t at = SLS_HEADER_SIZE + table_size;
-    sl_atomic_write(&f, head, (size_t)at);
-    for (size_t i = 0; i < n; i++) {
-        sl_atomic_write(&f, zeros, (size_t)(secs[i].offset - at));
-        sl_atomic_write(&f, secs[i].data, (size_t)secs[i].size);
-        at = secs[i].offset + secs[i].size;
-    }
-    sl_atomic_write(&f, zeros, (size_t)(file_size - at));
+    st = sl_container_write(a, path, fd, k_magic, SLS_MAJOR, SLS_MINOR, flags, SLS_HASH_SEED, cs, n, err);
     free_out(a, secs, n);
-    return sl_atomic_commit(&f, err); /* removes the temporary file itself on failure */
+    return st;
 }
 
 sl_status sl_scene_save(sl_scene s, const char *path, sl_error *err)

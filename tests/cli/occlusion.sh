@@ -17,7 +17,7 @@ expect 0 "$SL" occlusion replay --help
 has "--isa" "$tmp/out"
 expect 2 "$SL" occlusion
 expect 2 "$SL" occlusion bogus
-has "unknown subcommand 'bogus'" "$tmp/err"
+has "unknown action 'bogus' (replay; see sightline occlusion --help)" "$tmp/err"
 expect 2 "$SL" occlusion replay
 has "missing FILE" "$tmp/err"
 expect 2 "$SL" occlusion replay a.rec b.rec
