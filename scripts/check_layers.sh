@@ -47,8 +47,7 @@ for dir in src/*/; do
         continue
     fi
     me=${rank[$layer]}
-    for f in "$dir"*.[ch]; do
-        [ -e "$f" ] || continue
+    while IFS= read -r f; do
         while IFS=: read -r n inc; do
             case "$inc" in
             ../* | */../*) report "$f:$n" "relative include \"$inc\": name the layer (\"layer/file.h\")" ;;
@@ -67,10 +66,10 @@ for dir in src/*/; do
                 elif [ "${rank[$to]}" -gt "$me" ]; then
                     report "$f:$n" "includes $inc (layer $to) from layer $layer: upward"
                 fi ;;
-            *) [ -e "$dir$inc" ] || report "$f:$n" "includes \"$inc\", not a file of $dir" ;;
+            *) [ -e "$(dirname "$f")/$inc" ] || report "$f:$n" "includes \"$inc\", not a file of $(dirname "$f")/" ;;
             esac
         done < <(includes "$f")
-    done
+    done < <(find "$dir" -name '*.[ch]' | sort)
 done
 
 # ---- tools/: public headers and its own only ----
@@ -119,25 +118,25 @@ done
 # ---- objects: symbols point down ----
 if [ $# -ge 1 ]; then
     build=$1
+    objects() { [ -d "$build/CMakeFiles/sl_layer_$1.dir" ] && find "$build/CMakeFiles/sl_layer_$1.dir" -name '*.o' | sort; }
     declare -A owner
     for layer in "${layers[@]}"; do
-        for o in "$build"/CMakeFiles/sl_layer_"$layer".dir/src/"$layer"/*.o; do
-            [ -e "$o" ] || continue
+        while IFS= read -r o; do
             while read -r sym; do owner[$sym]=$layer; done < <(nm --defined-only -g "$o" | awk '$3 ~ /^sl_/ { print $3 }')
-        done
+        done < <(objects "$layer")
     done
     [ ${#owner[@]} -gt 0 ] || { echo "$build: no layer objects (build the library first)" >&2; exit 2; }
     for layer in "${layers[@]}"; do
         me=${rank[$layer]}
-        for o in "$build"/CMakeFiles/sl_layer_"$layer".dir/src/"$layer"/*.o; do
-            [ -e "$o" ] || continue
-            src=src/$layer/$(basename "$o" .o)
+        while IFS= read -r o; do
+            src=${o#"$build"/CMakeFiles/sl_layer_"$layer".dir/}
+            src=${src%.o}
             while read -r sym; do
                 to=${owner[$sym]:-}
                 [ -n "$to" ] || continue
                 [ "${rank[$to]}" -le "$me" ] || report "$src" "calls $sym (layer $to) from layer $layer: upward"
             done < <(nm -u "$o" | awk '$2 ~ /^sl_/ { print $2 }')
-        done
+        done < <(objects "$layer")
     done
 fi
 
