@@ -15,6 +15,7 @@
 #include "core/sl_core.h"
 #include "region/pvs_internal.h"
 #include "sightline/gen.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 

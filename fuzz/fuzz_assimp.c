@@ -10,7 +10,7 @@
  * __lsan_default_suppressions below and tests/lsan.supp.
  *
  * The import runs as the CLI runs it: our checks (options, file kind and size, the PLY header)
- * here, assimp and the conversion in a child process (src/scene/import_isolate.c), whose
+ * here, assimp and the conversion in a child process (src/import/import_isolate.c), whose
  * scene comes back through the .slscene reader. assimp 5.2 is not instrumented and reads past
  * its buffers on some inputs (found here: the CI run of 2026-12-01 stopped on a corrupted heap
  * chunk inside assimp); in the child that costs the child only. What runs in the child is not

@@ -11,6 +11,7 @@
 #include "core/sl_core.h"
 #include "core/text_parse.h"
 #include "sightline/cull.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 
 #include <math.h>

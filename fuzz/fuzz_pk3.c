@@ -6,7 +6,7 @@
  * (SL_PK3_MAX_ENTRY_BYTES, 512 MiB, and SL_Q3_MAX_TRIANGLES, 64 Mi triangles), so that the
  * large-allocation paths are fuzzed too; scripts/fuzz.sh runs it so once per run, with
  * -malloc_limit_mb and -rss_limit_mb raised to match. */
-#include "scene/pk3.h"
+#include "import/pk3.h"
 
 #include <stdint.h>
 #include <stdio.h>

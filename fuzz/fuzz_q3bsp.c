@@ -5,7 +5,7 @@
  * With SL_FUZZ_CLI_LIMITS=1 in the environment the budget is the command line's
  * (SL_Q3_MAX_TRIANGLES; the importer's own bound relative to the file size still applies), so that
  * the large-allocation paths are fuzzed too; scripts/fuzz.sh runs it so once per run. */
-#include "scene/pk3.h"
+#include "import/pk3.h"
 
 #include <stdint.h>
 #include <stdlib.h>

@@ -19,7 +19,7 @@
 #include <unistd.h>
 
 #include "scene/scene_internal.h"
-#include "scene/split.h"
+#include "import/split.h"
 #include "sightline/import.h"
 #include "sightline/scene.h"
 #include "support/counting_alloc.h"

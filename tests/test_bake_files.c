@@ -26,6 +26,7 @@
 #include "region/pvs_internal.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 

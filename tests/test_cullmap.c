@@ -1,4 +1,4 @@
-/* The cull map: the conservative shadow rasterizer of src/region/cullmap_raster.c checked cell by
+/* The cull map: the conservative shadow rasterizer of src/raster/cullmap_raster.c checked cell by
  * cell against exact geometry (coverage, heights, floors, seams without cracks), and the cullmap
  * culler on hand-built scenes (a wall in front of a box, the orthographic fallback, moved objects,
  * options) and its PNG output. The zero-miss runs against the oracle on generated cities are in
@@ -14,7 +14,7 @@
 #include <unistd.h>
 
 #include "core/sl_core.h"
-#include "region/cullmap_raster.h"
+#include "raster/cullmap_raster.h"
 #include "sightline/cull.h"
 #include "sightline/image.h"
 #include "sightline/truth.h"

@@ -12,7 +12,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "region/cullmap_raster.h"
+#include "raster/cullmap_raster.h"
 
 /* the same value (a zero of either sign matches a zero); NaN gives NaN */
 static void check_one(double x)

@@ -33,6 +33,7 @@ static double now_s(void)
 #include "sightline/bench.h"
 #include "sightline/cull.h"
 #include "sightline/import.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/scene.h"

@@ -1,4 +1,4 @@
-/* The Embree scene wrapper (src/region/embree_scene.h): global triangle numbering and transforms,
+/* The Embree scene wrapper (src/embree/embree_scene.h): global triangle numbering and transforms,
  * first hits, misses, mirrored windings, back faces of closed convex objects skipped like the point
  * oracle does, watertight shared edges, id renders that agree with the point oracle, results that
  * do not depend on Embree's thread count, empty scenes, bad arguments, and every byte returned. */
@@ -11,7 +11,7 @@
 #include <stdlib.h>
 
 #include "core/sl_core.h"
-#include "region/embree_scene.h"
+#include "embree/embree_scene.h"
 #include "sightline/gen.h"
 #include "sightline/truth.h"
 #include "support/counting_alloc.h"

@@ -19,6 +19,7 @@
 #include "region/gvs_internal.h"
 #include "region/halton.h"
 #include "sightline/gen.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "support/counting_alloc.h"
 

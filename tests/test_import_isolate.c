@@ -1,4 +1,4 @@
-/* assimp in a child process (src/scene/import_isolate.c): the isolated import gives the scene
+/* assimp in a child process (src/import/import_isolate.c): the isolated import gives the scene
  * the in-process import gives, byte for byte once saved; a child that crashes, exits, hangs or
  * is cancelled fails the import with its reason, leaves no child behind and leaks nothing in
  * this process; errors found inside the child come back unchanged; progress comes through.

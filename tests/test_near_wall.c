@@ -34,6 +34,7 @@
 #include "sightline/gen.h"
 #include "sightline/import.h"
 #include "sightline/path.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"

@@ -19,6 +19,7 @@
 #include <unistd.h>
 
 #include "sightline/import.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/scene.h"

@@ -19,6 +19,7 @@
 #include "core/sl_core.h"
 #include "sightline/cull.h"
 #include "sightline/gen.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"

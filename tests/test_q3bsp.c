@@ -15,7 +15,7 @@
 #include <zip.h>
 
 #include "core/sl_core.h"
-#include "scene/pk3.h"
+#include "import/pk3.h"
 #include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/region.h"

@@ -14,6 +14,7 @@
 
 #include "core/sl_core.h"
 #include "sightline/gen.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/slscene.h"
 

@@ -9,6 +9,7 @@
 #include "sightline/gen.h"
 #include "sightline/import.h"
 #include "sightline/path.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/scene.h"

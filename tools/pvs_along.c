@@ -4,6 +4,7 @@
 #include "pvs_cli.h"
 
 #include "core/sl_core.h"
+#include "sightline/bake.h"
 #include "sightline/region.h"
 
 #include <string.h>

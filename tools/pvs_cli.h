@@ -7,6 +7,7 @@
 #define SL_TOOLS_PVS_CLI_H
 
 #include "sightline/path.h"
+#include "sightline/bake.h"
 #include "sightline/pvs.h"
 
 /* sl_pvs_build across the processes of an MPI job (mpiexec -n N): every process calls it with the

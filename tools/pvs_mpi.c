@@ -1,6 +1,7 @@
 /* Baking a PVS across the processes of an MPI job (MPICH): `mpiexec -n N sightline pvs build ...`.
  * Part of the command, not of libsightline (tools/pvs_cli.h says why); it drives the library's
- * bake (src/region/pvs_internal.h: sl_bake_*), the same one the thread driver uses.
+ * bake through the public bake session (include/sightline/bake.h: sl_bake_session_*), the same
+ * bake the thread driver uses.
  *
  * Every process loads the same scene, makes the same cells and prepares the method; the keys of
  * the scene, the cells and the options are compared first so that a process started with other
@@ -26,7 +27,7 @@
  * without dying (SIGSTOP, a hang) loses its lease: see "Leases" below. */
 #include "pvs_cli.h"
 
-#include "region/pvs_internal.h"
+#include "core/sl_core.h"
 
 #include <math.h>
 #include <sys/stat.h>
@@ -102,7 +103,7 @@ static sl_status agree(sl_status st, sl_error *err, int rank)
 enum { RUN = 0, STOP_ERROR = 1, STOP_CANCELLED = 2, STOP_AFTER = 3 };
 
 typedef struct master_run {
-    sl_bake *b;
+    sl_bake_session b;
     const sl_progress *progress;
     uint32_t stop_after;
     uint32_t *todo, todo_count, next;
@@ -138,18 +139,21 @@ static void run_fail(master_run *r, sl_status st, const sl_error *e)
 static bool run_keeps(const master_run *r) { return r->stopping == RUN || r->stopping == STOP_AFTER; }
 
 /* Nothing more to hand out or wait for: every cell is done, or the bake stops. Under the lock. */
-static bool run_over(const master_run *r) { return r->stopping != RUN || r->b->done_count == r->b->cell_count; }
+static bool run_over(const master_run *r)
+{
+    return r->stopping != RUN || sl_bake_session_done_count(r->b) == sl_bake_session_cell_count(r->b);
+}
 
 /* A cell was stored: count it, report progress, check stop_after (under the lock). */
 static void run_counted(master_run *r)
 {
-    sl_bake *b = r->b;
-    b->baked++;
+    sl_bake_session b = r->b;
     if (r->stopping != RUN)
         return;
-    if (!sl_progress_report(r->progress, "baking cells", b->done_count, b->cell_count))
+    uint32_t done = sl_bake_session_done_count(b), cells = sl_bake_session_cell_count(b);
+    if (!sl_progress_report(r->progress, "baking cells", done, cells))
         r->stopping = STOP_CANCELLED;
-    else if (r->stop_after && b->baked >= r->stop_after && b->done_count < b->cell_count)
+    else if (r->stop_after && sl_bake_session_baked(b) >= r->stop_after && done < cells)
         r->stopping = STOP_AFTER;
 }
 
@@ -166,7 +170,7 @@ static uint32_t run_take(master_run *r, uint32_t want, uint32_t *out, int rank, 
         uint32_t keep = 0;
         for (uint32_t i = 0; i < r->flight_count; i++) {
             uint32_t c = r->flight[i];
-            if (r->b->done[c] || r->holder[c] <= 0)
+            if (sl_bake_session_cell_done(r->b, c) || r->holder[c] <= 0)
                 continue; /* done, or taken over by process 0's threads: out of flight */
             if (n < want && r->holder[c] != rank && now - r->given[c] >= r->lease && (from < 0 || from == r->holder[c])) {
                 from = r->holder[c];
@@ -238,12 +242,12 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
             run_fail(r, e.status, &e);
             break;
         }
-        sl_bake *b = r->b;
-        if (cell < b->cell_count && b->done[cell] && r->reissued[cell]) {
+        sl_bake_session b = r->b;
+        if (cell < sl_bake_session_cell_count(b) && sl_bake_session_cell_done(b, cell) && r->reissued[cell]) {
             r->duplicates++; /* handed out twice: the first result won */
         } else if (run_keeps(r)) {
-            sl_status s2 = cell < b->cell_count && !b->done[cell]
-                               ? sl_bake_store_encoded(b, cell, buf + at, bytes, ids, secs, true, &e)
+            sl_status s2 = cell < sl_bake_session_cell_count(b) && !sl_bake_session_cell_done(b, cell)
+                               ? sl_bake_session_store_encoded(b, cell, buf + at, bytes, ids, secs, &e)
                                : sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d returned cell %u twice", src, cell);
             if (s2 != SL_OK)
                 run_fail(r, s2, &e);
@@ -283,7 +287,7 @@ static void serve(master_run *r, int *active, bool drain)
             int size = 0;
             MPI_Get_count(&ms, MPI_BYTE, &size);
             if ((size_t)size > cap) {
-                uint8_t *nb = sl_realloc(r->b->a, buf, cap, (size_t)size);
+                uint8_t *nb = sl_realloc(sl_bake_session_allocator(r->b), buf, cap, (size_t)size);
                 if (!nb) /* cannot even read the message: give up on the whole job */
                     MPI_Abort(MPI_COMM_WORLD, 2);
                 buf = nb;
@@ -358,7 +362,8 @@ static void serve(master_run *r, int *active, bool drain)
                         fprintf(stderr,
                                 "sightline pvs build: %s is complete; waiting for process %d (%s), silent for %.0f "
                                 "s, to end (kill -CONT it if stopped, or end the job)\n",
-                                r->b->output, p, r->who[p][0] ? r->who[p] : "pid unknown", now - r->heard[p]);
+                                sl_bake_session_output(r->b), p, r->who[p][0] ? r->who[p] : "pid unknown",
+                                now - r->heard[p]);
             }
         }
         /* poll with short sleeps: a blocking probe busy-waits in MPICH and would take a core from
@@ -366,18 +371,20 @@ static void serve(master_run *r, int *active, bool drain)
         struct timespec ts = {0, 200000};
         nanosleep(&ts, NULL);
     }
-    sl_free(r->b->a, buf, cap);
+    sl_free(sl_bake_session_allocator(r->b), buf, cap);
 }
 
 /* A baking thread of process 0: cells from the shared queue (or whose lease ran out), one at a
  * time, until the bake is over. */
 static void bake_local(master_run *r)
 {
-    sl_bake *b = r->b;
-    void *w = NULL;
+    sl_bake_session b = r->b;
+    sl_bake_worker w = NULL;
     sl_error e;
-    uint32_t *ids = sl_alloc(b->a, ((size_t)b->object_count + 1) * sizeof(uint32_t));
-    sl_status s = ids ? b->method->worker_create(b->shared, &w, &e)
+    const sl_allocator *a = sl_bake_session_allocator(b);
+    size_t ids_size = ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t);
+    uint32_t *ids = sl_alloc(a, ids_size);
+    sl_status s = ids ? sl_bake_worker_create(b, &w, &e)
                       : sl_fail(&e, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     if (s != SL_OK) {
 #pragma omp critical(sl_pvs_mpi)
@@ -398,16 +405,16 @@ static void bake_local(master_run *r)
             nanosleep(&ts, NULL);
             continue;
         }
-        sl_pvs_cell_result res = {ids, 0, 0};
+        uint32_t count = 0;
         double c0 = sl_now();
-        sl_status cs = b->method->cell(w, cell, &res, &e);
+        sl_status cs = sl_bake_worker_cell(w, cell, ids, &count, &e);
         double secs = sl_now() - c0;
 #pragma omp critical(sl_pvs_mpi)
         {
-            if (cs == SL_OK && b->done[cell] && r->reissued[cell]) {
+            if (cs == SL_OK && sl_bake_session_cell_done(b, cell) && r->reissued[cell]) {
                 r->duplicates++;
             } else if (cs == SL_OK && run_keeps(r)) {
-                cs = sl_bake_store(b, cell, ids, res.count, secs, &e);
+                cs = sl_bake_session_store(b, cell, ids, count, secs, &e);
                 if (cs == SL_OK)
                     run_counted(r);
             }
@@ -417,14 +424,13 @@ static void bake_local(master_run *r)
             }
         }
     }
-    if (w)
-        b->method->worker_destroy(w);
-    sl_free(b->a, ids, ((size_t)b->object_count + 1) * sizeof(uint32_t));
+    sl_bake_worker_destroy(w);
+    sl_free(a, ids, ids_size);
 }
 
 /* Process 0: serve and bake until every cell is done, write the file, then wait for the processes
  * still out (see serve). */
-static sl_status master(sl_bake *b, const char *output, const sl_pvs_build_options *opt, double lease, int nproc,
+static sl_status master(sl_bake_session b, const char *output, const sl_pvs_build_options *opt, double lease, int nproc,
                         int threads, sl_error *err)
 {
     master_run r;
@@ -434,16 +440,16 @@ static sl_status master(sl_bake *b, const char *output, const sl_pvs_build_optio
     r.stop_after = opt ? opt->stop_after : 0;
     r.lease = lease;
     r.nproc = nproc;
-    size_t nc = (size_t)b->cell_count + 1, np = (size_t)nproc;
-    r.todo = sl_alloc(b->a, nc * sizeof(uint32_t));
-    r.flight = sl_alloc(b->a, nc * sizeof(uint32_t));
-    r.holder = sl_alloc(b->a, nc * sizeof(int));
-    r.given = sl_calloc(b->a, nc, sizeof(double));
-    r.reissued = sl_calloc(b->a, nc, 1);
-    r.waiting = sl_calloc(b->a, np, sizeof(uint32_t));
-    r.busy = sl_calloc(b->a, np, 1);
-    r.heard = sl_calloc(b->a, np, sizeof(double));
-    r.who = sl_calloc(b->a, np, sizeof *r.who);
+    size_t nc = (size_t)sl_bake_session_cell_count(b) + 1, np = (size_t)nproc;
+    r.todo = sl_alloc(sl_bake_session_allocator(b), nc * sizeof(uint32_t));
+    r.flight = sl_alloc(sl_bake_session_allocator(b), nc * sizeof(uint32_t));
+    r.holder = sl_alloc(sl_bake_session_allocator(b), nc * sizeof(int));
+    r.given = sl_calloc(sl_bake_session_allocator(b), nc, sizeof(double));
+    r.reissued = sl_calloc(sl_bake_session_allocator(b), nc, 1);
+    r.waiting = sl_calloc(sl_bake_session_allocator(b), np, sizeof(uint32_t));
+    r.busy = sl_calloc(sl_bake_session_allocator(b), np, 1);
+    r.heard = sl_calloc(sl_bake_session_allocator(b), np, sizeof(double));
+    r.who = sl_calloc(sl_bake_session_allocator(b), np, sizeof *r.who);
     sl_status st = SL_OK;
     if (!r.todo || !r.flight || !r.holder || !r.given || !r.reissued || !r.waiting || !r.busy || !r.heard || !r.who) {
         /* the workers are waiting for an answer: tell them to stop before failing */
@@ -460,9 +466,9 @@ static sl_status master(sl_bake *b, const char *output, const sl_pvs_build_optio
         }
         st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     } else {
-        for (uint32_t c = 0; c < b->cell_count; c++) {
+        for (uint32_t c = 0; c < sl_bake_session_cell_count(b); c++) {
             r.holder[c] = -1;
-            if (!b->done[c])
+            if (!sl_bake_session_cell_done(b, c))
                 r.todo[r.todo_count++] = c;
         }
         double now = sl_now();
@@ -480,17 +486,18 @@ static sl_status master(sl_bake *b, const char *output, const sl_pvs_build_optio
         if (r.stopping == STOP_ERROR) {
             if (err)
                 *err = r.err;
-            sl_bake_note_kept(b, err);
+            sl_bake_session_note_kept(b, err);
             st = r.st;
         } else if (r.stopping == STOP_CANCELLED) {
             st = sl_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s",
-                         b->done_count, b->cell_count, b->journal);
+                         sl_bake_session_done_count(b), sl_bake_session_cell_count(b), sl_bake_session_journal(b));
         } else if (r.stopping == STOP_AFTER) {
             st = sl_fail(err, SL_ERROR_CANCELLED,
                          "pvs bake: stopped after %u newly baked cells as asked (%u of %u done); resume from %s",
-                         b->baked, b->done_count, b->cell_count, b->journal);
+                         sl_bake_session_baked(b), sl_bake_session_done_count(b), sl_bake_session_cell_count(b),
+                         sl_bake_session_journal(b));
         } else {
-            st = sl_bake_finish(b, output, opt, err);
+            st = sl_bake_session_finish(b, output, opt, err);
         }
         if (r.duplicates)
             fprintf(stderr,
@@ -504,15 +511,15 @@ static sl_status master(sl_bake *b, const char *output, const sl_pvs_build_optio
             serve(&r, &active, true);
         }
     }
-    sl_free(b->a, r.todo, nc * sizeof(uint32_t));
-    sl_free(b->a, r.flight, nc * sizeof(uint32_t));
-    sl_free(b->a, r.holder, nc * sizeof(int));
-    sl_free(b->a, r.given, nc * sizeof(double));
-    sl_free(b->a, r.reissued, nc);
-    sl_free(b->a, r.waiting, np * sizeof(uint32_t));
-    sl_free(b->a, r.busy, np);
-    sl_free(b->a, r.heard, np * sizeof(double));
-    sl_free(b->a, r.who, np * sizeof *r.who);
+    sl_free(sl_bake_session_allocator(b), r.todo, nc * sizeof(uint32_t));
+    sl_free(sl_bake_session_allocator(b), r.flight, nc * sizeof(uint32_t));
+    sl_free(sl_bake_session_allocator(b), r.holder, nc * sizeof(int));
+    sl_free(sl_bake_session_allocator(b), r.given, nc * sizeof(double));
+    sl_free(sl_bake_session_allocator(b), r.reissued, nc);
+    sl_free(sl_bake_session_allocator(b), r.waiting, np * sizeof(uint32_t));
+    sl_free(sl_bake_session_allocator(b), r.busy, np);
+    sl_free(sl_bake_session_allocator(b), r.heard, np * sizeof(double));
+    sl_free(sl_bake_session_allocator(b), r.who, np * sizeof *r.who);
     return st;
 }
 
@@ -559,10 +566,10 @@ static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, 
     return ok;
 }
 
-static sl_status worker(sl_bake *b, int threads, sl_error *err)
+static sl_status worker(sl_bake_session b, int threads, sl_error *err)
 {
-    const sl_allocator *a = b->a;
-    void **workers = sl_calloc(a, (size_t)threads, sizeof(void *));
+    const sl_allocator *a = sl_bake_session_allocator(b);
+    sl_bake_worker *workers = sl_calloc(a, (size_t)threads, sizeof *workers);
     uint32_t **ids = sl_calloc(a, (size_t)threads, sizeof(uint32_t *));
     uint32_t *cells = sl_alloc(a, MAX_CHUNK * sizeof(uint32_t));
     done_cell *res = sl_calloc(a, (size_t)threads, sizeof(done_cell));
@@ -571,11 +578,11 @@ static sl_status worker(sl_bake *b, int threads, sl_error *err)
     if (!workers || !ids || !cells || !res)
         st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     for (int t = 0; t < threads && st == SL_OK; t++) {
-        ids[t] = sl_alloc(a, ((size_t)b->object_count + 1) * sizeof(uint32_t));
+        ids[t] = sl_alloc(a, ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t));
         if (!ids[t])
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
         else
-            st = b->method->worker_create(b->shared, &workers[t], err);
+            st = sl_bake_worker_create(b, &workers[t], err);
     }
     uint32_t nres = 0;
     for (;;) {
@@ -624,25 +631,25 @@ static sl_status worker(sl_bake *b, int threads, sl_error *err)
             d->cell = cells[k];
             d->bytes = NULL;
             d->st = SL_OK;
-            if (cells[k] >= b->cell_count) {
+            if (cells[k] >= sl_bake_session_cell_count(b)) {
                 d->st = sl_fail(&d->err, SL_ERROR_INTERNAL, "pvs bake: the master sent cell %u of %u", cells[k],
-                                b->cell_count);
+                                sl_bake_session_cell_count(b));
                 continue;
             }
-            sl_pvs_cell_result r = {ids[t], 0, 0};
+            uint32_t count = 0;
             double c0 = sl_now();
-            d->st = b->method->cell(workers[t], cells[k], &r, &d->err);
+            d->st = sl_bake_worker_cell(workers[t], cells[k], ids[t], &count, &d->err);
             d->seconds = sl_now() - c0;
             if (d->st != SL_OK) {
                 sl_error_prefix(&d->err, "cell %u", cells[k]);
                 continue;
             }
-            d->ids = r.count;
-            d->bytes = sl_alloc(a, (size_t)r.count * 5 + 1);
+            d->ids = count;
+            d->bytes = sl_alloc(a, (size_t)count * 5 + 1);
             if (!d->bytes)
                 d->st = sl_fail(&d->err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory for cell %u", cells[k]);
             else
-                d->size = (uint32_t)sl_pvs_encode(ids[t], r.count, d->bytes);
+                d->size = (uint32_t)sl_bake_encode_set(ids[t], count, d->bytes);
         }
         nres = n;
         for (uint32_t k = 0; k < n; k++)
@@ -656,12 +663,12 @@ static sl_status worker(sl_bake *b, int threads, sl_error *err)
         sl_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
     sl_free(a, res, (size_t)threads * sizeof(done_cell));
     for (int t = 0; t < threads; t++) {
-        if (workers && workers[t])
-            b->method->worker_destroy(workers[t]);
+        if (workers)
+            sl_bake_worker_destroy(workers[t]);
         if (ids)
-            sl_free(a, ids[t], ((size_t)b->object_count + 1) * sizeof(uint32_t));
+            sl_free(a, ids[t], ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t));
     }
-    sl_free(a, workers, (size_t)threads * sizeof(void *));
+    sl_free(a, workers, (size_t)threads * sizeof *workers);
     sl_free(a, ids, (size_t)threads * sizeof(uint32_t *));
     sl_free(a, cells, MAX_CHUNK * sizeof(uint32_t));
     sl_array_free(a, &out, 1);
@@ -706,12 +713,12 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
     /* without FUNNELED the MPI library may not tolerate other threads beside the one calling it:
      * process 0 then only serves */
     int local = provided >= MPI_THREAD_FUNNELED ? threads : 0;
-    sl_bake b;
-    st = sl_bake_begin(&b, scene, cells, output, opt, rank == 0, err);
+    sl_bake_session b = NULL;
+    st = sl_bake_session_begin(scene, cells, output, opt, rank == 0, &b, err);
     st = agree(st, err, rank);
     if (st == SL_OK) {
         /* every process must bake the same thing: compare the bake keys */
-        uint64_t key = b.key, root = b.key;
+        uint64_t key = sl_bake_session_key(b), root = sl_bake_session_key(b);
         MPI_Bcast(&root, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
         if (key != root)
             st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
@@ -719,7 +726,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
         st = agree(st, err, rank);
     }
     if (st == SL_OK)
-        st = rank == 0 ? master(&b, output, opt, lease, nproc, local, err) : worker(&b, threads, err);
+        st = rank == 0 ? master(b, output, opt, lease, nproc, local, err) : worker(b, threads, err);
     /* the master's verdict (and the file, written by master) is the job's; every process takes part */
     int verdict = (int)st;
     MPI_Bcast(&verdict, 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -731,7 +738,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
     if (rank != 0 && verdict != SL_OK && st == SL_OK)
         st = sl_fail(err, (sl_status)verdict, "process 0: %s", msg);
     if (stats) {
-        sl_bake_stats(&b, stats);
+        sl_bake_session_stats(b, stats);
         stats->processes = (uint32_t)nproc;
         stats->threads = (uint32_t)threads;
         stats->seconds = MPI_Wtime() - t0;
@@ -739,7 +746,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
         if (rank == 0 && st == SL_OK && stat(output, &sb) == 0)
             stats->file_bytes = (uint64_t)sb.st_size;
     }
-    sl_bake_end(&b);
+    sl_bake_session_end(b);
     if (own)
         MPI_Finalize();
     return st;

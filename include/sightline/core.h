@@ -87,7 +87,9 @@ typedef struct sl_progress {
 #define SL_MAX_THREADS 256u
 
 /* The effective thread limit: SL_MAX_THREADS, or less when the OpenMP runtime allows fewer
- * (omp_get_thread_limit(), OMP_THREAD_LIMIT). Every thread count is checked against it. */
+ * (omp_get_thread_limit(), OMP_THREAD_LIMIT). Every thread count is checked against it. This and
+ * sl_threads_check ask the OpenMP runtime: full library (libsightline) only, not in
+ * libsightline_runtime. */
 SL_API uint32_t sl_thread_limit(void);
 
 /* Check a requested thread count (0 means "default", allowed when zero_ok): SL_OK, or

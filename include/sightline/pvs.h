@@ -1,5 +1,5 @@
-/* Sightline precomputed visibility: baking a potentially visible set (PVS) per view cell, the
- * .slpvs file that stores it, and reading it back.
+/* Sightline precomputed visibility: the .slpvs file that stores a potentially visible set (PVS)
+ * per view cell, and reading it back (baking one: bake.h).
  *
  * A PVS assigns to every view cell (region.h) the ascending list of object ids that may be seen
  * from somewhere in the cell. Baking methods are named like cullers:
@@ -11,7 +11,9 @@
  *    whatever the map's compiler produced), for verification and comparison;
  *  - a method is one file in src/region and one line in the method registry (guided visibility
  *    sampling, "gvs", plugs in the same way).
- * sl_pvs_method_count/info list them with their options (docs/pvs.md).
+ * sl_pvs_method_count/info list them with their options (docs/pvs.md). Baking is declared in
+ * bake.h and needs the full library (libsightline); this header is the run time
+ * (libsightline_runtime): the file, its reader and the scene key.
  *
  * The bake distributes cells over OpenMP threads (sl_pvs_build; the `sightline pvs build` command
  * also spans MPI processes under mpiexec, without the library needing MPI); each cell's set is a function of the scene, the cells and the options only,
@@ -32,7 +34,6 @@
 #include "core.h"
 #include "geom.h"
 #include "scene.h"
-#include "cull.h"
 #include "region.h"
 
 #ifdef __cplusplus
@@ -121,73 +122,26 @@ SL_API const char *sl_pvs_meta_text(sl_pvs pvs);
 /* Number of objects in cell `cell`'s set (no decompression); 0 for a cell out of range. */
 SL_API uint32_t sl_pvs_cell_count(sl_pvs pvs, uint32_t cell);
 /* Decode cell `cell`'s set into out_ids (capacity >= its count), ascending. The block's checksum
- * is checked on first use. Uses a cache inside the handle: one thread at a time. Allocation-free
- * after the first call. */
+ * is checked on first use. Uses a cache inside the handle: one thread at a time (from many
+ * threads: sl_pvs_cursor below). Allocation-free after the first call. */
 SL_API sl_status sl_pvs_cell_set(sl_pvs pvs, uint32_t cell, uint32_t *out_ids, uint32_t capacity, uint32_t *count,
                                  sl_error *err);
+/* A cursor: its own decoder (a zstd context and one decompressed block) over a PVS, so that many
+ * threads query one sl_pvs at once, each with its own cursor. Thread safety: any number of cursors
+ * of one handle may be used at the same time from different threads (each cursor by one thread at
+ * a time), alongside one thread calling sl_pvs_cell_set; the handle must outlive its cursors.
+ * Create and destroy call the handle's allocator (which must then be thread-safe if cursors are
+ * made from several threads). */
+typedef struct sl_pvs_cursor_t *sl_pvs_cursor;
+SL_API sl_status sl_pvs_cursor_create(sl_pvs pvs, sl_pvs_cursor *out, sl_error *err);
+/* Release a cursor. NULL is ignored. */
+SL_API void sl_pvs_cursor_destroy(sl_pvs_cursor cursor);
+/* As sl_pvs_cell_set, through the cursor's decoder: the same ids and errors. Allocation-free after
+ * the cursor's first call. */
+SL_API sl_status sl_pvs_cursor_cell_set(sl_pvs_cursor cursor, uint32_t cell, uint32_t *out_ids, uint32_t capacity,
+                                        uint32_t *count, sl_error *err);
 /* Check every checksum and decode every set (ranges, order, counts). */
 SL_API sl_status sl_pvs_verify(sl_pvs pvs, sl_error *err);
-
-/* ---- baking ------------------------------------------------------------------------------------ */
-
-/* A registered baking method. Strings are static. */
-typedef struct sl_pvs_method_desc {
-    const char *name;
-    const char *summary;
-    const char *options_help;   /* one line per option: "key=TYPE (default D): meaning" */
-    sl_cull_guarantee guarantee;
-} sl_pvs_method_desc;
-
-/* The registered bake methods: how many, and method `index` (SL_ERROR_INVALID_ARGUMENT beyond the
- * count). The registry is fixed at build time: thread-safe. */
-SL_API uint32_t sl_pvs_method_count(void);
-SL_API sl_status sl_pvs_method_info(uint32_t index, sl_pvs_method_desc *out, sl_error *err);
-/* Check a method's options without a scene (unknown or malformed keys are rejected). */
-SL_API sl_status sl_pvs_method_check_options(const char *method, const char *options, sl_error *err);
-
-typedef struct sl_pvs_build_options {
-    const char *method;         /* NULL: "sample" */
-    const char *method_options; /* "key=value,..." for the method; NULL: defaults */
-    uint32_t threads;           /* OpenMP threads; 0: all the machine offers */
-    const char *checkpoint;     /* journal path; NULL: "<output>.ckpt" */
-    bool resume;                /* continue from an existing journal (it must match the bake) */
-    bool keep_checkpoint;       /* keep the journal after a successful bake */
-    uint32_t stop_after;        /* testing: stop with SL_ERROR_CANCELLED after this many newly baked
-                                   cells, leaving the journal behind; 0: never */
-    sl_progress progress;       /* called under a lock, from whichever thread finished a cell */
-    const sl_allocator *alloc;  /* called from several threads at once: must be thread-safe */
-    bool fresh;                 /* remove a journal left by an earlier bake of this output and bake
-                                   afresh; done under the bake lock, so the journal of a bake that
-                                   runs is never touched (that bake is reported instead); not with
-                                   resume */
-} sl_pvs_build_options;
-
-typedef struct sl_pvs_build_stats {
-    uint32_t cells;             /* cells in the PVS */
-    uint32_t cells_baked;       /* computed by this run */
-    uint32_t cells_resumed;     /* taken from the journal */
-    uint32_t processes;         /* MPI processes (1 without MPI) */
-    uint32_t threads;           /* threads per process */
-    double seconds;             /* wall time of the whole bake */
-    double cell_seconds;        /* sum over the cells baked here of their compute time */
-    double max_cell_seconds;
-    uint64_t visible_total;
-    double mean_culled;         /* mean over cells of 1 - |set| / objects */
-    uint64_t file_bytes;
-    uint64_t occluders_removed; /* method-specific: occluders that vanished under shrinking */
-    char method[32];            /* the method used */
-    char options[256];          /* its effective options (truncated if longer) */
-    char notice[256];           /* what the method wants the user to know about the options, or "" */
-} sl_pvs_build_stats;
-
-/* Bake the PVS of `cells` for `scene` with a method and write it to `output`. stats may be NULL. */
-SL_API sl_status sl_pvs_build(sl_scene scene, sl_viewcells cells, const char *output, const sl_pvs_build_options *opt,
-                              sl_pvs_build_stats *stats, sl_error *err);
-/* Bake one cell into ids (capacity >= object count), for tests and tools; method and options as
- * for sl_pvs_build. Slow when repeated: prefer sl_pvs_build. */
-SL_API sl_status sl_pvs_bake_cell(sl_scene scene, sl_viewcells cells, uint32_t cell, const char *method,
-                                  const char *method_options, uint32_t *ids, uint32_t capacity, uint32_t *count,
-                                  sl_error *err);
 
 #ifdef __cplusplus
 }

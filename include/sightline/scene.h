@@ -233,6 +233,11 @@ SL_API void sl_scene_street_graph(sl_scene scene, const sl_street_node **nodes, 
 SL_API bool sl_scene_bsp(sl_scene scene, sl_bsp_view *out);
 /* Leaf index containing point p, or -1 without BSP data. */
 SL_API int32_t sl_scene_bsp_find_leaf(sl_scene scene, sl_vec3 p);
+/* Whether eye lies in the domain of the oracles (point and region) and of the cullers' guarantee:
+ * always true for a scene without BSP nodes; otherwise true when the BSP leaf holding eye
+ * (sl_scene_bsp_find_leaf) has a cluster (cluster >= 0, the playable space). leaf (may be NULL)
+ * receives that leaf, or -1 without BSP data. */
+SL_API bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf);
 /* Metadata lookup; NULL when absent. */
 SL_API const char *sl_scene_meta(sl_scene scene, const char *key);
 SL_API uint32_t sl_scene_meta_count(sl_scene scene);

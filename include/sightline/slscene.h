@@ -40,7 +40,8 @@ SL_API sl_status sl_scene_load_memory(const void *data, size_t size, const char 
                                       sl_scene *out, sl_error *err);
 
 /* Load any supported scene by extension: .slscene, .bsp, .pk3 (with map "name"), or any assimp
- * format. `map` may be NULL. */
+ * format. `map` may be NULL. This and sl_scene_open_with run the importers: full library
+ * (libsightline) only; with libsightline_runtime use sl_scene_load. */
 SL_API sl_status sl_scene_open(const char *path, const char *map, const sl_allocator *alloc, sl_scene *out, sl_error *err);
 /* sl_scene_open with import options for the importers (assimp: allowed external references, file
  * size limit; Quake III: scale, bezier level); opt may be NULL, and is unused for .slscene. */

@@ -134,11 +134,7 @@ SL_API sl_camera sl_cube_face_camera(sl_vec3 eye, sl_cube_face face, uint32_t fa
  * Fails with SL_ERROR_INVALID_ARGUMENT when there is no such view. */
 SL_API sl_status sl_oracle_get_view(sl_oracle oracle, uint32_t index, sl_oracle_view *out, sl_error *err);
 
-/* Whether eye lies in the domain of the oracles (point and region) and of the cullers' guarantee:
- * always true for a scene without BSP nodes; otherwise true when the BSP leaf holding eye
- * (sl_scene_bsp_find_leaf) has a cluster (cluster >= 0, the playable space). leaf (may be NULL)
- * receives that leaf, or -1 without BSP data. */
-SL_API bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf);
+/* sl_oracle_in_domain (the oracles' and the cullers' domain) is declared in scene.h. */
 
 /* ---- metrics -------------------------------------------------------------------------------- */
 

@@ -18,7 +18,7 @@
  * or shares mutable state.
  */
 #include "bvh_internal.h"
-#include "../scene/scene_internal.h"
+#include "scene/scene_internal.h"
 
 #include <math.h>
 #include <pthread.h>

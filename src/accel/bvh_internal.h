@@ -15,7 +15,7 @@
 #define SL_ACCEL_BVH_INTERNAL_H
 
 #include "sightline/accel.h"
-#include "../core/sl_core.h"
+#include "core/sl_core.h"
 
 #define SL_BVH_MAX_DEPTH 64
 #define SL_BVH_MAX_LEAF_SIZE 16

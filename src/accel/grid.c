@@ -9,7 +9,7 @@
  * a visited cell, even where the segment grazes a cell corner or runs along a cell line.
  */
 #include "grid_internal.h"
-#include "../scene/scene_internal.h"
+#include "scene/scene_internal.h"
 
 #include <float.h>
 #include <math.h>

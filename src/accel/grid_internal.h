@@ -12,7 +12,7 @@
 #define SL_ACCEL_GRID_INTERNAL_H
 
 #include "sightline/accel.h"
-#include "../core/sl_core.h"
+#include "core/sl_core.h"
 
 /* Most cells a grid may have (64 Mi): beyond that the cell size is unreasonable for the scene. */
 #define SL_GRID_MAX_CELLS (1u << 26)

@@ -13,7 +13,7 @@
  *  2. occluder edges are gathered ring by ring around the eye (nearest first) within the radius
  *     and the frustum's azimuth range; an edge is used if it faces the eye (see urban_internal.h),
  *     and skipped if its façade already lies in the shadow of the edges drawn before it (then so
- *     does its own shadow); its shadow is rasterized by src/region/cullmap_raster.c with its
+ *     does its own shadow); its shadow is rasterized by src/raster/cullmap_raster.c with its
  *     silhouette-chain neighbours as seam partners, so connected façades leave no crack; this
  *     first pass draws into a coarse map, one pixel per 8x8 cells, which settles the deep shadow
  *     far away cheaply;

@@ -34,7 +34,7 @@
 
 #include "accel/bvh_internal.h"
 #include "scene/scene_internal.h"
-#include "truth/raster_ref.h"
+#include "raster/raster_ref.h"
 
 #include <math.h>
 #include "sightline/accel.h"

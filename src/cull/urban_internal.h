@@ -30,7 +30,7 @@
 #include "culler_internal.h"
 
 #include "accel/grid_internal.h"
-#include "region/cullmap_raster.h"
+#include "raster/cullmap_raster.h"
 #include "scene/scene_internal.h"
 
 #include <math.h>

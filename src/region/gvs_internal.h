@@ -22,7 +22,7 @@
 
 #include "sightline/region.h"
 
-#include "embree_scene.h"
+#include "embree/embree_scene.h"
 
 typedef enum sl_gvs_sampler {
     SL_GVS_GUIDED = 0,          /* random rays + ABS + RS (the paper's GVS) */

@@ -12,7 +12,7 @@
  *    from a sample the real ones hide from every point within eps of it, at the same height.
  *    (Sampling the boundary at a lower fixed height would not be conservative.)
  * 3. For each sample, the shadows of the shrunk occluders' facades are rasterized into a cull map
- *    with max merging (the urban layer's conservative rasterizer, src/region/cullmap_raster.h: a
+ *    with max merging (the urban layer's conservative rasterizer, src/raster/cullmap_raster.h: a
  *    cell is written only when wholly inside a shadow, with the lowest shadow height over it — the
  *    per-edge sampling correction of section 4.3.4); the cell's map is the minimum over the samples
  *    (section 5.5): z(c) = min over samples of max over occluders.
@@ -45,7 +45,7 @@
  * Deterministic: the result of a cell depends on the scene, the cells and the options only. */
 #include "pvs_internal.h"
 
-#include "cullmap_raster.h"
+#include "raster/cullmap_raster.h"
 #include "scene/scene_internal.h"
 
 #include <math.h>

@@ -1,14 +1,13 @@
 /* Internal pieces of the PVS layer shared by the file code, the bake drivers (threads, MPI) and
- * the baking methods: the method table, set encoding, the zstd allocator bridge. */
+ * the baking methods: the method table (the set codec is in pvs/pvs_codec.h). */
 #ifndef SL_PVS_INTERNAL_H
 #define SL_PVS_INTERNAL_H
 
-#include "sightline/pvs.h"
-#include "region_internal.h"
-#include "cull/culler_internal.h" /* sl_opts: the key=value option reader shared with the cullers */
-
-#define ZSTD_STATIC_LINKING_ONLY /* ZSTD_customMem: zstd allocates through the handle's allocator */
-#include <zstd.h>
+#include "sightline/bake.h"
+#include "sightline/cull.h" /* sl_cull_guarantee */
+#include "core/opts.h" /* sl_opts: the key=value option reader shared with the cullers */
+#include "pvs/pvs_codec.h"
+#include "pvs/viewcells_internal.h"
 
 /* ---- baking methods ----
  * A method is src/region/method_<name>.c defining `const sl_pvs_method sl_pvs_method_<name>` plus
@@ -55,51 +54,6 @@ sl_status sl_pvs_registry_find(const char *name, const sl_pvs_method **out, sl_e
  * ("key=value,...") are copied to effective (SL_OPTS_MAX_CHARS + 1 bytes) when not NULL. */
 sl_status sl_pvs_method_configure(const sl_pvs_method *m, const char *options, const sl_allocator *a, void **config,
                                   char *effective, sl_error *err);
-
-/* ---- set encoding: a strictly ascending id list as LEB128 varints of the gaps ----
- * first value = id[0], then id[k] - id[k-1] - 1. At most 5 bytes per id. */
-static inline size_t sl_pvs_encode(const uint32_t *ids, uint32_t n, uint8_t *out)
-{
-    size_t at = 0;
-    uint32_t prev = 0;
-    for (uint32_t k = 0; k < n; k++) {
-        uint32_t v = k == 0 ? ids[0] : ids[k] - prev - 1;
-        prev = ids[k];
-        while (v >= 0x80) {
-            out[at++] = (uint8_t)(v | 0x80);
-            v >>= 7;
-        }
-        out[at++] = (uint8_t)v;
-    }
-    return at;
-}
-
-/* Decode exactly n ids from bytes [p, end); false when the stream is malformed, does not end
- * exactly at `end`, overflows, or yields an id >= limit. */
-static inline bool sl_pvs_decode(const uint8_t *p, const uint8_t *end, uint32_t n, uint32_t limit, uint32_t *ids)
-{
-    uint64_t prev = 0;
-    for (uint32_t k = 0; k < n; k++) {
-        uint64_t v = 0;
-        for (int shift = 0;; shift += 7) {
-            if (p >= end || shift > 28)
-                return false;
-            uint8_t b = *p++;
-            v |= (uint64_t)(b & 0x7f) << shift;
-            if (!(b & 0x80))
-                break;
-        }
-        uint64_t id = k == 0 ? v : prev + 1 + v;
-        if (id >= limit)
-            return false;
-        ids[k] = (uint32_t)id;
-        prev = id;
-    }
-    return p == end;
-}
-
-/* zstd allocation through an sl_allocator (the size is kept in front of each block). */
-ZSTD_customMem sl_zstd_mem(const sl_allocator *a);
 
 /* ---- the bake: what the thread and MPI drivers share (pvs_build.c) ----
  * begin configures and prepares the method; on the writing process it also takes the bake lock

@@ -21,7 +21,7 @@
  * parity) and no triangle overlaps its box (separating axis test), so a solid voxel lies wholly
  * inside. A voxel is kept when every voxel whose box is nearer than eps to its box is solid: then
  * every point of it is at least eps from the outside. */
-#include "region_internal.h"
+#include "pvs/viewcells_internal.h"
 
 #include "core/dvec3.h"
 #include "geos_util.h"

@@ -11,7 +11,7 @@
  * taken at equal distances along the eye's own trajectory (not along s), so the speed is exact on
  * curves too. */
 #include "sightline/path.h"
-#include "../core/sl_core.h"
+#include "core/sl_core.h"
 
 #include <errno.h>
 #include <math.h>

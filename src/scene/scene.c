@@ -877,3 +877,21 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
     }
     return SL_OK;
 }
+
+/* The oracles' and the cullers' domain (declared in scene.h): moved here from truth/oracle.c so that
+ * the cullers (run time) use it from below. */
+bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf)
+{
+    if (leaf)
+        *leaf = -1;
+    sl_bsp_view bsp;
+    if (!scene || !sl_scene_bsp(scene, &bsp) || bsp.leaf_count == 0)
+        return true;
+    int32_t l = sl_scene_bsp_find_leaf(scene, eye);
+    if (leaf)
+        *leaf = l;
+    /* without nodes there is no space to be outside of (one leaf holds everything) */
+    if (bsp.node_count == 0 || l < 0 || (uint32_t)l >= bsp.leaf_count)
+        return true;
+    return bsp.leaves[l].cluster >= 0;
+}

@@ -7,7 +7,7 @@
 #define SL_SCENE_INTERNAL_H
 
 #include "sightline/scene.h"
-#include "../core/sl_core.h"
+#include "core/sl_core.h"
 
 /* One mesh: a range of the shared vertex array and a range of the shared index array. Indices
  * are local to the mesh (0..vertex_count-1). */

@@ -16,7 +16,7 @@
 #include "sightline/truth.h"
 
 #include "open_space.h"
-#include "raster_ref.h"
+#include "raster/raster_ref.h"
 #include "scene/scene_internal.h"
 
 #include <math.h>
@@ -510,22 +510,6 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
     frame->pixels = o->visible_pixels.data;
     frame->covered_pixels = covered;
     return SL_OK;
-}
-
-bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf)
-{
-    if (leaf)
-        *leaf = -1;
-    sl_bsp_view bsp;
-    if (!scene || !sl_scene_bsp(scene, &bsp) || bsp.leaf_count == 0)
-        return true;
-    int32_t l = sl_scene_bsp_find_leaf(scene, eye);
-    if (leaf)
-        *leaf = l;
-    /* without nodes there is no space to be outside of (one leaf holds everything) */
-    if (bsp.node_count == 0 || l < 0 || (uint32_t)l >= bsp.leaf_count)
-        return true;
-    return bsp.leaves[l].cluster >= 0;
 }
 
 /* Common front: size the buffers and clear the frame. */

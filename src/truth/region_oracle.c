@@ -28,7 +28,7 @@
 #include "sightline/truth.h"
 
 #include "open_space.h"
-#include "region/region_internal.h"
+#include "pvs/viewcells_internal.h"
 #include "scene/scene_internal.h"
 
 #include <math.h>

@@ -57,4 +57,75 @@ cmake -S "$tmp/cm" -B "$tmp/cm/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" >/dev/nu
 cmake --build "$tmp/cm/build" >/dev/null
 LD_LIBRARY_PATH="$libdir" "$tmp/cm/build/consumer_shared" | grep -q "1 mesh"
 "$tmp/cm/build/consumer_static" | grep -q "1 mesh"
+# the run-time library (libsightline_runtime, sightline-runtime.pc, CMake package
+# sightline_runtime): none of the bake-time dependencies in its link line or the consumer's
+for f in "$libdir/libsightline_runtime.so" "$libdir/libsightline_runtime.a" "$libdir/pkgconfig/sightline-runtime.pc" \
+    "$libdir/cmake/sightline_runtime/sightline_runtimeConfig.cmake" "$tmp/prefix/include/sightline/bake.h"; do
+    [ -e "$f" ] || fail "$f not installed"
+done
+bake_deps='embree|geos|assimp|libzip|gomp|omp|tbb|mpi'
+readelf -d "$libdir/libsightline_runtime.so" > "$tmp/needed"
+grep -q 'NEEDED' "$tmp/needed" || fail "readelf shows no NEEDED entries for libsightline_runtime.so"
+if grep 'NEEDED' "$tmp/needed" | grep -Eiq "$bake_deps"; then
+    cat "$tmp/needed"; fail "libsightline_runtime.so needs a bake-time library"
+fi
+if pkg-config --libs --static sightline-runtime | grep -Eiq "$bake_deps"; then
+    fail "sightline-runtime.pc names a bake-time library: $(pkg-config --libs --static sightline-runtime)"
+fi
+"$tmp/prefix/bin/sightline" gen city --preset tiny --seed 3 --quiet -o "$tmp/tiny.slscene" >/dev/null
+cat > "$tmp/runtime.c" <<'C'
+#include <sightline/cull.h>
+#include <sightline/slscene.h>
+#include <stdio.h>
+#include <stdlib.h>
+/* load a .slscene, cull one view with each of two methods, print the counts */
+int main(int argc, char **argv)
+{
+    sl_scene s;
+    sl_error err;
+    if (argc < 2 || sl_scene_load(argv[1], NULL, NULL, &s, &err) != SL_OK)
+        return 1;
+    uint32_t n = sl_scene_object_count(s);
+    uint32_t *ids = malloc((n ? n : 1) * sizeof *ids);
+    sl_camera cam = sl_camera_default();
+    sl_aabb b = sl_scene_bounds(s);
+    cam.position = (sl_vec3){(b.min.x + b.max.x) / 2, (b.min.y + b.max.y) / 2, b.min.z + 1.7f};
+    const char *methods[2] = {"vfc", "hzb"};
+    for (int m = 0; m < 2; m++) {
+        sl_culler c;
+        uint32_t count = 0;
+        if (sl_culler_create(methods[m], s, NULL, NULL, &c, &err) != SL_OK ||
+            sl_culler_cull(c, &cam, ids, n, &count, &err) != SL_OK) {
+            fprintf(stderr, "%s: %s\n", methods[m], err.message);
+            return 1;
+        }
+        printf("%s %u of %u\n", methods[m], count, n);
+        sl_culler_destroy(c);
+    }
+    free(ids);
+    sl_scene_destroy(s);
+    return 0;
+}
+C
+cc -std=gnu11 -Wall -Werror "$tmp/runtime.c" -o "$tmp/runtime_pc" $(pkg-config --cflags --libs sightline-runtime)
+LD_LIBRARY_PATH="$libdir" ldd "$tmp/runtime_pc" > "$tmp/ldd"
+grep -q 'libsightline_runtime' "$tmp/ldd" || fail "the consumer does not load libsightline_runtime"
+if grep -Eiq "$bake_deps|libsightline\.so" "$tmp/ldd"; then
+    cat "$tmp/ldd"; fail "the run-time consumer loads a bake-time library"
+fi
+LD_LIBRARY_PATH="$libdir" "$tmp/runtime_pc" "$tmp/tiny.slscene" > "$tmp/out" || fail "run-time consumer failed"
+grep -Eq '^vfc [1-9][0-9]* of [1-9]' "$tmp/out" && grep -Eq '^hzb [0-9]+ of [1-9]' "$tmp/out" ||
+    fail "run-time consumer printed no culled view"
+# static, through the CMake package
+mkdir -p "$tmp/rt"
+cat > "$tmp/rt/CMakeLists.txt" <<'CM'
+cmake_minimum_required(VERSION 3.25)
+project(runtime_consumer C)
+find_package(sightline_runtime REQUIRED)
+add_executable(runtime_static ../runtime.c)
+target_link_libraries(runtime_static PRIVATE sightline::sightline_runtime_static)
+CM
+cmake -S "$tmp/rt" -B "$tmp/rt/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" >/dev/null
+cmake --build "$tmp/rt/build" >/dev/null
+"$tmp/rt/build/runtime_static" "$tmp/tiny.slscene" | grep -Eq '^vfc [1-9]' || fail "static run-time consumer failed"
 echo "install: ok"

@@ -23,10 +23,10 @@
  *  - metadata: source, map name, counts, spawn points ("q3.spawns", metres), the vis far plane.
  */
 #include "pk3.h"
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 #include "source_meta.h"
 
-#include "../core/escape.h"
+#include "core/escape.h"
 
 #include <math.h>
 #include <stdlib.h>

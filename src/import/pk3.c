@@ -5,8 +5,8 @@
 #include "pk3.h"
 #include "source_meta.h"
 
-#include "../core/escape.h"
-#include "../core/sl_core.h"
+#include "core/escape.h"
+#include "core/sl_core.h"
 
 #include <stdlib.h>
 #include <strings.h>

@@ -19,7 +19,8 @@
  * object count) when a block is first decoded; sl_pvs_verify checks DATA whole. No byte is trusted
  * before it is checked: offsets and sizes are overflow-checked against the file, counts against
  * the sections that hold them. */
-#include "pvs_internal.h"
+#include "pvs_codec.h"
+#include "viewcells_internal.h"
 
 #include "core/bytes.h"
 #include "core/container.h"
@@ -887,43 +888,53 @@ uint32_t sl_pvs_cell_count(sl_pvs p, uint32_t cell)
     return rd32(p->sets + (uint64_t)cell * PVS_SET_REC);
 }
 
-/* Decompress block k into the cache, checking its checksum on first use. */
-static sl_status load_block(struct sl_pvs_t *p, uint32_t k, sl_error *err)
+/* A decoder: a zstd context and one decompressed block. The handle has one (sl_pvs_cell_set, one
+ * thread at a time); each sl_pvs_cursor has its own, so that cursors run in parallel. The handle's
+ * other fields are read-only after opening, except `checked`, read and written atomically. */
+typedef struct pvs_decoder {
+    ZSTD_DCtx *dctx;
+    uint8_t *block;             /* max_raw + 1 bytes, allocated at the first decode */
+    uint32_t cached;            /* block held in `block`, or SL_NONE */
+} pvs_decoder;
+
+/* Decompress block k into d, checking its checksum on its first use by anyone. */
+static sl_status load_block(const struct sl_pvs_t *p, pvs_decoder *d, uint32_t k, sl_error *err)
 {
-    if (p->cached == k)
+    if (d->cached == k)
         return SL_OK;
-    p->cached = SL_NONE;
-    if (!p->block) {
-        p->block = sl_alloc(&p->alloc, (size_t)p->max_raw + 1);
-        if (!p->block)
+    d->cached = SL_NONE;
+    if (!d->block) {
+        d->block = sl_alloc(&p->alloc, (size_t)p->max_raw + 1);
+        if (!d->block)
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for a block of %u bytes", p->name, p->max_raw);
     }
     const uint8_t *r = p->blks + (uint64_t)k * PVS_BLOCK_REC;
     uint64_t off = rd64(r + B_OFFSET);
     uint32_t cs = rd32(r + B_CSIZE), rs = rd32(r + B_RSIZE);
     const uint8_t *frame = p->data + off;
-    if (!p->checked[k]) {
+    if (!__atomic_load_n(&p->checked[k], __ATOMIC_ACQUIRE)) {
         uint64_t h = sl_hash64(frame, cs, 0);
         if (h != rd64(r + B_HASH))
             return FAIL_AT(err, p, p->off[S_DATA] + off, "block %u: checksum mismatch (stored %016llx, computed %016llx)",
                            k, (unsigned long long)rd64(r + B_HASH), (unsigned long long)h);
     }
-    size_t got = ZSTD_decompressDCtx(p->dctx, p->block, (size_t)p->max_raw + 1, frame, cs);
+    size_t got = ZSTD_decompressDCtx(d->dctx, d->block, (size_t)p->max_raw + 1, frame, cs);
     if (ZSTD_isError(got) || got != rs)
         return FAIL_AT(err, p, p->off[S_DATA] + off, "block %u: the zstd frame %s (%zu bytes, expected %u)", k,
                        ZSTD_isError(got) ? ZSTD_getErrorName(got) : "decodes to the wrong size",
                        ZSTD_isError(got) ? (size_t)0 : got, rs);
-    p->checked[k] = 1;
-    p->cached = k;
+    __atomic_store_n(&p->checked[k], 1, __ATOMIC_RELEASE);
+    d->cached = k;
     return SL_OK;
 }
 
-sl_status sl_pvs_cell_set(sl_pvs p, uint32_t cell, uint32_t *out_ids, uint32_t capacity, uint32_t *count, sl_error *err)
+static sl_status cell_set(const struct sl_pvs_t *p, pvs_decoder *d, const char *who, uint32_t cell, uint32_t *out_ids,
+                          uint32_t capacity, uint32_t *count, sl_error *err)
 {
     if (count)
         *count = 0;
     if (!p || !count || (!out_ids && capacity))
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_cell_set: pvs and count must not be NULL");
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: pvs and count must not be NULL", who);
     if (cell >= p->cell_count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: cell %u does not exist (%u cells)", p->name, cell,
                        p->cell_count);
@@ -932,17 +943,79 @@ sl_status sl_pvs_cell_set(sl_pvs p, uint32_t cell, uint32_t *out_ids, uint32_t c
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: cell %u holds %u objects, capacity is %u", p->name, cell, n,
                        capacity);
     uint32_t k = cell / p->block_cells;
-    sl_status st = load_block(p, k, err);
+    sl_status st = load_block(p, d, k, err);
     if (st != SL_OK)
         return st;
     uint32_t rs = rd32(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_RSIZE);
     bool last = cell + 1 == p->cell_count || (cell + 1) % p->block_cells == 0;
     uint32_t end = last ? rs : rd32(p->sets + (uint64_t)(cell + 1) * PVS_SET_REC + 4);
-    if (!sl_pvs_decode(p->block + o, p->block + end, n, p->object_count, out_ids))
+    if (!sl_pvs_decode(d->block + o, d->block + end, n, p->object_count, out_ids))
         return FAIL_AT(err, p, p->off[S_DATA] + rd64(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_OFFSET),
                        "cell %u: its set (%u ids, bytes %u..%u of block %u) is malformed", cell, n, o, end, k);
     *count = n;
     return SL_OK;
+}
+
+sl_status sl_pvs_cell_set(sl_pvs p, uint32_t cell, uint32_t *out_ids, uint32_t capacity, uint32_t *count, sl_error *err)
+{
+    if (!p) {
+        if (count)
+            *count = 0;
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_cell_set: pvs and count must not be NULL");
+    }
+    pvs_decoder d = {p->dctx, p->block, p->cached};
+    sl_status st = cell_set(p, &d, "sl_pvs_cell_set", cell, out_ids, capacity, count, err);
+    p->block = d.block;
+    p->cached = d.cached;
+    return st;
+}
+
+/* ---- cursors: one decoder each, for queries from many threads at once ---- */
+
+struct sl_pvs_cursor_t {
+    const struct sl_pvs_t *pvs;
+    pvs_decoder d;
+};
+
+sl_status sl_pvs_cursor_create(sl_pvs pvs, sl_pvs_cursor *out, sl_error *err)
+{
+    if (out)
+        *out = NULL;
+    if (!pvs || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_cursor_create: pvs and out must not be NULL");
+    struct sl_pvs_cursor_t *c = sl_calloc(&pvs->alloc, 1, sizeof *c);
+    if (c)
+        c->d.dctx = ZSTD_createDCtx_advanced(sl_zstd_mem(&pvs->alloc));
+    if (!c || !c->d.dctx) {
+        if (c)
+            sl_free(&pvs->alloc, c, sizeof *c);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for a cursor", pvs->name);
+    }
+    c->pvs = pvs;
+    c->d.cached = SL_NONE;
+    *out = c;
+    return SL_OK;
+}
+
+void sl_pvs_cursor_destroy(sl_pvs_cursor c)
+{
+    if (!c)
+        return;
+    const sl_allocator *a = &c->pvs->alloc;
+    ZSTD_freeDCtx(c->d.dctx);
+    sl_free(a, c->d.block, (size_t)c->pvs->max_raw + 1);
+    sl_free(a, c, sizeof *c);
+}
+
+sl_status sl_pvs_cursor_cell_set(sl_pvs_cursor c, uint32_t cell, uint32_t *out_ids, uint32_t capacity, uint32_t *count,
+                                 sl_error *err)
+{
+    if (!c) {
+        if (count)
+            *count = 0;
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_cursor_cell_set: cursor and count must not be NULL");
+    }
+    return cell_set(c->pvs, &c->d, "sl_pvs_cursor_cell_set", cell, out_ids, capacity, count, err);
 }
 
 sl_status sl_pvs_verify(sl_pvs p, sl_error *err)
@@ -964,7 +1037,7 @@ sl_status sl_pvs_verify(sl_pvs p, sl_error *err)
         uint32_t n;
         /* force the checksum of every block to be checked again */
         if (c % p->block_cells == 0) {
-            p->checked[c / p->block_cells] = 0;
+            __atomic_store_n(&p->checked[c / p->block_cells], 0, __ATOMIC_RELEASE);
             p->cached = SL_NONE;
         }
         st = sl_pvs_cell_set(p, c, ids, cap, &n, err);

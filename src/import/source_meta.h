@@ -5,7 +5,7 @@
 #ifndef SL_SCENE_SOURCE_META_H
 #define SL_SCENE_SOURCE_META_H
 
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 
 /* The last component of path (after the last '/' or '\\'); path itself when it has none. */
 const char *sl_path_base_name(const char *path);

@@ -24,7 +24,7 @@
  * returns into the caller's code: it leaves with _exit(), running no atexit handler and flushing
  * no stdio buffer it inherited. */
 #include "import_isolate.h"
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 #include "sightline/slscene.h"
 
 #include <assimp/version.h>

@@ -6,8 +6,8 @@
  * 0.1 m / 5000 m camera is badly conditioned in float, and the planes are built geometrically
  * from the basis (not extracted from the view-projection matrix) for the same reason. */
 #include "sightline/camera.h"
-#include "../core/dvec3.h"
-#include "../core/sl_core.h"
+#include "core/dvec3.h"
+#include "core/sl_core.h"
 
 #include <math.h>
 

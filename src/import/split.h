@@ -11,7 +11,7 @@
 #ifndef SL_SCENE_SPLIT_H
 #define SL_SCENE_SPLIT_H
 
-#include "../core/sl_core.h"
+#include "core/sl_core.h"
 
 /* One piece: a range of the result's vertex and triangle arrays. */
 typedef struct sl_split_piece {

@@ -11,7 +11,7 @@
  * assimp under their final names, so the references inside the main file are right; nothing is
  * renamed into place until the exporter has succeeded, side files go first and the main file
  * last, and on any failure every temporary (and any side file already moved) is removed. */
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 #include "sightline/import.h"
 
 #include <assimp/cexport.h>

@@ -2,7 +2,7 @@
  * the CLI, the viewer and the benchmarks accept .slscene, Quake III maps and assimp formats alike.
  * The extension decides (not the content): a file named .obj that holds something else fails in
  * assimp with assimp's message, which names the real problem better than a guess would. */
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 #include "sightline/import.h"
 #include "sightline/slscene.h"
 

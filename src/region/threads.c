@@ -1,7 +1,7 @@
 /* The one thread limit (SL_MAX_THREADS, include/sightline/core.h), held against what the OpenMP
  * runtime allows: asking libgomp for 100000 threads crashed it, so every thread count a caller
  * or a command gives is checked here first. */
-#include "sl_core.h"
+#include "core/sl_core.h"
 
 #include <omp.h>
 

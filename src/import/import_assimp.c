@@ -11,7 +11,7 @@
  * store B·v with B = rotation·scale, and their objects carry B·W·B⁻¹ (W the node's world
  * matrix), so that object transform · mesh vertex = B·W·v for both kinds. See
  * docs/import-export.md. */
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 #include "source_meta.h"
 #include "assimp_io.h"
 #include "core/escape.h"
