@@ -284,7 +284,7 @@ int main(int argc, char **argv)
     printf("| method | guarantee | missed objects | views with a miss | drawn / visible | median ms | set hash |\n"
            "|---|---|---:|---:|---:|---:|---|\n");
     for (uint32_t i = 0; i < nm; i++) {
-        printf("| %s | %s | %llu | %llu | %.3f | %.3f | %016llx |\n", ms[i].spec, sl_cull_guarantee_name(ms[i].g),
+        printf("| %s | %s | %llu | %llu | %.3f | %.4f | %016llx |\n", ms[i].spec, sl_cull_guarantee_name(ms[i].g),
                (unsigned long long)ms[i].missed, (unsigned long long)ms[i].missed_views,
                visible ? (double)ms[i].drawn / (double)visible : 0, median(ms[i].round_ms, rounds),
                (unsigned long long)ms[i].hash);

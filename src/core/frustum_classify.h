@@ -11,8 +11,16 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+/* Inlined in every caller, so that each frustum loop compiles as its own hand-written copy did
+ * (constant masks fold away). */
+#if defined(__GNUC__)
+#define SL_FRUSTUM_INLINE static inline __attribute__((always_inline))
+#else
+#define SL_FRUSTUM_INLINE static inline
+#endif
+
 /* Slack of each of six planes (sl_margin_plane_slack of its d). */
-static inline void sl_frustum_slacks(const sl_plane planes[6], float slack[6])
+SL_FRUSTUM_INLINE void sl_frustum_slacks(const sl_plane planes[6], float slack[6])
 {
     for (int i = 0; i < 6; i++)
         slack[i] = sl_margin_plane_slack(planes[i].d);
@@ -20,7 +28,7 @@ static inline void sl_frustum_slacks(const sl_plane planes[6], float slack[6])
 
 /* Is box b beyond plane p by more than slack (its p-vertex, the corner farthest along the normal,
  * outside)? */
-static inline bool sl_frustum_plane_rejects(const sl_plane *p, float slack, const sl_aabb *b)
+SL_FRUSTUM_INLINE bool sl_frustum_plane_rejects(const sl_plane *p, float slack, const sl_aabb *b)
 {
     float px = p->a >= 0 ? b->max.x : b->min.x, py = p->b >= 0 ? b->max.y : b->min.y;
     float pz = p->c >= 0 ? b->max.z : b->min.z;
@@ -31,7 +39,7 @@ static inline bool sl_frustum_plane_rejects(const sl_plane *p, float slack, cons
  * lies beyond one of them (its index written to *rejected, which may be NULL), else, with
  * `straddle`, the mask of the planes it straddles (0: wholly inside those planes), without it
  * the mask unchanged. Planes are tried in index order. */
-static inline int sl_frustum_classify_box(const sl_plane *planes, const float *slack, const sl_aabb *b, uint32_t mask,
+SL_FRUSTUM_INLINE int sl_frustum_classify_box(const sl_plane *planes, const float *slack, const sl_aabb *b, uint32_t mask,
                                           bool straddle, uint8_t *rejected)
 {
     uint32_t out = mask;

@@ -34,7 +34,12 @@
  *     a street far props and buildings a pixel or two in size hide each other, and no conservative
  *     proxy of them survives the rasterizer's inset.
  * Conservative: proxies lie inside their objects (occluders.h), the rasterizer never writes a
- * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner. */
+ * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner.
+ * Resolution (docs/culler-contract.md, "Guarantees and resolution"): by default (res=any) the
+ * occluders are drawn by inner coverage and the three pixel-centre tests (box_rows' silhouette
+ * rows, the sampled triangles, the exact layer) are off, so no object visible at any resolution
+ * or sample position is dropped; res=culling turns them on (the defaults 8, 64, 48) and draws
+ * occluders at pixel centres: tighter, conservative at the culling resolution only. */
 #include "occluders.h"
 
 #include <math.h>

@@ -27,7 +27,9 @@
  * mesh_test, sample_tris, sample_px, as in hzb) before it is reported and drawn; the rasterizer
  * holds true depths in every variant, so that depth test is valid at any point of the traversal.
  * Per frame, `queries` counts the cell-level pixel queries (what the paper's Fig. 8 reports) and
- * `pixel_queries` the pixels they read. Conservative. */
+ * `pixel_queries` the pixels they read. Conservative at any resolution (res=any, the default:
+ * occluders by inner coverage, no pixel-centre test); res=culling draws them at pixel centres and
+ * allows sample_tris (default 64 there): conservative at the culling resolution only. */
 #include "occluders.h"
 
 #include <math.h>
