@@ -334,16 +334,16 @@ static void test_sampled_mesh_test(void **state)
         const char *method, *options;
         bool dropped;
     } cases[] = {
-        {"hzb", "mesh_test=0,sample_tris=0", false},
-        {"hzb", "mesh_test=0,sample_px=1024", true},
-        {"hzb", "mesh_test=0,sample_px=4", false}, /* the box's rectangle is larger */
-        {"hzb", "sample_tris=0", true},
-        {"hzb", NULL, true},
-        {"lazygrid", "mesh_test=0,sample_tris=0", false},
-        {"lazygrid", "mesh_test=0,sample_px=1024", true},
-        {"lazygrid-z", "mesh_test=0,sample_px=1024", true},
-        {"busygrid", "mesh_test=0,sample_px=1024", true},
-        {"busygrid", NULL, true},
+        {"hzb", "res=culling,mesh_test=0,sample_tris=0", false},
+        {"hzb", "res=culling,mesh_test=0,sample_px=1024", true},
+        {"hzb", "res=culling,mesh_test=0,sample_px=4", false}, /* the box's rectangle is larger */
+        {"hzb", "res=culling,sample_tris=0", true},
+        {"hzb", "res=culling", true},
+        {"lazygrid", "res=culling,mesh_test=0,sample_tris=0", false},
+        {"lazygrid", "res=culling,mesh_test=0,sample_px=1024", true},
+        {"lazygrid-z", "res=culling,mesh_test=0,sample_px=1024", true},
+        {"busygrid", "res=culling,mesh_test=0,sample_px=1024", true},
+        {"busygrid", "res=culling", true},
     };
     for (size_t i = 0; i < SL_COUNTOF(cases); i++) {
         sl_culler c;
@@ -428,7 +428,8 @@ static void test_sampled_subpixel(void **state)
     static const char *const methods[] = {"hzb", "lazygrid", "lazygrid-z"};
     for (size_t m = 0; m < SL_COUNTOF(methods); m++) {
         sl_culler c;
-        assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &c, &err), SL_OK);
+        /* the pixel-centre tests: the tighter mode (res=culling, conservative at this resolution) */
+        assert_int_equal(sl_culler_create(methods[m], s, "res=culling", NULL, &c, &err), SL_OK);
         uint32_t k = cull(c, &cam, out, 256);
         assert_keeps_visible(methods[m], out, k, &fr);
         if (k > n / 2)
@@ -542,13 +543,13 @@ static void test_exact_layer_row(void **state)
     assert_true(fr.visible_count < n / 4);
     uint32_t out[64];
     sl_culler c;
-    assert_int_equal(sl_culler_create("hzb", s, NULL, NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("hzb", s, "res=culling", NULL, &c, &err), SL_OK);
     uint32_t k = cull(c, &cam, out, 64);
     assert_keeps_visible("hzb", out, k, &fr);
     if (k > 2 * fr.visible_count + 2)
         fail_msg("hzb kept %u of %u boxes (the oracle sees %u)", k, n, fr.visible_count);
     sl_culler_destroy(c);
-    assert_int_equal(sl_culler_create("hzb", s, "exact_px=0", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("hzb", s, "res=culling,exact_px=0", NULL, &c, &err), SL_OK);
     uint32_t without = cull(c, &cam, out, 64);
     assert_true(without > 2 * k);
     sl_culler_destroy(c);
@@ -572,11 +573,11 @@ static void test_box_rows(void **state)
     assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
     uint32_t out[256];
     sl_culler c;
-    assert_int_equal(sl_culler_create("hzb", s, "sample_tris=0,mesh_test=0,exact_px=0", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("hzb", s, "res=culling,sample_tris=0,mesh_test=0,exact_px=0", NULL, &c, &err), SL_OK);
     uint32_t k = cull(c, &cam, out, 256);
     assert_keeps_visible("hzb", out, k, &fr);
     sl_culler_destroy(c);
-    assert_int_equal(sl_culler_create("hzb", s, "sample_tris=0,mesh_test=0,exact_px=0,box_rows=0", NULL, &c, &err),
+    assert_int_equal(sl_culler_create("hzb", s, "res=culling,sample_tris=0,mesh_test=0,exact_px=0,box_rows=0", NULL, &c, &err),
                      SL_OK);
     uint32_t without = cull(c, &cam, out, 256);
     if (!(k < without && k < n / 2))

@@ -162,7 +162,7 @@ static void html_summary(report *r, sl_bench b)
         sl_bench_summary s;
         if (sl_bench_method(b, mi, &info, NULL) != SL_OK || sl_bench_summarize(b, mi, &s, NULL) != SL_OK)
             continue;
-        bool bad = info.guarantee == SL_CONSERVATIVE && s.missed_objects_total;
+        bool bad = sl_cull_guarantee_keeps_visible(info.guarantee, true) && s.missed_objects_total;
         put(&r->html, "<tr><td>");
         put_html(&r->html, info.name);
         put(&r->html,

@@ -88,6 +88,8 @@ int sl_cmd_methods(int argc, char **argv)
             cli_json_object_begin(&j, NULL);
             cli_json_string(&j, "name", d.name);
             cli_json_string(&j, "guarantee", sl_cull_guarantee_name(d.guarantee));
+            if (d.res_culling)
+                cli_json_string(&j, "res_culling_guarantee", sl_cull_guarantee_name(SL_CONSERVATIVE_AT_RESOLUTION));
             cli_json_string(&j, "summary", d.summary);
             cli_json_array_begin(&j, "options");
             const char *p = d.options_help;
@@ -104,7 +106,9 @@ int sl_cmd_methods(int argc, char **argv)
             cli_json_array_end(&j);
             cli_json_object_end(&j);
         } else {
-            printf("%s%s (%s)\n  %s\n", i ? "\n" : "", d.name, sl_cull_guarantee_name(d.guarantee), d.summary);
+            printf("%s%s (%s%s%s)\n  %s\n", i ? "\n" : "", d.name, sl_cull_guarantee_name(d.guarantee),
+                   d.res_culling ? "; res=culling: " : "",
+                   d.res_culling ? sl_cull_guarantee_name(SL_CONSERVATIVE_AT_RESOLUTION) : "", d.summary);
             if (d.options_help && d.options_help[0]) {
                 printf("  options:\n");
                 print_indented(d.options_help, "    ");

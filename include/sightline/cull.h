@@ -33,13 +33,27 @@ extern "C" {
 
 typedef struct sl_culler_t *sl_culler;
 
+/* What a culler promises (docs/culler-contract.md, "Guarantees and resolution"). */
 typedef enum sl_cull_guarantee {
-    SL_CONSERVATIVE = 0, /* never drops a visible object */
-    SL_AGGRESSIVE = 1    /* may drop visible objects; reports missed pixels against the oracle */
+    SL_CONSERVATIVE = 0, /* never drops an object visible in an image of the same view and projection
+                            at ANY resolution and with any sample positions in the pixels (MSAA,
+                            jitter, a client rendering at its own size): occluders count only where
+                            they cover whole pixels of the culling resolution (inner coverage),
+                            tested objects wherever they touch a pixel (outer coverage) */
+    SL_AGGRESSIVE = 1,   /* may drop visible objects; reports missed pixels against the oracle */
+    SL_CONSERVATIVE_AT_RESOLUTION = 2 /* never drops an object visible in the image at the camera's
+                            own width x height sampled at pixel centres (the oracle's default); may
+                            drop one seen only at another resolution or by other samples (the
+                            `res=culling` option of the methods that have it) */
 } sl_cull_guarantee;
 
-/* "conservative" or "aggressive". */
+/* "conservative", "aggressive" or "conservative-at-resolution". */
 SL_API const char *sl_cull_guarantee_name(sl_cull_guarantee g);
+/* Does guarantee g promise zero misses against an image of the same view and projection: any
+ * image (at_culling_resolution false), or the image at the culling resolution sampled at pixel
+ * centres (true)? SL_CONSERVATIVE: always; SL_CONSERVATIVE_AT_RESOLUTION: only when
+ * at_culling_resolution; SL_AGGRESSIVE: never. */
+SL_API bool sl_cull_guarantee_keeps_visible(sl_cull_guarantee g, bool at_culling_resolution);
 
 /* Most named phases a method reports per frame. */
 #define SL_CULL_MAX_PHASES 4
@@ -69,6 +83,9 @@ typedef struct sl_cull_method_desc {
     const char *summary;        /* one line: what it does, and the paper it follows */
     const char *options_help;   /* one line per option: "key=TYPE (default D): meaning" */
     sl_cull_guarantee guarantee;/* with the default options */
+    bool res_culling;           /* the method takes res=culling: a tighter mode whose guarantee is
+                                   SL_CONSERVATIVE_AT_RESOLUTION (its default, res=any, is
+                                   resolution-independent) */
 } sl_cull_method_desc;
 
 /* Number of registered methods. */

@@ -53,6 +53,22 @@ typedef struct sl_oracle_t *sl_oracle;
 /* Largest number of rendering threads. */
 #define SL_ORACLE_MAX_THREADS SL_MAX_THREADS /* the one thread limit (core.h) */
 
+/* Where the oracle samples each pixel (docs/oracle.md, "Supersampling"). Every pattern renders one
+ * pass per sample position, the same position in every pixel, with the camera's own view and
+ * projection moved by a sub-pixel offset; the visible set is the union over the passes and the
+ * pixel counts are sample counts. */
+typedef enum sl_oracle_samples {
+    SL_ORACLE_SAMPLES_CENTER = 0, /* one sample at the pixel centre (x + 0.5, y + 0.5): the default */
+    SL_ORACLE_SAMPLES_MSAA4 = 1,  /* the standard 4x MSAA positions of D3D and OpenGL, in pixel units
+                                     from the top-left corner: (0.375, 0.125), (0.875, 0.375),
+                                     (0.125, 0.625), (0.625, 0.875) */
+    SL_ORACLE_SAMPLES_JITTER = 2  /* sample_count positions drawn uniformly in the pixel square from
+                                     jitter_seed (the same seed gives the same positions) */
+} sl_oracle_samples;
+
+/* Most samples per pixel (sample passes of one camera render). */
+#define SL_ORACLE_MAX_SAMPLES 16u
+
 typedef struct sl_oracle_options {
     uint32_t width, height;   /* resolution of a camera render; 0 and 0: the camera's own width/height */
     uint32_t threads;         /* rendering threads, 1..SL_ORACLE_MAX_THREADS (default 2) */
@@ -62,21 +78,29 @@ typedef struct sl_oracle_options {
                                  sight line to one of its pixels, from the near plane on, never
                                  enters solid space from open space (docs/oracle.md, rule 4); true:
                                  every drawn pixel counts (the region oracle traces its own) */
+    sl_oracle_samples samples;  /* sample positions of a camera render (default CENTER); cube maps
+                                   always sample pixel centres */
+    uint32_t sample_count;      /* JITTER: samples per pixel, 1..SL_ORACLE_MAX_SAMPLES (0: 4) */
+    uint64_t jitter_seed;       /* JITTER: seed of the positions */
 } sl_oracle_options;
 
-/* The defaults: camera resolution, 2 threads, closed back faces skipped, no overdraw counts. */
+/* The defaults: camera resolution, 2 threads, closed back faces skipped, no overdraw counts, one
+ * sample at each pixel centre. */
 SL_API sl_oracle_options sl_oracle_default_options(void);
 
 /* What one render found. Arrays belong to the oracle and stay valid until its next render. */
 typedef struct sl_oracle_frame {
-    uint32_t view_count;          /* 1 for a camera render, 6 for a cube map */
+    uint32_t view_count;          /* 1 for a camera render (one per sample position with
+                                     samples_per_pixel > 1), 6 for a cube map */
     uint32_t width, height;       /* size of each view */
     uint32_t visible_count;       /* objects owning at least one pixel */
     const uint32_t *visible;      /* their ids, ascending */
-    const uint32_t *pixels;       /* pixels[i]: pixels owned by visible[i] (summed over the views) */
-    uint64_t covered_pixels;      /* pixels that show some object (summed over the views) */
+    const uint32_t *pixels;       /* pixels[i]: pixels owned by visible[i] (summed over the views;
+                                     samples, with several samples per pixel) */
+    uint64_t covered_pixels;      /* pixels (samples) that show some object (summed over the views) */
     uint32_t objects_in_frustum;  /* objects drawn: their box meets the frustum and may cover a
-                                     pixel centre (counted once per view) */
+                                     pixel centre (counted once per view; of a supersampled camera
+                                     render, those of its first sample pass) */
     uint64_t triangles_in_frustum;/* their triangles, all drawn (counted once per view) */
     double ms;                    /* wall time of the render */
     bool out_of_domain;           /* the eye is outside the domain (sl_oracle_in_domain): the image
@@ -86,6 +110,8 @@ typedef struct sl_oracle_frame {
     uint32_t hidden_by_solid;     /* objects drawn but left out by the open-space rule (maps: every
                                      sight line to them enters solid space); their pixels are not
                                      in covered_pixels */
+    uint32_t samples_per_pixel;   /* sample positions per pixel of a camera render (1 for a cube map);
+                                     view s of the render holds sample s of every pixel */
 } sl_oracle_frame;
 
 /* The buffers of one view of the last render. Row 0 is the top of the image; pixel (x, y) is at
@@ -96,7 +122,11 @@ typedef struct sl_oracle_view {
     const uint32_t *ids;
     const float *depth;
     const uint32_t *overdraw;
-    sl_mat4 view_proj;            /* the world-to-clip matrix the view was drawn with */
+    sl_mat4 view_proj;            /* the world-to-clip matrix the view was drawn with (for a sample
+                                     pass: the camera's, moved so that the pass's pixel centres fall
+                                     on the sample position) */
+    double sample_x, sample_y;    /* where in its pixel this view sampled ([0, 1), from the top-left
+                                     corner; 0.5, 0.5 for pixel centres) */
 } sl_oracle_view;
 
 /* Create an oracle for a scene. options and alloc may be NULL (defaults). */

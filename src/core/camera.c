@@ -77,7 +77,7 @@ double sl_camera_min_near(const sl_camera *c, sl_depth_format format)
     if (!c || format == SL_DEPTH_NONE || c->projection == SL_ORTHOGRAPHIC)
         return 0;
     double m = fabs((double)c->position.x) + fabs((double)c->position.y) + fabs((double)c->position.z) + 1.0;
-    double lo = ldexp(m, -20);
+    double lo = m * SL_MARGIN_REL; /* the float depth's relative resolution (core/margins.h) */
     if (format == SL_DEPTH_CLIP_Z)
         lo = fmax(lo, (double)c->far_plane / SL_CAMERA_MAX_FAR_NEAR);
     return lo;
@@ -229,17 +229,9 @@ int sl_frustum_test_aabb(const sl_frustum *f, const sl_aabb *b)
 {
     if (sl_aabb_is_empty(b))
         return 0;
-    int result = 2;
-    for (int i = 0; i < 6; i++) {
-        const sl_plane *p = &f->planes[i];
-        /* p-vertex: the corner farthest along the normal; n-vertex: the nearest one */
-        float px = p->a >= 0 ? b->max.x : b->min.x, nx = p->a >= 0 ? b->min.x : b->max.x;
-        float py = p->b >= 0 ? b->max.y : b->min.y, ny = p->b >= 0 ? b->min.y : b->max.y;
-        float pz = p->c >= 0 ? b->max.z : b->min.z, nz = p->c >= 0 ? b->min.z : b->max.z;
-        if (p->a * px + p->b * py + p->c * pz + p->d < 0)
-            return 0;
-        if (p->a * nx + p->b * ny + p->c * nz + p->d < 0)
-            result = 1;
-    }
-    return result;
+    /* the shared classifier without slack (SL_MARGIN_PLANE_EXACT, core/margins.h) */
+    static const float exact[6] = {SL_MARGIN_PLANE_EXACT, SL_MARGIN_PLANE_EXACT, SL_MARGIN_PLANE_EXACT,
+                                   SL_MARGIN_PLANE_EXACT, SL_MARGIN_PLANE_EXACT, SL_MARGIN_PLANE_EXACT};
+    int c = sl_frustum_classify_box(f->planes, exact, b, 0x3fu, true, NULL);
+    return c < 0 ? 0 : c == 0 ? 2 : 1;
 }

@@ -5,6 +5,7 @@
 
 #include "sightline/core.h"
 #include "sightline/geom.h"
+#include "frustum_classify.h" /* margins.h with it */
 
 #include <stdarg.h>
 #include <stdio.h>

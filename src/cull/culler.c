@@ -30,8 +30,14 @@ const char *sl_cull_guarantee_name(sl_cull_guarantee g)
     switch (g) {
     case SL_CONSERVATIVE: return "conservative";
     case SL_AGGRESSIVE: return "aggressive";
+    case SL_CONSERVATIVE_AT_RESOLUTION: return "conservative-at-resolution";
     }
     return "unknown";
+}
+
+bool sl_cull_guarantee_keeps_visible(sl_cull_guarantee g, bool at_culling_resolution)
+{
+    return g == SL_CONSERVATIVE || (g == SL_CONSERVATIVE_AT_RESOLUTION && at_culling_resolution);
 }
 
 /* ---- sorting ---- */
@@ -89,6 +95,7 @@ sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error
     out->summary = m->summary;
     out->options_help = m->options_help;
     out->guarantee = m->guarantee;
+    out->res_culling = m->res_culling;
     return SL_OK;
 }
 

@@ -30,6 +30,9 @@ typedef struct sl_cull_method {
     /* the depth it stores or projects with (SL_DEPTH_NONE: frustum planes only); sl_culler_cull
      * refuses a camera that format cannot resolve (sl_camera_check_depth) */
     sl_depth_format depth;
+    /* takes res=any|culling (sl_occ_common): res=culling is the tighter mode whose guarantee is
+     * SL_CONSERVATIVE_AT_RESOLUTION (the default, res=any, keeps `guarantee`) */
+    bool res_culling;
 
     /* Read the options into config (config_size zeroed bytes); may change *guarantee when an
      * option makes the method aggressive. Must not allocate. */

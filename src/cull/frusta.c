@@ -280,7 +280,7 @@ static bool in_shadow(const shadow *sh, const sl_aabb *b, const sl_occ_view *v, 
         float a = sh->px[i], bb = sh->py[i], c = sh->pz[i];
         float nx = a >= 0 ? b->min.x : b->max.x, ny = bb >= 0 ? b->min.y : b->max.y, nz = c >= 0 ? b->min.z : b->max.z;
         float val = a * nx + bb * ny + c * nz + sh->pd[i];
-        float slack = 1e-6f * (fabsf(a * nx) + fabsf(bb * ny) + fabsf(c * nz) + fabsf(sh->pd[i]));
+        float slack = SL_MARGIN_SHADOW_REL * (fabsf(a * nx) + fabsf(bb * ny) + fabsf(c * nz) + fabsf(sh->pd[i]));
         float need = i < sh->count ? sh->margin[i] * (v->ortho ? 1.0f : rmax) : 0.0f;
         if (!(val > need + slack))
             return false;

@@ -45,7 +45,7 @@ typedef struct hom_state {
 static const char g_help[] =
     "threshold=0.01..1 (default 1): opacity that counts as opaque; below 1 the method is aggressive\n"
     "depth=deb|zbuffer (default deb): depth test against the depth estimation buffer or the rasterizer\n"
-    "deb=8..512 (default 32): edge of a depth estimation buffer cell in pixels\n" SL_OCC_HELP_RASTER
+    "deb=8..512 (default 32): edge of a depth estimation buffer cell in pixels\n" SL_OCC_HELP_RES SL_OCC_HELP_RASTER
     "occluders=0..4096 (default 128): most occluders chosen per frame by Coorg-Teller quality\n"
     "budget=0..10000000 (default 20000): triangle budget of the chosen occluders\n"
     "min_quality=NUMBER (default 0.0005): least quality (solid angle, sr) of an occluder\n"
@@ -61,11 +61,10 @@ static sl_status hom_configure(sl_opts *o, void *config, sl_cull_guarantee *g, s
     if ((st = sl_opts_float(o, "threshold", 1.0f, 0.01f, 1.0f, &c->threshold, err)) != SL_OK ||
         (st = sl_opts_enum(o, "depth", depth_names, 2, 0, &c->depth, err)) != SL_OK ||
         (st = sl_opts_u32(o, "deb", 32, 8, 512, &c->deb, err)) != SL_OK ||
-        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG, 128, 20000, &c->c,
-                                      err)) != SL_OK)
+        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES,
+                                      128, 20000, &c->c, err)) != SL_OK)
         return st;
-    if (c->threshold < 1.0f)
-        *g = SL_AGGRESSIVE;
+    *g = c->threshold < 1.0f ? SL_AGGRESSIVE : sl_occ_res_guarantee(&c->c);
     return SL_OK;
 }
 
@@ -208,17 +207,17 @@ static bool poly_rect(const sl_occ_view *v, const sl_vec3 *p, uint32_t n, sl_occ
     if (all || !isfinite(fd))
         return false;
     /* nudged farther by 2^-20 relative for the rounding of the transform */
-    *far_d = sl_occ_maxf(fd - fabsf(fd) * (1.0f / 1048576.0f), 0.0f);
+    *far_d = sl_occ_maxf(fd - fabsf(fd) * SL_MARGIN_REL_F, 0.0f);
     if (near_cross || !isfinite(minx) || !isfinite(maxx) || !isfinite(miny) || !isfinite(maxy)) {
         *r = (sl_occ_rect){0, 0, (int32_t)v->width, (int32_t)v->height, 0};
         return true;
     }
-    const float eps = 1.0f / 64.0f;
+    const float eps = SL_MARGIN_RECT_PX;
     float fx0 = sl_occ_maxf(floorf(minx - eps), 0.0f), fx1 = sl_occ_minf(floorf(maxx + eps) + 1.0f, (float)v->width);
     float fy0 = sl_occ_maxf(floorf(miny - eps), 0.0f), fy1 = sl_occ_minf(floorf(maxy + eps) + 1.0f, (float)v->height);
     if (!(fx0 < fx1) || !(fy0 < fy1))
         return false;
-    *r = (sl_occ_rect){(int32_t)fx0, (int32_t)fy0, (int32_t)fx1, (int32_t)fy1, nd + fabsf(nd) * (1.0f / 1048576.0f)};
+    *r = (sl_occ_rect){(int32_t)fx0, (int32_t)fy0, (int32_t)fx1, (int32_t)fy1, nd + fabsf(nd) * SL_MARGIN_REL_F};
     return true;
 }
 
@@ -457,6 +456,7 @@ const sl_cull_method sl_cull_method_hom = {
                "estimation buffer; threshold 1 conservative, below 1 aggressive (Zhang et al. 1997)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE,
+    .res_culling = true,
     .depth = SL_DEPTH_INV_W,
     .config_size = sizeof(hom_config),
     .configure = hom_configure,

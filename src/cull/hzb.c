@@ -34,7 +34,12 @@
  *     a street far props and buildings a pixel or two in size hide each other, and no conservative
  *     proxy of them survives the rasterizer's inset.
  * Conservative: proxies lie inside their objects (occluders.h), the rasterizer never writes a
- * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner. */
+ * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner.
+ * Resolution (docs/culler-contract.md, "Guarantees and resolution"): by default (res=any) the
+ * occluders are drawn by inner coverage and the three pixel-centre tests (box_rows' silhouette
+ * rows, the sampled triangles, the exact layer) are off, so no object visible at any resolution
+ * or sample position is dropped; res=culling turns them on (the defaults 8, 64, 48) and draws
+ * occluders at pixel centres: tighter, conservative at the culling resolution only. */
 #include "occluders.h"
 
 #include <math.h>
@@ -62,7 +67,7 @@ typedef struct hzb_state {
 } hzb_state;
 
 static const char g_help[] =
-    SL_OCC_HELP_RASTER
+    SL_OCC_HELP_RES SL_OCC_HELP_RASTER
     "occluders=0..4096 (default 48): most occluders chosen per frame by Coorg-Teller quality\n"
     "budget=0..10000000 (default 20000): triangle budget of the chosen occluders\n"
     "min_quality=NUMBER (default 0.0005): least quality (solid angle, sr) of an occluder\n"
@@ -77,29 +82,31 @@ static const char g_help[] =
     "far_layer=BOOL (default true): render visible proxies below min_quality into a second buffer; a box "
     "hidden in either buffer is hidden\n"
     "far_quality=NUMBER (default 0): least quality (sr) of a far-layer occluder\n"
-    "box_rows=0..100000 (default 8): a box whose rectangle looks visible is tested again at the pixel centres "
+    "box_rows=0..100000 (default 0; 8 with res=culling, which it needs): a box whose rectangle looks visible is tested again at the pixel centres "
     "it covers: those of its corners' bounding box, and, when the rectangle is at most this many rows tall, "
     "those inside its silhouette (0: neither)\n"
-    "exact_px=0..16777216 (default 48): a visible object whose box rectangle holds at most this many pixels "
+    "exact_px=0..16777216 (default 0; 48 with res=culling, which it needs): a visible object whose box rectangle holds at most this many pixels "
     "is drawn with the oracle's rasterizer into an exact layer that pixel-centre tests consult (0: never)\n"
     SL_OCC_HELP_DEBUG;
 
 static sl_status hzb_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
     hzb_config *c = config;
-    (void)g;
     sl_status st;
-    if ((st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG, 48, 20000, &c->c,
-                                      err)) != SL_OK ||
+    if ((st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES, 48,
+                                      20000, &c->c, err)) != SL_OK ||
         (st = sl_opts_bool(o, "pyramid", true, &c->pyramid, err)) != SL_OK ||
         (st = sl_opts_bool(o, "render_visible", true, &c->render_visible, err)) != SL_OK ||
         (st = sl_opts_u32(o, "refresh", 16, 0, 100000, &c->refresh, err)) != SL_OK ||
-        (st = sl_occ_configure_mesh_tests(o, &c->mt, err)) != SL_OK ||
+        (st = sl_occ_configure_mesh_tests(o, &c->c, &c->mt, err)) != SL_OK ||
         (st = sl_opts_bool(o, "far_layer", true, &c->far_layer, err)) != SL_OK ||
         (st = sl_opts_float(o, "far_quality", 0.0f, 0.0f, 100.0f, &c->far_quality, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "box_rows", 8, 0, 100000, &c->box_rows, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "exact_px", 48, 0, 1u << 24, &c->exact_px, err)) != SL_OK)
+        (st = sl_opts_u32(o, "box_rows", c->c.res_culling ? 8 : 0, 0, 100000, &c->box_rows, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "exact_px", c->c.res_culling ? 48 : 0, 0, 1u << 24, &c->exact_px, err)) != SL_OK ||
+        (st = sl_occ_require_res_culling(o, &c->c, "box_rows", c->box_rows, err)) != SL_OK ||
+        (st = sl_occ_require_res_culling(o, &c->c, "exact_px", c->exact_px, err)) != SL_OK)
         return st;
+    *g = sl_occ_res_guarantee(&c->c);
     return SL_OK;
 }
 
@@ -344,6 +351,7 @@ const sl_cull_method sl_cull_method_hzb = {
                "pyramid (Greene, Kass & Miller 1993)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE,
+    .res_culling = true,
     .depth = SL_DEPTH_CLIP_Z,
     .config_size = sizeof(hzb_config),
     .configure = hzb_configure,

@@ -27,7 +27,9 @@
  * mesh_test, sample_tris, sample_px, as in hzb) before it is reported and drawn; the rasterizer
  * holds true depths in every variant, so that depth test is valid at any point of the traversal.
  * Per frame, `queries` counts the cell-level pixel queries (what the paper's Fig. 8 reports) and
- * `pixel_queries` the pixels they read. Conservative. */
+ * `pixel_queries` the pixels they read. Conservative at any resolution (res=any, the default:
+ * occluders by inner coverage, no pixel-centre test); res=culling draws them at pixel centres and
+ * allows sample_tris (default 64 there): conservative at the culling resolution only. */
 #include "occluders.h"
 
 #include <math.h>
@@ -70,38 +72,37 @@ typedef struct lg_state {
 } lg_state;
 
 static const char g_help[] =
-    "cell=8..512 (default 32): edge of a grid cell in pixels\n" SL_OCC_HELP_RASTER
+    "cell=8..512 (default 32): edge of a grid cell in pixels\n" SL_OCC_HELP_RES SL_OCC_HELP_RASTER
     "min_quality=NUMBER (default 0.0005): least Coorg-Teller quality (sr) of a visible object drawn as an occluder\n"
     "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
     "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n"
     "leaf_size=1..16 (default 4): most objects per BVH leaf\n" SL_OCC_HELP_MESH_TESTS SL_OCC_HELP_DEBUG;
 
-static sl_status configure(sl_opts *o, lg_config *c, lg_variant v, sl_error *err)
+static sl_status configure(sl_opts *o, lg_config *c, lg_variant v, sl_cull_guarantee *g, sl_error *err)
 {
     sl_status st;
     c->variant = v;
     if ((st = sl_opts_u32(o, "cell", 32, 8, 512, &c->cell, err)) != SL_OK ||
-        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG, 0, 0, &c->c, err)) != SL_OK ||
+        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES, 0, 0, &c->c, err)) !=
+            SL_OK ||
         (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->c.min_quality, err)) != SL_OK ||
-        (st = sl_occ_configure_mesh_tests(o, &c->mt, err)) != SL_OK)
+        (st = sl_occ_configure_mesh_tests(o, &c->c, &c->mt, err)) != SL_OK)
         return st;
+    *g = sl_occ_res_guarantee(&c->c);
     return SL_OK;
 }
 
 static sl_status lazy_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
-    (void)g;
-    return configure(o, config, LG_LAZY, err);
+    return configure(o, config, LG_LAZY, g, err);
 }
 static sl_status z_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
-    (void)g;
-    return configure(o, config, LG_Z, err);
+    return configure(o, config, LG_Z, g, err);
 }
 static sl_status busy_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
-    (void)g;
-    return configure(o, config, LG_BUSY, err);
+    return configure(o, config, LG_BUSY, g, err);
 }
 
 static void free_grid(lg_state *s)
@@ -586,6 +587,7 @@ static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint3
         .summary = SUMMARY,                                                                                            \
         .options_help = g_help,                                                                                        \
         .guarantee = SL_CONSERVATIVE,                                                                                  \
+        .res_culling = true,                                                                                           \
         .depth = SL_DEPTH_INV_W,                                                                                       \
         .config_size = sizeof(lg_config),                                                                              \
         .configure = CONF,                                                                                             \

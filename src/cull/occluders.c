@@ -19,7 +19,7 @@ void sl_occ_view_init(sl_occ_view *v, const sl_camera *cam)
     sl_camera_basis(cam, &v->fwd, &right, &up);
     v->fr = sl_camera_frustum(cam);
     for (int i = 0; i < 6; i++)
-        v->slack[i] = 1e-6f * (1.0f + fabsf(v->fr.planes[i].d));
+        v->slack[i] = sl_margin_plane_slack(v->fr.planes[i].d);
     v->ortho = cam->projection == SL_ORTHOGRAPHIC;
     v->width = cam->width;
     v->height = cam->height;
@@ -56,20 +56,7 @@ bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b)
 
 int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask)
 {
-    uint32_t out = mask;
-    for (uint32_t i = 0; i < 6; i++) {
-        if (!(mask & (1u << i)))
-            continue;
-        const sl_plane *p = &v->fr.planes[i];
-        float px = p->a >= 0 ? b->max.x : b->min.x, nx = p->a >= 0 ? b->min.x : b->max.x;
-        float py = p->b >= 0 ? b->max.y : b->min.y, ny = p->b >= 0 ? b->min.y : b->max.y;
-        float pz = p->c >= 0 ? b->max.z : b->min.z, nz = p->c >= 0 ? b->min.z : b->max.z;
-        if (p->a * px + p->b * py + p->c * pz + p->d < -v->slack[i])
-            return -1;
-        if (p->a * nx + p->b * ny + p->c * nz + p->d >= 0)
-            out &= ~(1u << i);
-    }
-    return (int)out;
+    return sl_frustum_classify_box(v->fr.planes, v->slack, b, mask, true, NULL);
 }
 
 uint64_t sl_occ_walk_bvh(const struct sl_bvh_t *bvh, const sl_occ_view *v, sl_occ_walk *w,
@@ -122,7 +109,7 @@ uint64_t sl_occ_walk_bvh(const struct sl_bvh_t *bvh, const sl_occ_view *v, sl_oc
  * to [0, n] (the rasterizer's own rule for box queries). */
 static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
 {
-    const float eps = 1.0f / 64.0f;
+    const float eps = SL_MARGIN_RECT_PX;
     float fa = floorf(a - eps), fb = floorf(b + eps) + 1.0f;
     fa = fa < 0.0f ? 0.0f : (fa > (float)n ? (float)n : fa);
     fb = fb < 0.0f ? 0.0f : (fb > (float)n ? (float)n : fb);
@@ -135,7 +122,7 @@ static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
  * two outside its object's box. */
 static inline double grow_coord(float c, double dir)
 {
-    return (double)c + dir * (fabs((double)c) + 1.0) * (1.0 / 1048576.0);
+    return (double)c + dir * (fabs((double)c) + 1.0) * SL_MARGIN_REL;
 }
 
 int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
@@ -193,7 +180,7 @@ int sl_occ_project_box(const sl_occ_view *v, const sl_aabb *b, sl_occ_rect *r)
     if (r->x0 >= r->x1 || r->y0 >= r->y1)
         return SL_OCC_OUT;
     /* the nearest corner's depth, nudged nearer to cover the rounding of the transform */
-    r->dnear = dn + fabsf(dn) * (1.0f / 1048576.0f);
+    r->dnear = dn + fabsf(dn) * SL_MARGIN_REL_F;
     return SL_OCC_RECT;
 }
 
@@ -222,6 +209,15 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
         (st = sl_opts_u32(o, "leaf_size", SL_BVH_DEFAULT_LEAF_SIZE, 1, SL_BVH_MAX_LEAF_SIZE, &c->leaf_size, err)) !=
             SL_OK)
         return st;
+    c->res_culling = c->res_any = false;
+    if (which & SL_OCC_OPT_RES) {
+        static const char *const res_names[] = {"any", "culling"};
+        uint32_t res = 0;
+        if ((st = sl_opts_enum(o, "res", res_names, 2, 0, &res, err)) != SL_OK)
+            return st;
+        c->res_culling = res == 1;
+        c->res_any = res == 0;
+    }
     if (which & SL_OCC_OPT_DEBUG) {
         const char *d, *r;
         if ((st = sl_opts_string(o, "dump", &d, err)) != SL_OK ||
@@ -241,12 +237,24 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
     return SL_OK;
 }
 
-sl_status sl_occ_configure_mesh_tests(sl_opts *o, sl_occ_mesh_tests *t, sl_error *err)
+sl_status sl_occ_require_res_culling(const sl_opts *o, const sl_occ_common *c, const char *key, uint32_t value,
+                                     sl_error *err)
+{
+    if (!c->res_any || value == 0)
+        return SL_OK;
+    return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                   "%s: %s=%u tests pixel centres of the culling resolution: it needs res=culling (with res=any, "
+                   "the default, it is 0)",
+                   o->method, key, value);
+}
+
+sl_status sl_occ_configure_mesh_tests(sl_opts *o, const sl_occ_common *c, sl_occ_mesh_tests *t, sl_error *err)
 {
     sl_status st;
     if ((st = sl_opts_u32(o, "mesh_test", 64, 0, 100000, &t->mesh_test, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "sample_tris", 64, 0, 1000000, &t->sample_tris, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "sample_px", 256, 0, SL_OCC_SAMPLED_MAX_PX, &t->sample_px, err)) != SL_OK)
+        (st = sl_opts_u32(o, "sample_tris", c->res_any ? 0 : 64, 0, 1000000, &t->sample_tris, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "sample_px", 256, 0, SL_OCC_SAMPLED_MAX_PX, &t->sample_px, err)) != SL_OK ||
+        (st = sl_occ_require_res_culling(o, c, "sample_tris", t->sample_tris, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -296,7 +304,8 @@ sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, c
     sl_bvh_options bo = {0};
     bo.max_leaf_size = c->leaf_size;
     bo.alloc = alloc;
-    sl_occ_options oo = {c->inset, c->all_objects, faces, mesh_faces};
+    /* res=any draws prisms face by face (render_prism_eroded): their vertices are kept */
+    sl_occ_options oo = {c->inset, c->all_objects, faces || c->res_any, mesh_faces};
     sl_status st = sl_bvh_build(scene, &bo, &b->bvh, err);
     if (st == SL_OK)
         st = sl_occ_set_create(scene, &oo, alloc, &b->occ, err);
@@ -1211,6 +1220,7 @@ sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_
     r->alloc = *alloc;
     r->threads = c->threads;
     r->isa = c->isa;
+    r->erode = c->res_any;
     if (!sl_raster_isa_available((sl_raster_isa)c->isa))
         return sl_fail(err, SL_ERROR_UNSUPPORTED, "isa=%s: this CPU cannot run it",
                        sl_raster_isa_name((sl_raster_isa)c->isa));
@@ -1219,11 +1229,18 @@ sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_
     r->proxy_count = set ? set->proxy_count : 0;
     r->stamp = sl_calloc(alloc, r->proxy_count ? r->proxy_count : 1, sizeof(uint32_t));
     size_t mt = 1, mv = 1;
-    for (uint32_t p = 0; p < r->proxy_count; p++)
-        if (set->proxies[p].kind == SL_OCC_MESH) {
-            mt = SL_MAX(mt, (size_t)set->proxies[p].triangles);
-            mv = SL_MAX(mv, (size_t)sl_scene_meshes(set->scene)[set->proxies[p].mesh].vertex_count);
+    for (uint32_t p = 0; p < r->proxy_count; p++) {
+        const sl_occ_proxy *pr = &set->proxies[p];
+        if (pr->kind == SL_OCC_MESH || (r->erode && pr->kind == SL_OCC_SCENE_MESH)) {
+            mt = SL_MAX(mt, (size_t)pr->triangles);
+            mv = SL_MAX(mv, (size_t)sl_scene_meshes(set->scene)[pr->mesh].vertex_count);
+        } else if (r->erode && pr->kind == SL_OCC_PRISM) {
+            /* its faces fanned: at most its triangles; their vertices projected */
+            mt = SL_MAX(mt, (size_t)pr->count);
+            for (uint32_t f = 0; f < pr->face_count; f++)
+                mv = SL_MAX(mv, (size_t)set->faces[pr->face_first + f].count);
         }
+    }
     r->shrunk = sl_alloc(alloc, mt * 9 * sizeof(float));
     r->shrunk_idx = sl_alloc(alloc, mt * 3 * sizeof(uint32_t));
     r->shrunk_proj = sl_alloc(alloc, mv * sizeof(sl_occ_screen_vertex));
@@ -1395,7 +1412,11 @@ static void render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, co
     const sl_mesh_rec *mr = &sl_scene_meshes(sc)[mesh];
     const float *pos = sl_scene_positions(sc) + 3 * mr->first_vertex;
     const uint32_t *idx = sl_scene_indices(sc) + mr->first_index;
-    const double eps = SL_OCC_MIN_INSET_PX, W = (double)v->width, H = (double)v->height;
+    /* res=any: every edge moved inward by the pixel footprint too (half a pixel's diagonal bounds
+     * (|nx| + |ny|) / 2 for any edge direction), so that a centre it covers has its whole pixel
+     * inside; the depth is the farthest vertex's, valid over the whole pixel */
+    const double eps = SL_OCC_MIN_INSET_PX + (r->erode ? SL_MARGIN_HALF_DIAG_PX : 0.0);
+    const double W = (double)v->width, H = (double)v->height;
     /* every vertex projected once (shrunk_proj holds the largest MESH proxy's) */
     double m[16];
     mul_affine_d(&v->vp, &xf, m);
@@ -1435,7 +1456,7 @@ static void render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, co
         double ix = (la * sx[0] + lb * sx[1] + lc * sx[2]) / per, iy = (la * sy[0] + lb * sy[1] + lc * sy[2]) / per;
         double scale = (inr - eps) / inr;
         /* the farthest depth, nudged farther against rounding */
-        float d = (float)(dfar * (1.0 - 1.0 / 1048576.0));
+        float d = (float)(dfar * (1.0 - SL_MARGIN_REL));
         float *o = r->shrunk + 9 * (size_t)n;
         for (int k = 0; k < 3; k++) {
             double px = ix + (sx[k] - ix) * scale, py = iy + (sy[k] - iy) * scale;
@@ -1461,6 +1482,128 @@ static void render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, co
         sl_occ_recorder_batch(r->rec, r->shrunk, 12, r->shrunk_idx, n, to_clip, SL_RASTER_CULL_NONE);
 }
 
+/* Clip-space input of the shrunk batches, mapped by these (columns): clip = (a, b, 0, c)
+ * perspective (depth 1/w = 1/c); (a, b, c, 1) orthographic (depth (1 - c) / 2). */
+static const float g_shrunk_persp[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0};
+static const float g_shrunk_ortho[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+
+/* res=any: a prism by inner coverage. Each convex face (wall, roof or floor piece, sl_occ_face) is
+ * projected in double, eroded on screen by the pixel footprint (every edge moved inward by
+ * (|nx| + |ny|) / 2, the reach of a pixel square's corners along its unit normal n, plus
+ * SL_OCC_MIN_INSET_PX for both snappings), and drawn with its depth plane moved farther by the
+ * plane's change over half a pixel ((|dx| + |dy|) / 2 of its screen gradient), nudged by
+ * SL_MARGIN_REL: a pixel centre the rasterizer covers then has its whole square inside the face,
+ * and the depth written there is no nearer than the face anywhere in that square. So every sample
+ * of every resolution that falls in a covered pixel sees the prism's face (inside its building)
+ * no nearer than the buffer says. Faces are drawn on their own (each a fan of its eroded polygon,
+ * both sides: a back face is a face of the solid too, farther than the front one), so edges
+ * between faces leave cracks a pixel wide; a face that erodes away, or with a vertex not between
+ * the near and far planes, is dropped (fewer occluders is safe). */
+static void render_prism_eroded(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const sl_occ_proxy *pr)
+{
+    const double W = (double)v->width, H = (double)v->height, eps = SL_OCC_MIN_INSET_PX;
+    double m[16];
+    for (int i = 0; i < 16; i++)
+        m[i] = v->vp.m[i];
+    sl_occ_screen_vertex *proj = r->shrunk_proj;
+    uint32_t n = 0;
+    for (uint32_t fi = 0; fi < pr->face_count; fi++) {
+        const sl_occ_face *f = &s->faces[pr->face_first + fi];
+        uint32_t c = f->count;
+        if (c < 3 || c > r->shrunk_proj_cap || n + (c - 2) > r->shrunk_cap)
+            continue;
+        bool ok = true;
+        for (uint32_t i = 0; i < c && ok; i++) {
+            proj[i] = project_vertex(v, m, &s->face_verts[f->first + i].x);
+            ok = proj[i].ok && proj[i].between && proj[i].d > 0;
+        }
+        if (!ok)
+            continue;
+        /* orientation and the depth plane d = d0 + gx x + gy y through the largest fan triangle */
+        double area = 0, best = 0;
+        uint32_t bi = 1;
+        for (uint32_t i = 1; i + 1 < c; i++) {
+            double t = (proj[i].x - proj[0].x) * (proj[i + 1].y - proj[0].y) -
+                       (proj[i].y - proj[0].y) * (proj[i + 1].x - proj[0].x);
+            area += t;
+            if (fabs(t) > fabs(best))
+                best = t, bi = i;
+        }
+        if (!(fabs(area) > 1e-9) || !(fabs(best) > 0))
+            continue;
+        const sl_occ_screen_vertex *A = &proj[0], *B = &proj[bi], *C = &proj[bi + 1];
+        double ux = B->x - A->x, uy = B->y - A->y, wx = C->x - A->x, wy = C->y - A->y;
+        double du = (double)B->d - A->d, dw = (double)C->d - A->d;
+        double gx = (du * wy - dw * uy) / best, gy = (dw * ux - du * wx) / best;
+        double d0 = (double)A->d - gx * A->x - gy * A->y;
+        double drop = 0.5 * (fabs(gx) + fabs(gy));
+        /* eroded polygon: offset lines of consecutive edges intersected (interior on the left of
+         * each edge when area > 0) */
+        double ex[64], ey[64], nxs[64], nys[64], off[64];
+        if (c > 64)
+            continue;
+        double sgn = area > 0 ? 1.0 : -1.0;
+        for (uint32_t i = 0; i < c && ok; i++) {
+            const sl_occ_screen_vertex *p = &proj[i], *q = &proj[(i + 1) % c];
+            double dx = q->x - p->x, dy = q->y - p->y, len = sqrt(dx * dx + dy * dy);
+            if (!(len > 1e-12)) {
+                ok = false;
+                break;
+            }
+            nxs[i] = -sgn * dy / len;
+            nys[i] = sgn * dx / len;
+            off[i] = nxs[i] * p->x + nys[i] * p->y + 0.5 * (fabs(nxs[i]) + fabs(nys[i])) + eps;
+        }
+        for (uint32_t i = 0; i < c && ok; i++) {
+            uint32_t a = (i + c - 1) % c, b = i;
+            double det = nxs[a] * nys[b] - nys[a] * nxs[b];
+            if (!(fabs(det) > 1e-9)) {
+                ok = false;
+                break;
+            }
+            ex[i] = (off[a] * nys[b] - nys[a] * off[b]) / det;
+            ey[i] = (nxs[a] * off[b] - off[a] * nxs[b]) / det;
+        }
+        /* every eroded vertex inside every offset line, or the face eroded away */
+        for (uint32_t i = 0; i < c && ok; i++)
+            for (uint32_t k = 0; k < c && ok; k++)
+                ok = nxs[k] * ex[i] + nys[k] * ey[i] >= off[k] - 1e-9 * (1.0 + fabs(off[k]));
+        if (!ok)
+            continue;
+        float *o = r->shrunk + 9 * (size_t)n;
+        float vx[64][3];
+        for (uint32_t i = 0; i < c && ok; i++) {
+            double d = (d0 + gx * ex[i] + gy * ey[i] - drop);
+            d -= fabs(d) * SL_MARGIN_REL;
+            if (!(d > 0) || !isfinite(d)) {
+                ok = false;
+                break;
+            }
+            double nx = 2.0 * ex[i] / W - 1.0, ny = 1.0 - 2.0 * ey[i] / H;
+            double w = v->ortho ? 1.0 : 1.0 / d;
+            vx[i][0] = (float)(nx * w);
+            vx[i][1] = (float)(ny * w);
+            vx[i][2] = v->ortho ? (float)(1.0 - 2.0 * d) : (float)w;
+        }
+        if (!ok)
+            continue;
+        for (uint32_t i = 1; i + 1 < c; i++) {
+            memcpy(o, vx[0], sizeof vx[0]);
+            memcpy(o + 3, vx[i], sizeof vx[0]);
+            memcpy(o + 6, vx[i + 1], sizeof vx[0]);
+            o += 9;
+            n++;
+        }
+    }
+    if (!n)
+        return;
+    const float *to_clip = v->ortho ? g_shrunk_ortho : g_shrunk_persp;
+    (void)sl_raster_render_triangles(r->ctx, r->shrunk, 3 * n, r->shrunk_idx, n, 12, to_clip, SL_RASTER_CULL_NONE,
+                                     NULL);
+    if (r->rec)
+        sl_occ_recorder_batch(r->rec, r->shrunk, 12, r->shrunk_idx, n, to_clip, SL_RASTER_CULL_NONE);
+}
+
 uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const uint32_t *proxies,
                               uint32_t n)
 {
@@ -1475,6 +1618,10 @@ uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_oc
         const sl_occ_proxy *pr = &s->proxies[p];
         rendered++;
         r->triangles_rendered += pr->triangles;
+        if (pr->kind == SL_OCC_PRISM && r->erode) {
+            render_prism_eroded(r, s, v, pr);
+            continue;
+        }
         if (pr->kind == SL_OCC_PRISM) {
             size_t m = 3 * (size_t)pr->count;
             memcpy(r->batch + k, s->prism_idx + 3 * (size_t)pr->first, m * sizeof(uint32_t));
@@ -1483,6 +1630,8 @@ uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_oc
         }
         if (pr->kind == SL_OCC_MESH)
             render_mesh_shrunk(r, sc, v, pr->mesh, object_transform(sc, pr->object));
+        else if (r->erode)
+            render_mesh_shrunk(r, sc, v, pr->mesh, sl_scene_occluder(s->scene, pr->source).transform);
         else
             render_mesh(r, sc, v, pr->mesh, sl_scene_occluder(s->scene, pr->source).transform);
     }
@@ -1696,7 +1845,7 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
         }
         /* the triangle's nearest depth, nudged nearer like a box's nearest corner */
         float dmax = sl_occ_maxf(tv[0]->d, sl_occ_maxf(tv[1]->d, tv[2]->d));
-        dmax += fabsf(dmax) * (1.0f / 1048576.0f);
+        dmax += fabsf(dmax) * SL_MARGIN_REL_F;
         t.rd = -1.0;
         for (int j = 0; j < 3; j++)
             t.tri[j] = pos + 3 * (size_t)idx[3 * k + (uint32_t)j];
@@ -1760,7 +1909,7 @@ bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, 
     }
     /* pixel centres within 1/64 pixel of the silhouette count as covered: the oracle's vertex
      * snapping moves edges by at most 1/512 pixel */
-    const double eps = 1.0 / 64.0;
+    const double eps = SL_MARGIN_CENTRE_PX;
     /* first the rectangle of the pixel centres the corners' bounding box covers: it leaves out the
      * border rows and columns the box touches without covering a centre (one query) */
     double lx = xy[0], hx = xy[0], ly = xy[1], hy = xy[1];

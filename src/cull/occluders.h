@@ -42,7 +42,7 @@
 
 /* Pixels a prism proxy must lie inside its object's silhouette: 8 times the combined snapping
  * error of the rasterizer and the oracle (1/512 pixel each, plus float transform rounding). */
-#define SL_OCC_MIN_INSET_PX (1.0f / 32.0f)
+#define SL_OCC_MIN_INSET_PX SL_MARGIN_INSET_PX /* core/margins.h */
 
 /* Branch-free float min/max without libm's NaN rules (compiles to minss/maxss; with a NaN they
  * return the second argument). */
@@ -56,7 +56,7 @@ typedef struct sl_occ_view {
     sl_mat4 vp;               /* world to clip (float, what the rasterizer is given) */
     sl_vec3 eye, fwd;
     sl_frustum fr;
-    float slack[6];           /* plane slack as vfc: 1e-6 (1 + |d|) */
+    float slack[6];           /* plane slack (sl_margin_plane_slack) */
     bool ortho;
     float focal;              /* pixels per metre at unit forward distance (perspective), or pixels
                                  per metre (orthographic) */
@@ -255,18 +255,38 @@ typedef struct sl_occ_common {
     const char *record;       /* file recording frame debug_frame's occluders and queries */
     uint32_t debug_frame;
     char dump_buf[256], record_buf[256];
+    bool res_culling;         /* res=culling: conservative at the culling resolution only (the
+                                 pixel-centre tests may be used) */
+    bool res_any;             /* res=any (the default of a method that reads SL_OCC_OPT_RES): occluders
+                                 by inner coverage (every face eroded on screen by the pixel
+                                 footprint), tests by outer coverage, no pixel-centre test; both
+                                 false: a method without the option (its own rules) */
 } sl_occ_common;
 
-enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4 };
+enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4, SL_OCC_OPT_RES = 8 };
 
 /* Read the shared options named by `which` (SL_OCC_OPT_*), with the method's defaults for
- * occluders and budget. */
+ * occluders and budget. SL_OCC_OPT_RES reads `res` and, with res=culling, sets *g (may be NULL)
+ * to SL_CONSERVATIVE_AT_RESOLUTION. */
 sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occluders, uint32_t def_budget,
                                   sl_occ_common *c, sl_error *err);
+/* With res=any (c->res_culling false), an option whose test samples pixel centres at the culling
+ * resolution (`key`, value `value`) must be 0: fails naming it otherwise. */
+sl_status sl_occ_require_res_culling(const sl_opts *o, const sl_occ_common *c, const char *key, uint32_t value,
+                                     sl_error *err);
+/* Guarantee of a method that read SL_OCC_OPT_RES (res=any: SL_CONSERVATIVE). */
+static inline sl_cull_guarantee sl_occ_res_guarantee(const sl_occ_common *c)
+{
+    return c->res_culling ? SL_CONSERVATIVE_AT_RESOLUTION : SL_CONSERVATIVE;
+}
 /* Help lines of the shared options. */
 #define SL_OCC_HELP_RASTER \
     "threads=1..16 (default 1): rasterizer threads, the caller included (used for batches of 512+ triangles)\n" \
     "isa=auto|scalar|sse41|avx2|avx512 (default auto): rasterizer instruction set\n"
+#define SL_OCC_HELP_RES \
+    "res=any|culling (default any): any: conservative at every render resolution and sample position " \
+    "(occluders by inner coverage, tests by outer coverage, no pixel-centre tests); culling: conservative " \
+    "at the culling resolution's pixel centres only (tighter: the centre-sampled tests below apply)\n"
 #define SL_OCC_HELP_DEBUG \
     "dump=PREFIX (default none): at frame debug_frame write PREFIX-depth.png and, where the method has one, " \
     "PREFIX-pyramid.png (its pyramid or grid)\n" \
@@ -323,6 +343,8 @@ typedef struct sl_occ_raster {
     sl_raster *ctx;
     uint32_t width, height;
     uint32_t threads, isa;
+    bool erode;               /* res=any: occluders by inner coverage (render_prism_eroded, MESH and
+                                 SCENE_MESH proxies shrunk by the pixel footprint) */
     uint32_t *batch;          /* prism indices of one batch */
     size_t batch_cap;         /* in indices */
     float *shrunk;            /* one MESH proxy's triangles shrunk on screen, 3 vertices x 3 floats each */
@@ -392,13 +414,14 @@ typedef struct sl_occ_mesh_tests {
 #define SL_OCC_HELP_MESH_TESTS \
     "mesh_test=0..100000 (default 64): test an object whose box looks visible by its own triangles, " \
     "rasterized outward-conservatively, when it has at most this many (0: never)\n" \
-    "sample_tris=0..1000000 (default 64): test an object whose box looks visible by its own triangles " \
-    "sampled at pixel centres (as the oracle) when it has at most this many and its box covers at most " \
-    "sample_px pixels (0: never)\n" \
+    "sample_tris=0..1000000 (default 0; 64 with res=culling, which it needs): test an object whose box looks " \
+    "visible by its own triangles sampled at pixel centres (as the oracle) when it has at most this many and its " \
+    "box covers at most sample_px pixels (0: never)\n" \
     "sample_px=0..1024 (default 256): largest box rectangle (pixels) of a pixel-centre test\n"
 
-/* Read mesh_test, sample_tris and sample_px. */
-sl_status sl_occ_configure_mesh_tests(sl_opts *o, sl_occ_mesh_tests *t, sl_error *err);
+/* Read mesh_test, sample_tris and sample_px (after sl_occ_configure_common read c's res: the
+ * pixel-centre test needs res=culling, and is off by default otherwise). */
+sl_status sl_occ_configure_mesh_tests(sl_opts *o, const sl_occ_common *c, sl_occ_mesh_tests *t, sl_error *err);
 
 /* ---- the exact layer: visible objects drawn with the oracle's own rasterizer ----
  * Far, small objects (a pixel or two at the end of a street) hide each other, but as occluders
@@ -440,7 +463,7 @@ static inline bool sl_occ_exact_hides(sl_occ_exact *e, int32_t x, int32_t y, dou
         return false;
     e->pixel_tests++;
     double stored = (double)e->depth[(size_t)y * e->width + (size_t)x];
-    return stored > 0.0 && stored > rd + fabs(rd) * (1.0 / 1048576.0);
+    return stored > 0.0 && stored > rd + fabs(rd) * SL_MARGIN_REL;
 }
 /* The largest oracle depth of a point in the box, grown by 2^-20 of its coordinates (a corner's:
  * the reversed depth is monotone along segments in front of the eye); +infinity when a corner is

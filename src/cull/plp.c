@@ -119,36 +119,38 @@ static const char g_help_plp[] =
 static const char g_help_cplp[] =
     "budget=0..100000000 (default 5000): triangles of the plain PLP phase before the conservative completion\n"
     "leaf_tris=0|16..10000000 (default 0): triangles above which an octree node splits (0: automatic, the scene's "
-    "triangles / 2048, at least 256)\n" SL_OCC_HELP_RASTER
+    "triangles / 2048, at least 256)\n" SL_OCC_HELP_RES SL_OCC_HELP_RASTER
     "min_quality=NUMBER (default 0.0005): least Coorg-Teller quality (sr) of a reported object rendered as an occluder\n"
     "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
     "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n" SL_OCC_HELP_DEBUG;
 
-static sl_status configure(sl_opts *o, plp_config *c, bool conservative, sl_error *err)
+static sl_status configure(sl_opts *o, plp_config *c, bool conservative, sl_cull_guarantee *g, sl_error *err)
 {
     sl_status st;
     c->conservative = conservative;
+    /* cplp takes res=any|culling (plp is aggressive either way: it keeps today's rendering) */
+    uint32_t res = conservative ? SL_OCC_OPT_RES : 0;
     if ((st = sl_opts_u32(o, "budget", conservative ? 5000 : 100000, 0, 100000000, &c->c.budget, err)) != SL_OK ||
         (st = sl_opts_u32(o, "leaf_tris", 0, 0, 10000000, &c->leaf_tris, err)) != SL_OK ||
-        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG, 0, 0, &c->c, err)) != SL_OK ||
+        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG | res, 0, 0, &c->c, err)) != SL_OK ||
         (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->c.min_quality, err)) != SL_OK)
         return st;
     if (c->leaf_tris && c->leaf_tris < 16)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: option leaf_tris=%u: 0 (automatic) or 16..10000000",
                        o->method, c->leaf_tris);
+    if (conservative)
+        *g = sl_occ_res_guarantee(&c->c);
     return SL_OK;
 }
 
 static sl_status plp_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
-    (void)g;
-    return configure(o, config, false, err);
+    return configure(o, config, false, g, err);
 }
 
 static sl_status cplp_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
-    (void)g;
-    return configure(o, config, true, err);
+    return configure(o, config, true, g, err);
 }
 
 static const char *name_of(const plp_state *s) { return s->cfg.conservative ? "cplp" : "plp"; }
@@ -662,7 +664,7 @@ static sl_status plp_create(sl_scene scene, const void *config, const sl_allocat
     s->scene = scene;
     s->cfg = *cfg;
     s->object_count = sl_scene_object_count(scene);
-    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, false, 0};
+    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, s->cfg.c.res_any, 0}; /* res=any draws faces */
     sl_status st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
     if (st == SL_OK)
         st = sl_occ_raster_init(&s->r, &s->cfg.c, s->occ, alloc, err);
@@ -908,7 +910,7 @@ static int fast_project_box(const fast_view *fv, const sl_occ_view *v, const sl_
     if (!isfinite(minx) || !isfinite(maxx) || !isfinite(miny) || !isfinite(maxy) || !isfinite(dn))
         return SL_OCC_NEAR;
     /* the pixels touched, grown by 1/64 pixel, clamped to the screen (as sl_occ_project_box) */
-    const float eps = 1.0f / 64.0f;
+    const float eps = SL_MARGIN_RECT_PX;
     int32_t w = (int32_t)v->width, hgt = (int32_t)v->height;
     r->x0 = clamp_i(floor_clamped(minx - eps, w), w);
     r->x1 = clamp_i(floor_clamped(maxx + eps, w) + 1, w);
@@ -916,7 +918,7 @@ static int fast_project_box(const fast_view *fv, const sl_occ_view *v, const sl_
     r->y1 = clamp_i(floor_clamped(maxy + eps, hgt) + 1, hgt);
     if (r->x0 >= r->x1 || r->y0 >= r->y1)
         return SL_OCC_OUT;
-    r->dnear = dn + fabsf(dn) * (1.0f / 1048576.0f);
+    r->dnear = dn + fabsf(dn) * SL_MARGIN_REL_F;
     return SL_OCC_RECT;
 #else
     (void)fv;
@@ -1159,6 +1161,7 @@ const sl_cull_method sl_cull_method_cplp = {
                "rasterizer until empty (Klosowski & Silva 2001)",
     .options_help = g_help_cplp,
     .guarantee = SL_CONSERVATIVE,
+    .res_culling = true,
     .depth = SL_DEPTH_INV_W,
     .config_size = sizeof(plp_config),
     .configure = cplp_configure,

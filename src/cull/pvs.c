@@ -170,13 +170,18 @@ static uint32_t frustum_filter(const pvs_state *s, const sl_frustum *fr, const u
 {
     const sl_aabb *bounds = sl_scene_object_bounds_array(s->scene);
     const sl_object_rec *objs = sl_scene_objects(s->scene);
+    /* the shared classifier with the plane slack of every culler (core/margins.h; this used the
+     * public sl_frustum_test_aabb, which has none, so a box touching a plane within rounding could
+     * be dropped) */
+    float slack[6];
+    sl_frustum_slacks(fr->planes, slack);
     uint32_t k = 0;
     for (uint32_t i = 0; i < n; i++) {
         uint32_t id = cand[i];
         if (skip_dynamic && (objs[id].flags & SL_OBJECT_DYNAMIC))
             continue;
         (*tested)++;
-        if (sl_frustum_test_aabb(fr, &bounds[id]) != 0)
+        if (!sl_aabb_is_empty(&bounds[id]) && sl_frustum_classify_box(fr->planes, slack, &bounds[id], 0x3fu, false, NULL) >= 0)
             out[k++] = id;
     }
     return k;

@@ -548,7 +548,7 @@ void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *camera, sl_urb
     sl_frustum fr = sl_camera_frustum(cam);
     for (int i = 0; i < 6; i++) {
         v->planes[i] = fr.planes[i];
-        v->slack[i] = 1e-6f * (1.0f + fabsf(fr.planes[i].d));
+        v->slack[i] = sl_margin_plane_slack(fr.planes[i].d);
     }
     /* azimuth range of the viewing cone: the hull of its four edges, unless it reaches the vertical */
     bool up_in = true, down_in = true;
@@ -613,14 +613,7 @@ void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *camera, sl_urb
 
 bool sl_urban_box_in_frustum(const sl_urban_view *v, const sl_aabb *b)
 {
-    for (int i = 0; i < 6; i++) {
-        const sl_plane *p = &v->planes[i];
-        float px = p->a >= 0 ? b->max.x : b->min.x, py = p->b >= 0 ? b->max.y : b->min.y;
-        float pz = p->c >= 0 ? b->max.z : b->min.z;
-        if (p->a * px + p->b * py + p->c * pz + p->d < -v->slack[i])
-            return false;
-    }
-    return true;
+    return sl_frustum_classify_box(v->planes, v->slack, b, 0x3fu, false, NULL) >= 0;
 }
 
 bool sl_urban_frustum_spans(const sl_urban_scene *u, const sl_urban_view *v, uint32_t *j0, uint32_t *j1, int32_t *x0,

@@ -237,29 +237,11 @@ static sl_status vfc_scene_changed(void *state, sl_error *err)
 static inline int classify(const sl_plane *pl, const float *slack, const sl_aabb *b, uint32_t mask, uint8_t *last,
                            bool coherence, bool masks)
 {
-    if (coherence && *last != NO_PLANE && (mask & (1u << *last))) {
-        const sl_plane *p = &pl[*last];
-        float px = p->a >= 0 ? b->max.x : b->min.x, py = p->b >= 0 ? b->max.y : b->min.y;
-        float pz = p->c >= 0 ? b->max.z : b->min.z;
-        if (p->a * px + p->b * py + p->c * pz + p->d < -slack[*last])
-            return -1;
-    }
-    uint32_t out = mask;
-    for (uint32_t i = 0; i < 6; i++) {
-        if (!(mask & (1u << i)))
-            continue;
-        const sl_plane *p = &pl[i];
-        float px = p->a >= 0 ? b->max.x : b->min.x, nx = p->a >= 0 ? b->min.x : b->max.x;
-        float py = p->b >= 0 ? b->max.y : b->min.y, ny = p->b >= 0 ? b->min.y : b->max.y;
-        float pz = p->c >= 0 ? b->max.z : b->min.z, nz = p->c >= 0 ? b->min.z : b->max.z;
-        if (p->a * px + p->b * py + p->c * pz + p->d < -slack[i]) {
-            *last = (uint8_t)i;
-            return -1;
-        }
-        if (masks && p->a * nx + p->b * ny + p->c * nz + p->d >= 0)
-            out &= ~(1u << i);
-    }
-    return (int)out;
+    if (coherence && *last != NO_PLANE && (mask & (1u << *last)) &&
+        sl_frustum_plane_rejects(&pl[*last], slack[*last], b))
+        return -1;
+    /* the shared classifier (core/frustum_classify.h) */
+    return sl_frustum_classify_box(pl, slack, b, mask, masks, last);
 }
 
 /* True when the eye is behind every face plane of object `id` (it draws nothing). */
@@ -308,7 +290,7 @@ static sl_status vfc_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     sl_frustum fr = sl_camera_frustum(cam);
     float slack[6];
     for (int i = 0; i < 6; i++)
-        slack[i] = 1e-6f * (1.0f + fabsf(fr.planes[i].d));
+        slack[i] = sl_margin_plane_slack(fr.planes[i].d);
     /* back-face rejection is for a perspective eye; an orthographic view always sees some front face */
     bool backface = s->cfg.backface && s->planes && cam->projection == SL_PERSPECTIVE;
     const sl_vec3 eye = cam->position;

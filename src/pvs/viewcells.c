@@ -470,7 +470,7 @@ uint32_t sl_viewcells_overlap(sl_viewcells v, sl_scene scene, const sl_aabb *box
             double r = fabs((double)pl->a) * 0.5 * ((double)box->max.x - box->min.x) +
                        fabs((double)pl->b) * 0.5 * ((double)box->max.y - box->min.y) +
                        fabs((double)pl->c) * 0.5 * ((double)box->max.z - box->min.z);
-            double slack = 1e-6 * (fabs((double)pl->d) + 1.0);
+            double slack = SL_MARGIN_PLANE_REL * (fabs((double)pl->d) + 1.0);
             if (sp + 2 > SL_VC_BSP_STACK) {
                 cov = false; /* deeper than the stack: say uncovered (the caller falls back) */
                 fits = false;

@@ -449,7 +449,7 @@ bool sl_raster_project(const sl_raster *ctx, const float clip[4], float *x, floa
 /* Pixel index range [*lo, *hi) whose closed pixels touch [a, b], clamped to [0, n]. */
 static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
 {
-    const float eps = 1.0f / 64.0f; /* rounding of the projection */
+    const float eps = SL_MARGIN_RECT_PX; /* rounding of the projection (core/margins.h) */
     float fa = floorf(a - eps), fb = floorf(b + eps) + 1.0f;
     fa = fa < 0.0f ? 0.0f : (fa > (float)n ? (float)n : fa);
     fb = fb < 0.0f ? 0.0f : (fb > (float)n ? (float)n : fb);

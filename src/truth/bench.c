@@ -279,7 +279,7 @@ sl_status sl_bench_add_external(sl_bench b, const char *name, sl_cull_guarantee 
                        "sl_bench_add_external: '%s' comes after the first frame; add methods before running", name);
     if (b->method_count >= SL_BENCH_MAX_METHODS)
         return sl_fail(err, SL_ERROR_LIMIT, "sl_bench_add_external: at most %u methods", SL_BENCH_MAX_METHODS);
-    if (guarantee != SL_CONSERVATIVE && guarantee != SL_AGGRESSIVE)
+    if (guarantee != SL_CONSERVATIVE && guarantee != SL_AGGRESSIVE && guarantee != SL_CONSERVATIVE_AT_RESOLUTION)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_add_external: '%s': unknown guarantee %d", name,
                        (int)guarantee);
     for (uint32_t i = 0; i < b->method_count; i++)
@@ -579,7 +579,7 @@ uint64_t sl_bench_violations(sl_bench b)
         return 0;
     uint64_t total = 0;
     for (uint32_t mi = 0; mi < b->method_count; mi++) {
-        if (b->methods[mi].guarantee != SL_CONSERVATIVE)
+        if (!sl_cull_guarantee_keeps_visible(b->methods[mi].guarantee, true)) /* the oracle: camera resolution */
             continue;
         for (size_t f = 0; f < b->frames.count; f++) {
             const sl_bench_record *r = bench_rec(b, (uint32_t)f, mi);

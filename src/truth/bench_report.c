@@ -318,7 +318,7 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
             if (sl_bench_summarize(b, mi, &s, NULL) != SL_OK)
                 continue;
             const bench_method *m = &b->methods[mi];
-            bool violated = m->guarantee == SL_CONSERVATIVE && s.missed_objects_total;
+            bool violated = sl_cull_guarantee_keeps_visible(m->guarantee, true) && s.missed_objects_total;
             char t1[32], t2[32], t3[32];
             fprintf(fp, "| %s | %s | %u | %s | %s | %s | %.2f | %s%llu%s | %llu | %s | %s | %s |\n", m->name,
                     sl_cull_guarantee_name(m->guarantee), s.frames, grouped(g1, sizeof g1, s.objects_drawn_mean),
@@ -448,7 +448,7 @@ uint64_t sl_bench_print_violations(const sl_bench *benches, uint32_t count, uint
         struct sl_bench_t *b = benches[bi];
         for (uint32_t mi = 0; mi < b->method_count; mi++) {
             const bench_method *m = &b->methods[mi];
-            if (m->guarantee != SL_CONSERVATIVE)
+            if (!sl_cull_guarantee_keeps_visible(m->guarantee, true))
                 continue;
             uint32_t lines = 0, more = 0;
             for (uint32_t fi = 0; fi < b->frames.count; fi++) {

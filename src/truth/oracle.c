@@ -40,7 +40,8 @@ struct sl_oracle_t {
     float *depth;
     uint32_t *overdraw;
     size_t pixel_cap;
-    sl_mat4 view_proj[6];
+    sl_mat4 view_proj[SL_ORACLE_MAX_SAMPLES > 6 ? SL_ORACLE_MAX_SAMPLES : 6];
+    double sample_pos[SL_ORACLE_MAX_SAMPLES > 6 ? SL_ORACLE_MAX_SAMPLES : 6][2]; /* per view: where it samples */
 
     sl_refrast_scratch *scratch; /* one per thread */
     /* private buffers of helper threads 1..threads-1, helper_cap pixels each */
@@ -82,6 +83,12 @@ sl_status sl_oracle_create(sl_scene scene, const sl_oracle_options *options, con
         (uint64_t)opt.width * opt.height > SL_ORACLE_MAX_PIXELS)
         return sl_fail(err, SL_ERROR_LIMIT, "sl_oracle_create: resolution %ux%u exceeds the limit (%u per side, %u pixels)",
                        opt.width, opt.height, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
+    if ((uint32_t)opt.samples > SL_ORACLE_SAMPLES_JITTER)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_create: samples = %u is not a sample pattern (0..2)",
+                       (unsigned)opt.samples);
+    if (opt.samples == SL_ORACLE_SAMPLES_JITTER && opt.sample_count > SL_ORACLE_MAX_SAMPLES)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_create: sample_count = %u is outside 1..%u",
+                       opt.sample_count, SL_ORACLE_MAX_SAMPLES);
     alloc = sl_alloc_or_default(alloc);
     struct sl_oracle_t *o = sl_calloc(alloc, 1, sizeof *o);
     if (!o)
@@ -219,16 +226,31 @@ static void *run_thread(void *p)
     return NULL;
 }
 
-/* Draw view `v` of the current render with the world-to-clip matrix vp (column-major floats). */
-static sl_status render_view(struct sl_oracle_t *o, uint32_t v, const sl_mat4 *vpf, sl_oracle_frame *frame,
-                             sl_error *err)
+/* Draw view `v` of the current render with the world-to-clip matrix vp (column-major floats),
+ * sampling every pixel at (sx, sy) from its top-left corner: the clip-space x and y are moved by
+ * the offset that puts the pixel centres of the moved image on those positions (applied in double
+ * to the float matrix; the stored matrix rounds it). Only a view with `count` adds to the frame's
+ * frustum counts (the sample passes of one camera render count once). */
+static sl_status render_view(struct sl_oracle_t *o, uint32_t v, const sl_mat4 *vpf, double sx, double sy, bool count,
+                             sl_oracle_frame *frame, sl_error *err)
 {
     const struct sl_scene_t *s = o->scene;
     const uint32_t T = o->opt.threads;
     double vp[16];
     for (int i = 0; i < 16; i++)
         vp[i] = vpf->m[i];
-    o->view_proj[v] = *vpf;
+    /* screen X = (x_ndc + 1) W / 2: the sample at X = px + sx lands on the centre px + 0.5 when X
+     * grows by 0.5 - sx, i.e. x_ndc by 2 (0.5 - sx) / W; Y = (1 - y_ndc) H / 2 grows down */
+    double tx = 2.0 * (0.5 - sx) / (double)o->width, ty = -2.0 * (0.5 - sy) / (double)o->height;
+    if (tx != 0 || ty != 0)
+        for (int c = 0; c < 4; c++) {
+            vp[4 * c] += tx * vp[4 * c + 3];
+            vp[4 * c + 1] += ty * vp[4 * c + 3];
+        }
+    for (int i = 0; i < 16; i++)
+        o->view_proj[v].m[i] = (float)vp[i];
+    o->sample_pos[v][0] = sx;
+    o->sample_pos[v][1] = sy;
 
     /* objects that may cover a pixel, each dealt to the thread with the fewest triangles so far
      * (a fixed rule: the split depends on the scene and the view only) */
@@ -252,8 +274,10 @@ static sl_status render_view(struct sl_oracle_t *o, uint32_t v, const sl_mat4 *v
         max_vertices[e.thread] = SL_MAX(max_vertices[e.thread], mesh->vertex_count);
         if (!sl_array_push(&o->alloc, &o->frustum, sizeof e, &e, 1))
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the frustum list");
-        frame->objects_in_frustum++;
-        frame->triangles_in_frustum += mesh->triangle_count;
+        if (count) {
+            frame->objects_in_frustum++;
+            frame->triangles_in_frustum += mesh->triangle_count;
+        }
     }
     for (uint32_t t = 0; t < T; t++)
         if (!sl_refrast_scratch_reserve(&o->alloc, &o->scratch[t], max_vertices[t]))
@@ -512,6 +536,31 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
     return SL_OK;
 }
 
+/* The sample positions of a camera render (docs/oracle.md, "Supersampling"), in pixel units from
+ * the pixel's top-left corner; returns their number. */
+static uint32_t sample_positions(const sl_oracle_options *opt, double pos[SL_ORACLE_MAX_SAMPLES][2])
+{
+    /* D3D's standard 4x pattern (sample offsets (-2,-6), (6,-2), (-6,2), (2,6) sixteenths of a
+     * pixel from the centre, y down); OpenGL implementations use the same */
+    static const double msaa4[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.125, 0.625}, {0.625, 0.875}};
+    if (opt->samples == SL_ORACLE_SAMPLES_MSAA4) {
+        memcpy(pos, msaa4, sizeof msaa4);
+        return 4;
+    }
+    if (opt->samples == SL_ORACLE_SAMPLES_JITTER) {
+        uint32_t n = opt->sample_count ? opt->sample_count : 4;
+        sl_rng r;
+        sl_rng_seed(&r, opt->jitter_seed, 0x5a3b1e5ull);
+        for (uint32_t i = 0; i < n; i++) {
+            pos[i][0] = sl_rng_double(&r);
+            pos[i][1] = sl_rng_double(&r);
+        }
+        return n;
+    }
+    pos[0][0] = pos[0][1] = 0.5;
+    return 1;
+}
+
 /* Common front: size the buffers and clear the frame. */
 static sl_status begin(struct sl_oracle_t *o, uint32_t views, uint32_t w, uint32_t h, sl_oracle_frame *frame,
                        sl_error *err)
@@ -544,11 +593,15 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
     if (w > SL_ORACLE_MAX_SIZE || h > SL_ORACLE_MAX_SIZE || (uint64_t)w * h > SL_ORACLE_MAX_PIXELS)
         return sl_fail(err, SL_ERROR_LIMIT, "sl_oracle_render: resolution %ux%u exceeds the limit (%u per side, %u pixels)",
                        w, h, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
-    st = begin(o, 1, w, h, out, err);
+    double pos[SL_ORACLE_MAX_SAMPLES][2];
+    uint32_t ns = sample_positions(&o->opt, pos);
+    st = begin(o, ns, w, h, out, err);
     if (st != SL_OK)
         return st;
+    out->samples_per_pixel = ns;
     sl_mat4 vp = sl_camera_view_proj(cam);
-    st = render_view(o, 0, &vp, out, err);
+    for (uint32_t i = 0; i < ns && st == SL_OK; i++)
+        st = render_view(o, i, &vp, pos[i][0], pos[i][1], i == 0, out, err);
     if (st == SL_OK)
         st = count_pixels(o, out, err);
     if (st != SL_OK) {
@@ -640,9 +693,10 @@ sl_status sl_oracle_render_cube(sl_oracle o, sl_vec3 eye, uint32_t face_size, fl
                        face_size, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
     double t0 = sl_now();
     sl_status st = begin(o, 6, face_size, face_size, out, err);
+    out->samples_per_pixel = 1;
     for (uint32_t f = 0; f < 6 && st == SL_OK; f++) {
         sl_mat4 vp = cube_view_proj(eye, f, near_plane, far_plane);
-        st = render_view(o, f, &vp, out, err);
+        st = render_view(o, f, &vp, 0.5, 0.5, true, out, err);
     }
     if (st == SL_OK)
         st = count_pixels(o, out, err);
@@ -670,5 +724,7 @@ sl_status sl_oracle_get_view(sl_oracle o, uint32_t index, sl_oracle_view *out, s
     out->depth = o->depth + index * px;
     out->overdraw = o->overdraw ? o->overdraw + index * px : NULL;
     out->view_proj = o->view_proj[index];
+    out->sample_x = o->sample_pos[index][0];
+    out->sample_y = o->sample_pos[index][1];
     return SL_OK;
 }
