@@ -2,7 +2,8 @@
 # The mutation check (issue 13 section 7): break each culling method's and each PVS method's core
 # test on purpose (answer "visible" always, "hidden" always, skip the occluder, ignore the PVS) and
 # check that a test fails. Nothing is changed in place: the tracked and untracked files of this tree
-# are copied to build-mutants/tree (ignored by git), each mutant is applied there to one file with a
+# are copied to /tmp/slmUID/t (SL_MUTANTS_DIR), the tests the chosen mutants name must pass there
+# unmutated (the baseline), then each mutant is applied there to one file with a
 # perl substitution, only the test programs that mutant names are rebuilt (ccache keeps it short),
 # and those tests run. A mutant is KILLED when a test fails, SURVIVED when every test passes, and an
 # ERROR when its substitution no longer matches the source or the mutated tree does not build (then
@@ -10,7 +11,8 @@
 #
 #   scripts/mutants.sh --list          the mutants, their file and tests
 #   scripts/mutants.sh [NAME...]       run the named ones (default: all); NAME may be a glob (hzb-*)
-#   SL_MUTANTS_DIR=DIR                 work directory (default: build-mutants in the tree)
+#   scripts/mutants.sh --ci            the short set CI runs (.ci/run)
+#   SL_MUTANTS_DIR=DIR                 work directory (default: /tmp/slmUID; keep its path short)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 
@@ -48,8 +50,8 @@ mutants=(
   'sample-all@@src/region/method_sample.c@@s/if \(w->state\[o\] == 1\)\n(\s*)out->ids\[n\+\+\] = o;/out->ids[n++] = o;/@@test_pvs_build'
   'sample-none@@src/region/method_sample.c@@s/out->count = n;\n    out->work = written;/out->count = 0;\n    out->work = written;/@@test_pvs_build'
   'adjustable-all@@src/region/method_adjustable.c@@s/(    memcpy\(out->ids, w->cand, \(size_t\)nc \* sizeof\(uint32_t\)\);)/    nc = s->nobj;\n    for (uint32_t q_ = 0; q_ < nc; q_++)\n        w->cand[q_] = q_;\n$1/@@test_pvs_build test_bake_files'
-  'mappvs-all@@src/region/method_mappvs.c@@s/if \(mark\[id\] \|\| !in_leaf\[id\]\)/if (mark)/@@test_portal test_pvs_build test_domain'
-  'portal-all@@src/region/method_portal.c@@s/if \(w->mark\[id\]\)\n(\s*)out->ids\[n\+\+\] = id;/out->ids[n++] = id;/@@test_portal test_domain'
+  'mappvs-all@@src/region/method_mappvs.c@@s/if \(mark\[id\] \|\| !in_leaf\[id\]\)/if (mark)/@@test_portal'
+  'portal-all@@src/region/method_portal.c@@s/if \(w->mark\[id\]\)\n(\s*)out->ids\[n\+\+\] = id;/out->ids[n++] = id;/@@test_portal'
   'gvs-all@@src/region/gvs.c@@s/    out->count = r\.object_count;/    for (uint32_t q_ = 0; q_ < w->g->nobj; q_++)\n        out->ids[q_] = q_;\n    out->count = w->g->nobj;/@@test_gvs'
   'shrink-none@@src/region/shrink.c@@s/(    if \(mode != SL_SHRINK_CYLINDER && mode != SL_SHRINK_BALL\)\n)/    eps = 0;\n$1/@@test_shrink test_pvs_build'
   'cells-locate-none@@src/region/viewcells.c@@s/(uint32_t sl_viewcells_locate\(sl_viewcells v, sl_scene scene, sl_vec3 p\)\n\{\n)/$1    if (v) return SL_NONE;\n/@@test_viewcells test_pvs_build'
@@ -71,6 +73,13 @@ if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
   exit 0
 fi
 
+# the short set of .ci/run: one mutant a family, none that needs test_pvs_build but the pvs culler's
+ci_set=(vfc-visible hzb-visible lazygrid-visible hom-visible frusta-visible cplp-visible cullmap-visible
+  horizon-visible dhorizon-no-reuse portal-all gvs-all)
+if [ "${1:-}" = "--ci" ]; then
+  set -- "${ci_set[@]}"
+fi
+
 chosen=()
 for m in "${mutants[@]}"; do
   name="$(field "$m" 0)"
@@ -82,10 +91,13 @@ for m in "${mutants[@]}"; do
 done
 [ ${#chosen[@]} -gt 0 ] || { echo "mutants.sh: no mutant matches: $* (see --list)" >&2; exit 2; }
 
-work="${SL_MUTANTS_DIR:-$root/build-mutants}"
-tree="$work/tree"
-# the tree and its build sit like the source and build/ do, so ccache finds the same relative paths
-export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(dirname "$root")}" CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-true}"
+# A short path: test_pvs_build's messages quote file paths in a 512-byte sl_error, and a long
+# build path truncates them (its test_checkpoint_lock then fails on the unmutated tree).
+work="${SL_MUTANTS_DIR:-/tmp/slm$(id -u)}"
+tree="$work/t"
+# the copy and its build sit like the source and build/ do, and every path is hashed relative to
+# the build directory (CCACHE_BASEDIR=/), so ccache finds what the usual build compiled
+export CCACHE_BASEDIR=/ CCACHE_NOHASHDIR=true
 start=$(date +%s)
 echo "== copying the tree to $tree"
 rm -rf "$tree"
@@ -106,6 +118,21 @@ targets_of() {
   printf '%s\n' "${out[@]}" | sort -u | tr '\n' ' '
 }
 
+# the baseline: the tests the chosen mutants name must pass on the unmutated copy, else a failure
+# says nothing about a mutant
+all_tests="$(for m in "${chosen[@]}"; do field "$m" 3; echo; done | tr ' ' '\n' | sort -u | tr '\n' ' ')"
+echo "== baseline (unmutated): $all_tests"
+t0=$(date +%s)
+cmake --build "$tree/build" -j"$jobs" --target $(targets_of "$all_tests") >"$work/baseline.build.log" 2>&1 ||
+  { echo "mutants.sh: the unmutated copy does not build: $work/baseline.build.log" >&2; exit 2; }
+if ! (cd "$tree/build" && ctest -R "^($(echo $all_tests | tr ' ' '|'))\$" -j"$jobs" --timeout 600 --output-on-failure \
+  >"$work/baseline.test.log" 2>&1); then
+  echo "mutants.sh: tests fail on the unmutated copy (fix them first): $work/baseline.test.log" >&2
+  grep -E '(Failed|Timeout)' "$work/baseline.test.log" >&2 || true
+  exit 2
+fi
+echo "   passed ($(($(date +%s) - t0)) s)"
+
 declare -a results
 killed=0 survived=0 errors=0
 for m in "${chosen[@]}"; do
@@ -121,7 +148,7 @@ for m in "${chosen[@]}"; do
     why="does not build (see $work/$name.build.log)"
   else
     regex="^($(echo $tests | tr ' ' '|'))\$"
-    if (cd "$tree/build" && ctest -R "$regex" -j"$jobs" --timeout 600 >"$work/$name.test.log" 2>&1); then
+    if (cd "$tree/build" && ctest -R "$regex" -j"$jobs" --timeout 600 --output-on-failure >"$work/$name.test.log" 2>&1); then
       status=SURVIVED
       why="every test passed: $tests"
     else
