@@ -23,7 +23,7 @@ if [ "${1:-}" = "--tsan" ]; then
   export CC=clang
   flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DSL_WERROR=ON -DSL_TSAN=ON -DSL_BUILD_BENCH=OFF)
   # Embree's TBB worker threads are not instrumented: tests/tsan.supp names what it hides
-  export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tests/tsan.supp"
+  export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 ignore_noninstrumented_modules=1 suppressions=$PWD/tests/tsan.supp"
   archer=/usr/lib/llvm-14/lib/libarcher.so
   [ -e "$archer" ] && export OMP_TOOL_LIBRARIES="$archer" ARCHER_OPTIONS=verbose=0
   export SL_SANITIZED=1
