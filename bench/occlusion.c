@@ -15,7 +15,8 @@
  *    renderer against the exact visible set of the oracle at the same resolution (mean and ratio of
  *    means), the missed objects and pixels (zero for conservative methods), and the pixel queries.
  *    --methods takes comma-separated specs name[:key=value[:key=value...]], e.g.
- *    "hzb,hzb:exact_px=0:box_rows=0,lazygrid".
+ *    "hzb,hzb:exact_px=0:box_rows=0,lazygrid". The rows with shared=false show each method alone,
+ *    without the shared hidden-object test that runs after its own (src/cull/occluders.h).
  * 2. Memory: live bytes of a culling context (everything it allocated, its BVH, proxies and
  *    rasterizer included) after one frame at 1920x1080 on the same scene.
  * 3. Scaling: the median cull time on a walk of --scaling-frames frames (default 100) of the tiny,
@@ -41,7 +42,9 @@ static const char *const g_default_methods[] = {
     "vfc", "hzb", "hzb:threads=1", "hzb:exact_px=0:box_rows=0", "hzb:far_layer=false", "hzb:all_objects=true", "hom",
     "hom:depth=zbuffer",
     "hom:threshold=0.9",
-    "lazygrid", "lazygrid:threads=1", "lazygrid-z", "busygrid", "frusta", "plp", "cplp"};
+    "lazygrid", "lazygrid:threads=1", "lazygrid-z", "busygrid", "frusta", "plp", "cplp",
+    /* each method alone: the shared hidden-object test (mesh_test, sample_tris) off */
+    "hzb:shared=false", "lazygrid:shared=false", "lazygrid-z:shared=false", "busygrid:shared=false"};
 
 typedef struct method {
     char spec[256];

@@ -256,6 +256,12 @@ sl_status sl_occ_configure_mesh_tests(sl_opts *o, const sl_occ_common *c, sl_occ
         (st = sl_opts_u32(o, "sample_px", 256, 0, SL_OCC_SAMPLED_MAX_PX, &t->sample_px, err)) != SL_OK ||
         (st = sl_occ_require_res_culling(o, c, "sample_tris", t->sample_tris, err)) != SL_OK)
         return st;
+    /* a testing aid: shared=false leaves only the method's own test (tests/test_method_own.c) */
+    bool shared;
+    if ((st = sl_opts_bool(o, "shared", true, &shared, err)) != SL_OK)
+        return st;
+    if (!shared)
+        t->mesh_test = t->sample_tris = 0;
     return SL_OK;
 }
 

@@ -417,10 +417,13 @@ typedef struct sl_occ_mesh_tests {
     "sample_tris=0..1000000 (default 0; 64 with res=culling, which it needs): test an object whose box looks " \
     "visible by its own triangles sampled at pixel centres (as the oracle) when it has at most this many and its " \
     "box covers at most sample_px pixels (0: never)\n" \
-    "sample_px=0..1024 (default 256): largest box rectangle (pixels) of a pixel-centre test\n"
+    "sample_px=0..1024 (default 256): largest box rectangle (pixels) of a pixel-centre test\n" \
+    "shared=BOOL (default true): false turns both tests above off (mesh_test and sample_tris read as 0), leaving " \
+    "the method's own test alone (a testing aid: the mutation check and tests/test_method_own.c use it)\n"
 
-/* Read mesh_test, sample_tris and sample_px (after sl_occ_configure_common read c's res: the
- * pixel-centre test needs res=culling, and is off by default otherwise). */
+/* Read mesh_test, sample_tris, sample_px and shared (false: mesh_test = sample_tris = 0), after
+ * sl_occ_configure_common read c's res: the pixel-centre test needs res=culling, and is off by
+ * default otherwise. */
 sl_status sl_occ_configure_mesh_tests(sl_opts *o, const sl_occ_common *c, sl_occ_mesh_tests *t, sl_error *err);
 
 /* ---- the exact layer: visible objects drawn with the oracle's own rasterizer ----

@@ -1,7 +1,8 @@
 #include "support/box_mesh.h"
 
-const uint32_t sl_test_box_indices[36] = {0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1,
-                                          2, 3, 7, 2, 7, 6, 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5};
+/* counter-clockwise seen from outside (tests/test_box_mesh.c checks it): -x, +x, -y, +y, -z, +z */
+const uint32_t sl_test_box_indices[36] = {0, 6, 2, 0, 4, 6, 1, 7, 5, 1, 3, 7, 0, 5, 4, 0, 1, 5,
+                                          2, 7, 3, 2, 6, 7, 0, 3, 1, 0, 2, 3, 4, 7, 6, 4, 5, 7};
 
 void sl_test_box_vertices(sl_vec3 lo, sl_vec3 hi, float p[24])
 {
