@@ -54,7 +54,7 @@ mutants=(
   'portal-all@@src/region/method_portal.c@@s/if \(w->mark\[id\]\)\n(\s*)out->ids\[n\+\+\] = id;/out->ids[n++] = id;/@@test_portal'
   'gvs-all@@src/region/gvs.c@@s/    out->count = r\.object_count;/    for (uint32_t q_ = 0; q_ < w->g->nobj; q_++)\n        out->ids[q_] = q_;\n    out->count = w->g->nobj;/@@test_gvs'
   'shrink-none@@src/region/shrink.c@@s/(    if \(mode != SL_SHRINK_CYLINDER && mode != SL_SHRINK_BALL\)\n)/    eps = 0;\n$1/@@test_shrink test_pvs_build'
-  'cells-locate-none@@src/region/viewcells.c@@s/(uint32_t sl_viewcells_locate\(sl_viewcells v, sl_scene scene, sl_vec3 p\)\n\{\n)/$1    if (v) return SL_NONE;\n/@@test_viewcells test_pvs_build'
+  'cells-locate-none@@src/pvs/viewcells.c@@s/(uint32_t sl_viewcells_locate\(sl_viewcells v, sl_scene scene, sl_vec3 p\)\n\{\n)/$1    if (v) return SL_NONE;\n/@@test_viewcells test_pvs_build'
 )
 
 # the fields are separated by @@ (the substitutions hold | and /)
