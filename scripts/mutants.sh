@@ -20,7 +20,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 # Tests are CTest names; test_* programs are rebuilt, cli_* tests rebuild the command.
 mutants=(
   # ---- culling methods ----
-  'vfc-visible@@src/cull/vfc.c@@s/< -slack\[(\*last|i)\]\)/< -INFINITY)/g@@test_method_own test_culler'
+  'vfc-visible@@src/cull/vfc.c@@s/(bool coherence, bool masks\)\n\{\n)/$1    if (pl) return 0;\n/@@test_method_own test_culler'
   'hzb-visible@@src/cull/hzb.c@@s/(    f->st->occlusion_tests\+\+;\n    hzb_state \*s = f->s;\n)/$1    if (f) return false;\n/@@test_method_own test_occlusion'
   'hzb-hidden@@src/cull/hzb.c@@s/(    f->st->occlusion_tests\+\+;\n    hzb_state \*s = f->s;\n)/$1    if (f) return true;\n/@@test_method_own test_occlusion'
   'lazygrid-visible@@src/cull/lazygrid.c@@s/(static bool occluded_obuf\(lg_state \*s, const sl_occ_rect \*r\)\n\{\n)/$1    if (s) return false;\n/@@test_method_own test_occlusion'
@@ -44,7 +44,7 @@ mutants=(
   'dhorizon-no-reuse@@src/cull/dhorizon.c@@s/bool reuse = s->have_prev && /bool reuse = false \&\& s->have_prev \&\& /@@test_method_own test_horizon'
   'dhorizon-reuse-all@@src/cull/dhorizon.c@@s/(    \(void\)id;\n)/$1    if (s) return true;\n/@@test_method_own test_horizon test_urban_oracle'
   'pvs-everything@@src/cull/pvs.c@@s/bool all = cell == SL_NONE;/bool all = true;/@@test_pvs_build test_domain'
-  'pvs-no-frustum@@src/cull/pvs.c@@s/if \(sl_frustum_test_aabb\(fr, &bounds\[id\]\) != 0\)/if (fr \&\& bounds)/@@test_pvs_build test_domain'
+  'pvs-no-frustum@@src/cull/pvs.c@@s/sl_frustum_classify_box\(fr->planes, slack, &bounds\[id\], 0x3fu, false, NULL\) >= 0/fr/@@test_pvs_build test_domain'
   'pvs-cell-only@@src/cull/pvs.c@@s/uint32_t nc = sl_viewcells_overlap\(s->cells, s->scene, &nb, s->near_cells, s->cell_count, &covered\);/uint32_t nc = 1; covered = true; s->near_cells[0] = cell; (void)nb;/@@test_pvs_build test_near_wall'
   # ---- PVS methods ----
   'sample-all@@src/region/method_sample.c@@s/if \(w->state\[o\] == 1\)\n(\s*)out->ids\[n\+\+\] = o;/out->ids[n++] = o;/@@test_pvs_build'
