@@ -1,8 +1,7 @@
 /* Shared command-line helpers: errors, option parsing, progress bar, JSON writer. */
 #include "cli.h"
 
-#include "core/escape.h"
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/import.h"
 
 #include <dirent.h>
@@ -500,7 +499,7 @@ static void remove_stale_stages(const char *dir, const char *base)
     while ((e = readdir(d))) {
         long pid;
         struct stat st;
-        if (!sl_atomic_temp_name_pid(base, e->d_name, &pid) || pid == self)
+        if (!sl_output_temp_name_pid(base, e->d_name, &pid) || pid == self)
             continue;
         if (kill((pid_t)pid, 0) == 0 || errno != ESRCH)
             continue;
@@ -542,7 +541,7 @@ bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od)
     }
     memcpy(od->target, dir, n);
     od->target[n] = 0;
-    uint64_t tag = (uint64_t)(uintptr_t)od ^ (uint64_t)(sl_now() * 1e9);
+    uint64_t tag = (uint64_t)(uintptr_t)od ^ (uint64_t)(tool_now() * 1e9);
     long pid = (long)getpid();
     struct stat st;
     if (stat(od->target, &st) == 0) {

@@ -136,22 +136,6 @@ typedef struct sl_bench_summary {
                                       domain (not in `frames`) */
 } sl_bench_summary;
 
-/* ---- scenes named on a command line ---- */
-
-/* Open the scene a command line names: "city:PRESET[:SEED]" generates a city (sl_gen_city with
- * the preset's defaults, tiny|small|vienna, seed 1 by default); anything else is a file read by
- * sl_scene_open (map: the map inside a .pk3, else NULL). label (label_size bytes, may be NULL)
- * receives a short name for reports made of [A-Za-z0-9._-]: "city-small-1", or the file's base
- * name without its extension. progress (may be NULL) reports city generation. */
-SL_API sl_status sl_bench_open_scene(const char *spec, const char *map, const sl_progress *progress,
-                                     const sl_allocator *alloc, sl_scene *out, char *label, size_t label_size,
-                                     sl_error *err);
-/* The same with import options for files (sl_scene_open_with; opt may be NULL). */
-struct sl_import_options;
-SL_API sl_status sl_bench_open_scene_with(const char *spec, const char *map, const struct sl_import_options *opt,
-                                          const sl_progress *progress, const sl_allocator *alloc, sl_scene *out,
-                                          char *label, size_t label_size, sl_error *err);
-
 /* ---- lifetime ---- */
 
 /* Create a bench for a scene with the given methods (each created through the registry; an
