@@ -140,6 +140,16 @@ static void test_known_scene_records(void **state)
     assert_int_equal(sl_bench_add_external(b, "rough", SL_AGGRESSIVE, &rough, &err), SL_OK);
     assert_int_equal(sl_bench_method_count(b), 4);
     assert_string_equal(sl_bench_label(b), "known");
+    /* the options reports show can be replaced (the command names a staged file where it ends up);
+     * the counting allocator sees the old string freed */
+    sl_bench_method_info shown;
+    assert_int_equal(sl_bench_set_shown_options(b, rough, "file=out/rough.slpvs", &err), SL_OK);
+    assert_int_equal(sl_bench_method(b, rough, &shown, &err), SL_OK);
+    assert_string_equal(shown.options, "file=out/rough.slpvs");
+    assert_int_equal(sl_bench_set_shown_options(b, 4, "x", &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_set_shown_options(b, rough, NULL, &err), SL_OK);
+    assert_int_equal(sl_bench_method(b, rough, &shown, &err), SL_OK);
+    assert_string_equal(shown.options, "");
 
     /* frame 0: looking along +X */
     sl_camera c0 = camera_at(0);

@@ -576,6 +576,48 @@ bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od)
     return true;
 }
 
+/* text with every "stage/" as "out/", from malloc; NULL when out of memory */
+static char *stage_to_out(const char *text, const char *stage, const char *out)
+{
+    size_t sl = strlen(stage), ol = strlen(out), hits = 0;
+    for (const char *p = strstr(text, stage); p; p = strstr(p + sl, stage))
+        hits += p[sl] == '/';
+    char *s = malloc(strlen(text) + hits * ol + 1), *w = s;
+    if (!s)
+        return NULL;
+    for (const char *p = text; *p;) {
+        if (hits && !strncmp(p, stage, sl) && p[sl] == '/') {
+            memcpy(w, out, ol);
+            w += ol;
+            p += sl;
+        } else {
+            *w++ = *p++;
+        }
+    }
+    *w = 0;
+    return s;
+}
+
+sl_status cli_outdir_show_bench(sl_bench bench, const char *stage, const char *out, sl_error *err)
+{
+    if (!stage || !*stage || !out)
+        return SL_OK;
+    for (uint32_t i = 0, n = sl_bench_method_count(bench); i < n; i++) {
+        sl_bench_method_info info;
+        sl_status st = sl_bench_method(bench, i, &info, err);
+        if (st != SL_OK)
+            return st;
+        char *shown = stage_to_out(info.options, stage, out);
+        if (!shown)
+            return tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory");
+        st = strcmp(shown, info.options) ? sl_bench_set_shown_options(bench, i, shown, err) : SL_OK;
+        free(shown);
+        if (st != SL_OK)
+            return st;
+    }
+    return SL_OK;
+}
+
 void cli_outdir_abort(cli_outdir *od)
 {
     if (od->open)

@@ -5,6 +5,7 @@
 #ifndef SL_TOOLS_CLI_H
 #define SL_TOOLS_CLI_H
 
+#include "sightline/bench.h"
 #include "sightline/core.h"
 #include "sightline/scene.h"
 
@@ -178,6 +179,10 @@ bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od);
 bool cli_outdir_commit(const char *cmd, cli_outdir *od);
 /* Remove the stage and what the run wrote into it; the target is left as it was. */
 void cli_outdir_abort(cli_outdir *od);
+/* Show the bench's method options as they will read once the stage is moved into place: every
+ * "STAGE/" in them reads "OUT/" (a pvs file= baked into the stage is named where it ends up),
+ * through sl_bench_set_shown_options. stage or out NULL: nothing changes. */
+sl_status cli_outdir_show_bench(sl_bench bench, const char *stage, const char *out, sl_error *err);
 
 /* ---- scenes named on a command line ---- */
 /* Open the scene a command line names (`bench`, `render`, `demo`): "city:PRESET[:SEED]"

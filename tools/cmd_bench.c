@@ -657,10 +657,12 @@ int sl_cmd_bench(int argc, char **argv)
         bo.repeat = g.repeat;
         bo.label = label;
         bo.progress = prog;
-        bo.stage_dir = work;
-        bo.out_dir = g.out_dir;
         sl_bench b = NULL;
         st = sl_bench_create(s, run, nrun, &bo, NULL, &b, &err);
+        if (st == SL_OK && (st = cli_outdir_show_bench(b, work, g.out_dir, &err)) != SL_OK) {
+            sl_bench_destroy(b);
+            b = NULL;
+        }
         if (st == SL_OK) {
             benches[nb] = b;
             snprintf(labels[nb], sizeof labels[nb], "%s", label);

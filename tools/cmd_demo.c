@@ -475,13 +475,15 @@ int sl_cmd_demo(int argc, char **argv)
         bo.height = height;
         bo.label = set_label;
         bo.progress = prog;
-        bo.stage_dir = work;
-        bo.out_dir = out_dir;
         if (sl_bench_create(scene, specs, nm, &bo, NULL, &benches[k], &err) != SL_OK) {
             status = cli_fail(cmd, &err);
             break;
         }
         nb++;
+        if (cli_outdir_show_bench(benches[k], work, out_dir, &err) != SL_OK) {
+            status = cli_fail(cmd, &err);
+            break;
+        }
         sl_path views = k == 0 ? walk : fly;
         sl_status st = sl_bench_run_path(benches[k], views, 0, sl_path_count(views), &err);
         cli_progress_done(&ps);

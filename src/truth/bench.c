@@ -79,36 +79,6 @@ static sl_status method_buffers(struct sl_bench_t *b, bench_method *m, sl_error 
     return SL_OK;
 }
 
-/* A copy of options where every "stage/" reads "out/" (see sl_bench_options.stage_dir). */
-static char *shown_options(const sl_allocator *a, const char *options, const char *stage, const char *out)
-{
-    size_t sl = stage ? strlen(stage) : 0, ol = out ? strlen(out) : 0, hits = 0;
-    if (!sl || !out)
-        return sl_strdup(a, options);
-    for (const char *p = strstr(options, stage); p; p = strstr(p + sl, stage))
-        hits += p[sl] == '/';
-    if (!hits)
-        return sl_strdup(a, options);
-    size_t n = strlen(options) + hits * ol + 1;
-    char *s = sl_alloc(a, n), *w = s;
-    if (!s)
-        return NULL;
-    for (const char *p = options; *p;) {
-        if (!strncmp(p, stage, sl) && p[sl] == '/') {
-            memcpy(w, out, ol);
-            w += ol;
-            p += sl;
-        } else {
-            *w++ = *p++;
-        }
-    }
-    *w = 0;
-    /* sl_strfree frees strlen + 1 bytes: give it a string of exactly that size */
-    char *exact = sl_strdup(a, s);
-    sl_free(a, s, n);
-    return exact;
-}
-
 sl_status sl_bench_create(sl_scene scene, const sl_bench_method_spec *methods, uint32_t method_count,
                           const sl_bench_options *opt, const sl_allocator *alloc, sl_bench *out, sl_error *err)
 {
@@ -165,7 +135,7 @@ sl_status sl_bench_create(sl_scene scene, const sl_bench_method_spec *methods, u
         if (st != SL_OK)
             break;
         m->name = sl_strdup(alloc, sl_culler_method(m->culler));
-        m->options = shown_options(alloc, sl_culler_options(m->culler), o.stage_dir, o.out_dir);
+        m->options = sl_strdup(alloc, sl_culler_options(m->culler));
         m->guarantee = sl_culler_guarantee(m->culler);
         if (!m->name || !m->options)
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_bench_create: out of memory");
@@ -394,6 +364,20 @@ sl_status sl_bench_method(sl_bench b, uint32_t index, sl_bench_method_info *out,
     out->options = m->options;
     out->guarantee = m->guarantee;
     out->external = m->culler == NULL;
+    return SL_OK;
+}
+
+sl_status sl_bench_set_shown_options(sl_bench b, uint32_t index, const char *options, sl_error *err)
+{
+    if (!b || index >= b->method_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_set_shown_options: no method %u (the bench has %u)",
+                       index, b ? b->method_count : 0);
+    char *copy = sl_strdup(&b->alloc, options ? options : "");
+    if (!copy)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_bench_set_shown_options: out of memory");
+    bench_method *m = &b->methods[index];
+    sl_strfree(&b->alloc, m->options);
+    m->options = copy;
     return SL_OK;
 }
 
