@@ -5,8 +5,10 @@
 #   scripts/check_layers.sh [BUILD_DIR]
 # With BUILD_DIR (a configured and built tree) it also checks the objects: every sl_ symbol a
 # layer's object uses must be defined by that layer or one below it (nm), so a call upward through
-# a local prototype is caught too. The build itself enforces the includes (each layer compiles
-# against an include tree holding only the layers at or below it); this script says which line.
+# a local prototype is caught too; and every sl_ symbol the command's objects use must be public
+# (exported by libsightline.so) or the command's own. The build itself enforces the includes (each
+# layer compiles against an include tree holding only the layers at or below it, the command
+# against include/ and tools/); this script says which line.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -73,36 +75,8 @@ for dir in src/*/; do
 done
 
 # ---- tools/: public headers and its own only ----
-# The command's internal includes still to be replaced by public API (issue 13): tolerated, but no
-# new one. Remove a line when its include goes; a line no longer needed is reported too.
-declare -A tolerated
-while read -r f inc; do [ -n "$f" ] && tolerated["$f $inc"]=0; done <<'LIST'
-tools/cli.c core/escape.h
-tools/cli.c core/sl_core.h
-tools/cmd_bench.c core/sl_core.h
-tools/cmd_bench.c core/text_parse.h
-tools/cmd_demo.c core/sl_core.h
-tools/cmd_demo.c truth/plot.h
-tools/cmd_export.c core/sl_core.h
-tools/cmd_gen.c core/sl_core.h
-tools/cmd_import.c core/escape.h
-tools/cmd_import.c core/sl_core.h
-tools/cmd_occlusion.c cull/occluders.h
-tools/cmd_pvs.c core/sl_core.h
-tools/cmd_pvs.c core/text_parse.h
-tools/cmd_radar.c core/sl_core.h
-tools/cmd_render.c core/sl_core.h
-tools/cmd_render.c core/text_parse.h
-tools/cmd_render.c truth/plot.h
-tools/pvs_along.c core/sl_core.h
-tools/pvs_mpi.c core/sl_core.h
-LIST
 for f in tools/*.[ch]; do
     while IFS=: read -r n inc; do
-        if [ -n "${tolerated["$f $inc"]+x}" ]; then
-            tolerated["$f $inc"]=1
-            continue
-        fi
         case "$inc" in
         sightline/*) [ -n "$(public_of "${inc#sightline/}")" ] ||
             report "$f:$n" "includes $inc: not a public header" ;;
@@ -110,9 +84,6 @@ for f in tools/*.[ch]; do
         *) [ -e "tools/$inc" ] || report "$f:$n" "includes \"$inc\", not a file of tools/" ;;
         esac
     done < <(includes "$f")
-done
-for k in "${!tolerated[@]}"; do
-    [ "${tolerated[$k]}" = 1 ] || report "${k% *}" "no longer includes ${k#* }: drop it from the tolerated list in $0"
 done
 
 # ---- objects: symbols point down ----
@@ -138,6 +109,23 @@ if [ $# -ge 1 ]; then
             done < <(nm -u "$o" | awk '$2 ~ /^sl_/ { print $2 }')
         done < <(objects "$layer")
     done
+    # the command calls the public API only: every sl_ symbol its objects use is exported by
+    # libsightline.so (SL_API) or defined in tools/ itself (an internal function reached through a
+    # local prototype is caught here)
+    tool_objects=$(find "$build/CMakeFiles/sightline_cli.dir/tools" -name '*.o' 2>/dev/null | sort)
+    lib=$build/libsightline.so
+    if [ -n "$tool_objects" ] && [ -e "$lib" ]; then
+        declare -A exported
+        while read -r sym; do exported[$sym]=1; done < <(
+            nm -D --defined-only "$lib" | awk '$3 ~ /^sl_/ { print $3 }'
+            for o in $tool_objects; do nm --defined-only -g "$o" | awk '$3 ~ /^sl_/ { print $3 }'; done)
+        for o in $tool_objects; do
+            while read -r sym; do
+                [ -n "${exported[$sym]+x}" ] ||
+                    report "tools/$(basename "${o%.o}")" "calls $sym, which is not public API (no SL_API in include/sightline/)"
+            done < <(nm -u "$o" | awk '$2 ~ /^sl_/ { print $2 }')
+        done
+    fi
 fi
 
 if [ $bad -ne 0 ]; then

@@ -32,6 +32,7 @@
 
 /* the bake along a path of the demo and the bench, as the command runs it */
 #include "../tools/pvs_along.c"
+#include "../tools/tool.c"
 
 #define BOUND_SECONDS 60
 

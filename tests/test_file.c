@@ -90,6 +90,17 @@ static sl_status write_text(const char *path, const char *text, sl_error *err)
     return sl_atomic_commit(&f, err);
 }
 
+static void assert_no_temporaries(void)
+{
+    DIR *d = opendir(g_dir);
+    assert_non_null(d);
+    struct dirent *e;
+    while ((e = readdir(d)))
+        if (strstr(e->d_name, ".tmp."))
+            fail_msg("temporary %s left", e->d_name);
+    closedir(d);
+}
+
 /* Every reader entry point refuses a FIFO (no writer ever comes) without blocking. */
 static void test_fifo_inputs_refused(void **state)
 {
@@ -327,6 +338,28 @@ static void test_descriptor_paths(void **state)
     assert_true(S_ISCHR(st.st_mode));
 }
 
+/* A file size limit for this process with SIGXFSZ ignored, so that a write past it fails with
+ * EFBIG; restore puts the old limit and handler back. */
+typedef struct fsize_limit {
+    struct rlimit old;
+    void (*handler)(int);
+} fsize_limit;
+
+static void fsize_limit_set(fsize_limit *l, rlim_t bytes)
+{
+    assert_int_equal(getrlimit(RLIMIT_FSIZE, &l->old), 0);
+    l->handler = signal(SIGXFSZ, SIG_IGN);
+    struct rlimit small = l->old;
+    small.rlim_cur = bytes;
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &small), 0);
+}
+
+static void fsize_limit_restore(fsize_limit *l)
+{
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &l->old), 0);
+    signal(SIGXFSZ, l->handler);
+}
+
 /* A write that fails (here: past the file size limit, SIGXFSZ ignored, so write(2) fails with
  * EFBIG) is reported by commit with that write's reason, not with whatever errno holds by commit
  * time; the temporary is removed and the old file stays. */
@@ -336,12 +369,8 @@ static void test_write_error_reported(void **state)
     char file[256];
     in_dir(file, sizeof file, "big.bin");
     write_file(file, "old");
-    struct rlimit old;
-    assert_int_equal(getrlimit(RLIMIT_FSIZE, &old), 0);
-    void (*old_handler)(int) = signal(SIGXFSZ, SIG_IGN);
-    struct rlimit small = old;
-    small.rlim_cur = 4096;
-    assert_int_equal(setrlimit(RLIMIT_FSIZE, &small), 0);
+    fsize_limit lim;
+    fsize_limit_set(&lim, 4096);
     sl_atomic_file f;
     sl_error err;
     sl_status opened = sl_atomic_open(NULL, file, &f, &err);
@@ -354,21 +383,65 @@ static void test_write_error_reported(void **state)
         errno = 0; /* as after any later call that succeeded, or one that failed for another reason */
     }
     sl_status st = opened == SL_OK ? sl_atomic_commit(&f, &err) : opened;
-    assert_int_equal(setrlimit(RLIMIT_FSIZE, &old), 0);
-    signal(SIGXFSZ, old_handler);
+    fsize_limit_restore(&lim);
     assert_int_equal(opened, SL_OK);
     assert_true(failed);
     assert_int_equal(st, SL_ERROR_IO);
     if (!strstr(err.message, strerror(EFBIG)))
         fail_msg("'%s' does not give the failing write's reason '%s'", err.message, strerror(EFBIG));
     assert_content(file, "old");
-    DIR *d = opendir(g_dir);
-    assert_non_null(d);
-    struct dirent *e;
-    while ((e = readdir(d)))
-        if (strstr(e->d_name, ".tmp."))
-            fail_msg("temporary %s left", e->d_name);
-    closedir(d);
+    assert_no_temporaries();
+}
+
+/* The public face of the writer (sightline/core.h: sl_output, what the command writes its reports
+ * with): commit puts the file in place, abort keeps the old one, a write error seen only by stdio
+ * (ferror) fails the commit and keeps the old file, and the temporaries' names are recognised. */
+static void test_public_output(void **state)
+{
+    (void)state;
+    char file[256];
+    in_dir(file, sizeof file, "report.md");
+    write_file(file, "old");
+    sl_error err;
+    sl_output o;
+    assert_int_equal(sl_output_open(file, NULL, &o, &err), SL_OK);
+    assert_int_equal(fprintf(sl_output_stream(o), "# %s\n", "new"), 6);
+    assert_content(file, "old"); /* nothing in place before the commit */
+    assert_int_equal(sl_output_commit(o, &err), SL_OK);
+    assert_content(file, "# new\n");
+    assert_no_temporaries();
+
+    assert_int_equal(sl_output_open(file, NULL, &o, &err), SL_OK);
+    fputs("dropped", sl_output_stream(o));
+    sl_output_abort(o);
+    sl_output_abort(NULL);
+    assert_content(file, "# new\n");
+    assert_no_temporaries();
+
+    fsize_limit lim;
+    fsize_limit_set(&lim, 4096);
+    sl_status opened = sl_output_open(file, NULL, &o, &err), st = opened;
+    if (opened == SL_OK) {
+        static char block[65536];
+        memset(block, 'x', sizeof block);
+        for (int i = 0; i < 4; i++)
+            fwrite(block, 1, sizeof block, sl_output_stream(o));
+        st = sl_output_commit(o, &err);
+    }
+    fsize_limit_restore(&lim);
+    assert_int_equal(opened, SL_OK);
+    assert_int_equal(st, SL_ERROR_IO);
+    assert_non_null(strstr(err.message, "report.md: write failed"));
+    assert_content(file, "# new\n");
+    assert_no_temporaries();
+
+    long pid = 0;
+    assert_true(sl_output_temp_name_pid("report.md", "report.md.tmp.4242.0123456789abcdef", &pid));
+    assert_int_equal(pid, 4242);
+    assert_false(sl_output_temp_name_pid("report.md", "report.md.tmp.04242.0123456789abcdef", &pid));
+    assert_false(sl_output_temp_name_pid("report.md", "report.md.tmp.4242.0123456789abcdeF", &pid));
+    assert_false(sl_output_temp_name_pid("report.md", "other.md.tmp.4242.0123456789abcdef", &pid));
+    assert_int_equal(sl_output_open(NULL, NULL, &o, &err), SL_ERROR_INVALID_ARGUMENT);
 }
 
 int main(void)
@@ -380,6 +453,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_stale_temporaries, setup, teardown),
         cmocka_unit_test_setup_teardown(test_descriptor_paths, setup, teardown),
         cmocka_unit_test_setup_teardown(test_write_error_reported, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_public_output, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,8 +1,7 @@
 /* Shared command-line helpers: errors, option parsing, progress bar, JSON writer. */
 #include "cli.h"
 
-#include "core/escape.h"
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/import.h"
 
 #include <dirent.h>
@@ -500,7 +499,7 @@ static void remove_stale_stages(const char *dir, const char *base)
     while ((e = readdir(d))) {
         long pid;
         struct stat st;
-        if (!sl_atomic_temp_name_pid(base, e->d_name, &pid) || pid == self)
+        if (!sl_output_temp_name_pid(base, e->d_name, &pid) || pid == self)
             continue;
         if (kill((pid_t)pid, 0) == 0 || errno != ESRCH)
             continue;
@@ -542,7 +541,7 @@ bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od)
     }
     memcpy(od->target, dir, n);
     od->target[n] = 0;
-    uint64_t tag = (uint64_t)(uintptr_t)od ^ (uint64_t)(sl_now() * 1e9);
+    uint64_t tag = (uint64_t)(uintptr_t)od ^ (uint64_t)(tool_now() * 1e9);
     long pid = (long)getpid();
     struct stat st;
     if (stat(od->target, &st) == 0) {
@@ -575,6 +574,48 @@ bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od)
     }
     od->open = true;
     return true;
+}
+
+/* text with every "stage/" as "out/", from malloc; NULL when out of memory */
+static char *stage_to_out(const char *text, const char *stage, const char *out)
+{
+    size_t sl = strlen(stage), ol = strlen(out), hits = 0;
+    for (const char *p = strstr(text, stage); p; p = strstr(p + sl, stage))
+        hits += p[sl] == '/';
+    char *s = malloc(strlen(text) + hits * ol + 1), *w = s;
+    if (!s)
+        return NULL;
+    for (const char *p = text; *p;) {
+        if (hits && !strncmp(p, stage, sl) && p[sl] == '/') {
+            memcpy(w, out, ol);
+            w += ol;
+            p += sl;
+        } else {
+            *w++ = *p++;
+        }
+    }
+    *w = 0;
+    return s;
+}
+
+sl_status cli_outdir_show_bench(sl_bench bench, const char *stage, const char *out, sl_error *err)
+{
+    if (!stage || !*stage || !out)
+        return SL_OK;
+    for (uint32_t i = 0, n = sl_bench_method_count(bench); i < n; i++) {
+        sl_bench_method_info info;
+        sl_status st = sl_bench_method(bench, i, &info, err);
+        if (st != SL_OK)
+            return st;
+        char *shown = stage_to_out(info.options, stage, out);
+        if (!shown)
+            return tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory");
+        st = strcmp(shown, info.options) ? sl_bench_set_shown_options(bench, i, shown, err) : SL_OK;
+        free(shown);
+        if (st != SL_OK)
+            return st;
+    }
+    return SL_OK;
 }
 
 void cli_outdir_abort(cli_outdir *od)

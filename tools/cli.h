@@ -5,7 +5,9 @@
 #ifndef SL_TOOLS_CLI_H
 #define SL_TOOLS_CLI_H
 
+#include "sightline/bench.h"
 #include "sightline/core.h"
+#include "sightline/scene.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -177,6 +179,20 @@ bool cli_outdir_begin(const char *cmd, const char *dir, cli_outdir *od);
 bool cli_outdir_commit(const char *cmd, cli_outdir *od);
 /* Remove the stage and what the run wrote into it; the target is left as it was. */
 void cli_outdir_abort(cli_outdir *od);
+/* Show the bench's method options as they will read once the stage is moved into place: every
+ * "STAGE/" in them reads "OUT/" (a pvs file= baked into the stage is named where it ends up),
+ * through sl_bench_set_shown_options. stage or out NULL: nothing changes. */
+sl_status cli_outdir_show_bench(sl_bench bench, const char *stage, const char *out, sl_error *err);
+
+/* ---- scenes named on a command line ---- */
+/* Open the scene a command line names (`bench`, `render`, `demo`): "city:PRESET[:SEED]"
+ * generates a city (sl_gen_city with the preset's defaults, tiny|small|vienna, seed 1 by default);
+ * anything else is a file read by sl_scene_open_with (opt may be NULL; map: the map inside a
+ * .pk3, else NULL). label (label_size bytes, may be NULL) receives a short name for reports made
+ * of [A-Za-z0-9._-]: "city-small-1", or the file's base name without its extension (and "-MAP").
+ * progress (may be NULL) reports city generation. tools/scene_spec.c. */
+sl_status cli_open_scene(const char *spec, const char *map, const struct sl_import_options *opt,
+                         const sl_progress *progress, sl_scene *out, char *label, size_t label_size, sl_error *err);
 
 /* ---- misc ---- */
 /* Human-readable byte count ("1.23 GiB") into buf. */

@@ -5,8 +5,7 @@
 #include "cli.h"
 #include "pvs_cli.h"
 
-#include "core/sl_core.h"
-#include "core/text_parse.h"
+#include "tool.h"
 #include "sightline/bench.h"
 #include "sightline/import.h"
 #include "sightline/path.h"
@@ -395,7 +394,7 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
         if (st == SL_OK && g->frames) {
             parse_frames(g->frames, first, count);
             if (*first >= sl_path_count(*out)) {
-                st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: --frames %s starts beyond its %u frames",
+                st = tool_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: --frames %s starts beyond its %u frames",
                              g->path_file, g->frames, sl_path_count(*out));
                 sl_path_destroy(*out);
                 *out = NULL;
@@ -622,7 +621,7 @@ int sl_cmd_bench(int argc, char **argv)
         char label[128];
         sl_import_options io = sl_import_defaults();
         cli_import_apply(&g.import, &io);
-        sl_status st = sl_bench_open_scene_with(g.scenes[si], g.map, &io, &prog, NULL, &s, label, sizeof label, &err);
+        sl_status st = cli_open_scene(g.scenes[si], g.map, &io, &prog, &s, label, sizeof label, &err);
         cli_progress_done(&ps);
         if (st != SL_OK) {
             status = cli_fail(cmd, &err);
@@ -658,10 +657,12 @@ int sl_cmd_bench(int argc, char **argv)
         bo.repeat = g.repeat;
         bo.label = label;
         bo.progress = prog;
-        bo.stage_dir = work;
-        bo.out_dir = g.out_dir;
         sl_bench b = NULL;
         st = sl_bench_create(s, run, nrun, &bo, NULL, &b, &err);
+        if (st == SL_OK && (st = cli_outdir_show_bench(b, work, g.out_dir, &err)) != SL_OK) {
+            sl_bench_destroy(b);
+            b = NULL;
+        }
         if (st == SL_OK) {
             benches[nb] = b;
             snprintf(labels[nb], sizeof labels[nb], "%s", label);
@@ -704,17 +705,15 @@ int sl_cmd_bench(int argc, char **argv)
         for (uint32_t i = 0; i < nb; i++)
             total_violations += sl_bench_violations(benches[i]);
         snprintf(path, sizeof path, "%s/summary.json", work);
-        sl_atomic_file f;
-        if (sl_atomic_open(NULL, path, &f, &err) != SL_OK) {
+        sl_output f;
+        if (sl_output_open(path, NULL, &f, &err) != SL_OK) {
             status = cli_fail(cmd, &err);
         } else {
             cli_json j;
-            cli_json_begin(&j, f.fp);
+            cli_json_begin(&j, sl_output_stream(f));
             json_summary(&j, benches, nb, total_violations, g.out_dir, skipped, nskipped);
             cli_json_end(&j);
-            if (ferror(f.fp))
-                f.failed = true;
-            if (sl_atomic_commit(&f, &err) != SL_OK)
+            if (sl_output_commit(f, &err) != SL_OK) /* a write error too */
                 status = cli_fail(cmd, &err);
         }
     }

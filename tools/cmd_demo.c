@@ -6,13 +6,12 @@
 #include "cli.h"
 #include "pvs_cli.h"
 
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/bench.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
-#include "truth/plot.h"
 
 #include <errno.h>
 #include <math.h>
@@ -63,23 +62,25 @@ static void usage(FILE *out)
 /* ---- report writing ---- */
 
 typedef struct report {
-    sl_atomic_file md, html;
+    sl_output md, html;
 } report;
 
-static void put(sl_atomic_file *f, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void put(sl_atomic_file *f, const char *fmt, ...)
+/* A write error is sticky in the stream and reported by sl_output_commit; nothing more is written
+ * after one. */
+static void put(sl_output *f, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void put(sl_output *f, const char *fmt, ...)
 {
-    if (f->failed)
+    FILE *fp = sl_output_stream(*f);
+    if (ferror(fp))
         return;
     va_list ap;
     va_start(ap, fmt);
-    if (vfprintf(f->fp, fmt, ap) < 0)
-        f->failed = true;
+    vfprintf(fp, fmt, ap);
     va_end(ap);
 }
 
 /* HTML text with &, <, > and " escaped. */
-static void put_html(sl_atomic_file *f, const char *s)
+static void put_html(sl_output *f, const char *s)
 {
     for (; s && *s; s++) {
         if (*s == '&')
@@ -96,7 +97,7 @@ static void put_html(sl_atomic_file *f, const char *s)
 }
 
 /* Markdown table cell text: pipes escaped, line breaks as spaces. */
-static void put_md(sl_atomic_file *f, const char *s)
+static void put_md(sl_output *f, const char *s)
 {
     for (; s && *s; s++) {
         if (*s == '|')
@@ -274,11 +275,8 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
         put(&r->html, "</h3>\n");
         html_summary(r, benches[bi]);
     }
-    if (!r->md.failed) {
-        sl_bench_print_summary(benches, nb, r->md.fp);
-        if (ferror(r->md.fp))
-            r->md.failed = true;
-    }
+    if (!ferror(sl_output_stream(r->md)))
+        sl_bench_print_summary(benches, nb, sl_output_stream(r->md));
 
     put_heading(r, 2, "A frame of the walk");
     snprintf(text, sizeof text,
@@ -391,7 +389,7 @@ int sl_cmd_demo(int argc, char **argv)
     if (!cli_outdir_begin(cmd, out_dir, &od))
         return 1;
     const char *work = od.stage;
-    double t0 = sl_now();
+    double t0 = tool_now();
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
     sl_error err;
@@ -401,7 +399,7 @@ int sl_cmd_demo(int argc, char **argv)
         fprintf(stderr, "sightline demo: generating the %s city (seed %llu)...\n", sl_city_preset_name(preset),
                 (unsigned long long)seed);
     sl_scene scene = NULL;
-    if (sl_bench_open_scene(spec, NULL, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
+    if (cli_open_scene(spec, NULL, NULL, &prog, &scene, label, sizeof label, &err) != SL_OK) {
         cli_progress_done(&ps);
         cli_outdir_abort(&od);
         return cli_fail(cmd, &err);
@@ -413,7 +411,7 @@ int sl_cmd_demo(int argc, char **argv)
     sl_bench_skip skipped[SL_BENCH_MAX_METHODS];
     uint32_t nskipped = 0;
     uint32_t nm = sl_bench_registered_methods(specs, SL_BENCH_MAX_METHODS, skipped, SL_BENCH_MAX_METHODS, &nskipped);
-    nskipped = SL_MIN(nskipped, SL_BENCH_MAX_METHODS);
+    nskipped = TOOL_MIN(nskipped, SL_BENCH_MAX_METHODS);
 
     sl_path walk = NULL, fly = NULL;
     sl_bench benches[2] = {NULL, NULL};
@@ -477,13 +475,15 @@ int sl_cmd_demo(int argc, char **argv)
         bo.height = height;
         bo.label = set_label;
         bo.progress = prog;
-        bo.stage_dir = work;
-        bo.out_dir = out_dir;
         if (sl_bench_create(scene, specs, nm, &bo, NULL, &benches[k], &err) != SL_OK) {
             status = cli_fail(cmd, &err);
             break;
         }
         nb++;
+        if (cli_outdir_show_bench(benches[k], work, out_dir, &err) != SL_OK) {
+            status = cli_fail(cmd, &err);
+            break;
+        }
         sl_path views = k == 0 ? walk : fly;
         sl_status st = sl_bench_run_path(benches[k], views, 0, sl_path_count(views), &err);
         cli_progress_done(&ps);
@@ -548,23 +548,20 @@ int sl_cmd_demo(int argc, char **argv)
         char md_path[4400], html_path[4400];
         snprintf(md_path, sizeof md_path, "%s/report.md", work);
         snprintf(html_path, sizeof html_path, "%s/report.html", work);
-        if (sl_atomic_open(NULL, md_path, &r.md, &err) != SL_OK) {
+        if (sl_output_open(md_path, NULL, &r.md, &err) != SL_OK) {
             status = cli_fail(cmd, &err);
-        } else if (sl_atomic_open(NULL, html_path, &r.html, &err) != SL_OK) {
-            sl_atomic_abort(&r.md);
+        } else if (sl_output_open(html_path, NULL, &r.html, &err) != SL_OK) {
+            sl_output_abort(r.md);
             status = cli_fail(cmd, &err);
         } else {
             write_report_body(&r, scene, label, benches, nb, skipped, nskipped, pvs_note, frame_images, frame_index,
-                              violations, sl_city_preset_name(preset), seed, sl_now() - t0);
-            if (ferror(r.md.fp))
-                r.md.failed = true;
-            if (ferror(r.html.fp))
-                r.html.failed = true;
-            sl_status s1 = sl_atomic_commit(&r.md, &err);
+                              violations, sl_city_preset_name(preset), seed, tool_now() - t0);
+            /* a write error makes the commit fail */
+            sl_status s1 = sl_output_commit(r.md, &err);
             if (s1 != SL_OK) {
-                sl_atomic_abort(&r.html);
+                sl_output_abort(r.html);
                 status = cli_fail(cmd, &err);
-            } else if (sl_atomic_commit(&r.html, &err) != SL_OK) {
+            } else if (sl_output_commit(r.html, &err) != SL_OK) {
                 status = cli_fail(cmd, &err);
             }
         }
@@ -575,7 +572,7 @@ int sl_cmd_demo(int argc, char **argv)
     else if (!cli_outdir_commit(cmd, &od))
         status = 1;
     if (!status) {
-        double seconds = sl_now() - t0;
+        double seconds = tool_now() - t0;
         if (json) {
             cli_json j;
             cli_json_begin(&j, stdout);

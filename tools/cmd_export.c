@@ -2,7 +2,7 @@
  * ...) so that other tools can open it. */
 #include "cli.h"
 
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/import.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
@@ -19,7 +19,7 @@ static const char *const refused[] = {"3mf", "pbrt"};
 
 static bool is_refused(const char *id)
 {
-    for (size_t i = 0; i < SL_COUNTOF(refused); i++)
+    for (size_t i = 0; i < TOOL_COUNTOF(refused); i++)
         if (!strcmp(refused[i], id))
             return true;
     return false;
@@ -163,17 +163,17 @@ int sl_cmd_export(int argc, char **argv)
 
     sl_error err;
     sl_scene scene;
-    double t0 = sl_now();
+    double t0 = tool_now();
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&imp, &io);
     if (sl_scene_open_with(input, map, &io, NULL, &scene, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
-    double t1 = sl_now();
+    double t1 = tool_now();
     if (sl_export_assimp(scene, output, format, axis, &err) != SL_OK) {
         sl_scene_destroy(scene);
         return cli_fail(a.cmd, &err);
     }
-    double t2 = sl_now();
+    double t2 = tool_now();
     sl_scene_stats s;
     sl_scene_get_stats(scene, &s);
     struct stat fs;

@@ -4,7 +4,7 @@
  * defaults whatever the order of the options. */
 #include "cli.h"
 
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/gen.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
@@ -253,9 +253,9 @@ int sl_cmd_gen(int argc, char **argv)
             o.terrain = name[0] == 't';
         } else {
             size_t k = 0;
-            while (k < SL_COUNTOF(float_opts) && strcmp(name, float_opts[k].name))
+            while (k < TOOL_COUNTOF(float_opts) && strcmp(name, float_opts[k].name))
                 k++;
-            if (k == SL_COUNTOF(float_opts)) {
+            if (k == TOOL_COUNTOF(float_opts)) {
                 cli_unknown(&a, name);
                 break;
             }
@@ -283,18 +283,18 @@ int sl_cmd_gen(int argc, char **argv)
     cli_progress_state ps;
     o.progress = cli_progress(&ps, quiet || json);
     sl_scene scene = NULL;
-    double t0 = sl_now();
+    double t0 = tool_now();
     sl_status st = sl_gen_city(&o, NULL, &scene, &err);
-    double t_gen = sl_now() - t0;
+    double t_gen = tool_now() - t0;
     cli_progress_done(&ps);
     if (st != SL_OK)
         return cli_fail(cmd, &err);
     double t_save = 0;
     uint64_t bytes = 0;
     if (output) {
-        t0 = sl_now();
+        t0 = tool_now();
         st = sl_scene_save(scene, output, &err);
-        t_save = sl_now() - t0;
+        t_save = tool_now() - t0;
         if (st != SL_OK) {
             sl_scene_destroy(scene);
             return cli_fail(cmd, &err);

@@ -3,8 +3,7 @@
  * other file to assimp. */
 #include "cli.h"
 
-#include "core/escape.h"
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/import.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
@@ -69,7 +68,7 @@ static void default_output(const char *input, const char *map, char *buf, size_t
     base = base ? base + 1 : name;
     const char *dot = strrchr(base, '.');
     size_t len = dot && dot != base ? (size_t)(dot - base) : strlen(base);
-    snprintf(buf, size, "%.*s.slscene", (int)SL_MIN(len, size - 9), base);
+    snprintf(buf, size, "%.*s.slscene", (int)TOOL_MIN(len, size - 9), base);
 }
 
 typedef struct map_list {
@@ -195,9 +194,9 @@ int sl_cmd_import(int argc, char **argv)
     opt.progress = cli_progress(&ps, quiet || json);
     sl_error err;
     sl_scene scene;
-    double t0 = sl_now();
+    double t0 = tool_now();
     sl_status st = q3 ? sl_import_q3bsp(input, map, &opt, NULL, &scene, &err) : sl_import_assimp(input, &opt, NULL, &scene, &err);
-    double t1 = sl_now();
+    double t1 = tool_now();
     cli_progress_done(&ps);
     if (st != SL_OK)
         return cli_fail(a.cmd, &err);
@@ -205,7 +204,7 @@ int sl_cmd_import(int argc, char **argv)
         sl_scene_destroy(scene);
         return cli_fail(a.cmd, &err);
     }
-    double t2 = sl_now();
+    double t2 = tool_now();
 
     sl_scene_stats s;
     sl_scene_get_stats(scene, &s);

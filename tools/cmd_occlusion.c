@@ -1,10 +1,12 @@
 /* `sightline occlusion`: debugging tools of the occlusion methods. `replay` re-runs a frame
  * recorded with a culler's record=FILE option (docs/occlusion.md, "Debugging outputs") through
- * the internal sl_occ_replay, on one instruction-set path or on every available one, and reports
+ * sl_occ_replay (sightline/cull.h), on one instruction-set path or on every available one, and reports
  * whether the rasterizer still gives the recorded answers. */
 #include "cli.h"
 
-#include "cull/occluders.h"
+#include "tool.h"
+
+#include "sightline/cull.h"
 
 #include <string.h>
 
@@ -123,10 +125,10 @@ static int cmd_replay(int argc, char **argv)
         cli_error(a.cmd, "missing FILE (see sightline occlusion --help)");
         return 2;
     }
-    replay_run runs[SL_COUNTOF(g_isas)];
+    replay_run runs[TOOL_COUNTOF(g_isas)];
     uint32_t n = 0;
     bool all = !strcmp(isa_name, "all"), known = all;
-    for (size_t i = 0; i < SL_COUNTOF(g_isas); i++) {
+    for (size_t i = 0; i < TOOL_COUNTOF(g_isas); i++) {
         bool pick = all ? g_isas[i].isa != SL_RASTER_ISA_AUTO && sl_raster_isa_available(g_isas[i].isa)
                         : !strcmp(isa_name, g_isas[i].name);
         known = known || pick;

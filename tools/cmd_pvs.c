@@ -3,8 +3,7 @@
 #include "cli.h"
 #include "pvs_cli.h"
 
-#include "core/sl_core.h"
-#include "core/text_parse.h"
+#include "tool.h"
 
 #include "sightline/gen.h"
 #include "sightline/import.h"
@@ -222,7 +221,7 @@ sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl
     const sl_pose *poses = sl_path_poses(path);
     sl_viewcell *keep = malloc(((size_t)nc + 1) * sizeof *keep);
     if (!keep)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "cells along the path: out of memory");
+        return tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "cells along the path: out of memory");
     uint32_t n = 0;
     for (uint32_t c = 0; c < nc; c++)
         for (uint32_t i = 0; i < np; i++) {
@@ -233,7 +232,7 @@ sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl
             }
         }
     sl_status st = n ? sl_viewcells_create(keep, n, NULL, out, err)
-                     : sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                     : tool_fail(err, SL_ERROR_INVALID_ARGUMENT,
                                "no view cell lies within %g m of the path's %u cameras (a path of another scene?)",
                                (double)radius, np);
     free(keep);
@@ -1012,6 +1011,6 @@ int sl_cmd_pvs(int argc, char **argv)
 {
     static const char *const actions[] = {"build", "info", "query", "verify"};
     static int (*const run[])(int, char **) = {run_build, run_info, run_query, run_verify};
-    int status, k = cli_action(argc, argv, "pvs", usage_main, actions, (int)SL_COUNTOF(actions), &status);
+    int status, k = cli_action(argc, argv, "pvs", usage_main, actions, (int)TOOL_COUNTOF(actions), &status);
     return k < 0 ? status : run[k](argc - 1, argv + 1);
 }

@@ -7,7 +7,7 @@
 #include "sightline/radar.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
-#include "core/sl_core.h"
+#include "tool.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -224,7 +224,7 @@ int sl_cmd_radar(int argc, char **argv)
     sl_scene scene = NULL;
     sl_terrain_desc terrain;
     bool generated = !input;
-    double t0 = sl_now();
+    double t0 = tool_now();
     if (input) {
         sl_import_options io = sl_import_defaults();
         cli_import_apply(&imp, &io);
@@ -237,7 +237,7 @@ int sl_cmd_radar(int argc, char **argv)
         }
     } else if (sl_radar_terrain_generate(&to, NULL, &terrain, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
-    double t_terrain = sl_now() - t0;
+    double t_terrain = tool_now() - t0;
     int rc = 0;
     sl_radar radar = NULL;
     cli_json j;
@@ -253,12 +253,12 @@ int sl_cmd_radar(int argc, char **argv)
         rc = 2;
         goto done;
     }
-    t0 = sl_now();
+    t0 = tool_now();
     if (sl_radar_create(&terrain, &ro, &radar, &err) != SL_OK) {
         rc = cli_fail(a.cmd, &err);
         goto done;
     }
-    double t_build = sl_now() - t0;
+    double t_build = tool_now() - t0;
     sl_radar_sweep sw;
     sw.transmitter = (sl_vec3){(float)tx, (float)ty, sl_radar_height(radar, (float)tx, (float)ty) + mast};
     sw.azimuth = (float)(azimuth * DEG);
@@ -378,12 +378,12 @@ int sl_cmd_radar(int argc, char **argv)
             sl_radar_options o = ro;
             o.grid = grids[g];
             sl_radar r2;
-            double tb = sl_now();
+            double tb = tool_now();
             if (sl_radar_create(&terrain, &o, &r2, &err) != SL_OK) {
                 rc = cli_fail(a.cmd, &err);
                 break;
             }
-            tb = sl_now() - tb;
+            tb = tool_now() - tb;
             double ms[1000], full = 0;
             sl_radar_stats st;
             for (uint32_t k = 0; k < runs && rc == 0; k++) {

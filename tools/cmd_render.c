@@ -8,13 +8,11 @@
  * the whole run through its optional setup/cleanup hooks. */
 #include "cli.h"
 
-#include "core/sl_core.h"
-#include "core/text_parse.h"
+#include "tool.h"
 #include "sightline/bench.h"
 #include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/truth.h"
-#include "truth/plot.h"
 
 #include <errno.h>
 #include <math.h>
@@ -255,7 +253,7 @@ int sl_cmd_render(int argc, char **argv)
             sl_path_destroy(path);
             return 1;
         }
-        end = SL_MIN(end, n);
+        end = TOOL_MIN(end, n);
     } else {
         end = 1;
     }
@@ -274,7 +272,7 @@ int sl_cmd_render(int argc, char **argv)
     char label[128];
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&imp, &io);
-    if (sl_bench_open_scene_with(scene_spec, map, &io, &prog, NULL, &scene, label, sizeof label, &err) != SL_OK) {
+    if (cli_open_scene(scene_spec, map, &io, &prog, &scene, label, sizeof label, &err) != SL_OK) {
         cli_progress_done(&ps);
         cli_outdir_abort(&od);
         sl_path_destroy(path);
@@ -312,7 +310,7 @@ int sl_cmd_render(int argc, char **argv)
     uint32_t written = 0;
     char file[4400], shown[4400];
     for (uint32_t f = first; f < end && !status; f++) {
-        sl_progress_report(&prog, "rendering", f - first, end - first);
+        tool_progress(&prog, "rendering", f - first, end - first);
         sl_camera c = cam;
         if (path) {
             c = sl_path_camera(path, f);
@@ -323,7 +321,7 @@ int sl_cmd_render(int argc, char **argv)
         }
         sl_oracle_frame truth;
         if (sl_oracle_render(oracle, &c, &truth, &err) != SL_OK) {
-            sl_error_prefix(&err, "frame %u", f);
+            tool_error_prefix(&err, "frame %u", f);
             status = cli_fail(cmd, &err);
             break;
         }
@@ -355,7 +353,7 @@ int sl_cmd_render(int argc, char **argv)
             cli_json_object_end(&j);
         }
     }
-    sl_progress_report(&prog, "rendering", end - first, end - first);
+    tool_progress(&prog, "rendering", end - first, end - first);
     cli_progress_done(&ps);
     if (status)
         cli_outdir_abort(&od);

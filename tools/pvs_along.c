@@ -3,7 +3,7 @@
  * method as `sightline pvs build --cells streets --along PATH --radius R`. */
 #include "pvs_cli.h"
 
-#include "core/sl_core.h"
+#include "tool.h"
 #include "sightline/bake.h"
 #include "sightline/region.h"
 
@@ -16,7 +16,7 @@ static sl_status path_slice(sl_path path, uint32_t first, uint32_t count, sl_pat
     *out = NULL;
     uint32_t n = sl_path_count(path);
     if (first >= n)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "frame %u is beyond the path's %u frames", first, n);
+        return tool_fail(err, SL_ERROR_INVALID_ARGUMENT, "frame %u is beyond the path's %u frames", first, n);
     if (count > n - first)
         count = n - first;
     sl_camera intrinsics = sl_path_intrinsics(path);
@@ -52,7 +52,7 @@ sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, uint32_t first, uint3
                  "build` and give it with file=PATH)");
         return SL_OK;
     }
-    double t0 = sl_now();
+    double t0 = tool_now();
     sl_viewcells all = NULL, near = NULL;
     sl_path run = NULL;
     sl_status st = path_slice(path, first, count, &run, err);
@@ -91,6 +91,6 @@ sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, uint32_t first, uint3
         }
     }
     sl_viewcells_destroy(near);
-    out->seconds = sl_now() - t0;
+    out->seconds = tool_now() - t0;
     return st;
 }

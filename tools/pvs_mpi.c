@@ -27,9 +27,11 @@
  * without dying (SIGSTOP, a hang) loses its lease: see "Leases" below. */
 #include "pvs_cli.h"
 
-#include "core/sl_core.h"
+#include "tool.h"
 
 #include <math.h>
+#include <stdio.h>
+#include <string.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -44,7 +46,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
         memset(stats, 0, sizeof *stats);
     if (rank)
         *rank = 0;
-    return sl_fail(err, SL_ERROR_UNSUPPORTED, "pvs bake: this sightline command was built without MPI (install "
+    return tool_fail(err, SL_ERROR_UNSUPPORTED, "pvs bake: this sightline command was built without MPI (install "
                                               "libmpich-dev and reconfigure)");
 }
 
@@ -83,7 +85,7 @@ static sl_status agree(sl_status st, sl_error *err, int rank)
         snprintf(msg, sizeof msg, "%s", err->message);
     MPI_Bcast(msg, sizeof msg, MPI_CHAR, first, MPI_COMM_WORLD);
     if (err && rank != first)
-        sl_fail(err, (sl_status)worst, "process %d: %s", first, msg);
+        tool_fail(err, (sl_status)worst, "process %d: %s", first, msg);
     return (sl_status)worst;
 }
 
@@ -151,7 +153,7 @@ static void run_counted(master_run *r)
     if (r->stopping != RUN)
         return;
     uint32_t done = sl_bake_session_done_count(b), cells = sl_bake_session_cell_count(b);
-    if (!sl_progress_report(r->progress, "baking cells", done, cells))
+    if (!tool_progress(r->progress, "baking cells", done, cells))
         r->stopping = STOP_CANCELLED;
     else if (r->stop_after && sl_bake_session_baked(b) >= r->stop_after && done < cells)
         r->stopping = STOP_AFTER;
@@ -207,17 +209,17 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
 {
     sl_error e;
     if (size < MSG_HEAD) {
-        sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a short message", src);
+        tool_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a short message", src);
         run_fail(r, e.status, &e);
         return 0;
     }
-    uint32_t want = SL_MIN(rd32(buf), MAX_CHUNK);
+    uint32_t want = TOOL_MIN(rd32(buf), MAX_CHUNK);
     uint32_t wst = rd32(buf + 4), count = rd32(buf + 264);
     if (wst != SL_OK) {
         char msg[257];
         memcpy(msg, buf + 8, 256);
         msg[256] = 0;
-        sl_fail(&e, (sl_status)wst, "process %d: %s", src, msg);
+        tool_fail(&e, (sl_status)wst, "process %d: %s", src, msg);
         run_fail(r, (sl_status)wst, &e);
     } else {
         /* an OK message carries "pid N on HOST" where an error would carry its text */
@@ -229,7 +231,7 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
     size_t at = MSG_HEAD;
     for (uint32_t k = 0; k < count; k++) {
         if (size - at < REC_HEAD) {
-            sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a truncated result", src);
+            tool_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a truncated result", src);
             run_fail(r, e.status, &e);
             break;
         }
@@ -238,7 +240,7 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
         memcpy(&secs, buf + at + 12, 8);
         at += REC_HEAD;
         if (bytes > size - at) {
-            sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a truncated set", src);
+            tool_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d sent a truncated set", src);
             run_fail(r, e.status, &e);
             break;
         }
@@ -248,7 +250,7 @@ static uint32_t serve_message(master_run *r, const uint8_t *buf, size_t size, in
         } else if (run_keeps(r)) {
             sl_status s2 = cell < sl_bake_session_cell_count(b) && !sl_bake_session_cell_done(b, cell)
                                ? sl_bake_session_store_encoded(b, cell, buf + at, bytes, ids, secs, &e)
-                               : sl_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d returned cell %u twice", src, cell);
+                               : tool_fail(&e, SL_ERROR_INTERNAL, "pvs bake: process %d returned cell %u twice", src, cell);
             if (s2 != SL_OK)
                 run_fail(r, s2, &e);
             else
@@ -278,7 +280,7 @@ static void serve(master_run *r, int *active, bool drain)
     uint8_t *buf = NULL;
     size_t cap = 0;
     uint32_t take[MAX_CHUNK];
-    double noted = sl_now();
+    double noted = tool_now();
     while (*active > 0) {
         MPI_Status ms;
         int flag = 0;
@@ -287,7 +289,7 @@ static void serve(master_run *r, int *active, bool drain)
             int size = 0;
             MPI_Get_count(&ms, MPI_BYTE, &size);
             if ((size_t)size > cap) {
-                uint8_t *nb = sl_realloc(sl_bake_session_allocator(r->b), buf, cap, (size_t)size);
+                uint8_t *nb = tool_realloc(sl_bake_session_allocator(r->b), buf, cap, (size_t)size);
                 if (!nb) /* cannot even read the message: give up on the whole job */
                     MPI_Abort(MPI_COMM_WORLD, 2);
                 buf = nb;
@@ -299,7 +301,7 @@ static void serve(master_run *r, int *active, bool drain)
             bool stop = false;
 #pragma omp critical(sl_pvs_mpi)
             {
-                double now = sl_now();
+                double now = tool_now();
                 r->heard[src] = now;
                 r->busy[src] = 0;
                 if (drain) {
@@ -332,7 +334,7 @@ static void serve(master_run *r, int *active, bool drain)
             bool stop = false;
 #pragma omp critical(sl_pvs_mpi)
             if (r->waiting[p]) {
-                n = run_take(r, r->waiting[p], take, p, sl_now());
+                n = run_take(r, r->waiting[p], take, p, tool_now());
                 stop = n == 0 && run_over(r);
                 if (n || stop)
                     r->waiting[p] = 0;
@@ -354,7 +356,7 @@ static void serve(master_run *r, int *active, bool drain)
             if (phase_over)
                 break;
         } else {
-            double now = sl_now(), every = r->lease > 0 ? r->lease : 10;
+            double now = tool_now(), every = r->lease > 0 ? r->lease : 10;
             if (now - noted >= every) {
                 noted = now;
                 for (int p = 1; p < r->nproc; p++)
@@ -371,7 +373,7 @@ static void serve(master_run *r, int *active, bool drain)
         struct timespec ts = {0, 200000};
         nanosleep(&ts, NULL);
     }
-    sl_free(sl_bake_session_allocator(r->b), buf, cap);
+    tool_free(sl_bake_session_allocator(r->b), buf, cap);
 }
 
 /* A baking thread of process 0: cells from the shared queue (or whose lease ran out), one at a
@@ -383,9 +385,9 @@ static void bake_local(master_run *r)
     sl_error e;
     const sl_allocator *a = sl_bake_session_allocator(b);
     size_t ids_size = ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t);
-    uint32_t *ids = sl_alloc(a, ids_size);
+    uint32_t *ids = tool_alloc(a, ids_size);
     sl_status s = ids ? sl_bake_worker_create(b, &w, &e)
-                      : sl_fail(&e, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+                      : tool_fail(&e, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     if (s != SL_OK) {
 #pragma omp critical(sl_pvs_mpi)
         run_fail(r, s, &e);
@@ -395,7 +397,7 @@ static void bake_local(master_run *r)
         bool over;
 #pragma omp critical(sl_pvs_mpi)
         {
-            n = run_take(r, 1, &cell, 0, sl_now());
+            n = run_take(r, 1, &cell, 0, tool_now());
             over = run_over(r);
         }
         if (n == 0) {
@@ -406,9 +408,9 @@ static void bake_local(master_run *r)
             continue;
         }
         uint32_t count = 0;
-        double c0 = sl_now();
+        double c0 = tool_now();
         sl_status cs = sl_bake_worker_cell(w, cell, ids, &count, &e);
-        double secs = sl_now() - c0;
+        double secs = tool_now() - c0;
 #pragma omp critical(sl_pvs_mpi)
         {
             if (cs == SL_OK && sl_bake_session_cell_done(b, cell) && r->reissued[cell]) {
@@ -419,13 +421,13 @@ static void bake_local(master_run *r)
                     run_counted(r);
             }
             if (cs != SL_OK) {
-                sl_error_prefix(&e, "cell %u", cell);
+                tool_error_prefix(&e, "cell %u", cell);
                 run_fail(r, cs, &e);
             }
         }
     }
     sl_bake_worker_destroy(w);
-    sl_free(a, ids, ids_size);
+    tool_free(a, ids, ids_size);
 }
 
 /* Process 0: serve and bake until every cell is done, write the file, then wait for the processes
@@ -441,15 +443,15 @@ static sl_status master(sl_bake_session b, const char *output, const sl_pvs_buil
     r.lease = lease;
     r.nproc = nproc;
     size_t nc = (size_t)sl_bake_session_cell_count(b) + 1, np = (size_t)nproc;
-    r.todo = sl_alloc(sl_bake_session_allocator(b), nc * sizeof(uint32_t));
-    r.flight = sl_alloc(sl_bake_session_allocator(b), nc * sizeof(uint32_t));
-    r.holder = sl_alloc(sl_bake_session_allocator(b), nc * sizeof(int));
-    r.given = sl_calloc(sl_bake_session_allocator(b), nc, sizeof(double));
-    r.reissued = sl_calloc(sl_bake_session_allocator(b), nc, 1);
-    r.waiting = sl_calloc(sl_bake_session_allocator(b), np, sizeof(uint32_t));
-    r.busy = sl_calloc(sl_bake_session_allocator(b), np, 1);
-    r.heard = sl_calloc(sl_bake_session_allocator(b), np, sizeof(double));
-    r.who = sl_calloc(sl_bake_session_allocator(b), np, sizeof *r.who);
+    r.todo = tool_alloc(sl_bake_session_allocator(b), nc * sizeof(uint32_t));
+    r.flight = tool_alloc(sl_bake_session_allocator(b), nc * sizeof(uint32_t));
+    r.holder = tool_alloc(sl_bake_session_allocator(b), nc * sizeof(int));
+    r.given = tool_calloc(sl_bake_session_allocator(b), nc, sizeof(double));
+    r.reissued = tool_calloc(sl_bake_session_allocator(b), nc, 1);
+    r.waiting = tool_calloc(sl_bake_session_allocator(b), np, sizeof(uint32_t));
+    r.busy = tool_calloc(sl_bake_session_allocator(b), np, 1);
+    r.heard = tool_calloc(sl_bake_session_allocator(b), np, sizeof(double));
+    r.who = tool_calloc(sl_bake_session_allocator(b), np, sizeof *r.who);
     sl_status st = SL_OK;
     if (!r.todo || !r.flight || !r.holder || !r.given || !r.reissued || !r.waiting || !r.busy || !r.heard || !r.who) {
         /* the workers are waiting for an answer: tell them to stop before failing */
@@ -464,14 +466,14 @@ static sl_status master(sl_bake_session b, const char *output, const sl_pvs_buil
             MPI_Recv(buf, size, MPI_BYTE, p, TAG_RESULT, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
             send_work(p, NULL, 0);
         }
-        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+        st = tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     } else {
         for (uint32_t c = 0; c < sl_bake_session_cell_count(b); c++) {
             r.holder[c] = -1;
             if (!sl_bake_session_cell_done(b, c))
                 r.todo[r.todo_count++] = c;
         }
-        double now = sl_now();
+        double now = tool_now();
         for (int p = 0; p < nproc; p++)
             r.heard[p] = now;
         int active = nproc - 1;
@@ -489,10 +491,10 @@ static sl_status master(sl_bake_session b, const char *output, const sl_pvs_buil
             sl_bake_session_note_kept(b, err);
             st = r.st;
         } else if (r.stopping == STOP_CANCELLED) {
-            st = sl_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s",
+            st = tool_fail(err, SL_ERROR_CANCELLED, "pvs bake: cancelled after %u of %u cells; resume from %s",
                          sl_bake_session_done_count(b), sl_bake_session_cell_count(b), sl_bake_session_journal(b));
         } else if (r.stopping == STOP_AFTER) {
-            st = sl_fail(err, SL_ERROR_CANCELLED,
+            st = tool_fail(err, SL_ERROR_CANCELLED,
                          "pvs bake: stopped after %u newly baked cells as asked (%u of %u done); resume from %s",
                          sl_bake_session_baked(b), sl_bake_session_done_count(b), sl_bake_session_cell_count(b),
                          sl_bake_session_journal(b));
@@ -511,15 +513,15 @@ static sl_status master(sl_bake_session b, const char *output, const sl_pvs_buil
             serve(&r, &active, true);
         }
     }
-    sl_free(sl_bake_session_allocator(b), r.todo, nc * sizeof(uint32_t));
-    sl_free(sl_bake_session_allocator(b), r.flight, nc * sizeof(uint32_t));
-    sl_free(sl_bake_session_allocator(b), r.holder, nc * sizeof(int));
-    sl_free(sl_bake_session_allocator(b), r.given, nc * sizeof(double));
-    sl_free(sl_bake_session_allocator(b), r.reissued, nc);
-    sl_free(sl_bake_session_allocator(b), r.waiting, np * sizeof(uint32_t));
-    sl_free(sl_bake_session_allocator(b), r.busy, np);
-    sl_free(sl_bake_session_allocator(b), r.heard, np * sizeof(double));
-    sl_free(sl_bake_session_allocator(b), r.who, np * sizeof *r.who);
+    tool_free(sl_bake_session_allocator(b), r.todo, nc * sizeof(uint32_t));
+    tool_free(sl_bake_session_allocator(b), r.flight, nc * sizeof(uint32_t));
+    tool_free(sl_bake_session_allocator(b), r.holder, nc * sizeof(int));
+    tool_free(sl_bake_session_allocator(b), r.given, nc * sizeof(double));
+    tool_free(sl_bake_session_allocator(b), r.reissued, nc);
+    tool_free(sl_bake_session_allocator(b), r.waiting, np * sizeof(uint32_t));
+    tool_free(sl_bake_session_allocator(b), r.busy, np);
+    tool_free(sl_bake_session_allocator(b), r.heard, np * sizeof(double));
+    tool_free(sl_bake_session_allocator(b), r.who, np * sizeof *r.who);
     return st;
 }
 
@@ -536,7 +538,7 @@ typedef struct done_cell {
 } done_cell;
 
 /* The message reporting a chunk (or the error) and asking for `want` more cells. */
-static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, sl_status st, const sl_error *err,
+static bool worker_message(const sl_allocator *a, tool_bytes *out, uint32_t want, sl_status st, const sl_error *err,
                            const done_cell *res, uint32_t nres)
 {
     out->count = 0;
@@ -545,7 +547,7 @@ static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, 
     wr32(head, st == SL_OK ? want : 0);
     wr32(head + 4, (uint32_t)st);
     if (st != SL_OK && err)
-        memcpy(head + 8, err->message, SL_MIN(sizeof err->message, (size_t)255));
+        memcpy(head + 8, err->message, TOOL_MIN(sizeof err->message, (size_t)255));
     if (st == SL_OK) {
         char host[40] = "";
         gethostname(host, sizeof host - 1);
@@ -553,15 +555,15 @@ static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, 
         snprintf((char *)head + 8, 64, "pid %ld on %s", (long)getpid(), host);
     }
     wr32(head + 264, st == SL_OK ? nres : 0);
-    bool ok = sl_array_push(a, out, 1, head, sizeof head) != NULL;
+    bool ok = tool_bytes_push(a, out, head, sizeof head);
     for (uint32_t k = 0; k < nres && st == SL_OK && ok; k++) {
         uint8_t rh[REC_HEAD];
         wr32(rh, res[k].cell);
         wr32(rh + 4, res[k].ids);
         wr32(rh + 8, res[k].size);
         memcpy(rh + 12, &res[k].seconds, 8);
-        ok = sl_array_push(a, out, 1, rh, sizeof rh) &&
-             (res[k].size == 0 || sl_array_push(a, out, 1, res[k].bytes, res[k].size));
+        ok = tool_bytes_push(a, out, rh, sizeof rh) &&
+             (res[k].size == 0 || tool_bytes_push(a, out, res[k].bytes, res[k].size));
     }
     return ok;
 }
@@ -569,18 +571,18 @@ static bool worker_message(const sl_allocator *a, sl_array *out, uint32_t want, 
 static sl_status worker(sl_bake_session b, int threads, sl_error *err)
 {
     const sl_allocator *a = sl_bake_session_allocator(b);
-    sl_bake_worker *workers = sl_calloc(a, (size_t)threads, sizeof *workers);
-    uint32_t **ids = sl_calloc(a, (size_t)threads, sizeof(uint32_t *));
-    uint32_t *cells = sl_alloc(a, MAX_CHUNK * sizeof(uint32_t));
-    done_cell *res = sl_calloc(a, (size_t)threads, sizeof(done_cell));
-    sl_array out = {0}; /* the message under construction */
+    sl_bake_worker *workers = tool_calloc(a, (size_t)threads, sizeof *workers);
+    uint32_t **ids = tool_calloc(a, (size_t)threads, sizeof(uint32_t *));
+    uint32_t *cells = tool_alloc(a, MAX_CHUNK * sizeof(uint32_t));
+    done_cell *res = tool_calloc(a, (size_t)threads, sizeof(done_cell));
+    tool_bytes out = {0}; /* the message under construction */
     sl_status st = SL_OK;
     if (!workers || !ids || !cells || !res)
-        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+        st = tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
     for (int t = 0; t < threads && st == SL_OK; t++) {
-        ids[t] = sl_alloc(a, ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t));
+        ids[t] = tool_alloc(a, ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t));
         if (!ids[t])
-            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+            st = tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
         else
             st = sl_bake_worker_create(b, &workers[t], err);
     }
@@ -589,7 +591,7 @@ static sl_status worker(sl_bake_session b, int threads, sl_error *err)
         /* report the last chunk (or the error) and ask for more */
         bool ok = worker_message(a, &out, (uint32_t)threads, st, err, res, nres);
         for (uint32_t k = 0; k < nres; k++) {
-            sl_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
+            tool_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
             res[k].bytes = NULL;
         }
         nres = 0;
@@ -600,7 +602,7 @@ static sl_status worker(sl_bake_session b, int threads, sl_error *err)
             wr32(bare + 4, SL_ERROR_OUT_OF_MEMORY);
             snprintf((char *)bare + 8, 256, "out of memory for a result message");
             MPI_Send(bare, MSG_HEAD, MPI_BYTE, 0, TAG_RESULT, MPI_COMM_WORLD);
-            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
+            st = tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory");
         } else {
             MPI_Send(out.data, (int)out.count, MPI_BYTE, 0, TAG_RESULT, MPI_COMM_WORLD);
         }
@@ -632,22 +634,22 @@ static sl_status worker(sl_bake_session b, int threads, sl_error *err)
             d->bytes = NULL;
             d->st = SL_OK;
             if (cells[k] >= sl_bake_session_cell_count(b)) {
-                d->st = sl_fail(&d->err, SL_ERROR_INTERNAL, "pvs bake: the master sent cell %u of %u", cells[k],
+                d->st = tool_fail(&d->err, SL_ERROR_INTERNAL, "pvs bake: the master sent cell %u of %u", cells[k],
                                 sl_bake_session_cell_count(b));
                 continue;
             }
             uint32_t count = 0;
-            double c0 = sl_now();
+            double c0 = tool_now();
             d->st = sl_bake_worker_cell(workers[t], cells[k], ids[t], &count, &d->err);
-            d->seconds = sl_now() - c0;
+            d->seconds = tool_now() - c0;
             if (d->st != SL_OK) {
-                sl_error_prefix(&d->err, "cell %u", cells[k]);
+                tool_error_prefix(&d->err, "cell %u", cells[k]);
                 continue;
             }
             d->ids = count;
-            d->bytes = sl_alloc(a, (size_t)count * 5 + 1);
+            d->bytes = tool_alloc(a, (size_t)count * 5 + 1);
             if (!d->bytes)
-                d->st = sl_fail(&d->err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory for cell %u", cells[k]);
+                d->st = tool_fail(&d->err, SL_ERROR_OUT_OF_MEMORY, "pvs bake: out of memory for cell %u", cells[k]);
             else
                 d->size = (uint32_t)sl_bake_encode_set(ids[t], count, d->bytes);
         }
@@ -660,18 +662,18 @@ static sl_status worker(sl_bake_session b, int threads, sl_error *err)
             }
     }
     for (uint32_t k = 0; res && k < (uint32_t)threads; k++)
-        sl_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
-    sl_free(a, res, (size_t)threads * sizeof(done_cell));
+        tool_free(a, res[k].bytes, (size_t)res[k].ids * 5 + 1);
+    tool_free(a, res, (size_t)threads * sizeof(done_cell));
     for (int t = 0; t < threads; t++) {
         if (workers)
             sl_bake_worker_destroy(workers[t]);
         if (ids)
-            sl_free(a, ids[t], ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t));
+            tool_free(a, ids[t], ((size_t)sl_bake_session_object_count(b) + 1) * sizeof(uint32_t));
     }
-    sl_free(a, workers, (size_t)threads * sizeof *workers);
-    sl_free(a, ids, (size_t)threads * sizeof(uint32_t *));
-    sl_free(a, cells, MAX_CHUNK * sizeof(uint32_t));
-    sl_array_free(a, &out, 1);
+    tool_free(a, workers, (size_t)threads * sizeof *workers);
+    tool_free(a, ids, (size_t)threads * sizeof(uint32_t *));
+    tool_free(a, cells, MAX_CHUNK * sizeof(uint32_t));
+    tool_bytes_free(a, &out);
     return st;
 }
 
@@ -686,12 +688,12 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
     MPI_Initialized(&inited);
     MPI_Finalized(&finalized);
     if (finalized)
-        return sl_fail(err, SL_ERROR_UNSUPPORTED, "pvs bake: MPI was already finalized in this process");
+        return tool_fail(err, SL_ERROR_UNSUPPORTED, "pvs bake: MPI was already finalized in this process");
     bool own = !inited;
     int provided = MPI_THREAD_SINGLE;
     if (own) {
         if (MPI_Init_thread(NULL, NULL, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS)
-            return sl_fail(err, SL_ERROR_INTERNAL, "pvs bake: MPI_Init failed");
+            return tool_fail(err, SL_ERROR_INTERNAL, "pvs bake: MPI_Init failed");
     } else {
         MPI_Query_thread(&provided);
     }
@@ -709,7 +711,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
     }
     double t0 = MPI_Wtime();
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
-    threads = SL_MAX(1, SL_MIN(threads, (int)sl_thread_limit())); /* opt->threads was checked against it */
+    threads = TOOL_MAX(1, TOOL_MIN(threads, (int)sl_thread_limit())); /* opt->threads was checked against it */
     /* without FUNNELED the MPI library may not tolerate other threads beside the one calling it:
      * process 0 then only serves */
     int local = provided >= MPI_THREAD_FUNNELED ? threads : 0;
@@ -721,7 +723,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
         uint64_t key = sl_bake_session_key(b), root = sl_bake_session_key(b);
         MPI_Bcast(&root, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
         if (key != root)
-            st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+            st = tool_fail(err, SL_ERROR_INVALID_ARGUMENT,
                          "pvs bake: process %d has another scene, cells, method or options than process 0", rank);
         st = agree(st, err, rank);
     }
@@ -736,7 +738,7 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
         snprintf(msg, sizeof msg, "%s", err->message);
     MPI_Bcast(msg, sizeof msg, MPI_CHAR, 0, MPI_COMM_WORLD);
     if (rank != 0 && verdict != SL_OK && st == SL_OK)
-        st = sl_fail(err, (sl_status)verdict, "process 0: %s", msg);
+        st = tool_fail(err, (sl_status)verdict, "process 0: %s", msg);
     if (stats) {
         sl_bake_session_stats(b, stats);
         stats->processes = (uint32_t)nproc;

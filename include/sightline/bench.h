@@ -48,11 +48,6 @@ typedef struct sl_bench_options {
                                  (default 1) */
     const char *label;        /* name of the scene in reports ("city-small-1"); copied (default "scene") */
     sl_progress progress;     /* sl_bench_run_path reports frames done; returning false cancels */
-    const char *stage_dir;    /* with out_dir: a method option naming a file under stage_dir (a
-                                 folder the run writes into, moved to out_dir at its end) is shown
-                                 in reports under out_dir, where the file ends up (default NULL;
-                                 read by sl_bench_create only) */
-    const char *out_dir;
 } sl_bench_options;
 
 /* The defaults above. */
@@ -136,22 +131,6 @@ typedef struct sl_bench_summary {
                                       domain (not in `frames`) */
 } sl_bench_summary;
 
-/* ---- scenes named on a command line ---- */
-
-/* Open the scene a command line names: "city:PRESET[:SEED]" generates a city (sl_gen_city with
- * the preset's defaults, tiny|small|vienna, seed 1 by default); anything else is a file read by
- * sl_scene_open (map: the map inside a .pk3, else NULL). label (label_size bytes, may be NULL)
- * receives a short name for reports made of [A-Za-z0-9._-]: "city-small-1", or the file's base
- * name without its extension. progress (may be NULL) reports city generation. */
-SL_API sl_status sl_bench_open_scene(const char *spec, const char *map, const sl_progress *progress,
-                                     const sl_allocator *alloc, sl_scene *out, char *label, size_t label_size,
-                                     sl_error *err);
-/* The same with import options for files (sl_scene_open_with; opt may be NULL). */
-struct sl_import_options;
-SL_API sl_status sl_bench_open_scene_with(const char *spec, const char *map, const struct sl_import_options *opt,
-                                          const sl_progress *progress, const sl_allocator *alloc, sl_scene *out,
-                                          char *label, size_t label_size, sl_error *err);
-
 /* ---- lifetime ---- */
 
 /* Create a bench for a scene with the given methods (each created through the registry; an
@@ -192,6 +171,11 @@ SL_API const char *sl_bench_label(sl_bench bench);
 SL_API uint32_t sl_bench_method_count(sl_bench bench);
 /* Method `index`; SL_ERROR_INVALID_ARGUMENT beyond the count. */
 SL_API sl_status sl_bench_method(sl_bench bench, uint32_t index, sl_bench_method_info *out, sl_error *err);
+/* Set the options string that sl_bench_method and every report show for method `index` (by
+ * default its effective options, "" for an external method), e.g. a file option named as the file
+ * will be found once the caller has moved the run's outputs into place. Copied; no culler changes.
+ * SL_ERROR_INVALID_ARGUMENT beyond the count. */
+SL_API sl_status sl_bench_set_shown_options(sl_bench bench, uint32_t index, const char *options, sl_error *err);
 SL_API uint32_t sl_bench_frame_count(sl_bench bench);
 /* Frame `index`; SL_ERROR_INVALID_ARGUMENT beyond the count. */
 SL_API sl_status sl_bench_get_frame(sl_bench bench, uint32_t index, sl_bench_frame *out, sl_error *err);

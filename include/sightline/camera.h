@@ -84,6 +84,12 @@ SL_API void sl_camera_look_at(sl_camera *cam, sl_vec3 target);
  * reported as intersecting, never the reverse. An empty box is outside. */
 SL_API int sl_frustum_test_aabb(const sl_frustum *f, const sl_aabb *box);
 
+/* Read "x,y,z,yaw,pitch,roll[,fov]" (metres, degrees) into cam's position, yaw, pitch, roll and,
+ * with a seventh number, fov_y (radians); every value finite as a float. Other fields are
+ * untouched, and so is cam on failure. The camera's own checks (sl_camera_validate) still apply
+ * afterwards. The `render` command's --camera. Pure, thread-safe. */
+SL_API bool sl_parse_camera_spec(const char *text, sl_camera *cam);
+
 #ifdef __cplusplus
 }
 #endif

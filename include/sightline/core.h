@@ -16,6 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdbool.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -102,6 +103,79 @@ SL_API const char *sl_version_string(void);
 /* The same as numbers; any pointer may be NULL. A program built against other headers can compare
  * them with SL_VERSION_MAJOR/MINOR/PATCH. Thread-safe. */
 SL_API void sl_version(uint32_t *major, uint32_t *minor, uint32_t *patch);
+
+/* ---- outputs written atomically ----
+ * The writer of every file the library and the command write. Where path is a regular file or
+ * does not exist, the bytes go to a temporary "<target>.tmp.<pid>.<16 hex digits>" beside it,
+ * renamed over target on commit; abort (or any failure) removes the temporary, so no partial file
+ * is ever left behind. target is path, or where path's symbolic links end (the link stays). A
+ * device or a FIFO is written through; a directory or a socket is refused. Opening also removes
+ * the temporaries of the same target left by processes that no longer exist. One output is used by
+ * one thread at a time; distinct outputs may be used from distinct threads. */
+typedef struct sl_output_t *sl_output;
+
+/* Open an output for path (alloc may be NULL). */
+SL_API sl_status sl_output_open(const char *path, const sl_allocator *alloc, sl_output *out, sl_error *err);
+/* The stdio stream to write to (valid until commit or abort). A write error is sticky
+ * (ferror) and reported by sl_output_commit. */
+SL_API FILE *sl_output_stream(sl_output out);
+/* Flush, sync and put the file in place; on any write error "PATH: write failed: REASON"
+ * (SL_ERROR_IO) and the temporary is removed. Releases out either way. */
+SL_API sl_status sl_output_commit(sl_output out, sl_error *err);
+/* Drop what was written (the temporary is removed) and release out. NULL is ignored. */
+SL_API void sl_output_abort(sl_output out);
+/* Whether name is "<base>.tmp.<pid>.<16 hex digits>", the name of a temporary of the writer (pid:
+ * decimal without a leading zero, at most INT_MAX); *pid receives pid. Also the pattern of the
+ * command's staged output folders, so that a later run can remove those of a process that is
+ * gone. Pure, thread-safe. */
+SL_API bool sl_output_temp_name_pid(const char *base, const char *name, long *pid);
+
+/* ---- reading untrusted text (command lines, option strings) ----
+ * Pure functions: no allocation, no messages (the caller names what it read), thread-safe. They
+ * are fuzzed (fuzz/fuzz_options.c) as readers of hostile text. */
+
+/* Exactly n (1..16) comma-separated finite numbers ("1.5,-2,3e2"), as floats: each must convert
+ * to a finite float (3e39 is refused, 1e-50 reads as 0); nothing may follow the last. On failure
+ * out is left unchanged. */
+SL_API bool sl_parse_floats(const char *text, float *out, int n);
+
+/* A frame range "A:B" (frames A to B-1), "A:" (A to the end), ":B" (0 to B-1), ":" (all) or "A"
+ * (frame A alone), decimal digits only (no sign, no white space), into *first and *end (one past
+ * the last frame; UINT32_MAX: to the end). A must be below B and below UINT32_MAX (a path holds
+ * fewer than 2^32 frames, so frame UINT32_MAX never exists), B at most UINT32_MAX. The `bench` and
+ * `render` commands' --frames. *first and *end are untouched on failure. */
+SL_API bool sl_parse_range(const char *text, uint32_t *first, uint32_t *end);
+
+/* ---- text made safe for a terminal or a log ---- */
+
+/* Copy text (names, paths, importers' messages) into buf (size bytes, always terminated) C-style:
+ * control bytes (below 0x20, 0x7f), C1 controls (U+0080..U+009F), bytes that are not well-formed
+ * UTF-8 and backslashes are written as \xNN (a backslash as \\); well-formed UTF-8 passes
+ * unchanged. At most max_in input bytes are read; when the input is longer (or buf fills), "..."
+ * ends the result. Returns buf. Pure, thread-safe. */
+SL_API char *sl_escape_text(const char *text, size_t max_in, char *buf, size_t size);
+
+/* Length of the well-formed UTF-8 sequence at s (1..4, at most n bytes), or 0 when the bytes are
+ * not one (overlong, surrogate, beyond U+10FFFF, truncated, or a C1 control). ASCII counts as 1,
+ * controls included: the caller decides about those. Pure, thread-safe. */
+SL_API size_t sl_utf8_sequence(const unsigned char *s, size_t n);
+
+/* ---- deterministic random numbers ----
+ * PCG32 (XSH RR, 64-bit state): the same seed and stream give the same numbers on every machine
+ * and in every version (generated cities and sampled tests depend on it). A generator is plain
+ * data, used by one thread at a time. */
+typedef struct sl_rng { uint64_t state, inc; } sl_rng;
+/* Seed a generator; distinct streams give independent sequences for one seed. */
+SL_API void sl_rng_seed(sl_rng *r, uint64_t seed, uint64_t stream);
+/* The next 32 random bits. */
+SL_API uint32_t sl_rng_u32(sl_rng *r);
+/* Uniform in [0,1). */
+SL_API float sl_rng_float(sl_rng *r);
+SL_API double sl_rng_double(sl_rng *r);
+/* Uniform in [lo,hi). */
+SL_API float sl_rng_range(sl_rng *r, float lo, float hi);
+/* Uniform integer in [0,n), n > 0, unbiased. */
+SL_API uint32_t sl_rng_below(sl_rng *r, uint32_t n);
 
 #ifdef __cplusplus
 }

@@ -26,6 +26,7 @@
 #include "geom.h"
 #include "scene.h"
 #include "camera.h"
+#include "raster.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -120,6 +121,29 @@ SL_API sl_cull_guarantee sl_culler_guarantee(sl_culler culler);
 SL_API const char *sl_culler_method(sl_culler culler);
 /* The effective options, defaults included, as "key=value,key=value" (for reports). */
 SL_API const char *sl_culler_options(sl_culler culler);
+
+/* ---- occlusion recordings (debugging the occlusion framework) ----
+ * A culler of the occlusion framework created with record=FILE writes frame debug_frame's
+ * occluder batches and queries to FILE (docs/occlusion.md). A replay re-runs them on the
+ * rasterizer alone, on any instruction set, and tells whether the answers are the recorded ones
+ * (`sightline occlusion replay`). Distinct replays may run on distinct threads. */
+
+/* What a replay found. */
+typedef struct sl_occ_replay_report {
+    uint32_t width, height;
+    uint32_t batches, queries;
+    uint64_t triangles;
+    uint32_t mismatches;      /* queries whose answer differs from the recorded one */
+    uint32_t first_mismatch;  /* index of the first, or UINT32_MAX */
+    uint32_t occluded;        /* recorded OCCLUDED answers */
+    uint64_t depth_hash;      /* XXH3 of the final depth buffer (read_depth) */
+} sl_occ_replay_report;
+
+/* Replay a recording on a fresh single-threaded context with the given instruction set (AUTO:
+ * the best available): render every batch, re-run every query, compare the answers. Validates
+ * the whole file first (SL_ERROR_FORMAT naming the offset and the field). */
+SL_API sl_status sl_occ_replay(const char *path, sl_raster_isa isa, const sl_allocator *alloc, sl_occ_replay_report *out,
+                               sl_error *err);
 
 #ifdef __cplusplus
 }

@@ -201,6 +201,22 @@ typedef struct sl_series_summary {
 SL_API sl_status sl_series_summarize(const double *values, size_t n, const sl_allocator *alloc,
                                      sl_series_summary *out, sl_error *err);
 
+/* ---- images of a view (written atomically; thread-safe for distinct paths) ---- */
+
+/* PNG of a view's object ids, each object in sl_id_color, black where nothing was drawn. */
+SL_API sl_status sl_image_write_ids(const sl_oracle_view *view, const char *path, const sl_allocator *alloc, sl_error *err);
+/* Grey PNG of a view's depth as distance from the camera, nearest bright, farthest dark,
+ * logarithmic in distance for a perspective camera (linear for orthographic) and normalised to
+ * the range the view contains; black where nothing was drawn. The camera gives near, far and
+ * projection. */
+SL_API sl_status sl_image_write_depth(const sl_oracle_view *view, const sl_camera *cam, const char *path,
+                                      const sl_allocator *alloc, sl_error *err);
+/* PNG of a view's depth complexity (fragments per pixel) on the colour ramp, 0 black and the
+ * view's maximum yellow; *max_out (may be NULL) receives that maximum. The view needs its
+ * overdraw buffer (oracle option count_overdraw). */
+SL_API sl_status sl_image_write_overdraw(const sl_oracle_view *view, const char *path, const sl_allocator *alloc,
+                                         uint32_t *max_out, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -70,17 +70,7 @@ bool sl_array_own(const sl_allocator *a, sl_array *arr, size_t elem);
 void sl_array_free(const sl_allocator *a, sl_array *arr, size_t elem);
 #define SL_AT(arr, T, i) (((T *)(arr).data)[i])
 
-/* ---- deterministic random numbers (PCG32) ---- */
-typedef struct sl_rng { uint64_t state, inc; } sl_rng;
-void sl_rng_seed(sl_rng *r, uint64_t seed, uint64_t stream);
-uint32_t sl_rng_u32(sl_rng *r);
-/* Uniform in [0,1). */
-float sl_rng_float(sl_rng *r);
-double sl_rng_double(sl_rng *r);
-/* Uniform in [lo,hi). */
-float sl_rng_range(sl_rng *r, float lo, float hi);
-/* Uniform integer in [0,n), n > 0, unbiased. */
-uint32_t sl_rng_below(sl_rng *r, uint32_t n);
+/* ---- deterministic random numbers: sl_rng in sightline/core.h ---- */
 
 /* ---- hashing ---- */
 uint64_t sl_hash64(const void *data, size_t size, uint64_t seed); /* XXH3-64 */

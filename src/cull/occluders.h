@@ -568,22 +568,7 @@ void sl_occ_recorder_mesh_query(sl_occ_recorder *rec, const float *vertices, uin
 /* Write the recording atomically. */
 sl_status sl_occ_recorder_save(sl_occ_recorder *rec, const char *path, sl_error *err);
 
-/* What a replay found. */
-typedef struct sl_occ_replay_report {
-    uint32_t width, height;
-    uint32_t batches, queries;
-    uint64_t triangles;
-    uint32_t mismatches;      /* queries whose answer differs from the recorded one */
-    uint32_t first_mismatch;  /* index of the first, or UINT32_MAX */
-    uint32_t occluded;        /* recorded OCCLUDED answers */
-    uint64_t depth_hash;      /* XXH3 of the final depth buffer (read_depth) */
-} sl_occ_replay_report;
-
-/* Replay a recording on a fresh single-threaded context with the given instruction set (AUTO:
- * the best available): render every batch, re-run every query, compare the answers. Validates
- * the whole file first (SL_ERROR_FORMAT naming the offset and the field). */
-sl_status sl_occ_replay(const char *path, sl_raster_isa isa, const sl_allocator *alloc, sl_occ_replay_report *out,
-                        sl_error *err);
+/* sl_occ_replay_report and sl_occ_replay: sightline/cull.h. */
 /* The same on a recording held in memory (`path` names it in messages; the fuzz target). */
 sl_status sl_occ_replay_memory(const void *data, size_t size, const char *path, sl_raster_isa isa,
                                const sl_allocator *alloc, sl_occ_replay_report *out, sl_error *err);

@@ -7,10 +7,6 @@
  * over `repeat` calls on the same camera; the counters are those of the last call. */
 #include "bench_internal.h"
 
-#include "sightline/gen.h"
-#include "sightline/slscene.h"
-
-#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 
@@ -22,91 +18,6 @@ sl_bench_options sl_bench_default_options(void)
     o.repeat = 1;
     o.label = "scene";
     return o;
-}
-
-/* Copy text into label keeping [A-Za-z0-9._-] and turning anything else into '-'. */
-static void make_label(char *label, size_t size, const char *text, size_t len)
-{
-    if (!label || !size)
-        return;
-    size_t o = 0;
-    for (size_t i = 0; i < len && o + 1 < size; i++) {
-        char c = text[i];
-        bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
-                  c == '_' || c == '-';
-        label[o++] = ok ? c : '-';
-    }
-    if (!o && size > 1)
-        label[o++] = 's';
-    label[o] = 0;
-}
-
-sl_status sl_bench_open_scene(const char *spec, const char *map, const sl_progress *progress,
-                              const sl_allocator *alloc, sl_scene *out, char *label, size_t label_size, sl_error *err)
-{
-    return sl_bench_open_scene_with(spec, map, NULL, progress, alloc, out, label, label_size, err);
-}
-
-sl_status sl_bench_open_scene_with(const char *spec, const char *map, const struct sl_import_options *opt,
-                                   const sl_progress *progress, const sl_allocator *alloc, sl_scene *out, char *label,
-                                   size_t label_size, sl_error *err)
-{
-    if (!spec || !out)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_open_scene: spec and out must not be NULL");
-    *out = NULL;
-    if (!strncmp(spec, "city:", 5)) {
-        char preset_name[32];
-        const char *p = spec + 5, *colon = strchr(p, ':');
-        size_t len = colon ? (size_t)(colon - p) : strlen(p);
-        if (len >= sizeof preset_name)
-            len = sizeof preset_name - 1;
-        memcpy(preset_name, p, len);
-        preset_name[len] = 0;
-        sl_city_preset preset;
-        if (sl_city_preset_from_name(preset_name, &preset, NULL) != SL_OK)
-            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                           "scene '%s': unknown city preset '%s' (use city:tiny, city:small or city:vienna, "
-                           "optionally :SEED)", spec, preset_name);
-        if (map)
-            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "scene '%s': a map name only applies to .pk3 archives", spec);
-        sl_city_options co = sl_city_defaults(preset);
-        if (colon) {
-            const char *s = colon + 1;
-            char *end;
-            errno = 0;
-            unsigned long long seed = strtoull(s, &end, 10);
-            if (!*s || *end || errno || *s == '-' || *s == '+' || *s == ' ')
-                return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                               "scene '%s': the seed '%s' is not a non-negative integer", spec, s);
-            co.seed = seed;
-        }
-        if (progress)
-            co.progress = *progress;
-        sl_status st = sl_gen_city(&co, alloc, out, err);
-        if (st != SL_OK) {
-            sl_error_prefix(err, "scene '%s'", spec);
-            return st;
-        }
-        char text[96];
-        snprintf(text, sizeof text, "city-%s-%llu", sl_city_preset_name(preset), (unsigned long long)co.seed);
-        make_label(label, label_size, text, strlen(text));
-        return SL_OK;
-    }
-    sl_status st = sl_scene_open_with(spec, map, opt, alloc, out, err);
-    if (st != SL_OK)
-        return st;
-    const char *base = strrchr(spec, '/');
-    base = base ? base + 1 : spec;
-    const char *dot = strrchr(base, '.');
-    size_t len = dot && dot != base ? (size_t)(dot - base) : strlen(base);
-    if (map) {
-        char text[256];
-        snprintf(text, sizeof text, "%.*s-%s", (int)SL_MIN(len, 120), base, map);
-        make_label(label, label_size, text, strlen(text));
-    } else {
-        make_label(label, label_size, base, len);
-    }
-    return SL_OK;
 }
 
 uint32_t sl_bench_registered_methods(sl_bench_method_spec *specs, uint32_t capacity, sl_bench_skip *skipped,
@@ -168,36 +79,6 @@ static sl_status method_buffers(struct sl_bench_t *b, bench_method *m, sl_error 
     return SL_OK;
 }
 
-/* A copy of options where every "stage/" reads "out/" (see sl_bench_options.stage_dir). */
-static char *shown_options(const sl_allocator *a, const char *options, const char *stage, const char *out)
-{
-    size_t sl = stage ? strlen(stage) : 0, ol = out ? strlen(out) : 0, hits = 0;
-    if (!sl || !out)
-        return sl_strdup(a, options);
-    for (const char *p = strstr(options, stage); p; p = strstr(p + sl, stage))
-        hits += p[sl] == '/';
-    if (!hits)
-        return sl_strdup(a, options);
-    size_t n = strlen(options) + hits * ol + 1;
-    char *s = sl_alloc(a, n), *w = s;
-    if (!s)
-        return NULL;
-    for (const char *p = options; *p;) {
-        if (!strncmp(p, stage, sl) && p[sl] == '/') {
-            memcpy(w, out, ol);
-            w += ol;
-            p += sl;
-        } else {
-            *w++ = *p++;
-        }
-    }
-    *w = 0;
-    /* sl_strfree frees strlen + 1 bytes: give it a string of exactly that size */
-    char *exact = sl_strdup(a, s);
-    sl_free(a, s, n);
-    return exact;
-}
-
 sl_status sl_bench_create(sl_scene scene, const sl_bench_method_spec *methods, uint32_t method_count,
                           const sl_bench_options *opt, const sl_allocator *alloc, sl_bench *out, sl_error *err)
 {
@@ -254,7 +135,7 @@ sl_status sl_bench_create(sl_scene scene, const sl_bench_method_spec *methods, u
         if (st != SL_OK)
             break;
         m->name = sl_strdup(alloc, sl_culler_method(m->culler));
-        m->options = shown_options(alloc, sl_culler_options(m->culler), o.stage_dir, o.out_dir);
+        m->options = sl_strdup(alloc, sl_culler_options(m->culler));
         m->guarantee = sl_culler_guarantee(m->culler);
         if (!m->name || !m->options)
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_bench_create: out of memory");
@@ -483,6 +364,20 @@ sl_status sl_bench_method(sl_bench b, uint32_t index, sl_bench_method_info *out,
     out->options = m->options;
     out->guarantee = m->guarantee;
     out->external = m->culler == NULL;
+    return SL_OK;
+}
+
+sl_status sl_bench_set_shown_options(sl_bench b, uint32_t index, const char *options, sl_error *err)
+{
+    if (!b || index >= b->method_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_set_shown_options: no method %u (the bench has %u)",
+                       index, b ? b->method_count : 0);
+    char *copy = sl_strdup(&b->alloc, options ? options : "");
+    if (!copy)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_bench_set_shown_options: out of memory");
+    bench_method *m = &b->methods[index];
+    sl_strfree(&b->alloc, m->options);
+    m->options = copy;
     return SL_OK;
 }
 

@@ -34,19 +34,7 @@ sl_status sl_plot_write_svg(const sl_plot *plot, const char *path, const sl_allo
 /* Colour of series i from a qualitative palette (0xRRGGBB); repeats after 10. */
 uint32_t sl_plot_color(uint32_t i);
 
-/* PNG of a view's object ids, each object in sl_id_color, black where nothing was drawn. */
-sl_status sl_image_write_ids(const sl_oracle_view *view, const char *path, const sl_allocator *alloc, sl_error *err);
-/* Grey PNG of a view's depth as distance from the camera, nearest bright, farthest dark,
- * logarithmic in distance for a perspective camera (linear for orthographic) and normalised to
- * the range the view contains; black where nothing was drawn. The camera gives near, far and
- * projection. */
-sl_status sl_image_write_depth(const sl_oracle_view *view, const sl_camera *cam, const char *path,
-                               const sl_allocator *alloc, sl_error *err);
-/* PNG of a view's depth complexity (fragments per pixel) on the colour ramp, 0 black and the
- * view's maximum yellow; *max_out (may be NULL) receives that maximum. The view needs its
- * overdraw buffer (oracle option count_overdraw). */
-sl_status sl_image_write_overdraw(const sl_oracle_view *view, const char *path, const sl_allocator *alloc,
-                                  uint32_t *max_out, sl_error *err);
+/* The PNGs of an oracle view (ids, depth, overdraw): sl_image_write_* in sightline/truth.h. */
 
 /* An RGB image to draw on (rows top to bottom, 3 bytes per pixel). */
 typedef struct sl_canvas {
