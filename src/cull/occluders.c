@@ -217,6 +217,11 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
             return st;
         c->res_culling = res == 1;
         c->res_any = res == 0;
+        static const char *const inner_names[] = {"hull", "faces"};
+        uint32_t inner = 0;
+        if ((st = sl_opts_enum(o, "inner", inner_names, 2, 0, &inner, err)) != SL_OK)
+            return st;
+        c->inner_faces = inner == 1;
     }
     if (which & SL_OCC_OPT_DEBUG) {
         const char *d, *r;
@@ -311,7 +316,7 @@ sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, c
     bo.max_leaf_size = c->leaf_size;
     bo.alloc = alloc;
     /* res=any draws prisms face by face (render_prism_eroded): their vertices are kept */
-    sl_occ_options oo = {c->inset, c->all_objects, faces || c->res_any, mesh_faces};
+    sl_occ_options oo = {c->inset, c->all_objects, faces || c->res_any, mesh_faces, c->res_any && !c->inner_faces};
     sl_status st = sl_bvh_build(scene, &bo, &b->bvh, err);
     if (st == SL_OK)
         st = sl_occ_set_create(scene, &oo, alloc, &b->occ, err);
@@ -1005,7 +1010,7 @@ bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
                   (p->object != SL_NONE && (sl_scene_objects(s->scene)[p->object].flags & SL_OBJECT_CLOSED_CONVEX));
     if (inside && (!sl_occ_near_clear(v, &box) || !sl_occ_near_clear(v, &ob)))
         return false;
-    if (p->kind != SL_OCC_PRISM)
+    if (p->kind != SL_OCC_PRISM || s->opt.screen_margin)
         return true;
     if (v->ortho)
         return p->inset * v->focal >= SL_OCC_MIN_INSET_PX;
@@ -1227,6 +1232,7 @@ sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_
     r->threads = c->threads;
     r->isa = c->isa;
     r->erode = c->res_any;
+    r->hull = c->res_any && !c->inner_faces;
     if (!sl_raster_isa_available((sl_raster_isa)c->isa))
         return sl_fail(err, SL_ERROR_UNSUPPORTED, "isa=%s: this CPU cannot run it",
                        sl_raster_isa_name((sl_raster_isa)c->isa));
@@ -1247,6 +1253,8 @@ sl_status sl_occ_raster_init(sl_occ_raster *r, const sl_occ_common *c, const sl_
                 mv = SL_MAX(mv, (size_t)set->faces[pr->face_first + f].count);
         }
     }
+    if (r->hull)
+        mt = SL_MAX(mt, (size_t)256); /* render_prism_hull's pieces: up to 64 + 128 vertices each */
     r->shrunk = sl_alloc(alloc, mt * 9 * sizeof(float));
     r->shrunk_idx = sl_alloc(alloc, mt * 3 * sizeof(uint32_t));
     r->shrunk_proj = sl_alloc(alloc, mv * sizeof(sl_occ_screen_vertex));
@@ -1493,7 +1501,19 @@ static void render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, co
 static const float g_shrunk_persp[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0};
 static const float g_shrunk_ortho[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 
-/* res=any: a prism by inner coverage. Each convex face (wall, roof or floor piece, sl_occ_face) is
+/* Draw the first n triangles of r->shrunk (clip-space input of g_shrunk_persp/_ortho). */
+static void render_shrunk_batch(sl_occ_raster *r, const sl_occ_view *v, uint32_t n)
+{
+    if (!n)
+        return;
+    const float *to_clip = v->ortho ? g_shrunk_ortho : g_shrunk_persp;
+    (void)sl_raster_render_triangles(r->ctx, r->shrunk, 3 * n, r->shrunk_idx, n, 12, to_clip, SL_RASTER_CULL_NONE,
+                                     NULL);
+    if (r->rec)
+        sl_occ_recorder_batch(r->rec, r->shrunk, 12, r->shrunk_idx, n, to_clip, SL_RASTER_CULL_NONE);
+}
+
+/* res=any with inner=faces: a prism by inner coverage. Each convex face (wall, roof or floor piece, sl_occ_face) is
  * projected in double, eroded on screen by the pixel footprint (every edge moved inward by
  * (|nx| + |ny|) / 2, the reach of a pixel square's corners along its unit normal n, plus
  * SL_OCC_MIN_INSET_PX for both snappings), and drawn with its depth plane moved farther by the
@@ -1610,6 +1630,271 @@ static void render_prism_eroded(sl_occ_raster *r, const sl_occ_set *s, const sl_
         sl_occ_recorder_batch(r->rec, r->shrunk, 12, r->shrunk_idx, n, to_clip, SL_RASTER_CULL_NONE);
 }
 
+/* res=any, the default (inner=hull): a prism by the inner coverage of its silhouette, not of each
+ * face. The prism is cut into convex prisms, one per convex roof piece (a convex footprint is one).
+ * A convex prism's screen silhouette is the convex hull H of its projected vertices, and the depth
+ * of its surface on a pixel ray is D(p) = min_k L_k(p) over its front faces' depth planes L_k
+ * (larger = nearer: the ray enters the solid through the last front plane it crosses). A pixel
+ * square S centred at c inside H eroded by the square (every hull edge moved inward by
+ * (|nx| + |ny|) / 2, plus SL_OCC_MIN_INSET_PX for both snappings) sees the prism at every sample,
+ * no nearer than E(c) = min_k (L_k(c) - (1/2 + SL_OCC_MIN_INSET_PX) (|gx_k| + |gy_k|)), the least
+ * of each plane over the square (grown by the margin): E(c) <= min over S of D. E is concave (a
+ * minimum of affine functions), so a triangle whose vertices carry E's values lies below E
+ * everywhere in it: each front face, clipped to the eroded hull, is drawn as a fan with E at its
+ * vertices. Only the hull's edges are eroded, so a building corner and the edges between a roof
+ * and its walls leave no crack; the creases of E follow the face edges. A face nearly edge-on
+ * (its projection under half a square pixel: its plane is ill-conditioned on screen) enters E as
+ * the constant of its farthest vertex instead (its surface is nowhere farther; where it is the
+ * front surface, D is at least that), and is not drawn. Planes come from the vertices projected
+ * in double (sl_occ_screen_vertex keeps x, y; the depth is recomputed in double here). A convex
+ * piece with a vertex not between the near and far planes is dropped (fewer occluders is safe). */
+typedef struct hull_vertex {
+    double x, y, d;
+} hull_vertex;
+
+static bool hull_project(const sl_occ_view *v, const double m[16], sl_vec3 p, hull_vertex *o)
+{
+    double cl[4];
+    for (int r = 0; r < 4; r++)
+        cl[r] = m[r] * p.x + m[4 + r] * p.y + m[8 + r] * p.z + m[12 + r];
+    if (!(cl[3] > 1e-5) || !isfinite(cl[0]) || !isfinite(cl[1]) || !isfinite(cl[2]) || !(cl[2] >= -cl[3]) ||
+        !(cl[2] <= cl[3]))
+        return false;
+    double inv = 1.0 / cl[3];
+    o->x = (cl[0] * inv + 1.0) * 0.5 * (double)v->width;
+    o->y = (1.0 - cl[1] * inv) * 0.5 * (double)v->height;
+    o->d = v->ortho ? 0.5 * (1.0 - cl[2] * inv) : inv;
+    return o->d > 0;
+}
+
+static inline double cross_h(const hull_vertex *o, const hull_vertex *a, const hull_vertex *b)
+{
+    return (a->x - o->x) * (b->y - o->y) - (a->y - o->y) * (b->x - o->x);
+}
+
+/* Clip convex polygon (px, py, n) by the half-plane nx x + ny y >= off into (qx, qy); returns the
+ * count. An intersection is computed from the segment's endpoints in a fixed order, so two faces
+ * sharing an edge get the same points. */
+static uint32_t clip_half(const double *px, const double *py, uint32_t n, double nx, double ny, double off,
+                          double *qx, double *qy, uint32_t cap)
+{
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t j = (i + 1) % n;
+        double si = nx * px[i] + ny * py[i] - off, sj = nx * px[j] + ny * py[j] - off;
+        bool in_i = si >= 0, in_j = sj >= 0;
+        if (in_i && k < cap) {
+            qx[k] = px[i];
+            qy[k] = py[i];
+            k++;
+        }
+        if (in_i != in_j && k < cap) {
+            /* canonical order: from the lexicographically smaller endpoint */
+            bool sw = px[j] < px[i] || (px[j] == px[i] && py[j] < py[i]);
+            double ax = sw ? px[j] : px[i], ay = sw ? py[j] : py[i], bx = sw ? px[i] : px[j], by = sw ? py[i] : py[j];
+            double sa = sw ? sj : si, sb = sw ? si : sj;
+            double t = sa / (sa - sb);
+            qx[k] = ax + (bx - ax) * t;
+            qy[k] = ay + (by - ay) * t;
+            k++;
+        }
+    }
+    return k;
+}
+
+#define HULL_MAX_PIECE 64 /* vertices of a convex roof piece drawn this way (larger: dropped) */
+
+static void render_prism_hull(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const sl_occ_proxy *pr)
+{
+    const double W = (double)v->width, H = (double)v->height, eps = SL_OCC_MIN_INSET_PX;
+    double m[16];
+    for (int i = 0; i < 16; i++)
+        m[i] = v->vp.m[i];
+    const double zb = pr->box.min.z;
+    uint32_t n = 0;
+    for (uint32_t fi = 0; fi < pr->face_count; fi++) {
+        const sl_occ_face *f = &s->faces[pr->face_first + fi];
+        if (!(f->normal.z > 0.5f) || f->count < 3 || f->count > HULL_MAX_PIECE)
+            continue; /* a convex roof piece stands for its convex prism */
+        const uint32_t c = f->count;
+        const sl_vec3 *top = &s->face_verts[f->first];
+        hull_vertex pv[2 * HULL_MAX_PIECE]; /* top ring, then bottom ring */
+        bool ok = true;
+        for (uint32_t i = 0; i < c && ok; i++)
+            ok = hull_project(v, m, top[i], &pv[i]) &&
+                 hull_project(v, m, (sl_vec3){top[i].x, top[i].y, (float)zb}, &pv[c + i]);
+        if (!ok)
+            continue;
+        /* the convex hull of the 2c projected vertices (monotone chain), counter-clockwise in
+         * screen coordinates (x right, y down: interior on the left of each edge with cross > 0) */
+        hull_vertex sorted[2 * HULL_MAX_PIECE], hull[4 * HULL_MAX_PIECE];
+        uint32_t ns = 2 * c;
+        memcpy(sorted, pv, ns * sizeof *pv);
+        for (uint32_t i = 1; i < ns; i++) {
+            hull_vertex x = sorted[i];
+            uint32_t j = i;
+            for (; j > 0 && (sorted[j - 1].x > x.x || (sorted[j - 1].x == x.x && sorted[j - 1].y > x.y)); j--)
+                sorted[j] = sorted[j - 1];
+            sorted[j] = x;
+        }
+        uint32_t h = 0;
+        for (uint32_t i = 0; i < ns; i++) {
+            while (h >= 2 && cross_h(&hull[h - 2], &hull[h - 1], &sorted[i]) <= 0)
+                h--;
+            hull[h++] = sorted[i];
+        }
+        for (uint32_t i = ns - 1, lo = h + 1; i-- > 0;) {
+            while (h >= lo && cross_h(&hull[h - 2], &hull[h - 1], &sorted[i]) <= 0)
+                h--;
+            hull[h++] = sorted[i];
+        }
+        h--; /* the last point repeats the first */
+        if (h < 3)
+            continue;
+        /* the eroded hull: half-planes nx x + ny y >= off (inward unit normals) */
+        double hnx[4 * HULL_MAX_PIECE], hny[4 * HULL_MAX_PIECE], hoff[4 * HULL_MAX_PIECE];
+        for (uint32_t i = 0; i < h && ok; i++) {
+            const hull_vertex *p = &hull[i], *q = &hull[(i + 1) % h];
+            double dx = q->x - p->x, dy = q->y - p->y, len = sqrt(dx * dx + dy * dy);
+            if (!(len > 1e-12) || !isfinite(len)) {
+                ok = false;
+                break;
+            }
+            hnx[i] = -dy / len;
+            hny[i] = dx / len;
+            hoff[i] = hnx[i] * p->x + hny[i] * p->y + 0.5 * (fabs(hnx[i]) + fabs(hny[i])) + eps;
+        }
+        if (!ok)
+            continue;
+        /* the convex prism's faces: 0 the roof piece, 1 the floor piece, 2 + i the wall on edge
+         * i -> i + 1; each as indices into pv, counter-clockwise seen from outside */
+        const uint32_t nf = c + 2;
+        double gx[HULL_MAX_PIECE + 2], gy[HULL_MAX_PIECE + 2], g0[HULL_MAX_PIECE + 2], cst[HULL_MAX_PIECE + 2];
+        int kind[HULL_MAX_PIECE + 2]; /* 0 back, 1 front plane (drawn), 2 front nearly edge-on (constant) */
+        uint32_t fidx[HULL_MAX_PIECE + 2][HULL_MAX_PIECE];
+        uint32_t flen[HULL_MAX_PIECE + 2];
+        for (uint32_t k = 0; k < nf; k++) {
+            uint32_t *ix = fidx[k];
+            if (k == 0) {
+                for (uint32_t i = 0; i < c; i++)
+                    ix[i] = i;
+                flen[k] = c;
+            } else if (k == 1) {
+                for (uint32_t i = 0; i < c; i++)
+                    ix[i] = c + (c - 1 - i);
+                flen[k] = c;
+            } else {
+                uint32_t i = k - 2, j = (i + 1) % c;
+                ix[0] = c + i, ix[1] = c + j, ix[2] = j, ix[3] = i;
+                flen[k] = 4;
+            }
+            /* facing: from the world plane (the eye's side of it; orthographic: the view
+             * direction), with a tolerance so that a face nearly edge-on counts as front */
+            sl_vec3 nrm, p0 = k == 1 ? (sl_vec3){top[0].x, top[0].y, (float)zb} : top[k == 0 ? 0 : ix[3]];
+            if (k == 0)
+                nrm = (sl_vec3){0, 0, 1};
+            else if (k == 1)
+                nrm = (sl_vec3){0, 0, -1};
+            else {
+                const sl_vec3 *a = &top[k - 2], *b = &top[(k - 1) % c];
+                nrm = (sl_vec3){b->y - a->y, a->x - b->x, 0}; /* right of the CCW edge: outward */
+            }
+            double ex = v->ortho ? -(double)v->fwd.x : (double)v->eye.x - p0.x;
+            double ey = v->ortho ? -(double)v->fwd.y : (double)v->eye.y - p0.y;
+            double ez = v->ortho ? -(double)v->fwd.z : (double)v->eye.z - p0.z;
+            double nl = sqrt((double)nrm.x * nrm.x + (double)nrm.y * nrm.y + (double)nrm.z * nrm.z);
+            double el = sqrt(ex * ex + ey * ey + ez * ez);
+            double facing = (nrm.x * ex + nrm.y * ey + nrm.z * ez);
+            kind[k] = facing > -1e-6 * nl * el ? 1 : 0;
+            if (!kind[k])
+                continue;
+            /* depth plane through the largest fan triangle of the projection */
+            double best = 0;
+            uint32_t bi = 1;
+            for (uint32_t i = 1; i + 1 < flen[k]; i++) {
+                double t = cross_h(&pv[ix[0]], &pv[ix[i]], &pv[ix[i + 1]]);
+                if (fabs(t) > fabs(best))
+                    best = t, bi = i;
+            }
+            double dmin = INFINITY;
+            for (uint32_t i = 0; i < flen[k]; i++)
+                dmin = pv[ix[i]].d < dmin ? pv[ix[i]].d : dmin;
+            cst[k] = dmin;
+            if (!(fabs(best) >= 1.0)) {
+                kind[k] = 2;
+                continue;
+            }
+            const hull_vertex *A = &pv[ix[0]], *B = &pv[ix[bi]], *C = &pv[ix[bi + 1]];
+            double ux = B->x - A->x, uy = B->y - A->y, wx = C->x - A->x, wy = C->y - A->y;
+            double du = B->d - A->d, dw = C->d - A->d;
+            gx[k] = (du * wy - dw * uy) / best;
+            gy[k] = (dw * ux - du * wx) / best;
+            g0[k] = A->d - gx[k] * A->x - gy[k] * A->y - (0.5 + eps) * (fabs(gx[k]) + fabs(gy[k]));
+            if (!isfinite(g0[k]) || !isfinite(gx[k]) || !isfinite(gy[k]))
+                kind[k] = 2;
+        }
+        for (uint32_t k = 0; k < nf; k++) {
+            if (kind[k] != 1)
+                continue;
+            /* the face's projection, counter-clockwise on screen, clipped to the eroded hull */
+            double ax[2][4 * HULL_MAX_PIECE + 8], ay[2][4 * HULL_MAX_PIECE + 8];
+            const uint32_t cap = 4 * HULL_MAX_PIECE + 8;
+            uint32_t len = flen[k], cur = 0;
+            double ar = 0;
+            for (uint32_t i = 0; i < len; i++)
+                ar += pv[fidx[k][i]].x * pv[fidx[k][(i + 1) % len]].y - pv[fidx[k][(i + 1) % len]].x * pv[fidx[k][i]].y;
+            for (uint32_t i = 0; i < len; i++) {
+                uint32_t src = ar > 0 ? i : len - 1 - i;
+                ax[0][i] = pv[fidx[k][src]].x;
+                ay[0][i] = pv[fidx[k][src]].y;
+            }
+            for (uint32_t e = 0; e < h && len >= 3; e++) {
+                len = clip_half(ax[cur], ay[cur], len, hnx[e], hny[e], hoff[e], ax[cur ^ 1], ay[cur ^ 1], cap);
+                cur ^= 1;
+            }
+            if (len < 3)
+                continue;
+            if (len - 2 > r->shrunk_cap)
+                continue;
+            if (n + (len - 2) > r->shrunk_cap) {
+                render_shrunk_batch(r, v, n);
+                n = 0;
+            }
+            float vx[4 * HULL_MAX_PIECE + 8][3];
+            for (uint32_t i = 0; i < len && ok; i++) {
+                double x = ax[cur][i], y = ay[cur][i], e = INFINITY;
+                for (uint32_t q = 0; q < nf; q++) {
+                    double t = kind[q] == 1 ? g0[q] + gx[q] * x + gy[q] * y : kind[q] == 2 ? cst[q] : INFINITY;
+                    e = t < e ? t : e;
+                }
+                e -= fabs(e) * SL_MARGIN_REL;
+                if (!(e > 0) || !isfinite(e)) {
+                    ok = false;
+                    break;
+                }
+                double nx = 2.0 * x / W - 1.0, ny = 1.0 - 2.0 * y / H;
+                double w = v->ortho ? 1.0 : 1.0 / e;
+                vx[i][0] = (float)(nx * w);
+                vx[i][1] = (float)(ny * w);
+                vx[i][2] = v->ortho ? (float)(1.0 - 2.0 * e) : (float)w;
+            }
+            if (!ok) {
+                ok = true;
+                continue;
+            }
+            float *o = r->shrunk + 9 * (size_t)n;
+            for (uint32_t i = 1; i + 1 < len; i++) {
+                memcpy(o, vx[0], sizeof vx[0]);
+                memcpy(o + 3, vx[i], sizeof vx[0]);
+                memcpy(o + 6, vx[i + 1], sizeof vx[0]);
+                o += 9;
+                n++;
+            }
+        }
+    }
+    render_shrunk_batch(r, v, n);
+}
+
 uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const uint32_t *proxies,
                               uint32_t n)
 {
@@ -1625,7 +1910,10 @@ uint32_t sl_occ_raster_render(sl_occ_raster *r, const sl_occ_set *s, const sl_oc
         rendered++;
         r->triangles_rendered += pr->triangles;
         if (pr->kind == SL_OCC_PRISM && r->erode) {
-            render_prism_eroded(r, s, v, pr);
+            if (r->hull)
+                render_prism_hull(r, s, v, pr);
+            else
+                render_prism_eroded(r, s, v, pr);
             continue;
         }
         if (pr->kind == SL_OCC_PRISM) {

@@ -175,6 +175,9 @@ typedef struct sl_occ_options {
     bool all_objects;         /* every object without a prism gets a MESH proxy, not only OCCLUDER ones */
     bool faces;               /* keep the convex faces' vertices (frusta, hom) and MESH faces */
     uint32_t mesh_faces;      /* largest triangles kept per MESH proxy as faces */
+    bool screen_margin;       /* every prism is drawn eroded on screen by SL_OCC_MIN_INSET_PX beyond
+                                 the pixel footprint (render_prism_hull, res=any): its inset need not
+                                 be SL_OCC_MIN_INSET_PX on screen, sl_occ_usable skips that test */
 } sl_occ_options;
 
 typedef struct sl_occ_set {
@@ -261,6 +264,8 @@ typedef struct sl_occ_common {
                                  by inner coverage (every face eroded on screen by the pixel
                                  footprint), tests by outer coverage, no pixel-centre test; both
                                  false: a method without the option (its own rules) */
+    bool inner_faces;         /* inner=faces: res=any's prisms eroded face by face (render_prism_eroded)
+                                 instead of by their convex silhouettes (render_prism_hull) */
 } sl_occ_common;
 
 enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4, SL_OCC_OPT_RES = 8 };
@@ -286,7 +291,10 @@ static inline sl_cull_guarantee sl_occ_res_guarantee(const sl_occ_common *c)
 #define SL_OCC_HELP_RES \
     "res=any|culling (default any): any: conservative at every render resolution and sample position " \
     "(occluders by inner coverage, tests by outer coverage, no pixel-centre tests); culling: conservative " \
-    "at the culling resolution's pixel centres only (tighter: the centre-sampled tests below apply)\n"
+    "at the culling resolution's pixel centres only (tighter: the centre-sampled tests below apply)\n" \
+    "inner=hull|faces (default hull): with res=any, a building's prism is eroded by the pixel footprint " \
+    "along the silhouette of each convex piece (hull) or along every face's edges (faces: looser, the " \
+    "rule before)\n"
 #define SL_OCC_HELP_DEBUG \
     "dump=PREFIX (default none): at frame debug_frame write PREFIX-depth.png and, where the method has one, " \
     "PREFIX-pyramid.png (its pyramid or grid)\n" \
@@ -343,8 +351,9 @@ typedef struct sl_occ_raster {
     sl_raster *ctx;
     uint32_t width, height;
     uint32_t threads, isa;
-    bool erode;               /* res=any: occluders by inner coverage (render_prism_eroded, MESH and
-                                 SCENE_MESH proxies shrunk by the pixel footprint) */
+    bool erode;               /* res=any: occluders by inner coverage (render_prism_hull or _eroded,
+                                 MESH and SCENE_MESH proxies shrunk by the pixel footprint) */
+    bool hull;                /* res=any, inner=hull: prisms by their convex silhouettes */
     uint32_t *batch;          /* prism indices of one batch */
     size_t batch_cap;         /* in indices */
     float *shrunk;            /* one MESH proxy's triangles shrunk on screen, 3 vertices x 3 floats each */
