@@ -35,6 +35,7 @@
 #include "accel/bvh_internal.h"
 #include "scene/scene_internal.h"
 #include "raster/raster_ref.h"
+#include "convex_parts.h"
 
 #include <math.h>
 #include "sightline/accel.h"
@@ -198,6 +199,9 @@ typedef struct sl_occ_set {
     sl_vec3 *face_verts;
     uint32_t face_vert_count;
     uint32_t prisms, prisms_rejected, meshes, scene_meshes;
+    sl_occ_cparts *cparts;    /* screen_margin: per scene mesh, the convex parts of those that MESH and
+                                 SCENE_MESH proxies draw (built false for the others) */
+    uint32_t cparts_count;    /* the scene's mesh count */
 } sl_occ_set;
 
 /* Build the proxies of a scene. */
