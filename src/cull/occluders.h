@@ -20,6 +20,9 @@
  *    moving occluder is rendered where it is. Each triangle is shrunk on screen by
  *    SL_OCC_MIN_INSET_PX and drawn at its farthest depth, so that the independent snapping of
  *    rasterizer and oracle cannot disagree about a covered pixel centre (docs/occlusion.md).
+ *    With res=any's silhouette rule (inner=hull) prisms and the convex parts of meshes are drawn
+ *    by their eroded convex silhouettes instead (render_prism_hull, render_mesh_hull;
+ *    docs/culler-contract.md, "Guarantees and resolution").
  *  - SCENE_MESH: a 3D occluder mesh of the scene (sl_scene_add_occluder), trusted to lie inside.
  * The meshoptimizer simplifier is not used: its output is not guaranteed to lie inside the
  * original, and a proxy must never exceed the original's silhouette.
