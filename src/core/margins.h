@@ -44,15 +44,17 @@ static inline float sl_margin_plane_slack(float d) { return SL_MARGIN_PLANE_REL_
 /* How far inside its object's silhouette an occluder must stay on screen (1/32 pixel): 8 times the
  * combined snapping error of the rasterizer and the oracle (1/512 pixel each, plus the float
  * transform), so that the two cannot disagree about a covered sample. Prism proxies are used only
- * when their inset is at least this on screen, MESH proxies are shrunk by it, frusta's shadow
- * planes are moved by its angle. With inner coverage (res=any) it also covers an oracle sample
+ * when their inset is at least this on screen (except with res=any's silhouette rule, which erodes
+ * every silhouette by it on screen), MESH proxies are shrunk by it, frusta's shadow planes are
+ * moved by its angle. With inner coverage (res=any) it also covers an oracle sample
  * snapped at another resolution: its snapping error is 1/512 of its own pixel, at most 1/32 of a
  * culling pixel for any oracle up to 16 times coarser. */
 #define SL_MARGIN_INSET_PX (1.0f / 32.0f)
 
 /* Half a pixel's diagonal, rounded up (sqrt(2) / 2 < 0.70711): how far a pixel square reaches
  * from its centre along any unit direction ((|nx| + |ny|) / 2 at most). res=any shrinks occluder
- * triangles by it (inner coverage through the pixel-centre rule). */
+ * triangles outside convex parts by it (inner coverage through the pixel-centre rule); convex
+ * silhouettes are eroded by the exact (|nx| + |ny|) / 2 of each edge. */
 #define SL_MARGIN_HALF_DIAG_PX 0.70711
 
 /* Shadow-frustum plane slack of frusta (1e-6 of the magnitudes in the dot product): as the view

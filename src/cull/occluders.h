@@ -20,6 +20,9 @@
  *    moving occluder is rendered where it is. Each triangle is shrunk on screen by
  *    SL_OCC_MIN_INSET_PX and drawn at its farthest depth, so that the independent snapping of
  *    rasterizer and oracle cannot disagree about a covered pixel centre (docs/occlusion.md).
+ *    With res=any's silhouette rule (inner=hull) prisms and the convex parts of meshes are drawn
+ *    by their eroded convex silhouettes instead (render_prism_hull, render_mesh_hull;
+ *    docs/culler-contract.md, "Guarantees and resolution").
  *  - SCENE_MESH: a 3D occluder mesh of the scene (sl_scene_add_occluder), trusted to lie inside.
  * The meshoptimizer simplifier is not used: its output is not guaranteed to lie inside the
  * original, and a proxy must never exceed the original's silhouette.
@@ -35,6 +38,7 @@
 #include "accel/bvh_internal.h"
 #include "scene/scene_internal.h"
 #include "raster/raster_ref.h"
+#include "convex_parts.h"
 
 #include <math.h>
 #include "sightline/accel.h"
@@ -175,6 +179,9 @@ typedef struct sl_occ_options {
     bool all_objects;         /* every object without a prism gets a MESH proxy, not only OCCLUDER ones */
     bool faces;               /* keep the convex faces' vertices (frusta, hom) and MESH faces */
     uint32_t mesh_faces;      /* largest triangles kept per MESH proxy as faces */
+    bool screen_margin;       /* every prism is drawn eroded on screen by SL_OCC_MIN_INSET_PX beyond
+                                 the pixel footprint (render_prism_hull, res=any): its inset need not
+                                 be SL_OCC_MIN_INSET_PX on screen, sl_occ_usable skips that test */
 } sl_occ_options;
 
 typedef struct sl_occ_set {
@@ -195,6 +202,9 @@ typedef struct sl_occ_set {
     sl_vec3 *face_verts;
     uint32_t face_vert_count;
     uint32_t prisms, prisms_rejected, meshes, scene_meshes;
+    sl_occ_cparts *cparts;    /* screen_margin: per scene mesh, the convex parts of those that MESH and
+                                 SCENE_MESH proxies draw (built false for the others) */
+    uint32_t cparts_count;    /* the scene's mesh count */
 } sl_occ_set;
 
 /* Build the proxies of a scene. */
@@ -261,6 +271,8 @@ typedef struct sl_occ_common {
                                  by inner coverage (every face eroded on screen by the pixel
                                  footprint), tests by outer coverage, no pixel-centre test; both
                                  false: a method without the option (its own rules) */
+    bool inner_faces;         /* inner=faces: res=any's prisms eroded face by face (render_prism_eroded)
+                                 instead of by their convex silhouettes (render_prism_hull) */
 } sl_occ_common;
 
 enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4, SL_OCC_OPT_RES = 8 };
@@ -286,7 +298,10 @@ static inline sl_cull_guarantee sl_occ_res_guarantee(const sl_occ_common *c)
 #define SL_OCC_HELP_RES \
     "res=any|culling (default any): any: conservative at every render resolution and sample position " \
     "(occluders by inner coverage, tests by outer coverage, no pixel-centre tests); culling: conservative " \
-    "at the culling resolution's pixel centres only (tighter: the centre-sampled tests below apply)\n"
+    "at the culling resolution's pixel centres only (tighter: the centre-sampled tests below apply)\n" \
+    "inner=hull|faces (default hull): with res=any, a building's prism is eroded by the pixel footprint " \
+    "along the silhouette of each convex piece (hull) or along every face's edges (faces: looser, the " \
+    "rule before)\n"
 #define SL_OCC_HELP_DEBUG \
     "dump=PREFIX (default none): at frame debug_frame write PREFIX-depth.png and, where the method has one, " \
     "PREFIX-pyramid.png (its pyramid or grid)\n" \
@@ -343,8 +358,9 @@ typedef struct sl_occ_raster {
     sl_raster *ctx;
     uint32_t width, height;
     uint32_t threads, isa;
-    bool erode;               /* res=any: occluders by inner coverage (render_prism_eroded, MESH and
-                                 SCENE_MESH proxies shrunk by the pixel footprint) */
+    bool erode;               /* res=any: occluders by inner coverage (render_prism_hull or _eroded,
+                                 MESH and SCENE_MESH proxies shrunk by the pixel footprint) */
+    bool hull;                /* res=any, inner=hull: prisms by their convex silhouettes */
     uint32_t *batch;          /* prism indices of one batch */
     size_t batch_cap;         /* in indices */
     float *shrunk;            /* one MESH proxy's triangles shrunk on screen, 3 vertices x 3 floats each */
