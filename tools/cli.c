@@ -228,6 +228,22 @@ void cli_unknown(cli_args *a, const char *name)
 
 bool cli_import_option(cli_args *a, const char *name, const char *inline_value, cli_import *imp)
 {
+    if (name && strcmp(name, "import-timeout") == 0) {
+        const char *v = cli_value(a, name, inline_value);
+        if (!v)
+            return true;
+        char *end = NULL;
+        errno = 0;
+        double sec = strtod(v, &end);
+        /* whole milliseconds, at least one, that fit the option's 32 bits */
+        if (!v[0] || *end || errno || !(sec >= 0.001) || sec > 4294967.0) {
+            cli_error(a->cmd, "--import-timeout: '%s' is not a number of seconds from 0.001 to 4294967", v);
+            a->error = true;
+        } else {
+            imp->timeout_ms = (uint32_t)(sec * 1000.0 + 0.5);
+        }
+        return true;
+    }
     if (!name || strcmp(name, "allow-external") != 0)
         return false;
     const char *v = cli_value(a, name, inline_value);
@@ -249,6 +265,7 @@ void cli_import_apply(const cli_import *imp, sl_import_options *opt)
 {
     opt->allow_external = imp->count ? imp->allow : NULL;
     opt->allow_external_count = imp->count;
+    opt->timeout_ms = imp->timeout_ms;
 }
 
 /* ---- progress ---- */

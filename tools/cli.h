@@ -108,9 +108,10 @@ int cli_action(int argc, char **argv, const char *cmd, void (*usage)(FILE *), co
 typedef struct cli_import {
     const char *allow[CLI_ALLOW_EXTERNAL_MAX];
     uint32_t count;
+    uint32_t timeout_ms; /* --import-timeout S (0: none): assimp's child process is stopped after it */
 } cli_import;
-/* Handle --allow-external (true when name was it; a missing value or too many mark the parse
- * failed). */
+/* Handle --allow-external and --import-timeout (true when name was one of them; a missing or bad
+ * value or too many paths mark the parse failed). */
 bool cli_import_option(cli_args *a, const char *name, const char *inline_value, cli_import *imp);
 /* Import options carrying the allowed paths (borrowed from imp, which must outlive the open). */
 struct sl_import_options;
@@ -119,7 +120,9 @@ void cli_import_apply(const cli_import *imp, struct sl_import_options *opt);
 #define CLI_ALLOW_EXTERNAL_HELP                                                                         \
     "  --allow-external PATH  let an assimp model's references (buffers, images, material\n"            \
     "                     libraries) resolve inside PATH (a folder, or one file) as well as in the\n"   \
-    "                     model's own folder; repeatable (docs/import-export.md)\n"
+    "                     model's own folder; repeatable (docs/import-export.md)\n"            \
+    "  --import-timeout S  stop assimp (which reads a model in a child process) after S seconds\n" \
+    "                     and fail; default: no limit\n"
 
 /* ---- progress ----
  * A progress bar on stderr when stderr is a terminal, CI is unset and --quiet/--json were not
