@@ -14,7 +14,7 @@
 #include <sys/stat.h>
 
 /* Export ids that sl_export_assimp refuses (mirrors refused_formats in
- * src/scene/export_assimp.c, which gives the reasons). */
+ * src/import/export_assimp.c, which gives the reasons). */
 static const char *const refused[] = {"3mf", "pbrt"};
 
 static bool is_refused(const char *id)
