@@ -20,6 +20,7 @@
  * --methods takes comma-separated specs name[:key=value[:key=value...]] ("hzb,hzb:res=culling").
  * Exit status 1 when a method whose guarantee promises it (conservative; conservative at the
  * culling resolution when the oracle samples at the culling resolution's pixel centres) missed. */
+#include "bench_common.h"
 #include "core/sl_core.h"
 #include "sightline/cull.h"
 #include "sightline/gen.h"
@@ -49,20 +50,6 @@ static void die(const char *what, const sl_error *err)
 {
     fprintf(stderr, "bench_resolution: %s%s%s\n", what, err ? ": " : "", err ? err->message : "");
     exit(2);
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, size_t n)
-{
-    if (!n)
-        return 0;
-    qsort(v, n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 /* "name[:key=value...]" -> name and "key=value,..."; threads=T added where the method takes it. */
@@ -275,7 +262,7 @@ int main(int argc, char **argv)
                 sl_culler_stats(ms[i].c, &st);
                 t[f] = st.total_ms;
             }
-            ms[i].round_ms[r] = median(t, frames);
+            ms[i].round_ms[r] = bench_median(t, frames);
         }
     printf("%s city, %u %s, culling at %ux%u, oracle %ux%u, samples %s; exact visible: %.1f objects per view "
            "(oracle %.1f ms per view); time: median over %u alternating rounds of the median cull over the views\n\n",
@@ -286,7 +273,7 @@ int main(int argc, char **argv)
     for (uint32_t i = 0; i < nm; i++) {
         printf("| %s | %s | %llu | %llu | %.3f | %.4f | %016llx |\n", ms[i].spec, sl_cull_guarantee_name(ms[i].g),
                (unsigned long long)ms[i].missed, (unsigned long long)ms[i].missed_views,
-               visible ? (double)ms[i].drawn / (double)visible : 0, median(ms[i].round_ms, rounds),
+               visible ? (double)ms[i].drawn / (double)visible : 0, bench_median(ms[i].round_ms, rounds),
                (unsigned long long)ms[i].hash);
         sl_culler_destroy(ms[i].c);
     }
