@@ -4,6 +4,8 @@
  * image-space method. See occluders.h for the contracts and docs/occlusion.md for the design. */
 #include "occluders.h"
 
+#include "core/polygon.h"
+
 #include <float.h>
 #include <math.h>
 
@@ -421,195 +423,6 @@ void sl_occ_pyramid_read_base(sl_occ_pyramid *p, const sl_raster *ctx)
 
 /* ---- prisms: footprint polygons shrunk inward ---- */
 
-typedef struct { double x, y; } dvec2;
-
-static double cross2(dvec2 a, dvec2 b) { return a.x * b.y - a.y * b.x; }
-static dvec2 sub2(dvec2 a, dvec2 b) { return (dvec2){a.x - b.x, a.y - b.y}; }
-
-static double seg_point_dist(dvec2 p, dvec2 a, dvec2 b)
-{
-    dvec2 ab = sub2(b, a), ap = sub2(p, a);
-    double l2 = ab.x * ab.x + ab.y * ab.y, t = l2 > 0 ? (ap.x * ab.x + ap.y * ab.y) / l2 : 0;
-    t = t < 0 ? 0 : (t > 1 ? 1 : t);
-    double dx = a.x + t * ab.x - p.x, dy = a.y + t * ab.y - p.y;
-    return sqrt(dx * dx + dy * dy);
-}
-
-/* Do segments ab and cd intersect (touching counts)? */
-static bool seg_intersect(dvec2 a, dvec2 b, dvec2 c, dvec2 d)
-{
-    double d1 = cross2(sub2(b, a), sub2(c, a)), d2 = cross2(sub2(b, a), sub2(d, a));
-    double d3 = cross2(sub2(d, c), sub2(a, c)), d4 = cross2(sub2(d, c), sub2(b, c));
-    if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0)))
-        return true;
-    /* collinear or touching cases: close enough counts as touching */
-    return seg_point_dist(c, a, b) == 0 || seg_point_dist(d, a, b) == 0 || seg_point_dist(a, c, d) == 0 ||
-           seg_point_dist(b, c, d) == 0;
-}
-
-static double seg_seg_dist(dvec2 a, dvec2 b, dvec2 c, dvec2 d)
-{
-    if (seg_intersect(a, b, c, d))
-        return 0;
-    double m = seg_point_dist(a, c, d);
-    m = fmin(m, seg_point_dist(b, c, d));
-    m = fmin(m, seg_point_dist(c, a, b));
-    return fmin(m, seg_point_dist(d, a, b));
-}
-
-static bool point_in_poly(dvec2 p, const dvec2 *q, uint32_t n)
-{
-    bool in = false;
-    for (uint32_t i = 0, j = n - 1; i < n; j = i++)
-        if ((q[i].y > p.y) != (q[j].y > p.y) && p.x < (q[j].x - q[i].x) * (p.y - q[i].y) / (q[j].y - q[i].y) + q[i].x)
-            in = !in;
-    return in;
-}
-
-/* Offset the counter-clockwise simple polygon p[0..n) inward by d into q, and check that every
- * point of q lies at least d (less a relative 1e-6) from p's boundary and inside p: q simple, its
- * edges parallel to p's and pointing the same way, every pair of edges at least d apart, and its
- * first vertex inside p. False when the offset collapses or cannot be certified. */
-static bool inset_polygon(const dvec2 *p, uint32_t n, double d, dvec2 *q)
-{
-    for (uint32_t i = 0; i < n; i++) {
-        dvec2 a = p[(i + n - 1) % n], b = p[i], c = p[(i + 1) % n];
-        dvec2 e0 = sub2(b, a), e1 = sub2(c, b);
-        double l0 = hypot(e0.x, e0.y), l1 = hypot(e1.x, e1.y);
-        if (!(l0 > 0) || !(l1 > 0))
-            return false;
-        dvec2 n0 = {-e0.y / l0, e0.x / l0}, n1 = {-e1.y / l1, e1.x / l1}; /* left = inward for CCW */
-        double det = cross2(n0, n1);
-        if (fabs(det) < 1e-9) {
-            if (n0.x * n1.x + n0.y * n1.y < 0)
-                return false; /* a spike folding back */
-            q[i] = (dvec2){b.x + d * n0.x, b.y + d * n0.y};
-        } else {
-            double c0 = n0.x * b.x + n0.y * b.y + d, c1 = n1.x * b.x + n1.y * b.y + d;
-            q[i] = (dvec2){(c0 * n1.y - c1 * n0.y) / det, (n0.x * c1 - n1.x * c0) / det};
-        }
-        if (!isfinite(q[i].x) || !isfinite(q[i].y) || hypot(q[i].x - b.x, q[i].y - b.y) > 50.0 * d)
-            return false;
-    }
-    double area = 0;
-    for (uint32_t i = 0; i < n; i++)
-        area += cross2(q[i], q[(i + 1) % n]);
-    if (!(area > 0))
-        return false;
-    for (uint32_t i = 0; i < n; i++) {
-        dvec2 pe = sub2(p[(i + 1) % n], p[i]), qe = sub2(q[(i + 1) % n], q[i]);
-        if (!(pe.x * qe.x + pe.y * qe.y > 0) || hypot(qe.x, qe.y) < 1e-4)
-            return false;
-    }
-    double need = d * (1.0 - 1e-6);
-    for (uint32_t i = 0; i < n; i++) {
-        dvec2 a = q[i], b = q[(i + 1) % n];
-        for (uint32_t j = 0; j < n; j++) {
-            /* offset edges: non-adjacent ones must not meet */
-            if (j != i && j != (i + 1) % n && (j + 1) % n != i && seg_intersect(a, b, q[j], q[(j + 1) % n]))
-                return false;
-            if (seg_seg_dist(a, b, p[j], p[(j + 1) % n]) < need)
-                return false;
-        }
-    }
-    return point_in_poly(q[0], p, n);
-}
-
-/* Ear-clip the counter-clockwise simple polygon q[0..n) into n-2 triangles (tri, 3 each). */
-static bool ear_clip(const dvec2 *q, uint32_t n, uint32_t *work, uint32_t *tri)
-{
-    for (uint32_t i = 0; i < n; i++)
-        work[i] = i;
-    uint32_t m = n, t = 0, guard = 0;
-    while (m > 3) {
-        bool found = false;
-        for (uint32_t k = 0; k < m && !found; k++) {
-            uint32_t ia = work[(k + m - 1) % m], ib = work[k], ic = work[(k + 1) % m];
-            dvec2 a = q[ia], b = q[ib], c = q[ic];
-            if (!(cross2(sub2(b, a), sub2(c, b)) > 0))
-                continue;
-            bool empty = true;
-            for (uint32_t j = 0; j < m && empty; j++) {
-                uint32_t ij = work[j];
-                if (ij == ia || ij == ib || ij == ic)
-                    continue;
-                dvec2 p = q[ij];
-                if (cross2(sub2(b, a), sub2(p, a)) >= 0 && cross2(sub2(c, b), sub2(p, b)) >= 0 &&
-                    cross2(sub2(a, c), sub2(p, c)) >= 0)
-                    empty = false;
-            }
-            if (!empty)
-                continue;
-            tri[3 * t] = ia;
-            tri[3 * t + 1] = ib;
-            tri[3 * t + 2] = ic;
-            t++;
-            for (uint32_t j = k; j + 1 < m; j++)
-                work[j] = work[j + 1];
-            m--;
-            found = true;
-        }
-        if (!found || ++guard > 4 * n)
-            return false;
-    }
-    tri[3 * t] = work[0];
-    tri[3 * t + 1] = work[1];
-    tri[3 * t + 2] = work[2];
-    return true;
-}
-
-/* Merge the roof triangles into convex polygons (Hertel-Mehlhorn: drop a diagonal while both
- * polygons it separates stay convex). polys: up to n-2 polygons of up to n vertex indices each,
- * stored with stride n; len[i] = 0 for merged-away ones. */
-static void merge_convex(const dvec2 *q, uint32_t n, const uint32_t *tri, uint32_t *polys, uint32_t *len)
-{
-    uint32_t np = n - 2;
-    for (uint32_t i = 0; i < np; i++) {
-        memcpy(polys + (size_t)i * n, tri + 3 * i, 3 * sizeof(uint32_t));
-        len[i] = 3;
-    }
-    bool merged = true;
-    while (merged) {
-        merged = false;
-        for (uint32_t a = 0; a < np && !merged; a++) {
-            if (!len[a])
-                continue;
-            for (uint32_t b = a + 1; b < np && !merged; b++) {
-                if (!len[b])
-                    continue;
-                uint32_t *pa = polys + (size_t)a * n, *pb = polys + (size_t)b * n;
-                for (uint32_t i = 0; i < len[a] && !merged; i++) {
-                    uint32_t u = pa[i], w = pa[(i + 1) % len[a]];
-                    for (uint32_t j = 0; j < len[b] && !merged; j++) {
-                        if (pb[j] != w || pb[(j + 1) % len[b]] != u)
-                            continue;
-                        /* splice: pa up to u, then pb from after u around to before w, then w.. */
-                        uint32_t tmp[256], k = 0;
-                        if (len[a] + len[b] - 2 > 256 || len[a] + len[b] - 2 > n)
-                            continue;
-                        for (uint32_t s = 0; s < len[a]; s++) {
-                            uint32_t v = pa[(i + 1 + s) % len[a]]; /* starts at w, ends at u */
-                            tmp[k++] = v;
-                        }
-                        for (uint32_t s = 2; s < len[b]; s++)
-                            tmp[k++] = pb[(j + s) % len[b]]; /* after u, before w */
-                        bool convex = true;
-                        for (uint32_t s = 0; s < k && convex; s++) {
-                            dvec2 x = q[tmp[s]], y = q[tmp[(s + 1) % k]], z = q[tmp[(s + 2) % k]];
-                            convex = cross2(sub2(y, x), sub2(z, y)) > -1e-12;
-                        }
-                        if (!convex)
-                            continue;
-                        memcpy(pa, tmp, k * sizeof(uint32_t));
-                        len[a] = k;
-                        len[b] = 0;
-                        merged = true;
-                    }
-                }
-            }
-        }
-    }
-}
 
 /* Growable arrays of the set under construction. */
 typedef struct build_ctx {
@@ -646,7 +459,7 @@ static bool push_face(build_ctx *b, uint32_t proxy, const sl_vec3 *v, uint32_t c
 }
 
 /* Make the prism proxy of footprint fi, or count it rejected. */
-static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, dvec2 *work_p, dvec2 *work_q, uint32_t *work_i,
+static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, sl_dvec2 *work_p, sl_dvec2 *work_q, uint32_t *work_i,
                            uint32_t *tri, uint32_t *polys, uint32_t *plen, sl_vec3 *work_v, sl_error *err)
 {
     sl_footprint_view fp = sl_scene_footprint(s->scene, fi);
@@ -656,13 +469,13 @@ static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, dvec2 *work
     if (fp.object != SL_NONE && fp.object >= s->object_count)
         return SL_OK;
     for (uint32_t i = 0; i < n; i++)
-        work_p[i] = (dvec2){fp.xy[2 * i], fp.xy[2 * i + 1]};
+        work_p[i] = (sl_dvec2){fp.xy[2 * i], fp.xy[2 * i + 1]};
     /* the largest inset up to the option that can be certified, halving down to 1 cm */
     double d = s->opt.inset;
     bool ok = false;
     while (!ok && d >= 0.01 - 1e-9) {
-        ok = (double)fp.roof_z - fp.base_z > 2 * d + 0.01 && inset_polygon(work_p, n, d, work_q) &&
-             ear_clip(work_q, n, work_i, tri);
+        ok = (double)fp.roof_z - fp.base_z > 2 * d + 0.01 && sl_inset_polygon(work_p, n, d, work_q) &&
+             sl_ear_clip(work_q, n, work_i, tri);
         if (!ok)
             d *= 0.5;
     }
@@ -736,7 +549,7 @@ static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, dvec2 *work
         if (!push_face(b, pi, q, 4))
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory for faces");
     }
-    merge_convex(work_q, n, tri, polys, plen);
+    sl_merge_convex(work_q, n, tri, polys, plen);
     for (uint32_t i = 0; i + 2 < n; i++) {
         if (!plen[i])
             continue;
@@ -880,7 +693,7 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
     s->object_proxy = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
     build_ctx b = {alloc, {0}, {0}, {0}, {0}, {0}, opt->faces};
     sl_status st = SL_OK;
-    dvec2 *wp = NULL, *wq = NULL;
+    sl_dvec2 *wp = NULL, *wq = NULL;
     uint32_t *wi = NULL, *tri = NULL, *polys = NULL, *plen = NULL;
     sl_vec3 *wv = NULL;
     uint32_t maxn = 3;
@@ -890,8 +703,8 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
         if (n <= 512)
             maxn = SL_MAX(maxn, n);
     }
-    wp = sl_alloc(alloc, maxn * sizeof(dvec2));
-    wq = sl_alloc(alloc, maxn * sizeof(dvec2));
+    wp = sl_alloc(alloc, maxn * sizeof(sl_dvec2));
+    wq = sl_alloc(alloc, maxn * sizeof(sl_dvec2));
     wi = sl_alloc(alloc, maxn * sizeof(uint32_t));
     tri = sl_alloc(alloc, 3 * (size_t)maxn * sizeof(uint32_t));
     polys = sl_alloc(alloc, (size_t)maxn * maxn * sizeof(uint32_t));
@@ -970,8 +783,8 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
                                                                            : sl_affine_identity();
     }
 done:
-    sl_free(alloc, wp, maxn * sizeof(dvec2));
-    sl_free(alloc, wq, maxn * sizeof(dvec2));
+    sl_free(alloc, wp, maxn * sizeof(sl_dvec2));
+    sl_free(alloc, wq, maxn * sizeof(sl_dvec2));
     sl_free(alloc, wi, maxn * sizeof(uint32_t));
     sl_free(alloc, tri, 3 * (size_t)maxn * sizeof(uint32_t));
     sl_free(alloc, polys, (size_t)maxn * maxn * sizeof(uint32_t));
@@ -1699,35 +1512,6 @@ static inline double cross_h(const hull_vertex *o, const hull_vertex *a, const h
     return (a->x - o->x) * (b->y - o->y) - (a->y - o->y) * (b->x - o->x);
 }
 
-/* Clip convex polygon (px, py, n) by the half-plane nx x + ny y >= off into (qx, qy); returns the
- * count. An intersection is computed from the segment's endpoints in a fixed order, so two faces
- * sharing an edge get the same points. */
-static uint32_t clip_half(const double *px, const double *py, uint32_t n, double nx, double ny, double off,
-                          double *qx, double *qy, uint32_t cap)
-{
-    uint32_t k = 0;
-    for (uint32_t i = 0; i < n; i++) {
-        uint32_t j = (i + 1) % n;
-        double si = nx * px[i] + ny * py[i] - off, sj = nx * px[j] + ny * py[j] - off;
-        bool in_i = si >= 0, in_j = sj >= 0;
-        if (in_i && k < cap) {
-            qx[k] = px[i];
-            qy[k] = py[i];
-            k++;
-        }
-        if (in_i != in_j && k < cap) {
-            /* canonical order: from the lexicographically smaller endpoint */
-            bool sw = px[j] < px[i] || (px[j] == px[i] && py[j] < py[i]);
-            double ax = sw ? px[j] : px[i], ay = sw ? py[j] : py[i], bx = sw ? px[i] : px[j], by = sw ? py[i] : py[j];
-            double sa = sw ? sj : si, sb = sw ? si : sj;
-            double t = sa / (sa - sb);
-            qx[k] = ax + (bx - ax) * t;
-            qy[k] = ay + (by - ay) * t;
-            k++;
-        }
-    }
-    return k;
-}
 
 #define HULL_MAX_PIECE 64   /* vertices of a convex roof piece drawn this way (larger: dropped) */
 #define HULL_MAX_V 128      /* vertices of a convex solid drawn by hull_draw */
@@ -1830,7 +1614,7 @@ static uint32_t hull_draw(sl_occ_raster *r, const sl_occ_view *v, const hull_ver
             ay[0][i] = pv[ix[i]].y;
         }
         for (uint32_t e = 0; e < h && len >= 3; e++) {
-            len = clip_half(ax[cur], ay[cur], len, hnx[e], hny[e], hoff[e], ax[cur ^ 1], ay[cur ^ 1], CAP);
+            len = sl_clip_half(ax[cur], ay[cur], len, hnx[e], hny[e], hoff[e], ax[cur ^ 1], ay[cur ^ 1], CAP);
             cur ^= 1;
         }
         if (len < 3 || len - 2 > r->shrunk_cap)
@@ -2261,35 +2045,6 @@ sl_raster_result sl_occ_test_object_sampled(sl_occ_raster *const *layers, uint32
     return SL_RASTER_OCCLUDED;
 }
 
-/* x extent of the convex polygon h (m vertices) within the band ya <= y <= yb: false when the band
- * misses it. */
-static bool band_extent(const double *h, uint32_t m, double ya, double yb, double *xl, double *xr)
-{
-    double lo = INFINITY, hi = -INFINITY;
-    for (uint32_t i = 0; i < m; i++) {
-        double x0 = h[2 * i], y0 = h[2 * i + 1];
-        uint32_t j = i + 1 == m ? 0 : i + 1;
-        double x1 = h[2 * j], y1 = h[2 * j + 1];
-        if (y0 >= ya && y0 <= yb) {
-            lo = x0 < lo ? x0 : lo;
-            hi = x0 > hi ? x0 : hi;
-        }
-        double yl = y0 < y1 ? y0 : y1, yh = y0 < y1 ? y1 : y0;
-        for (int e = 0; e < 2; e++) {
-            double yc = e ? yb : ya;
-            if (yl < yc && yc < yh) {
-                double x = x0 + (x1 - x0) * (yc - y0) / (y1 - y0);
-                lo = x < lo ? x : lo;
-                hi = x > hi ? x : hi;
-            }
-        }
-    }
-    if (!(lo <= hi))
-        return false;
-    *xl = lo;
-    *xr = hi;
-    return true;
-}
 
 bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, sl_occ_exact *exact,
                             const sl_occ_view *v, const sl_aabb *box, const sl_occ_rect *r, uint32_t max_rows)
@@ -2355,7 +2110,7 @@ bool sl_occ_box_rows_hidden(sl_occ_raster *const *layers, uint32_t layer_count, 
             span[row - y][0] = 0;
             span[row - y][1] = -1;
             double yc = row + 0.5, xl, xr;
-            if (!band_extent(h, m, yc - eps, yc + eps, &xl, &xr))
+            if (!sl_band_extent(h, m, yc - eps, yc + eps, &xl, &xr))
                 continue;
             /* columns whose centre c + 0.5 lies in [xl - eps, xr + eps] */
             double ca = ceil(xl - eps - 0.5), cb = floor(xr + eps - 0.5);
