@@ -343,13 +343,7 @@ uint32_t sl_occ_base_select(sl_occ_base *b, const sl_occ_view *v, const sl_occ_c
 
 /* ---- the rasterizer wrapper ---- */
 
-/* A vertex projected in double precision (MESH occluders, pixel-centre tests). */
-typedef struct sl_occ_screen_vertex {
-    double x, y;              /* screen position (pixels) */
-    float d;                  /* depth in the rasterizer's convention (larger = nearer) */
-    bool ok;                  /* in front of the eye (w > 1e-5) and finite */
-    bool between;             /* and between the near and far planes */
-} sl_occ_screen_vertex;
+#include "cull/occlusion/project.h"
 
 typedef struct sl_occ_recorder sl_occ_recorder;
 
