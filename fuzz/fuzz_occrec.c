@@ -5,7 +5,7 @@
  * rasterizer behind it. Recordings of more than 256x256 pixels are skipped on the second pass:
  * the replay clears and renders the whole buffer, and big ones would only slow the fuzzer. */
 #include "core/sl_core.h"
-#include "cull/occluders.h"
+#include "cull/occlusion_debug.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -12,7 +12,7 @@
 #include <unistd.h>
 
 #include "core/sl_core.h"
-#include "cull/occluders.h"
+#include "cull/occlusion_debug.h"
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"

@@ -13,8 +13,12 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/opts.h"
 #include "core/sl_core.h"
-#include "cull/occluders.h"
+#include "cull/occlusion/exact.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/select.h"
+#include "cull/occlusion/view.h"
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"

@@ -18,7 +18,7 @@
 
 #include "core/bytes.h"
 #include "core/sl_core.h"
-#include "cull/occluders.h"
+#include "cull/occlusion_debug.h"
 #include "region/pvs_internal.h"
 #include "sightline/core.h"
 #include "sightline/path.h"

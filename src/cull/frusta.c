@@ -17,7 +17,11 @@
  * that lies inside a solid object (or is an occluder's own triangle). Side planes are tightened
  * by SL_OCC_MIN_INSET_PX pixels' worth of angle so that a pixel centre the oracle could see past
  * the face's edge (snapping) never counts as shadowed; the face plane by a relative 1e-6. */
-#include "occluders.h"
+#include "cull/occlusion/base.h"
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/view.h"
+#include "cull/occlusion/walk.h"
 
 #include <math.h>
 

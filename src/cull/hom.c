@@ -19,7 +19,14 @@
  *    paper's "no-background z-buffer").
  * threshold = 1 (default) is conservative; below 1 small holes "dissolve" and the method declares
  * itself aggressive (approximate culling, section 5.3). */
-#include "occluders.h"
+#include "cull/occlusion/base.h"
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/pyramid.h"
+#include "cull/occlusion/raster.h"
+#include "cull/occlusion/view.h"
+#include "cull/occlusion/walk.h"
+#include "cull/occlusion_debug.h"
 
 #include <math.h>
 

@@ -40,7 +40,17 @@
  * rows, the sampled triangles, the exact layer) are off, so no object visible at any resolution
  * or sample position is dropped; res=culling turns them on (the defaults 8, 64, 48) and draws
  * occluders at pixel centres: tighter, conservative at the culling resolution only. */
-#include "occluders.h"
+#include "cull/occlusion/base.h"
+#include "cull/occlusion/exact.h"
+#include "cull/occlusion/object_tests.h"
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/pyramid.h"
+#include "cull/occlusion/raster.h"
+#include "cull/occlusion/select.h"
+#include "cull/occlusion/view.h"
+#include "cull/occlusion/walk.h"
+#include "cull/occlusion_debug.h"
 
 #include <math.h>
 

@@ -30,7 +30,14 @@
  * `pixel_queries` the pixels they read. Conservative at any resolution (res=any, the default:
  * occluders by inner coverage, no pixel-centre test); res=culling draws them at pixel centres and
  * allows sample_tris (default 64 there): conservative at the culling resolution only. */
-#include "occluders.h"
+#include "cull/occlusion/base.h"
+#include "cull/occlusion/object_tests.h"
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/raster.h"
+#include "cull/occlusion/select.h"
+#include "cull/occlusion/view.h"
+#include "cull/occlusion_debug.h"
 
 #include <math.h>
 

@@ -13,7 +13,7 @@
  *   trailer u64 XXH3-64 (seed 0) of every byte before it (version 2; version 1 had none, so a
  *           damaged file could replay as "ok")
  * The replayer checks the checksum, then validates every field before it uses it. */
-#include "occluders.h"
+#include "cull/occlusion_debug.h"
 
 #include "sightline/image.h"
 

@@ -27,7 +27,11 @@
  * visible object is missed. The front is seeded with the eye's cell, or, when the eye is outside
  * the octree or the camera is orthographic (rays start anywhere on the near rectangle), with the
  * cells on the octree's boundary and those meeting the near rectangle. */
-#include "occluders.h"
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/raster.h"
+#include "cull/occlusion/select.h"
+#include "cull/occlusion/view.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,9 +1,5 @@
 /* The base every occlusion method builds on: BVH, proxies, selection buffers (base.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
-
-#include <float.h>
-#include <math.h>
+#include "base.h"
 
 /* ---- the base of every method ---- */
 

@@ -3,6 +3,11 @@
 #ifndef SL_CULL_OCCLUSION_BASE_H
 #define SL_CULL_OCCLUSION_BASE_H
 
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/select.h"
+#include "sightline/accel.h"
+
 /* ---- the base of every method: BVH, proxies, selection buffers ---- */
 
 /* What every occlusion method holds besides its own buffers: the object BVH, the occluder proxies,

@@ -1,8 +1,8 @@
 /* The exact layer: visible objects drawn with the oracle's own rasterizer (exact.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
+#include "exact.h"
 
-#include <float.h>
+#include "project.h"
+
 #include <math.h>
 
 /* ---- the exact layer ---- */

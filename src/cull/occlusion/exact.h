@@ -1,6 +1,12 @@
 #ifndef SL_CULL_OCCLUSION_EXACT_H
 #define SL_CULL_OCCLUSION_EXACT_H
 
+#include "cull/occlusion/view.h"
+#include "raster/raster_ref.h"
+#include "scene/scene_internal.h"
+
+#include <math.h>
+
 /* ---- the exact layer: visible objects drawn with the oracle's own rasterizer ----
  * Far, small objects (a pixel or two at the end of a street) hide each other, but as occluders
  * they are too thin for the conservative rasterizer (MESH proxies drop triangles thinner than

@@ -8,6 +8,10 @@
 #ifndef SL_CULL_OCCLUSION_INNER_COVERAGE_H
 #define SL_CULL_OCCLUSION_INNER_COVERAGE_H
 
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/raster.h"
+#include "cull/occlusion/view.h"
+
 /* A MESH proxy's triangles (all of them when tris is NULL, else the ntris listed) shrunk on screen
  * so that they cover only pixel centres the oracle gives to the object. */
 void sl_occ_render_mesh_shrunk(sl_occ_raster *r, const struct sl_scene_t *sc, const sl_occ_view *v, uint32_t mesh,

@@ -1,10 +1,11 @@
 /* Hidden-object tests by an object's own triangles (pixel-centre sampled and outward-conservative)
  * and by the pixel rows of a box's silhouette, over several layers and the exact layer
  * (object_tests.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
+#include "object_tests.h"
 
-#include <float.h>
+#include "core/polygon.h"
+#include "project.h"
+
 #include <math.h>
 
 /* Vertices projected at most once per sampled test, on first use (props have a few dozen; larger

@@ -4,6 +4,11 @@
 #ifndef SL_CULL_OCCLUSION_OBJECT_TESTS_H
 #define SL_CULL_OCCLUSION_OBJECT_TESTS_H
 
+#include "cull/occlusion/exact.h"
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/raster.h"
+#include "cull/occlusion/view.h"
+
 /* Most pixels of an object's box rectangle for sl_occ_test_object_sampled. */
 #define SL_OCC_SAMPLED_MAX_PX 1024
 /* Test an object by its own triangles sampled at pixel centres, the way the oracle decides

@@ -1,9 +1,8 @@
 /* Reading the options shared by the occlusion methods (options.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
+#include "options.h"
 
-#include <float.h>
-#include <math.h>
+#include "accel/bvh_internal.h" /* leaf sizes */
+#include "object_tests.h"       /* SL_OCC_SAMPLED_MAX_PX */
 
 /* ---- options ---- */
 

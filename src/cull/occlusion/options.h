@@ -4,6 +4,8 @@
 #ifndef SL_CULL_OCCLUSION_OPTIONS_H
 #define SL_CULL_OCCLUSION_OPTIONS_H
 
+#include "cull/culler_internal.h"
+
 /* ---- options shared by the methods ---- */
 
 typedef struct sl_occ_common {

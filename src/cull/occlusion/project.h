@@ -6,6 +6,11 @@
 #ifndef SL_CULL_OCCLUSION_PROJECT_H
 #define SL_CULL_OCCLUSION_PROJECT_H
 
+#include "cull/occlusion/view.h"
+#include "scene/scene_internal.h"
+
+#include <math.h>
+
 /* A vertex projected in double precision (MESH occluders, pixel-centre tests). */
 typedef struct sl_occ_screen_vertex {
     double x, y;              /* screen position (pixels) */

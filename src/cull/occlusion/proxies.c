@@ -1,7 +1,8 @@
 /* Occluder proxies: prisms from footprints shrunk inward, MESH and SCENE_MESH proxies, their
  * faces, refresh on scene change, and whether a proxy may be used for a view (proxies.h). The
  * polygon geometry the prisms need is in core/polygon.c. */
-#include "cull/occluders.h"
+#include "proxies.h"
+
 #include "core/polygon.h"
 
 #include <float.h>

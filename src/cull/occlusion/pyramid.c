@@ -1,9 +1,5 @@
 /* Screen pyramids over the rasterizer's subtiles (pyramid.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
-
-#include <float.h>
-#include <math.h>
+#include "pyramid.h"
 
 /* ---- screen pyramids ---- */
 

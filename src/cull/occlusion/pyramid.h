@@ -3,6 +3,9 @@
 #ifndef SL_CULL_OCCLUSION_PYRAMID_H
 #define SL_CULL_OCCLUSION_PYRAMID_H
 
+#include "cull/occlusion_debug.h"
+#include "sightline/raster.h"
+
 /* ---- screen pyramids (hzb's max-depth pyramid, hom's opacity pyramid) ---- */
 
 #define SL_OCC_MAX_LEVELS 24

@@ -2,12 +2,10 @@
  * proxies (each once a frame), counting and recording queries, and writing the debug frame's
  * recording and dumps (raster.h). How the proxies are drawn by inner coverage under res=any is in
  * inner_coverage.c. */
-#include "cull/occluders.h"
-#include "cull/occlusion/inner_coverage.h"
-#include "core/polygon.h"
+#include "raster.h"
 
-#include <float.h>
-#include <math.h>
+#include "inner_coverage.h"
+#include "project.h"
 
 /* ---- the rasterizer wrapper ---- */
 

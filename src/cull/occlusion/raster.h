@@ -4,9 +4,13 @@
 #ifndef SL_CULL_OCCLUSION_RASTER_H
 #define SL_CULL_OCCLUSION_RASTER_H
 
-/* ---- the rasterizer wrapper ---- */
+#include "cull/occlusion/options.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/view.h"
+#include "cull/occlusion_debug.h"
+#include "sightline/raster.h"
 
-typedef struct sl_occ_recorder sl_occ_recorder;
+/* ---- the rasterizer wrapper ---- */
 
 typedef struct sl_occ_raster {
     sl_allocator alloc;
@@ -58,13 +62,7 @@ sl_raster_result sl_occ_raster_test(sl_occ_raster *r, int32_t x0, int32_t y0, in
 sl_raster_result sl_occ_raster_test_object(sl_occ_raster *r, sl_scene scene, const sl_occ_view *v, uint32_t object);
 /* End a frame: on the debug frame, write the recording and the dumps (the pyramid given as
  * `levels` float images, level i of size w_i x h_i, may be NULL). Debug output failures are
- * reported as errors of the cull call. */
-typedef struct sl_occ_levels {
-    uint32_t count;
-    const float *const *data;
-    const uint32_t *w, *h;
-    bool opacity;             /* values are opacities in [0,1] (else depths, larger = nearer) */
-} sl_occ_levels;
+ * reported as errors of the cull call. (sl_occ_levels: occlusion_debug.h.) */
 sl_status sl_occ_raster_end(sl_occ_raster *r, const sl_occ_levels *levels, sl_error *err);
 
 #endif

@@ -1,10 +1,10 @@
 /* Occluder selection (Coorg & Teller, "Real-time occlusion culling for models with large
  * occluders", I3D 1997, section 3: the quality metric -A (N.V) / |D|^2): per-node area bounds and
  * the walk choosing the frame's best occluders (select.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
+#include "select.h"
 
-#include <float.h>
+#include "walk.h"
+
 #include <math.h>
 
 float sl_occ_quality(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)

@@ -3,6 +3,10 @@
 #ifndef SL_CULL_OCCLUSION_SELECT_H
 #define SL_CULL_OCCLUSION_SELECT_H
 
+#include "accel/bvh_internal.h"
+#include "cull/occlusion/proxies.h"
+#include "cull/occlusion/view.h"
+
 /* Coorg-Teller occluder quality, summed over the proxy's faces: -A (N.V) / |D|^2 with V the unit
  * direction from the eye to the face centre and D the vector to it (a solid-angle estimate); for a
  * MESH proxy, its half area over the squared distance to its box centre. */

@@ -1,9 +1,9 @@
 /* The frame's view (sl_occ_view from a camera), the near-region test and box projection to a
  * pixel rectangle (view.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
+#include "view.h"
 
-#include <float.h>
+#include "project.h"
+
 #include <math.h>
 
 /* ---- the view ---- */
@@ -51,11 +51,6 @@ bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b)
     float dy = sl_occ_maxf(sl_occ_maxf(b->min.y - v->eye.y, v->eye.y - b->max.y), 0.0f);
     float dz = sl_occ_maxf(sl_occ_maxf(b->min.z - v->eye.z, v->eye.z - b->max.z), 0.0f);
     return dx * dx + dy * dy + dz * dz > v->near_reach * v->near_reach;
-}
-
-int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask)
-{
-    return sl_frustum_classify_box(v->fr.planes, v->slack, b, mask, true, NULL);
 }
 
 /* Pixel range [lo, hi) of every pixel an interval [a, b] touches, grown by 1/64 pixel and clamped

@@ -5,6 +5,12 @@
 #ifndef SL_CULL_OCCLUSION_VIEW_H
 #define SL_CULL_OCCLUSION_VIEW_H
 
+#include "core/sl_core.h"
+#include "sightline/camera.h"
+#include "sightline/raster.h"
+
+#include <math.h>
+
 /* Pixels a prism proxy must lie inside its object's silhouette: 8 times the combined snapping
  * error of the rasterizer and the oracle (1/512 pixel each, plus float transform rounding). */
 #define SL_OCC_MIN_INSET_PX SL_MARGIN_INSET_PX /* core/margins.h */
@@ -76,7 +82,10 @@ bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b);
 
 /* Frustum classification with plane masks (as vfc): -1 outside, else the mask of the planes the
  * box straddles (0: wholly inside). */
-int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask);
+static inline int sl_occ_frustum_classify(const sl_occ_view *v, const sl_aabb *b, uint32_t mask)
+{
+    return sl_frustum_classify_box(v->fr.planes, v->slack, b, mask, true, NULL);
+}
 
 /* True when point p lies in box b grown by g. */
 static inline bool sl_occ_point_in_box(sl_vec3 p, const sl_aabb *b, float g)

@@ -1,10 +1,5 @@
 /* The front-to-back BVH walk with frustum plane masks (walk.h). */
-#include "cull/occluders.h"
-#include "core/polygon.h"
-
-#include <float.h>
-#include <math.h>
-
+#include "walk.h"
 
 uint64_t sl_occ_walk_bvh(const struct sl_bvh_t *bvh, const sl_occ_view *v, sl_occ_walk *w,
                          uint64_t *objects_tested)

@@ -3,6 +3,9 @@
 #ifndef SL_CULL_OCCLUSION_WALK_H
 #define SL_CULL_OCCLUSION_WALK_H
 
+#include "accel/bvh_internal.h"
+#include "cull/occlusion/view.h"
+
 /* ---- the front-to-back BVH walk every method uses ---- */
 
 /* What a walk asks its method. Boxes beyond a frustum plane are skipped before any question. */

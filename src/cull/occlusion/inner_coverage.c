@@ -1,12 +1,13 @@
-/* Occluder proxies, their per-frame selection (Coorg & Teller, "Real-time occlusion culling for
- * models with large occluders", I3D 1997, section 3: the quality metric -A (N.V) / |D|^2), the
- * frame's view and box projection, the shared options, and the rasterizer wrapper used by every
- * image-space method. See occluders.h for the contracts and docs/occlusion.md for the design. */
-#include "occluders.h"
+/* Occluders by inner coverage (res=any, inner_coverage.h): MESH and SCENE_MESH triangles shrunk on
+ * screen by the pixel footprint, prisms eroded face by face (inner=faces) or by the silhouettes of
+ * their convex pieces (inner=hull), meshes by their convex parts. Moved out of occluders.c (issue
+ * 13 section 5); docs/occlusion.md and docs/culler-contract.md for the rules. */
+#include "inner_coverage.h"
 
 #include "core/polygon.h"
+#include "cull/convex_parts.h"
+#include "project.h"
 
-#include <float.h>
 #include <math.h>
 
 static inline double maxd(double a, double b) { return a > b ? a : b; }

@@ -1,10 +1,4 @@
-/* Shared machinery of the online occlusion methods (hzb, hom, lazygrid, lazygrid-z, busygrid,
- * frusta, plp, cplp): the per-frame view, box projection, the front-to-back BVH walk, occluder
- * proxies and their selection, the base every method builds on (BVH, proxies, selection buffers,
- * refit on scene change), screen pyramids, a rasterizer wrapper that counts, records and dumps,
- * objects tested by their own triangles, and the debugging recorder/replayer.
- *
- * Occluder proxies (docs/occlusion.md, "Occluders"). A proxy is geometry that lies INSIDE an
+/* Occluder proxies (docs/occlusion.md, "Occluders"). A proxy is geometry that lies INSIDE an
  * object's solid, so that whatever it hides the object hides too; the methods render proxies,
  * never anything larger than the original:
  *  - PRISM: a 2.5D footprint (sl_scene_footprint, inside its building by construction: roof at the
@@ -21,32 +15,19 @@
  *    SL_OCC_MIN_INSET_PX and drawn at its farthest depth, so that the independent snapping of
  *    rasterizer and oracle cannot disagree about a covered pixel centre (docs/occlusion.md).
  *    With res=any's silhouette rule (inner=hull) prisms and the convex parts of meshes are drawn
- *    by their eroded convex silhouettes instead (render_prism_hull, render_mesh_hull;
+ *    by their eroded convex silhouettes instead (sl_occ_render_prism_hull, sl_occ_render_mesh_hull in inner_coverage.c;
  *    docs/culler-contract.md, "Guarantees and resolution").
  *  - SCENE_MESH: a 3D occluder mesh of the scene (sl_scene_add_occluder), trusted to lie inside.
  * The meshoptimizer simplifier is not used: its output is not guaranteed to lie inside the
  * original, and a proxy must never exceed the original's silhouette.
- *
- * Everything here is allocation-free per frame except the rasterizer's (re)creation when the
- * camera's resolution changes and the debugging outputs of the frame asked for.
- */
-#ifndef SL_CULL_OCCLUDERS_H
-#define SL_CULL_OCCLUDERS_H
+ * Here: the proxy set of a scene (sl_occ_set: built once, refreshed when objects move) and whether a
+ * proxy may be rendered for a view (sl_occ_usable). The prisms' polygon geometry is core/polygon.h. */
+#ifndef SL_CULL_OCCLUSION_PROXIES_H
+#define SL_CULL_OCCLUSION_PROXIES_H
 
-#include "culler_internal.h"
-
-#include "accel/bvh_internal.h"
-#include "scene/scene_internal.h"
-#include "raster/raster_ref.h"
-#include "convex_parts.h"
-
-#include <math.h>
-#include "sightline/accel.h"
-#include "sightline/raster.h"
-
+#include "cull/convex_parts.h"
 #include "cull/occlusion/view.h"
-
-#include "cull/occlusion/walk.h"
+#include "scene/scene_internal.h"
 
 /* ---- occluder proxies ---- */
 
@@ -131,57 +112,5 @@ static inline sl_aabb sl_occ_proxy_box(const sl_occ_set *s, const sl_occ_proxy *
  * when both boxes keep out of the near region (sl_occ_near_clear); a prism near enough that its
  * inset is at least SL_OCC_MIN_INSET_PX pixels on screen. */
 bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v);
-
-#include "cull/occlusion/select.h"
-
-#include "cull/occlusion/options.h"
-
-#include "cull/occlusion/base.h"
-
-#include "cull/occlusion/raster.h"
-
-#include "cull/occlusion/project.h"
-
-#include "cull/occlusion/exact.h"
-
-#include "cull/occlusion/object_tests.h"
-
-#include "cull/occlusion/pyramid.h"
-
-/* ---- debugging (occlusion_debug.c) ---- */
-
-/* Write a depth buffer (width x height floats, larger = nearer, 0 = empty) as a grey PNG: empty
- * pixels black, the rest from dark (far) to white (near) on a logarithmic ramp. */
-sl_status sl_occ_write_depth_png(const char *path, const float *depth, uint32_t width, uint32_t height,
-                                 const sl_allocator *alloc, sl_error *err);
-/* Write pyramid levels in one grey PNG, mipmap style: level 0 on the left, the coarser levels
- * stacked top to bottom to its right, each at its own size (depths on the ramp of
- * sl_occ_write_depth_png, opacities from black 0 to white 1). */
-sl_status sl_occ_write_levels_png(const char *path, const sl_occ_levels *levels, const sl_allocator *alloc,
-                                  sl_error *err);
-
-/* A recording of one frame: the rasterizer's options, every occluder batch (triangles expanded
- * to 3 vertices each, the model-to-clip matrix, the back-face mode) and every rectangle query with
- * its answer, in order. The file format is in docs/occlusion.md. */
-sl_status sl_occ_recorder_create(const sl_allocator *alloc, const sl_raster_options *ropt, sl_raster_depth depth,
-                                 sl_occ_recorder **out, sl_error *err);
-void sl_occ_recorder_destroy(sl_occ_recorder *rec);
-/* Append a batch (vertices at byte stride, indices) or a query; failures are sticky. */
-void sl_occ_recorder_batch(sl_occ_recorder *rec, const float *vertices, uint32_t vertex_stride_bytes,
-                           const uint32_t *indices, uint32_t triangle_count, const float m[16],
-                           sl_raster_backface backface);
-void sl_occ_recorder_query(sl_occ_recorder *rec, int32_t x0, int32_t y0, int32_t x1, int32_t y1, float d,
-                           sl_raster_result result);
-/* A triangle-mesh query (sl_raster_test_triangles) with its answer. */
-void sl_occ_recorder_mesh_query(sl_occ_recorder *rec, const float *vertices, uint32_t vertex_stride_bytes,
-                                const uint32_t *indices, uint32_t triangle_count, const float m[16],
-                                sl_raster_backface backface, sl_raster_result result);
-/* Write the recording atomically. */
-sl_status sl_occ_recorder_save(sl_occ_recorder *rec, const char *path, sl_error *err);
-
-/* sl_occ_replay_report and sl_occ_replay: sightline/cull.h. */
-/* The same on a recording held in memory (`path` names it in messages; the fuzz target). */
-sl_status sl_occ_replay_memory(const void *data, size_t size, const char *path, sl_raster_isa isa,
-                               const sl_allocator *alloc, sl_occ_replay_report *out, sl_error *err);
 
 #endif
