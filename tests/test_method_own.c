@@ -1,5 +1,5 @@
 /* Every culling method on its own: the shared hidden-object test that runs after the occlusion
- * methods' own tests (sl_occ_object_hidden: mesh_test and sample_tris, src/cull/occluders.c) is
+ * methods' own tests (sl_occ_object_hidden: mesh_test and sample_tris, src/cull/occlusion/object_tests.c) is
  * turned off (option shared=false), so a method whose own test is broken can no longer hide behind
  * it. On street and flyover views of the tiny city each method must
  *  - keep every object the point oracle sees, when it is conservative, and

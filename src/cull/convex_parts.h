@@ -1,5 +1,5 @@
 /* Convex parts of an occluder mesh (res=any's inner coverage of MESH and SCENE_MESH proxies,
- * render_mesh_hull in occluders.c). A part is a connected set of a mesh's triangles (connected
+ * sl_occ_render_mesh_hull in occlusion/inner_coverage.c). A part is a connected set of a mesh's triangles (connected
  * through vertices at equal positions) that bounds a convex solid: every vertex of the part lies
  * on the inner side of every triangle's plane, within `dev` (the largest excess found), and every
  * edge is shared by two triangles, or the edges used once form at most SL_OCC_CPART_MAX_HOLES

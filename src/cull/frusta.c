@@ -3,7 +3,7 @@
  * 2000 course "Visibility, problems, techniques and applications" (section 5.2).
  *
  * Per frame:
- *  1. choose occluders: the best proxies in the frustum by Coorg-Teller quality (occluders.c;
+ *  1. choose occluders: the best proxies in the frustum by Coorg-Teller quality (occlusion/select.c;
  *     Hudson et al. precompute candidates per viewpoint cell, here the quality walk over the BVH
  *     plays that role every frame), then their planar convex faces (prism walls, convex pieces of
  *     roofs, the largest triangles of mesh proxies) ranked by the same quality per face; the best

@@ -4,7 +4,7 @@
  *
  * Occlusion is split into a 2D overlap test and a depth test:
  *  - occluders: the best proxies in the frustum by Coorg-Teller quality under a triangle budget
- *    (occluders.c), rendered once into the conservative rasterizer ("white on black");
+ *    (occlusion/select.c), rendered once into the conservative rasterizer ("white on black");
  *  - the opacity pyramid: level 0 is the subtile grid (8x4 pixels), opacity 1 where the subtile's
  *    farthest depth is above the clear value (every pixel covered) and 0 otherwise (a partially
  *    covered subtile counts as empty, which under-estimates opacity: safe); each coarser level

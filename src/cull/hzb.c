@@ -4,7 +4,7 @@
  *
  * Per frame:
  *  1. select: the best occluder proxies in the frustum by Coorg-Teller quality under a triangle
- *     budget (occluders.c), rendered in one batch into the conservative rasterizer (threaded);
+ *     budget (occlusion/select.c), rendered in one batch into the conservative rasterizer (threaded);
  *  2. pyramid: a max-depth (farthest) pyramid over the buffer, its base level the farthest depth of
  *     each 8x4 subtile (sl_raster_read_subtile_depth), each coarser level the farthest of 2x2;
  *  3. traverse: the object BVH front to back; each node and object box passes the frustum test,
@@ -33,7 +33,7 @@
  *     tested object may show there proves the pixel lost, at the same resolution. At the end of
  *     a street far props and buildings a pixel or two in size hide each other, and no conservative
  *     proxy of them survives the rasterizer's inset.
- * Conservative: proxies lie inside their objects (occluders.h), the rasterizer never writes a
+ * Conservative: proxies lie inside their objects (occlusion/proxies.h), the rasterizer never writes a
  * depth nearer than its occluders, and boxes are tested at the depth of their nearest corner.
  * Resolution (docs/culler-contract.md, "Guarantees and resolution"): by default (res=any) the
  * occluders are drawn by inner coverage and the three pixel-centre tests (box_rows' silhouette

@@ -7,7 +7,7 @@
  * is tested through the cells its screen rectangle overlaps, internal cells (wholly inside the
  * rectangle) before border cells, cell summaries before pixel-level queries, and stops at the
  * first free cell. Pixel queries read the conservative rasterizer (raster.h); the "drawn" objects
- * are the occluder proxies of the objects found visible (occluders.h), rendered into it.
+ * are the occluder proxies of the objects found visible (occlusion/proxies.h), rendered into it.
  *
  *  lazygrid    occlusion-buffer variant: cells are COMPLETELY_FREE, PARTIALLY_FREE or OUTDATED with
  *              an overriding `full` flag; a pixel query asks "is every pixel of this rectangle

@@ -64,7 +64,7 @@ bool sl_refrast_scratch_reserve(const sl_allocator *a, sl_refrast_scratch *s, si
 void sl_refrast_scratch_free(const sl_allocator *a, sl_refrast_scratch *s);
 
 /* Object-to-clip matrix: the view-projection vp (column-major) times the object's 3x4 affine t.
- * Shared by the oracle and the cullers that reproduce its fragments (cull/occluders.c): the same
+ * Shared by the oracle and the cullers that reproduce its fragments (cull/occlusion/object_tests.c, exact.c): the same
  * operations in the same order give bit-identical matrices. */
 static inline void sl_refrast_compose(const double vp[16], const sl_affine *t, double m[16])
 {
