@@ -142,7 +142,7 @@ static void test_prisms_inside(void **state)
     sl_scene s;
     sl_error err;
     assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_occ_options oo = {0.1f, false, true, 16, false, false};
+    sl_occ_options oo = {0.1f, false, true, 16, false};
     sl_occ_set *set;
     assert_int_equal(sl_occ_set_create(s, &oo, sl_default_allocator(), &set, &err), SL_OK);
     assert_true(set->prisms > 0);
@@ -195,7 +195,7 @@ static void test_selection(void **state)
     (void)state;
     wall_scene w = wall_scene_make();
     sl_error err;
-    sl_occ_options oo = {0.1f, false, false, 0, false, false};
+    sl_occ_options oo = {0.1f, false, false, 0, false};
     sl_occ_set *set;
     assert_int_equal(sl_occ_set_create(w.s, &oo, sl_default_allocator(), &set, &err), SL_OK);
     assert_int_equal(set->proxy_count, 1);

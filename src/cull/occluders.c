@@ -3,7 +3,6 @@
  * frame's view and box projection, the shared options, and the rasterizer wrapper used by every
  * image-space method. See occluders.h for the contracts and docs/occlusion.md for the design. */
 #include "occluders.h"
-#include "occ_joins.h"
 
 #include <float.h>
 #include <math.h>
@@ -223,8 +222,6 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
         if ((st = sl_opts_enum(o, "inner", inner_names, 2, 0, &inner, err)) != SL_OK)
             return st;
         c->inner_faces = inner == 1;
-        if ((st = sl_opts_bool(o, "joins", false, &c->joins, err)) != SL_OK)
-            return st;
     }
     if (which & SL_OCC_OPT_DEBUG) {
         const char *d, *r;
@@ -319,8 +316,7 @@ sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, c
     bo.max_leaf_size = c->leaf_size;
     bo.alloc = alloc;
     /* res=any draws prisms face by face (render_prism_eroded): their vertices are kept */
-    sl_occ_options oo = {c->inset, c->all_objects, faces || c->res_any, mesh_faces, c->res_any && !c->inner_faces,
-                         c->res_any && !c->inner_faces && c->joins};
+    sl_occ_options oo = {c->inset, c->all_objects, faces || c->res_any, mesh_faces, c->res_any && !c->inner_faces};
     sl_status st = sl_bvh_build(scene, &bo, &b->bvh, err);
     if (st == SL_OK)
         st = sl_occ_set_create(scene, &oo, alloc, &b->occ, err);
@@ -850,7 +846,6 @@ void sl_occ_set_destroy(sl_occ_set *s)
     for (uint32_t i = 0; s->cparts && i < s->cparts_count; i++)
         sl_occ_cparts_free(&s->cparts[i], a);
     sl_free(a, s->cparts, (size_t)(s->cparts_count ? s->cparts_count : 1) * sizeof(sl_occ_cparts));
-    sl_occ_joins_destroy(s->joins, a); /* hook: occ_joins.h */
     sl_free(a, s, sizeof *s);
 }
 
@@ -968,9 +963,6 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
         st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluders: out of memory");
         goto done;
     }
-    /* hook (occ_joins.h): screen_margin's joins across shared prism walls */
-    if (s->opt.joins && (st = sl_occ_joins_build(s, s->opt.inset, alloc, &s->joins, err)) != SL_OK)
-        goto done;
     /* remember each prism's object transform, to notice when the object moves */
     for (uint32_t p = 0; p < s->proxy_count; p++) {
         uint32_t o = s->proxies[p].object;
@@ -1892,41 +1884,6 @@ static bool hull_facing(const sl_occ_view *v, const double *nrm, const double *p
     return nrm[0] * ex + nrm[1] * ey + nrm[2] * ez > -1e-6 * nl * el;
 }
 
-/* One convex prism piece: its top ring top[0..c) (counter-clockwise seen from +z, one height),
- * walls down to zb. Appends to r->shrunk from triangle n (hull_draw); returns the new count. */
-static uint32_t hull_prism_piece(sl_occ_raster *r, const sl_occ_view *v, const double m[16], const sl_vec3 *top,
-                                 uint32_t c, double zb, uint32_t n)
-{
-    hull_vertex pv[2 * HULL_MAX_PIECE]; /* top ring, then bottom ring */
-    for (uint32_t i = 0; i < c; i++)
-        if (!hull_project(v, m, top[i], &pv[i]) ||
-            !hull_project(v, m, (sl_vec3){top[i].x, top[i].y, (float)zb}, &pv[c + i]))
-            return n;
-    /* faces: 0 the roof piece, 1 the floor piece, 2 + i the wall on edge i -> i + 1 */
-    uint32_t fidx[2 * HULL_MAX_PIECE + 4 * HULL_MAX_PIECE], fstart[HULL_MAX_PIECE + 2], flen[HULL_MAX_PIECE + 2];
-    bool front[HULL_MAX_PIECE + 2];
-    uint32_t k = 0;
-    for (uint32_t face = 0; face < c + 2; face++) {
-        fstart[face] = k;
-        double nrm[3], p0[3] = {top[0].x, top[0].y, top[0].z};
-        if (face < 2) {
-            for (uint32_t i = 0; i < c; i++)
-                fidx[k++] = face == 0 ? i : c + (c - 1 - i);
-            flen[face] = c;
-            nrm[0] = nrm[1] = 0, nrm[2] = face == 0 ? 1 : -1;
-            p0[2] = face == 0 ? top[0].z : zb;
-        } else {
-            uint32_t i = face - 2, j = (i + 1) % c;
-            fidx[k++] = c + i, fidx[k++] = c + j, fidx[k++] = j, fidx[k++] = i;
-            flen[face] = 4;
-            nrm[0] = (double)top[j].y - top[i].y, nrm[1] = (double)top[i].x - top[j].x, nrm[2] = 0;
-            p0[0] = top[i].x, p0[1] = top[i].y;
-        }
-        front[face] = hull_facing(v, nrm, p0);
-    }
-    return hull_draw(r, v, pv, 2 * c, fidx, fstart, flen, c + 2, front, 0.0, n);
-}
-
 static void render_prism_hull(sl_occ_raster *r, const sl_occ_set *s, const sl_occ_view *v, const sl_occ_proxy *pr)
 {
     double m[16];
@@ -1938,19 +1895,38 @@ static void render_prism_hull(sl_occ_raster *r, const sl_occ_set *s, const sl_oc
         const sl_occ_face *f = &s->faces[pr->face_first + fi];
         if (!(f->normal.z > 0.5f) || f->count < 3 || f->count > HULL_MAX_PIECE)
             continue; /* a convex roof piece stands for its convex prism */
-        n = hull_prism_piece(r, v, m, &s->face_verts[f->first], f->count, zb, n);
-    }
-    /* hook (occ_joins.h): the boxes across the walls this prism shares, each one more convex piece */
-    const sl_occ_joins *jn = s->joins;
-    const uint32_t self = (uint32_t)(pr - s->proxies);
-    for (uint32_t i = jn ? jn->first[self] : 0, e = jn ? jn->first[self + 1] : 0; i < e; i++) {
-        const sl_occ_join *j = &jn->joins[i];
-        if (!sl_occ_join_usable(s, self, j, v))
+        const uint32_t c = f->count;
+        const sl_vec3 *top = &s->face_verts[f->first];
+        hull_vertex pv[2 * HULL_MAX_PIECE]; /* top ring, then bottom ring */
+        bool ok = true;
+        for (uint32_t i = 0; i < c && ok; i++)
+            ok = hull_project(v, m, top[i], &pv[i]) &&
+                 hull_project(v, m, (sl_vec3){top[i].x, top[i].y, (float)zb}, &pv[c + i]);
+        if (!ok)
             continue;
-        sl_vec3 top[4];
-        for (int q = 0; q < 4; q++)
-            top[q] = (sl_vec3){j->top[q][0], j->top[q][1], j->top[q][2]};
-        n = hull_prism_piece(r, v, m, top, 4, (double)j->z0, n);
+        /* faces: 0 the roof piece, 1 the floor piece, 2 + i the wall on edge i -> i + 1 */
+        uint32_t fidx[2 * HULL_MAX_PIECE + 4 * HULL_MAX_PIECE], fstart[HULL_MAX_PIECE + 2], flen[HULL_MAX_PIECE + 2];
+        bool front[HULL_MAX_PIECE + 2];
+        uint32_t k = 0;
+        for (uint32_t face = 0; face < c + 2; face++) {
+            fstart[face] = k;
+            double nrm[3], p0[3] = {top[0].x, top[0].y, top[0].z};
+            if (face < 2) {
+                for (uint32_t i = 0; i < c; i++)
+                    fidx[k++] = face == 0 ? i : c + (c - 1 - i);
+                flen[face] = c;
+                nrm[0] = nrm[1] = 0, nrm[2] = face == 0 ? 1 : -1;
+                p0[2] = face == 0 ? top[0].z : zb;
+            } else {
+                uint32_t i = face - 2, j = (i + 1) % c;
+                fidx[k++] = c + i, fidx[k++] = c + j, fidx[k++] = j, fidx[k++] = i;
+                flen[face] = 4;
+                nrm[0] = (double)top[j].y - top[i].y, nrm[1] = (double)top[i].x - top[j].x, nrm[2] = 0;
+                p0[0] = top[i].x, p0[1] = top[i].y;
+            }
+            front[face] = hull_facing(v, nrm, p0);
+        }
+        n = hull_draw(r, v, pv, 2 * c, fidx, fstart, flen, c + 2, front, 0.0, n);
     }
     render_shrunk_batch(r, v, n);
 }

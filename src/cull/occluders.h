@@ -182,8 +182,6 @@ typedef struct sl_occ_options {
     bool screen_margin;       /* every prism is drawn eroded on screen by SL_OCC_MIN_INSET_PX beyond
                                  the pixel footprint (render_prism_hull, res=any): its inset need not
                                  be SL_OCC_MIN_INSET_PX on screen, sl_occ_usable skips that test */
-    bool joins;               /* screen_margin: boxes across shared prism walls drawn with their prisms
-                                 (occ_joins.h) */
 } sl_occ_options;
 
 typedef struct sl_occ_set {
@@ -207,7 +205,6 @@ typedef struct sl_occ_set {
     sl_occ_cparts *cparts;    /* screen_margin: per scene mesh, the convex parts of those that MESH and
                                  SCENE_MESH proxies draw (built false for the others) */
     uint32_t cparts_count;    /* the scene's mesh count */
-    struct sl_occ_joins *joins; /* screen_margin: boxes across shared prism walls (occ_joins.h), or NULL */
 } sl_occ_set;
 
 /* Build the proxies of a scene. */
@@ -276,7 +273,6 @@ typedef struct sl_occ_common {
                                  false: a method without the option (its own rules) */
     bool inner_faces;         /* inner=faces: res=any's prisms eroded face by face (render_prism_eroded)
                                  instead of by their convex silhouettes (render_prism_hull) */
-    bool joins;               /* joins=BOOL (res=any, inner=hull): boxes across shared prism walls (occ_joins.h) */
 } sl_occ_common;
 
 enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4, SL_OCC_OPT_RES = 8 };
@@ -305,10 +301,7 @@ static inline sl_cull_guarantee sl_occ_res_guarantee(const sl_occ_common *c)
     "at the culling resolution's pixel centres only (tighter: the centre-sampled tests below apply)\n" \
     "inner=hull|faces (default hull): with res=any, a building's prism is eroded by the pixel footprint " \
     "along the silhouette of each convex piece (hull) or along every face's edges (faces: looser, the " \
-    "rule before)\n" \
-    "joins=BOOL (default false; an experiment: it measured no gain): with res=any and inner=hull, a box across each wall two prisms share (the " \
-    "party wall of two buildings, the diagonal between two convex pieces of one) is drawn with them, so the " \
-    "two eroded silhouettes leave no crack there\n"
+    "rule before)\n"
 #define SL_OCC_HELP_DEBUG \
     "dump=PREFIX (default none): at frame debug_frame write PREFIX-depth.png and, where the method has one, " \
     "PREFIX-pyramid.png (its pyramid or grid)\n" \

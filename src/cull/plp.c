@@ -664,8 +664,7 @@ static sl_status plp_create(sl_scene scene, const void *config, const sl_allocat
     s->scene = scene;
     s->cfg = *cfg;
     s->object_count = sl_scene_object_count(scene);
-    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, s->cfg.c.res_any, 0, false, /* res=any draws faces */
-                         s->cfg.c.res_any && !s->cfg.c.inner_faces && s->cfg.c.joins};
+    sl_occ_options oo = {s->cfg.c.inset, s->cfg.c.all_objects, s->cfg.c.res_any, 0, false}; /* res=any draws faces */
     sl_status st = sl_occ_set_create(scene, &oo, alloc, &s->occ, err);
     if (st == SL_OK)
         st = sl_occ_raster_init(&s->r, &s->cfg.c, s->occ, alloc, err);
