@@ -51,9 +51,8 @@
 /* Default inset (metres) of a prism drawn by its eroded silhouette (res=any, inner=hull): the
  * silhouette rule keeps every covered pixel inside the prism's projection by itself, so the inset
  * only has to absorb the float rounding of the prism's vertices (add_prism raises it where the
- * coordinates need more). The 0.1 m of the other modes lowered every roof and raised every base
- * by 9 cm more than that, and the objects standing on the ground behind a far building, whose
- * bases project a fraction of a pixel above its base line, paid for it. */
+ * coordinates need more); the 0.1 m of the other modes shrank every prism by 9 cm more than that
+ * (docs/occlusion.md, "The thin inset of res=any"). */
 #define SL_OCC_THIN_INSET 0.01f
 
 /* Branch-free float min/max without libm's NaN rules (compiles to minss/maxss; with a NaN they
