@@ -3,7 +3,7 @@
  *   bench_resolution [--preset tiny|small|vienna] [--views N | --walk N] [--seed S]
  *                    [--width W --height H] [--oracle-scale K | --oracle-size WxH]
  *                    [--samples center|msaa4|jitterN] [--jitter-seed S] [--rounds R]
- *                    [--methods LIST] [--threads T]
+ *                    [--methods LIST] [--threads T] [--by-kind]
  *
  * Every method culls each view at the culling resolution (default 320x240); the oracle renders the
  * same view and projection at K times that resolution (default 2; --oracle-size gives any size,
@@ -17,6 +17,8 @@
  * hashes match), and the time: R rounds (default 3), each culling the whole walk with every method
  * in turn, the methods' order alternating from round to round; a round's figure is the median
  * over the views of the cull's wall time, and the table gives the median over the rounds.
+ * --by-kind adds a row under each method: the objects it drew that the oracle does not see, by
+ * object kind, per object of the exact visible set (where the looseness is).
  * --methods takes comma-separated specs name[:key=value[:key=value...]] ("hzb,hzb:res=culling").
  * Exit status 1 when a method whose guarantee promises it (conservative; conservative at the
  * culling resolution when the oracle samples at the culling resolution's pixel centres) missed. */
@@ -43,6 +45,7 @@ typedef struct method {
     sl_culler c;
     sl_cull_guarantee g;
     uint64_t missed, missed_views, drawn, hash;
+    uint64_t extra[SL_KIND_COUNT]; /* --by-kind: drawn, not visible, per object kind */
     double round_ms[64];
 } method;
 
@@ -107,6 +110,7 @@ int main(int argc, char **argv)
     const char *preset = "tiny", *list = NULL, *samples = "center";
     uint32_t views = 100, walk = 0, width = 320, height = 240, scale = 2, ow = 0, oh = 0, rounds = 3, threads = 0;
     uint64_t seed = 1, jseed = 1;
+    bool by_kind = false;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         bool more = i + 1 < argc;
@@ -137,11 +141,13 @@ int main(int argc, char **argv)
             list = argv[++i];
         else if (!strcmp(a, "--threads") && more)
             threads = (uint32_t)atoi(argv[++i]);
+        else if (!strcmp(a, "--by-kind"))
+            by_kind = true;
         else {
             fprintf(stderr, "usage: bench_resolution [--preset tiny|small|vienna] [--views N | --walk N] [--seed S]\n"
                             "       [--width W --height H] [--oracle-scale K | --oracle-size WxH]\n"
                             "       [--samples center|msaa4|jitterN] [--jitter-seed S] [--rounds R]\n"
-                            "       [--methods LIST] [--threads T]\n");
+                            "       [--methods LIST] [--threads T] [--by-kind]\n");
             return 2;
         }
     }
@@ -239,6 +245,19 @@ int main(int argc, char **argv)
             ms[i].missed += mt.missed_count;
             ms[i].missed_views += mt.missed_count != 0;
             ms[i].hash = fnv(ms[i].hash, out, k);
+            for (uint32_t q = 0; by_kind && q < k; q++) {
+                uint32_t lo = 0, hi = fr.visible_count; /* fr.visible is ascending */
+                while (lo < hi) {
+                    uint32_t mid = lo + (hi - lo) / 2;
+                    if (fr.visible[mid] < out[q])
+                        lo = mid + 1;
+                    else
+                        hi = mid;
+                }
+                uint32_t kind = sl_scene_object(s, out[q]).kind;
+                if ((lo == fr.visible_count || fr.visible[lo] != out[q]) && kind < SL_KIND_COUNT)
+                    ms[i].extra[kind]++;
+            }
 #ifdef SL_ORACLE_MAX_SAMPLES
             if (mt.missed_count && sl_cull_guarantee_keeps_visible(ms[i].g, at_res))
                 violation = true;
@@ -275,6 +294,13 @@ int main(int argc, char **argv)
                (unsigned long long)ms[i].missed, (unsigned long long)ms[i].missed_views,
                visible ? (double)ms[i].drawn / (double)visible : 0, bench_median(ms[i].round_ms, rounds),
                (unsigned long long)ms[i].hash);
+        if (by_kind) {
+            printf("|   drawn, not visible, by kind (per visible object):");
+            for (uint32_t q = 0; q < SL_KIND_COUNT; q++)
+                if (ms[i].extra[q])
+                    printf(" %s %.3f", sl_object_kind_name(q), (double)ms[i].extra[q] / (double)(visible ? visible : 1));
+            printf(" | | | | | |\n");
+        }
         sl_culler_destroy(ms[i].c);
     }
     free(ms);

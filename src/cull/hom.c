@@ -56,7 +56,8 @@ static const char g_help[] =
     "occluders=0..4096 (default 128): most occluders chosen per frame by Coorg-Teller quality\n"
     "budget=0..10000000 (default 20000): triangle budget of the chosen occluders\n"
     "min_quality=NUMBER (default 0.0005): least quality (solid angle, sr) of an occluder\n"
-    "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
+    "inset=0.01..10 (default 0.01 with res=any and inner=hull, raised where float rounding needs more; else 0.1): "
+    "metres a footprint prism is shrunk by inside its building\n"
     "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n"
     "leaf_size=1..16 (default 4): most objects per BVH leaf\n" SL_OCC_HELP_DEBUG;
 
@@ -68,7 +69,9 @@ static sl_status hom_configure(sl_opts *o, void *config, sl_cull_guarantee *g, s
     if ((st = sl_opts_float(o, "threshold", 1.0f, 0.01f, 1.0f, &c->threshold, err)) != SL_OK ||
         (st = sl_opts_enum(o, "depth", depth_names, 2, 0, &c->depth, err)) != SL_OK ||
         (st = sl_opts_u32(o, "deb", 32, 8, 512, &c->deb, err)) != SL_OK ||
-        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES,
+        (st = sl_occ_configure_common(o,
+                                      SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES |
+                                          SL_OCC_OPT_THIN_INSET,
                                       128, 20000, &c->c, err)) != SL_OK)
         return st;
     *g = c->threshold < 1.0f ? SL_AGGRESSIVE : sl_occ_res_guarantee(&c->c);

@@ -81,7 +81,8 @@ static const char g_help[] =
     "occluders=0..4096 (default 48): most occluders chosen per frame by Coorg-Teller quality\n"
     "budget=0..10000000 (default 20000): triangle budget of the chosen occluders\n"
     "min_quality=NUMBER (default 0.0005): least quality (solid angle, sr) of an occluder\n"
-    "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
+    "inset=0.01..10 (default 0.01 with res=any and inner=hull, raised where float rounding needs more; else 0.1): "
+    "metres a footprint prism is shrunk by inside its building\n"
     "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n"
     "leaf_size=1..16 (default 4): most objects per BVH leaf\n"
     "pyramid=BOOL (default true): test boxes against the max-depth pyramid before the exact query\n"
@@ -103,8 +104,10 @@ static sl_status hzb_configure(sl_opts *o, void *config, sl_cull_guarantee *g, s
 {
     hzb_config *c = config;
     sl_status st;
-    if ((st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES, 48,
-                                      20000, &c->c, err)) != SL_OK ||
+    if ((st = sl_occ_configure_common(o,
+                                      SL_OCC_OPT_RASTER | SL_OCC_OPT_SELECT | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES |
+                                          SL_OCC_OPT_THIN_INSET,
+                                      48, 20000, &c->c, err)) != SL_OK ||
         (st = sl_opts_bool(o, "pyramid", true, &c->pyramid, err)) != SL_OK ||
         (st = sl_opts_bool(o, "render_visible", true, &c->render_visible, err)) != SL_OK ||
         (st = sl_opts_u32(o, "refresh", 16, 0, 100000, &c->refresh, err)) != SL_OK ||

@@ -81,7 +81,8 @@ typedef struct lg_state {
 static const char g_help[] =
     "cell=8..512 (default 32): edge of a grid cell in pixels\n" SL_OCC_HELP_RES SL_OCC_HELP_RASTER
     "min_quality=NUMBER (default 0.0005): least Coorg-Teller quality (sr) of a visible object drawn as an occluder\n"
-    "inset=0.01..10 (default 0.1): metres a footprint prism is shrunk by inside its building\n"
+    "inset=0.01..10 (default 0.01 with res=any and inner=hull, raised where float rounding needs more; else 0.1): "
+    "metres a footprint prism is shrunk by inside its building\n"
     "all_objects=BOOL (default false): every object's own mesh may occlude, not only SL_OBJECT_OCCLUDER ones\n"
     "leaf_size=1..16 (default 4): most objects per BVH leaf\n" SL_OCC_HELP_MESH_TESTS SL_OCC_HELP_DEBUG;
 
@@ -90,8 +91,8 @@ static sl_status configure(sl_opts *o, lg_config *c, lg_variant v, sl_cull_guara
     sl_status st;
     c->variant = v;
     if ((st = sl_opts_u32(o, "cell", 32, 8, 512, &c->cell, err)) != SL_OK ||
-        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES, 0, 0, &c->c, err)) !=
-            SL_OK ||
+        (st = sl_occ_configure_common(o, SL_OCC_OPT_RASTER | SL_OCC_OPT_DEBUG | SL_OCC_OPT_RES | SL_OCC_OPT_THIN_INSET,
+                                      0, 0, &c->c, err)) != SL_OK ||
         (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->c.min_quality, err)) != SL_OK ||
         (st = sl_occ_configure_mesh_tests(o, &c->c, &c->mt, err)) != SL_OK)
         return st;

@@ -24,11 +24,6 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
             (st = sl_opts_float(o, "min_quality", 0.0005f, 0.0f, 100.0f, &c->min_quality, err)) != SL_OK)
             return st;
     }
-    if ((st = sl_opts_float(o, "inset", 0.1f, 0.01f, 10.0f, &c->inset, err)) != SL_OK ||
-        (st = sl_opts_bool(o, "all_objects", false, &c->all_objects, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "leaf_size", SL_BVH_DEFAULT_LEAF_SIZE, 1, SL_BVH_MAX_LEAF_SIZE, &c->leaf_size, err)) !=
-            SL_OK)
-        return st;
     c->res_culling = c->res_any = false;
     if (which & SL_OCC_OPT_RES) {
         static const char *const res_names[] = {"any", "culling"};
@@ -43,6 +38,15 @@ sl_status sl_occ_configure_common(sl_opts *o, uint32_t which, uint32_t def_occlu
             return st;
         c->inner_faces = inner == 1;
     }
+    /* the inset of a prism drawn by its eroded silhouette (res=any, inner=hull) need only absorb the
+     * float rounding of its vertices (add_prism certifies that); elsewhere it must span
+     * SL_OCC_MIN_INSET_PX on screen (sl_occ_usable), and 0.1 m keeps prisms usable far away */
+    const bool thin = (which & SL_OCC_OPT_THIN_INSET) && c->res_any && !c->inner_faces;
+    if ((st = sl_opts_float(o, "inset", thin ? SL_OCC_THIN_INSET : 0.1f, 0.01f, 10.0f, &c->inset, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "all_objects", false, &c->all_objects, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "leaf_size", SL_BVH_DEFAULT_LEAF_SIZE, 1, SL_BVH_MAX_LEAF_SIZE, &c->leaf_size, err)) !=
+            SL_OK)
+        return st;
     if (which & SL_OCC_OPT_DEBUG) {
         const char *d, *r;
         if ((st = sl_opts_string(o, "dump", &d, err)) != SL_OK ||

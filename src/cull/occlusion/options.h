@@ -31,7 +31,17 @@ typedef struct sl_occ_common {
                                  instead of by their convex silhouettes (render_prism_hull) */
 } sl_occ_common;
 
-enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4, SL_OCC_OPT_RES = 8 };
+/* Default inset (metres) of a prism drawn by its eroded silhouette (res=any, inner=hull): the
+ * silhouette rule keeps every covered pixel inside the prism's projection by itself, so the inset
+ * only has to absorb the float rounding of the prism's vertices (add_prism raises it where the
+ * coordinates need more); the 0.1 m of the other modes shrank every prism by 9 cm more than that
+ * (docs/occlusion.md, "The thin inset of res=any"). */
+#define SL_OCC_THIN_INSET 0.01f
+
+/* SL_OCC_OPT_THIN_INSET: the method draws prisms through sl_occ_raster (sl_occ_render_prism_hull
+ * under res=any, inner=hull, where sl_occ_usable does not need the inset on screen): its `inset`
+ * defaults to SL_OCC_THIN_INSET there instead of 0.1 m. */
+enum { SL_OCC_OPT_RASTER = 1, SL_OCC_OPT_SELECT = 2, SL_OCC_OPT_DEBUG = 4, SL_OCC_OPT_RES = 8, SL_OCC_OPT_THIN_INSET = 16 };
 
 /* Read the shared options named by `which` (SL_OCC_OPT_*), with the method's defaults for
  * occluders and budget. SL_OCC_OPT_RES reads `res` and, with res=culling, sets *g (may be NULL)

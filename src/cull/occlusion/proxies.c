@@ -59,6 +59,15 @@ static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, sl_dvec2 *w
         work_p[i] = (sl_dvec2){fp.xy[2 * i], fp.xy[2 * i + 1]};
     /* the largest inset up to the option that can be certified, halving down to 1 cm */
     double d = s->opt.inset;
+    if (s->opt.screen_margin) {
+        /* hook (SL_OCC_THIN_INSET): drawn by its eroded silhouette, a prism's inset need only pass
+         * the float check below; a thin one is raised to what the coordinates need (the shrunk
+         * polygon lies in the footprint's box, so the footprint's coordinates bound its own) */
+        double mc = fmax(fabs((double)fp.roof_z), fabs((double)fp.base_z));
+        for (uint32_t i = 0; i < 2 * n; i++)
+            mc = fmax(mc, fabs((double)fp.xy[i]));
+        d = fmax(d, 1.01 * 16.0 * FLT_EPSILON * mc);
+    }
     bool ok = false;
     while (!ok && d >= 0.01 - 1e-9) {
         ok = (double)fp.roof_z - fp.base_z > 2 * d + 0.01 && sl_inset_polygon(work_p, n, d, work_q) &&
