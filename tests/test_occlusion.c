@@ -1013,9 +1013,37 @@ static void test_dump_record_replay(void **state)
     sl_scene_destroy(s);
 }
 
+/* The frame view of an off-axis view (issue 13 §1): the near region reaches the farthest near
+ * corner, the focal length is the smaller per-axis one (the larger one for what must cover pixels). */
+static void test_occ_view_off_axis(void **state)
+{
+    (void)state;
+    sl_camera cam = sl_camera_default();
+    cam.width = 320, cam.height = 240;
+    sl_mat4 vm = sl_camera_view(&cam), pm = sl_camera_proj(&cam);
+    /* off-axis with non-square pixels: x scaled 3 and shifted left, y scaled 2 and shifted up */
+    for (int c = 0; c < 4; c++) {
+        pm.m[4 * c] = 3 * pm.m[4 * c] + 2 * pm.m[4 * c + 3];
+        pm.m[4 * c + 1] = 2 * pm.m[4 * c + 1] - 2 * pm.m[4 * c + 3];
+    }
+    sl_view view;
+    assert_int_equal(sl_view_from_matrices(vm.m, pm.m, SL_CLIP_DEPTH_GL, 320, 240, &view, NULL), SL_OK);
+    sl_occ_view v;
+    sl_occ_view_init(&v, &view);
+    for (int i = 0; i < 4; i++) {
+        const sl_vec3 *p = &v.fr.corners[i];
+        double dx = p->x - v.eye.x, dy = p->y - v.eye.y, dz = p->z - v.eye.z;
+        assert_true(v.near_reach >= sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    assert_true(v.focal <= (float)view.focal_x && v.focal <= (float)view.focal_y);
+    assert_true(v.focal_max >= (float)view.focal_x && v.focal_max >= (float)view.focal_y);
+    assert_true(view.focal_x != view.focal_y);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_occ_view_off_axis),
         cmocka_unit_test(test_prisms_inside),     cmocka_unit_test(test_selection),
         cmocka_unit_test(test_wall_every_method), cmocka_unit_test(test_moving),
         cmocka_unit_test(test_moved_building),    cmocka_unit_test(test_options),
