@@ -16,10 +16,12 @@
 #include <unistd.h>
 
 #include "core/sl_core.h"
+#include "sightline/bake.h"
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/import.h"
 #include "sightline/path.h"
+#include "sightline/region.h"
 #include "sightline/truth.h"
 #include "sightline/view.h"
 #include "support/box_mesh.h"
@@ -379,6 +381,7 @@ static const struct {
     {"hzb", NULL},       {"hzb", "res=culling"},     {"lazygrid", NULL}, {"lazygrid", "res=culling"},
     {"lazygrid-z", NULL}, {"busygrid", NULL},        {"hom", NULL},      {"hom", "res=culling"},
     {"frusta", NULL},    {"frusta", "all_objects=true"}, {"cplp", NULL},
+    {"pvs", NULL}, /* options: the file of a bake (maps only; skipped without) */
 };
 #define NM SL_COUNTOF(g_methods)
 
@@ -423,13 +426,19 @@ typedef struct tally {
 
 /* Cull every variant of every camera with every method, judged by the oracle of the same view.
  * Returns the view-method pairs with a miss. */
-static uint64_t run_views(sl_scene s, const char *label, const sl_camera *cams, uint32_t nc, tally *t)
+static uint64_t run_views(sl_scene s, const char *label, const sl_camera *cams, uint32_t nc, const char *pvs_options,
+                          tally *t)
 {
     sl_error err;
     sl_culler c[NM];
     bool ok[NM];
     for (size_t i = 0; i < NM; i++) {
-        ok[i] = sl_culler_create(g_methods[i].name, s, g_methods[i].options, NULL, &c[i], &err) == SL_OK;
+        bool pvs = !strcmp(g_methods[i].name, "pvs");
+        ok[i] = (!pvs || pvs_options) &&
+                sl_culler_create(g_methods[i].name, s, pvs ? pvs_options : g_methods[i].options, NULL, &c[i], &err) ==
+                    SL_OK;
+        if (pvs && !pvs_options)
+            continue;
         if (!ok[i])
             print_message("%s: %s not run: %s\n", label, g_methods[i].name, err.message);
         else
@@ -530,7 +539,7 @@ static void test_off_axis_against_oracle(void **state)
         sl_camera *nw = near_wall_cameras(s, nv, 79, W, H);
         memcpy(cams + 2 * nv, nw, nv * sizeof *cams);
         free(nw);
-        bad += run_views(s, "tiny city", cams, 3 * nv, t);
+        bad += run_views(s, "tiny city", cams, 3 * nv, NULL, t);
         free(cams);
         sl_scene_destroy(s);
     }
@@ -544,7 +553,22 @@ static void test_off_axis_against_oracle(void **state)
             if (sl_import_q3bsp(OA_PK3, maps[m], NULL, NULL, &s, &err) != SL_OK)
                 fail_msg("%s", err.message);
             sl_camera *cams = near_wall_cameras(s, per_map, 90 + m, W, H);
-            bad += run_views(s, maps[m], cams, per_map, t);
+            /* the pvs culler of a quick portal bake (budget=2: short walks, still conservative) */
+            sl_viewcells vc;
+            assert_int_equal(sl_viewcells_from_bsp(s, NULL, &vc, &err), SL_OK);
+            char file[96], popts[128];
+            snprintf(file, sizeof file, "/tmp/sl_test_view_%ld_%s.slpvs", (long)getpid(), maps[m]);
+            sl_pvs_build_options bo;
+            memset(&bo, 0, sizeof bo);
+            bo.method = "portal";
+            bo.method_options = "budget=2";
+            bo.threads = 2;
+            if (sl_pvs_build(s, vc, file, &bo, NULL, &err) != SL_OK)
+                fail_msg("%s: portal bake: %s", maps[m], err.message);
+            sl_viewcells_destroy(vc);
+            snprintf(popts, sizeof popts, "file=%s", file);
+            bad += run_views(s, maps[m], cams, per_map, popts, t);
+            unlink(file);
             free(cams);
             sl_scene_destroy(s);
         }
