@@ -710,6 +710,109 @@ static void test_off_axis_derived(void **state)
             }
 }
 
+/* Random engine matrices, many of them broken on purpose (entries changed by small and large
+ * amounts, zeroed, not finite): sl_view_from_matrices refuses each with a message or gives a view
+ * that keeps the normal form (rigid right-handed view, positive scales, OpenGL depth, 0 < near <
+ * far, finite normalised planes, a finite bounded far plane and pixel rays), and the cullers take
+ * every view it gives (the wrapper's own checks of the output pass). Seeded. */
+static void test_random_matrices(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene s;
+    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+    sl_culler cv, ch;
+    assert_int_equal(sl_culler_create("vfc", s, NULL, NULL, &cv, &err), SL_OK);
+    assert_int_equal(sl_culler_create("hzb", s, NULL, NULL, &ch, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), *out = malloc(n * sizeof *out), k;
+    nw_rng r = {20261202};
+    uint32_t cases = sanitized() ? 3000 : 30000, accepted = 0, culled = 0;
+    for (uint32_t i = 0; i < cases; i++) {
+        sl_camera c = sl_camera_default();
+        c.position = (sl_vec3){(float)(200 * nw_unit(&r) - 100), (float)(200 * nw_unit(&r) - 100),
+                               (float)(30 * nw_unit(&r))};
+        c.yaw = (float)(7 * nw_unit(&r)), c.pitch = (float)(3 * nw_unit(&r) - 1.5), c.roll = (float)(7 * nw_unit(&r));
+        c.width = 32 + (uint32_t)(nw_next(&r) % 200), c.height = 32 + (uint32_t)(nw_next(&r) % 200);
+        c.fov_y = (float)(0.1 + 2.9 * nw_unit(&r));
+        if (nw_next(&r) % 4 == 0) {
+            c.projection = SL_ORTHOGRAPHIC;
+            c.ortho_height = (float)(1 + 100 * nw_unit(&r));
+        }
+        c.near_plane = (float)(0.01 + 2 * nw_unit(&r));
+        c.far_plane = c.near_plane * (float)(2 + 1e4 * nw_unit(&r));
+        sl_clip_depth d = (sl_clip_depth)(nw_next(&r) % 3);
+        unsigned fl = (unsigned)(nw_next(&r) % 32);
+        sl_tvm_shape sh = {0.2 + 3 * nw_unit(&r), 4 * nw_unit(&r) - 2, 0.2 + 3 * nw_unit(&r), 4 * nw_unit(&r) - 2};
+        float V[16], P[16];
+        sl_tvm_matrices(&c, d, fl, &sh, V, P);
+        int breaks = (int)(nw_next(&r) % 4);
+        for (int b = 0; b < breaks; b++) {
+            float *m = nw_next(&r) % 2 ? V : P;
+            int e = (int)(nw_next(&r) % 16);
+            switch (nw_next(&r) % 6) {
+            case 0: m[e] += (float)(1e-6 * (nw_unit(&r) - 0.5)); break;
+            case 1: m[e] += (float)(nw_unit(&r) - 0.5); break;
+            case 2: m[e] = 0; break;
+            case 3: m[e] = -m[e]; break;
+            case 4: m[e] = nw_next(&r) % 2 ? NAN : INFINITY; break;
+            default: m[e] *= (float)(1e6 * nw_unit(&r)); break;
+            }
+        }
+        sl_view v;
+        memset(&err, 0, sizeof err);
+        sl_status st = sl_view_from_matrices(V, P, d, c.width, c.height, &v, &err);
+        if (st != SL_OK) {
+            assert_int_equal(st, SL_ERROR_INVALID_ARGUMENT);
+            assert_non_null(strstr(err.message, "sl_view_from_matrices"));
+            continue;
+        }
+        accepted++;
+        assert_true(v.near_plane > 0 && v.far_plane > v.near_plane && isfinite(v.near_plane));
+        assert_true(v.proj.m[0] > 0 && v.proj.m[5] > 0);
+        assert_true(v.projection == SL_ORTHOGRAPHIC ? v.proj.m[11] == 0 && v.proj.m[15] == 1
+                                                    : v.proj.m[11] == -1 && v.proj.m[15] == 0);
+        double det = 0;
+        {
+            const float *m = v.view.m;
+            det = m[0] * (m[5] * m[10] - m[9] * m[6]) - m[4] * (m[1] * m[10] - m[9] * m[2]) +
+                  m[8] * (m[1] * m[6] - m[5] * m[2]);
+        }
+        assert_true(fabs(det - 1) < 1e-4);
+        assert_true(isfinite(v.eye.x) && isfinite(v.eye.y) && isfinite(v.eye.z));
+        for (int q = 0; q < (isinf(v.far_plane) ? 5 : 6); q++) {
+            const sl_plane *p = &v.frustum.planes[q];
+            assert_true(isfinite(p->a) && isfinite(p->b) && isfinite(p->c) && isfinite(p->d));
+            assert_true(fabs(sqrt((double)p->a * p->a + (double)p->b * p->b + (double)p->c * p->c) - 1) < 1e-4);
+        }
+        sl_view bounded;
+        sl_aabb world = sl_scene_bounds(s);
+        assert_int_equal(sl_view_bound_far(&v, &world, &bounded, &err), SL_OK);
+        assert_true(isfinite(bounded.far_plane));
+        double org[3], dir[3];
+        sl_view_pixel_ray(&v, 0.5, 0.5, org, dir);
+        assert_true(isfinite(org[0]) && isfinite(dir[0]) && isfinite(dir[2]));
+        /* the cullers: either the depth check refuses it (naming the near plane) or they cull */
+        if (i % 8 == 0) {
+            for (int m = 0; m < 2; m++) {
+                st = sl_culler_cull_view(m ? ch : cv, &v, out, n, &k, &err);
+                if (st != SL_OK) {
+                    assert_int_equal(st, SL_ERROR_INVALID_ARGUMENT);
+                    assert_non_null(strstr(err.message, "near plane"));
+                } else {
+                    culled++;
+                }
+            }
+        }
+    }
+    print_message("random matrices: %u of %u accepted, %u culls\n", accepted, cases, culled);
+    assert_true(accepted > cases / 8 && accepted < cases);
+    free(out);
+    sl_culler_destroy(cv);
+    sl_culler_destroy(ch);
+    sl_scene_destroy(s);
+}
+
 /* Viewports and names. */
 static void test_viewport_and_names(void **state)
 {
@@ -748,6 +851,7 @@ int main(void)
         cmocka_unit_test(test_off_axis_against_oracle),
         cmocka_unit_test(test_symmetric_frustum_misses),
         cmocka_unit_test(test_off_axis_derived),
+        cmocka_unit_test(test_random_matrices),
         cmocka_unit_test(test_viewport_and_names),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
