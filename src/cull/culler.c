@@ -274,13 +274,9 @@ sl_status sl_culler_cull_view(sl_culler c, const sl_view *view_in, uint32_t *out
         return st;
     /* the methods never see an infinite far plane: bounded by the scene's box (same visible set) */
     sl_view bounded;
-    const sl_view *view = view_in;
-    if (isinf(view_in->far_plane)) {
-        sl_aabb world = sl_scene_bounds(c->scene);
-        if ((st = sl_view_bound_far(view_in, &world, &bounded, err)) != SL_OK)
-            return st;
-        view = &bounded;
-    }
+    const sl_view *view;
+    if ((st = sl_scene_finite_view(c->scene, view_in, &bounded, &view, err)) != SL_OK)
+        return st;
     /* a projection the method's depth format cannot resolve is refused (issue 12 §1) */
     if ((st = sl_view_check_depth(view, c->method->depth, c->method->name, err)) != SL_OK)
         return st;

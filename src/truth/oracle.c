@@ -599,13 +599,9 @@ sl_status sl_oracle_render_view(sl_oracle o, const sl_view *view_in, sl_oracle_f
         return st;
     /* an infinite far plane: bounded by the scene's box (the same image: nothing lies beyond) */
     sl_view bounded;
-    const sl_view *view = view_in;
-    if (isinf(view_in->far_plane)) {
-        sl_aabb world = sl_scene_bounds(o->scene);
-        if ((st = sl_view_bound_far(view_in, &world, &bounded, err)) != SL_OK)
-            return st;
-        view = &bounded;
-    }
+    const sl_view *view;
+    if ((st = sl_scene_finite_view(o->scene, view_in, &bounded, &view, err)) != SL_OK)
+        return st;
     if ((st = sl_view_check_depth(view, SL_DEPTH_CLIP_Z, "the oracle", err)) != SL_OK) /* its depth: issue 12 §1 */
         return st;
     double t0 = sl_now();
