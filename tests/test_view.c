@@ -298,7 +298,9 @@ static void test_infinite_far(void **state)
     assert_int_equal(sl_view_with_far(&v, 50.0, &b2, &err), SL_OK);
     sl_view b3;
     assert_int_equal(sl_view_bound_far(&b2, &world, &b3, &err), SL_OK);
-    assert_memory_equal(&b2, &b3, sizeof b2);
+    assert_true(b3.far_plane == b2.far_plane);
+    assert_memory_equal(&b2.view_proj, &b3.view_proj, sizeof b2.view_proj);
+    assert_memory_equal(&b2.frustum, &b3.frustum, sizeof b2.frustum);
     assert_int_equal(sl_view_with_far(&v, 0.05, &b2, &err), SL_ERROR_INVALID_ARGUMENT);
     /* the cullers bound it themselves: the same ids as for the bounded view */
     uint32_t n = sl_scene_object_count(s), *o1 = malloc(n * sizeof *o1), *o2 = malloc(n * sizeof *o2);
@@ -824,7 +826,9 @@ static void test_viewport_and_names(void **state)
     assert_int_equal(sl_view_with_viewport(&v, 640, 200, &w, &err), SL_OK);
     c.width = 640, c.height = 200;
     assert_int_equal(sl_view_from_camera(&c, &ref, &err), SL_OK);
-    assert_memory_equal(&w, &ref, sizeof w);
+    assert_memory_equal(&w.view_proj, &ref.view_proj, sizeof w.view_proj);
+    assert_memory_equal(&w.frustum, &ref.frustum, sizeof w.frustum);
+    assert_true(w.width == 640 && w.height == 200 && w.focal_y == ref.focal_y);
     float V[16], P[16];
     sl_tvm_matrices(&c, SL_CLIP_DEPTH_GL, 0, NULL, V, P);
     assert_int_equal(sl_view_from_matrices(V, P, SL_CLIP_DEPTH_GL, 640, 200, &v, &err), SL_OK);
