@@ -526,8 +526,8 @@ void sl_urban_view_make(const sl_urban_scene *u, const sl_view *view, sl_urban_v
 {
     /* the far plane just beyond the world box's farthest corner: a point of the frustum within
      * that distance of the eye has a depth within it too, so nothing the methods see is lost */
-    sl_view bounded = *view;
-    const sl_view *cam = &bounded;
+    sl_view bounded;
+    const sl_view *cam = view;
     double reach2 = 0, e3[3] = {view->eye.x, view->eye.y, view->eye.z};
     for (int a = 0; a < 3; a++) {
         double d = fmax(fabs(u->world[0][a] - e3[a]), fabs(u->world[1][a] - e3[a]));
@@ -535,8 +535,8 @@ void sl_urban_view_make(const sl_urban_scene *u, const sl_view *view, sl_urban_v
     }
     double reach = sqrt(reach2) * (1 + 1e-3) + 1.0;
     reach = fmax(reach, 2.0 * view->near_plane);
-    if (isfinite(reach) && reach < view->far_plane && sl_view_with_far(view, reach, &bounded, NULL) != SL_OK)
-        bounded = *view;
+    if (isfinite(reach) && reach < view->far_plane && sl_view_with_far(view, reach, &bounded, NULL) == SL_OK)
+        cam = &bounded;
     memset(v, 0, sizeof *v);
     v->perspective = cam->projection == SL_PERSPECTIVE;
     v->eye[0] = cam->eye.x;
