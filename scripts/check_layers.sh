@@ -19,7 +19,7 @@ declare -A rank public
 for i in "${!layers[@]}"; do rank[${layers[$i]}]=$i; done
 public_of() { # the layer implementing public header $1
     case "$1" in
-    core.h | geom.h | image.h | camera.h) echo core ;;
+    core.h | geom.h | image.h | camera.h | view.h) echo core ;;
     scene.h | slscene.h | path.h | gen.h) echo scene ;;
     accel.h) echo accel ;;
     raster.h) echo raster ;;

@@ -19,6 +19,7 @@
 #include "sightline/gen.h"
 #include "sightline/image.h"
 #include "support/counting_alloc.h"
+#include "support/view_matrices.h"
 #include "truth/plot.h"
 
 /* ---- the scene ---- */
@@ -528,6 +529,79 @@ static void test_city_walk(void **state)
     sl_scene_destroy(s);
 }
 
+/* Frames from views (issue 13 §1): a camera's view gives the camera's frame, record for record; an
+ * engine's off-axis reversed-z infinite-far view is judged like any other (no misses), its frame
+ * showing the eye and orientation; the options' viewport replaces the view's. */
+static void test_run_view(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene s;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+    uint32_t total = sl_cull_method_count();
+    sl_bench_method_spec *specs = calloc(total, sizeof *specs);
+    uint32_t nm = sl_bench_registered_methods(specs, total, NULL, 0, NULL);
+    sl_bench_options opt = sl_bench_default_options();
+    sl_bench a, b;
+    assert_int_equal(sl_bench_create(s, specs, nm, &opt, NULL, &a, &err), SL_OK);
+    assert_int_equal(sl_bench_create(s, specs, nm, &opt, NULL, &b, &err), SL_OK);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 160;
+    po.intrinsics.height = 120;
+    sl_path p;
+    uint32_t nv = getenv("SL_SANITIZED") ? 2 : 8;
+    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, nv, 3, &po, NULL, &p, &err), SL_OK);
+    for (uint32_t f = 0; f < nv; f++) {
+        sl_camera cam = sl_path_camera(p, f);
+        sl_view v;
+        assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+        assert_int_equal(sl_bench_run_frame(a, &cam, &err), SL_OK);
+        assert_int_equal(sl_bench_run_view(b, &v, &err), SL_OK);
+        for (uint32_t m = 0; m < nm; m++) {
+            sl_bench_record ra, rb;
+            assert_int_equal(sl_bench_get_record(a, f, m, &ra, &err), SL_OK);
+            assert_int_equal(sl_bench_get_record(b, 2 * f, m, &rb, &err), SL_OK); /* b: camera, engine, ... */
+            assert_memory_equal(&ra.metrics, &rb.metrics, sizeof ra.metrics);
+        }
+        /* the engine's version of the camera, shifted off-axis, reversed-z, infinite far */
+        float V[16], P[16];
+        sl_tvm_shape sh = {1, 0.3, 1, -0.2};
+        sl_tvm_matrices(&cam, SL_CLIP_DEPTH_REVERSED, SL_TVM_INF | SL_TVM_LH_Z | SL_TVM_FLIP_Y, &sh, V, P);
+        assert_int_equal(sl_view_from_matrices(V, P, SL_CLIP_DEPTH_REVERSED, cam.width, cam.height, &v, &err), SL_OK);
+        assert_int_equal(sl_bench_run_view(b, &v, &err), SL_OK);
+        sl_bench_frame fr;
+        assert_int_equal(sl_bench_get_frame(b, sl_bench_frame_count(b) - 1, &fr, &err), SL_OK);
+        assert_true(fabsf(fr.camera.position.x - cam.position.x) < 1e-3f && fabsf(fr.camera.yaw - cam.yaw) < 1e-4f);
+        assert_true(fr.visible_count > 0);
+    }
+    assert_int_equal(sl_bench_violations(b), 0);
+    sl_bench_destroy(a);
+    sl_bench_destroy(b);
+    /* the options' viewport */
+    opt.width = 64;
+    opt.height = 32;
+    assert_int_equal(sl_bench_create(s, specs, 1, &opt, NULL, &a, &err), SL_OK);
+    sl_camera cam = sl_path_camera(p, 0);
+    float V[16], P[16];
+    sl_tvm_matrices(&cam, SL_CLIP_DEPTH_GL, 0, NULL, V, P);
+    sl_view v;
+    assert_int_equal(sl_view_from_matrices(V, P, SL_CLIP_DEPTH_GL, cam.width, cam.height, &v, &err), SL_OK);
+    assert_int_equal(sl_bench_run_view(a, &v, &err), SL_OK);
+    sl_bench_frame fr;
+    assert_int_equal(sl_bench_get_frame(a, 0, &fr, &err), SL_OK);
+    assert_int_equal(fr.camera.width, 64);
+    assert_int_equal(fr.camera.height, 32);
+    sl_view hand;
+    memset(&hand, 0, sizeof hand);
+    assert_int_equal(sl_bench_run_view(a, &hand, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_bench_run_view(a, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_bench_destroy(a);
+    sl_path_destroy(p);
+    free(specs);
+    sl_scene_destroy(s);
+}
+
 static void test_errors(void **state)
 {
     (void)state;
@@ -590,7 +664,7 @@ int main(void)
         cmocka_unit_test(test_reports),
         cmocka_unit_test(test_plot_svg),
         cmocka_unit_test(test_city_walk),
-        cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_run_view), cmocka_unit_test(test_errors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -15,6 +15,7 @@
 #include "sightline/gen.h"
 #include "sightline/truth.h"
 #include "support/counting_alloc.h"
+#include "support/view_matrices.h"
 
 static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const uint32_t *idx, uint32_t nt,
                                 const sl_affine *xf, uint32_t flags)
@@ -306,6 +307,64 @@ static void test_render_matches_oracle(void **state)
     sl_scene_destroy(s);
 }
 
+/* An engine's off-axis views (issue 13 §1: a shifted stereo eye in GL depth, a reversed-z
+ * infinite-far Direct3D view with a Vulkan image, an orthographic tile): the rays through the
+ * view's inverse projection see what the oracle draws of the same view. */
+static void test_render_view_matches_oracle(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene s;
+    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
+    sl_es *es;
+    assert_int_equal(sl_es_create(s, NULL, NULL, &es, &err), SL_OK);
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    sl_camera cam = sl_camera_default();
+    cam.width = 160;
+    cam.height = 120;
+    cam.position = (sl_vec3){0, 0, 30};
+    cam.pitch = -0.4f;
+    cam.yaw = 0.7f;
+    uint32_t *ids = malloc((size_t)cam.width * cam.height * sizeof *ids);
+    const struct {
+        sl_projection proj;
+        sl_clip_depth depth;
+        unsigned flags;
+        sl_tvm_shape shape;
+    } views[] = {
+        {SL_PERSPECTIVE, SL_CLIP_DEPTH_GL, 0, {1, 0.3, 1, 0}},
+        {SL_PERSPECTIVE, SL_CLIP_DEPTH_REVERSED, SL_TVM_INF | SL_TVM_LH_Z | SL_TVM_FLIP_Y, {1, -0.4, 1, 0.2}},
+        {SL_ORTHOGRAPHIC, SL_CLIP_DEPTH_ZERO_ONE, SL_TVM_FLIP_X, {2, 1, 2, -1}},
+    };
+    for (size_t q = 0; q < sizeof views / sizeof views[0]; q++) {
+        cam.projection = views[q].proj;
+        float V[16], P[16];
+        sl_tvm_matrices(&cam, views[q].depth, views[q].flags, &views[q].shape, V, P);
+        sl_view view;
+        assert_int_equal(sl_view_from_matrices(V, P, views[q].depth, cam.width, cam.height, &view, &err), SL_OK);
+        assert_int_equal(sl_es_render_view_ids(es, &view, ids, &err), SL_OK);
+        sl_oracle_frame f;
+        assert_int_equal(sl_oracle_render_view(o, &view, &f, &err), SL_OK);
+        sl_oracle_view v;
+        assert_int_equal(sl_oracle_get_view(o, 0, &v, &err), SL_OK);
+        uint32_t n = cam.width * cam.height, same = 0, drawn = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t obj = ids[i] == SL_NONE ? SL_NONE : sl_es_triangle_object(es, ids[i]);
+            same += obj == v.ids[i];
+            drawn += obj != SL_NONE;
+        }
+        print_message("view %zu: %u of %u pixels agree, %u drawn\n", q, same, n, drawn);
+        assert_true(drawn > n / 4);
+        assert_true(same >= n - n / 50);
+    }
+    free(ids);
+    sl_oracle_destroy(o);
+    sl_es_destroy(es);
+    sl_scene_destroy(s);
+}
+
 /* Hits do not depend on how many threads Embree built its tree with. */
 static void test_thread_independent(void **state)
 {
@@ -379,7 +438,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_hits_and_numbering),     cmocka_unit_test(test_mirrored_winding),
         cmocka_unit_test(test_closed_backfaces),       cmocka_unit_test(test_watertight),
-        cmocka_unit_test(test_render_matches_oracle),  cmocka_unit_test(test_thread_independent),
+        cmocka_unit_test(test_render_matches_oracle),
+        cmocka_unit_test(test_render_view_matches_oracle),  cmocka_unit_test(test_thread_independent),
         cmocka_unit_test(test_empty_and_errors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

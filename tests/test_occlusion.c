@@ -27,6 +27,14 @@
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 
+/* The occlusion framework's frame view of a camera (through its sl_view). */
+static void occ_view_cam(sl_occ_view *v, const sl_camera *cam)
+{
+    sl_view view;
+    assert_int_equal(sl_view_from_camera(cam, &view, NULL), SL_OK);
+    sl_occ_view_init(v, &view);
+}
+
 /* every method of this file, with its default options */
 static const char *const g_all[] = {"hzb", "hom", "lazygrid", "lazygrid-z", "busygrid", "frusta", "plp", "cplp"};
 static const char *const g_conservative[] = {"hzb", "hom", "lazygrid", "lazygrid-z", "busygrid", "frusta", "cplp"};
@@ -210,7 +218,7 @@ static void test_selection(void **state)
     sl_occ_pick heap[4], out[4];
     sl_camera cam = wall_camera(320, 240);
     sl_occ_view v;
-    sl_occ_view_init(&v, &cam);
+    occ_view_cam(&v, &cam);
     assert_int_equal(sl_occ_select(set, &v, bvh, area, 4, 1000, 0.0005f, heap, out, NULL), 1);
     assert_int_equal(out[0].proxy, 0);
     assert_true(out[0].quality > 0.5f); /* a 60x15 m wall at 20 m: about 1.5 sr */
@@ -218,15 +226,15 @@ static void test_selection(void **state)
     assert_int_equal(sl_occ_select(set, &v, bvh, area, 4, 5, 0.0005f, heap, out, NULL), 0);
     /* inside the building: not usable */
     cam.position = (sl_vec3){21, 0, 5};
-    sl_occ_view_init(&v, &cam);
+    occ_view_cam(&v, &cam);
     assert_false(sl_occ_usable(set, 0, &v));
     /* 30 km away at 320x240: 0.1 m is less than 1/32 pixel */
     cam.position = (sl_vec3){-30000, 0, 5};
     cam.far_plane = 100000;
-    sl_occ_view_init(&v, &cam);
+    occ_view_cam(&v, &cam);
     assert_false(sl_occ_usable(set, 0, &v));
     cam.position = (sl_vec3){-100, 0, 5};
-    sl_occ_view_init(&v, &cam);
+    occ_view_cam(&v, &cam);
     assert_true(sl_occ_usable(set, 0, &v));
     free(area);
     sl_bvh_destroy(bvh);
@@ -481,7 +489,7 @@ static void test_exact_layer_is_oracle(void **state)
         sl_oracle_view ov;
         assert_int_equal(sl_oracle_get_view(o, 0, &ov, &err), SL_OK);
         sl_occ_view v;
-        sl_occ_view_init(&v, &cam);
+        occ_view_cam(&v, &cam);
         sl_occ_exact e;
         assert_int_equal(sl_occ_exact_init(&e, sl_default_allocator(), &err), SL_OK);
         for (int pass = 0; pass < 2; pass++) { /* the second pass clears the first's rectangles */
@@ -1009,9 +1017,37 @@ static void test_dump_record_replay(void **state)
     sl_scene_destroy(s);
 }
 
+/* The frame view of an off-axis view (issue 13 §1): the near region reaches the farthest near
+ * corner, the focal length is the smaller per-axis one (the larger one for what must cover pixels). */
+static void test_occ_view_off_axis(void **state)
+{
+    (void)state;
+    sl_camera cam = sl_camera_default();
+    cam.width = 320, cam.height = 240;
+    sl_mat4 vm = sl_camera_view(&cam), pm = sl_camera_proj(&cam);
+    /* off-axis with non-square pixels: x scaled 3 and shifted left, y scaled 2 and shifted up */
+    for (int c = 0; c < 4; c++) {
+        pm.m[4 * c] = 3 * pm.m[4 * c] + 2 * pm.m[4 * c + 3];
+        pm.m[4 * c + 1] = 2 * pm.m[4 * c + 1] - 2 * pm.m[4 * c + 3];
+    }
+    sl_view view;
+    assert_int_equal(sl_view_from_matrices(vm.m, pm.m, SL_CLIP_DEPTH_GL, 320, 240, &view, NULL), SL_OK);
+    sl_occ_view v;
+    sl_occ_view_init(&v, &view);
+    for (int i = 0; i < 4; i++) {
+        const sl_vec3 *p = &v.fr.corners[i];
+        double dx = p->x - v.eye.x, dy = p->y - v.eye.y, dz = p->z - v.eye.z;
+        assert_true(v.near_reach >= sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    assert_true(v.focal <= (float)view.focal_x && v.focal <= (float)view.focal_y);
+    assert_true(v.focal_max >= (float)view.focal_x && v.focal_max >= (float)view.focal_y);
+    assert_true(view.focal_x != view.focal_y);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_occ_view_off_axis),
         cmocka_unit_test(test_prisms_inside),     cmocka_unit_test(test_selection),
         cmocka_unit_test(test_wall_every_method), cmocka_unit_test(test_moving),
         cmocka_unit_test(test_moved_building),    cmocka_unit_test(test_options),

@@ -606,7 +606,7 @@ static void test_silhouette_rule(void **state)
     assert_int_equal(missed, 0);
 }
 
-/* The thin inset of res=any's silhouette rule (SL_OCC_THIN_INSET, occluders.h): a wall 10 m ahead
+/* The thin inset of res=any's silhouette rule (SL_OCC_THIN_INSET, occlusion/options.h): a wall 10 m ahead
  * whose end stands 3 m to the side, and thin poles 25 m ahead just inside the line of sight of that
  * end (between 0.5 and 2 pixels inside it at 640x480). A prism shrunk by 0.1 m ends 6 pixels short
  * of the line and leaves the poles in sight; shrunk by 1 cm it hides them. The same scene 20 km from

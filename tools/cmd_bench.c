@@ -23,7 +23,8 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline bench SCENE... (--walk N | --path FILE | --random street|flyover) [options]\n\n"
+            "usage: sightline bench SCENE... (--walk N | --path FILE | --random street|flyover\n"
+            "                               | --view-matrix M --proj-matrix M [--clip-depth D]) [options]\n\n"
             "Run culling methods over scenes and camera views against the exact point oracle. For every\n"
             "frame the oracle renders once (shared by all methods), then each method culls the same\n"
             "camera; its time, what it keeps and draws, and its misses against the oracle are recorded.\n\n"
@@ -36,7 +37,11 @@ static void usage(FILE *out)
             "  --count N            random viewpoints (default 100)\n"
             "  --seed S             seed of the walk or the random views (default 1)\n"
             "  --fps F              walk frames per second (default 30; 1.4 m/s, so 30 fps = 4.7 cm a frame)\n"
-            "  --frames A:B         with --path: frames A to B-1 (A:, :B and A also work)\n\n"
+            "  --frames A:B         with --path: frames A to B-1 (A:, :B and A also work)\n"
+            "  --view-matrix M --proj-matrix M [--clip-depth gl|zero-one|reversed]\n"
+            "                       one frame from an engine's column-major world-to-eye and eye-to-clip\n"
+            "                       matrices (16 comma-separated numbers each; as `sightline render`):\n"
+            "                       off-axis, left-handed, x/y-flipped, reversed-z, infinite far\n\n"
             "methods:\n"
             "  --methods LIST       comma-separated registry names (default: every registered method that\n"
             "                       runs with its default options, and pvs; one that needs an option is\n"
@@ -95,6 +100,8 @@ typedef struct bench_args {
     const char *scenes[MAX_SCENES];
     uint32_t scene_count;
     const char *path_file, *random_kind, *methods, *out_dir, *map, *frames;
+    const char *view_text, *proj_text, *depth_text; /* --view-matrix, --proj-matrix, --clip-depth */
+    sl_view view;               /* made of them (at --width x --height) */
     const char *mopt_name[MAX_OPTS], *mopt_value[MAX_OPTS];
     uint32_t mopt_count;
     uint32_t walk, count, width, height, threads, repeat, map_size;
@@ -153,6 +160,12 @@ static int parse(int argc, char **argv, bench_args *g)
             g->has_walk = cli_parse_u32(&a, name, cli_value(&a, name, val), &g->walk);
         } else if (!strcmp(name, "path")) {
             g->path_file = cli_value(&a, name, val);
+        } else if (!strcmp(name, "view-matrix")) {
+            g->view_text = cli_value(&a, name, val);
+        } else if (!strcmp(name, "proj-matrix")) {
+            g->proj_text = cli_value(&a, name, val);
+        } else if (!strcmp(name, "clip-depth")) {
+            g->depth_text = cli_value(&a, name, val);
         } else if (!strcmp(name, "random")) {
             g->random_kind = cli_value(&a, name, val);
         } else if (!strcmp(name, "count")) {
@@ -219,14 +232,19 @@ static int parse(int argc, char **argv, bench_args *g)
     g->json = com.json;
     g->quiet = com.quiet;
     const char *cmd = argv[0];
-    int kinds = (g->has_walk ? 1 : 0) + (g->path_file ? 1 : 0) + (g->random_kind ? 1 : 0);
+    bool matrices = g->view_text || g->proj_text;
+    int kinds = (g->has_walk ? 1 : 0) + (g->path_file ? 1 : 0) + (g->random_kind ? 1 : 0) + (matrices ? 1 : 0);
     if (!g->scene_count) {
         cli_error(cmd, "missing SCENE (a file or city:tiny|small|vienna[:SEED]; see --help)");
         return 2;
     }
     if (kinds != 1) {
-        cli_error(cmd, kinds ? "give only one of --walk, --path and --random" : "missing views: --walk N, --path FILE "
-                                                                                 "or --random street|flyover");
+        cli_error(cmd, kinds ? "give only one of --walk, --path, --random and --view-matrix/--proj-matrix"
+                             : "missing views: --walk N, --path FILE or --random street|flyover");
+        return 2;
+    }
+    if (g->depth_text && !matrices) {
+        cli_error(cmd, "--clip-depth applies to --view-matrix and --proj-matrix only");
         return 2;
     }
     if (g->random_kind && strcmp(g->random_kind, "street") && strcmp(g->random_kind, "flyover")) {
@@ -256,6 +274,29 @@ static int parse(int argc, char **argv, bench_args *g)
     if (!(g->fps >= 0.001f && g->fps <= 1000)) {
         cli_error(cmd, "--fps must be in 0.001..1000");
         return 2;
+    }
+    if (matrices) {
+        float vm[16], pm[16];
+        sl_clip_depth depth = SL_CLIP_DEPTH_GL;
+        sl_error verr;
+        if (!g->view_text || !g->proj_text) {
+            cli_error(cmd, "--view-matrix and --proj-matrix go together");
+            return 2;
+        }
+        if (g->depth_text && !sl_clip_depth_parse(g->depth_text, &depth)) {
+            cli_error(cmd, "--clip-depth '%s': expected gl, zero-one or reversed", g->depth_text);
+            return 2;
+        }
+        bool vok = sl_parse_floats(g->view_text, vm, 16);
+        if (!vok || !sl_parse_floats(g->proj_text, pm, 16)) {
+            cli_error(cmd, "--%s '%s': expected 16 comma-separated finite numbers (column-major)",
+                      vok ? "proj-matrix" : "view-matrix", vok ? g->proj_text : g->view_text);
+            return 2;
+        }
+        if (sl_view_from_matrices(vm, pm, depth, g->width, g->height, &g->view, &verr) != SL_OK) {
+            cli_error(cmd, "%s", verr.message);
+            return 2;
+        }
     }
     return 0;
 }
@@ -389,6 +430,21 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
     *first = 0;
     *count = UINT32_MAX;
     sl_status st;
+    if (g->view_text) {
+        /* one pose at the view's eye, looking along its forward axis: what the PVS bake along the
+         * frames and the maps read; the frame itself is culled from the view */
+        sl_camera in = sl_camera_default();
+        in.width = g->width;
+        in.height = g->height;
+        st = sl_path_create(&in, NULL, out, err);
+        const sl_vec3 f = g->view.forward;
+        sl_pose pose = {0, g->view.eye, atan2f(f.y, f.x), asinf(f.z > 1 ? 1 : f.z < -1 ? -1 : f.z), 0};
+        if (st == SL_OK && (st = sl_path_append(*out, &pose, err)) != SL_OK) {
+            sl_path_destroy(*out);
+            *out = NULL;
+        }
+        return st;
+    }
     if (g->path_file) {
         st = sl_path_load(g->path_file, NULL, out, err);
         if (st == SL_OK && g->frames) {
@@ -667,7 +723,7 @@ int sl_cmd_bench(int argc, char **argv)
             benches[nb] = b;
             snprintf(labels[nb], sizeof labels[nb], "%s", label);
             nb++;
-            st = sl_bench_run_path(b, views, first, count, &err);
+            st = g.view_text ? sl_bench_run_view(b, &g.view, &err) : sl_bench_run_path(b, views, first, count, &err);
         }
         cli_progress_done(&ps);
         if (st == SL_OK && !g.no_plots) {

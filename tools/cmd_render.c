@@ -92,7 +92,8 @@ static const render_mode modes[] = {
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline render SCENE (--camera \"x,y,z,yaw,pitch,roll[,fov]\" | --path FILE [--frames A:B])\n"
+            "usage: sightline render SCENE (--camera \"x,y,z,yaw,pitch,roll[,fov]\" | --path FILE [--frames A:B]\n"
+            "                        | --view-matrix M --proj-matrix M [--clip-depth D])\n"
             "                        [--width W --height H] [--out DIR] [options]\n\n"
             "Render the exact id buffer of the point oracle for one camera or for the frames of a path, and\n"
             "write images as PNG into DIR, named frame-NNNNN-KIND.png. Kinds:\n");
@@ -105,6 +106,14 @@ static void usage(FILE *out)
             "  --camera C        x,y,z,yaw,pitch,roll[,fov]: metres, degrees (yaw 0 looks along +X, 90 along\n"
             "                    +Y; pitch > 0 up; fov vertical, default 60)\n"
             "  --path FILE       a path file (docs/paths.md): its cameras\n"
+            "  --view-matrix M   an engine's world-to-eye matrix: 16 comma-separated numbers, column-major\n"
+            "                    (OpenGL order: m[12..14] is the translation); rigid, either handedness\n"
+            "  --proj-matrix M   its eye-to-clip matrix, 16 numbers, column-major: perspective or\n"
+            "                    orthographic, off-axis, x/y-flipped (Vulkan), finite or infinite far\n"
+            "  --clip-depth D    the projection's depth range: gl ([-1,1], default), zero-one (D3D, Vulkan,\n"
+            "                    Metal [0,1]) or reversed (reversed-z: near 1, far 0); the view is\n"
+            "                    normalised to an unmirrored OpenGL view (docs/culler-contract.md, \"Views\");\n"
+            "                    an infinite far plane is bounded by the scene; not with --images cullmap\n"
             "  --frames A:B      with --path: frames A to B-1 (A:, :B and A also work; default all)\n"
             "  --width W         image width (default 1024, or the path's)\n"
             "  --height H        image height (default 768, or the path's)\n"
@@ -126,7 +135,10 @@ static void usage(FILE *out)
                  "examples:\n"
                  "  sightline render city:tiny --camera \"0,0,1.7,45,0,0\" --out shots\n"
                  "  sightline render city.slscene --path walk.txt --frames 0:10 --images id,depth\n"
-                 "  sightline render city:small --camera \"0,0,300,30,-45,0,70\" --width 1920 --height 1080\n");
+                 "  sightline render city:small --camera \"0,0,300,30,-45,0,70\" --width 1920 --height 1080\n"
+                 "  sightline render city:tiny --clip-depth reversed --view-matrix 0,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0,1 \\\n"
+                 "      --proj-matrix 1.299038,0,0,0,0,1.732051,0,0,0,0,0,-1,0,0,0.1,0   (reversed-z, infinite far:\n"
+                 "      the view of --camera 0,0,1.7,0,0,0 at 1024x768)\n");
 }
 
 /* "x,y,z,yaw,pitch,roll[,fov]" (degrees) into a camera. */
@@ -150,6 +162,7 @@ int sl_cmd_render(int argc, char **argv)
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
     const char *name, *val, *camera_text = NULL, *path_file = NULL, *frames = NULL;
+    const char *view_text = NULL, *proj_text = NULL, *depth_text = NULL;
     const char *out_dir = "render-out", *images = NULL;
     uint32_t width = 0, height = 0, threads = 2;
     bool selected[MODE_COUNT] = {false}, any_selected = false;
@@ -160,6 +173,12 @@ int sl_cmd_render(int argc, char **argv)
             camera_text = cli_value(&a, name, val);
         } else if (!strcmp(name, "path")) {
             path_file = cli_value(&a, name, val);
+        } else if (!strcmp(name, "view-matrix")) {
+            view_text = cli_value(&a, name, val);
+        } else if (!strcmp(name, "proj-matrix")) {
+            proj_text = cli_value(&a, name, val);
+        } else if (!strcmp(name, "clip-depth")) {
+            depth_text = cli_value(&a, name, val);
         } else if (!strcmp(name, "frames")) {
             frames = cli_value(&a, name, val);
         } else if (!strcmp(name, "width")) {
@@ -188,9 +207,37 @@ int sl_cmd_render(int argc, char **argv)
         cli_error(cmd, "missing SCENE (see --help)");
         return 2;
     }
-    if (!camera_text == !path_file) {
-        cli_error(cmd, camera_text ? "give --camera or --path, not both" : "missing --camera or --path");
+    bool matrices = view_text || proj_text;
+    if ((camera_text != NULL) + (path_file != NULL) + matrices != 1) {
+        cli_error(cmd, (camera_text != NULL) + (path_file != NULL) + matrices
+                           ? "give one of --camera, --path and --view-matrix/--proj-matrix"
+                           : "missing --camera or --path (or --view-matrix and --proj-matrix)");
         return 2;
+    }
+    float vm[16], pm[16];
+    sl_clip_depth depth = SL_CLIP_DEPTH_GL;
+    if (matrices && (!view_text || !proj_text)) {
+        cli_error(cmd, "--view-matrix and --proj-matrix go together");
+        return 2;
+    }
+    if (depth_text && (!matrices || !sl_clip_depth_parse(depth_text, &depth))) {
+        cli_error(cmd, matrices ? "--clip-depth '%s': expected gl, zero-one or reversed"
+                                : "--clip-depth applies to --view-matrix and --proj-matrix only", depth_text);
+        return 2;
+    }
+    if (matrices && (!sl_parse_floats(view_text, vm, 16) || !sl_parse_floats(proj_text, pm, 16))) {
+        cli_error(cmd, "--%s '%s': expected 16 comma-separated finite numbers (column-major)",
+                  !sl_parse_floats(view_text, vm, 16) ? "view-matrix" : "proj-matrix",
+                  !sl_parse_floats(view_text, vm, 16) ? view_text : proj_text);
+        return 2;
+    }
+    sl_view mview;
+    if (matrices) {
+        sl_error verr;
+        if (sl_view_from_matrices(vm, pm, depth, width ? width : 1024, height ? height : 768, &mview, &verr) != SL_OK) {
+            cli_error(cmd, "%s", verr.message);
+            return 2;
+        }
     }
     sl_camera cam = sl_camera_default();
     if (camera_text && !parse_camera(camera_text, &cam)) {
@@ -231,6 +278,10 @@ int sl_cmd_render(int argc, char **argv)
         if (!any_selected)
             selected[m] = modes[m].default_on;
         overdraw |= selected[m] && modes[m].needs_overdraw;
+    }
+    if (matrices && selected[find_mode("cullmap")]) {
+        cli_error(cmd, "--images cullmap needs --camera or --path (the cull map draws a camera's frustum)");
+        return 2;
     }
     if (camera_text) {
         cam.width = width ? width : 1024;
@@ -284,6 +335,21 @@ int sl_cmd_render(int argc, char **argv)
     oo.count_overdraw = overdraw;
     sl_oracle oracle = NULL;
     int status = 0;
+    if (matrices && isinf(mview.far_plane)) {
+        /* the depth image needs a finite far plane: the one the oracle bounds it to */
+        sl_aabb world = sl_scene_bounds(scene);
+        if (sl_view_bound_far(&mview, &world, &mview, &err) != SL_OK)
+            status = cli_fail(cmd, &err);
+    }
+    if (matrices) {
+        /* the depth image reads the projection, near and far of a camera */
+        cam.position = mview.eye;
+        cam.projection = mview.projection;
+        cam.near_plane = (float)mview.near_plane;
+        cam.far_plane = (float)mview.far_plane;
+        cam.width = mview.width;
+        cam.height = mview.height;
+    }
     render_ctx ctx[MODE_COUNT];
     bool set_up[MODE_COUNT] = {false};
     memset(ctx, 0, sizeof ctx);
@@ -320,7 +386,8 @@ int sl_cmd_render(int argc, char **argv)
             }
         }
         sl_oracle_frame truth;
-        if (sl_oracle_render(oracle, &c, &truth, &err) != SL_OK) {
+        if ((matrices ? sl_oracle_render_view(oracle, &mview, &truth, &err) : sl_oracle_render(oracle, &c, &truth, &err)) !=
+            SL_OK) {
             tool_error_prefix(&err, "frame %u", f);
             status = cli_fail(cmd, &err);
             break;

@@ -26,6 +26,7 @@
 #include "geom.h"
 #include "scene.h"
 #include "camera.h"
+#include "view.h"
 #include "cull.h"
 #include "path.h"
 #include "truth.h"
@@ -87,7 +88,9 @@ typedef struct sl_bench_frame {
     uint32_t source;          /* the pose's index in its path (sl_bench_run_path), else index;
                                  reports call this the frame number */
     float time;               /* the pose's time in seconds (sl_bench_run_path), else the index */
-    sl_camera camera;         /* as rendered (viewport overridden by the options) */
+    sl_camera camera;         /* as rendered (viewport overridden by the options); for a frame of
+                                 sl_bench_run_view of matrices, the view's eye, orientation, near,
+                                 far and vertical extent (reports only) */
     uint32_t visible_count;   /* exact visible set size */
     uint64_t triangles_visible; /* triangles of the visible objects (an exact method draws these) */
     uint64_t covered_pixels;  /* pixels showing some object */
@@ -153,6 +156,11 @@ SL_API sl_status sl_bench_add_external(sl_bench bench, const char *name, sl_cull
  * without a cluster) gives a frame marked out_of_domain: it is counted and skipped (no method runs,
  * every record stays invalid, reports list it as skipped). */
 SL_API sl_status sl_bench_run_frame(sl_bench bench, const sl_camera *cam, sl_error *err);
+/* Run one frame from a view (view.h: e.g. an engine's matrices, sl_view_from_matrices) as
+ * sl_bench_run_frame does from a camera (a view of a camera gives the same frame); the options'
+ * viewport, when set, replaces the view's (sl_view_with_viewport). The frame's `camera` is then
+ * for reports only: the view's eye, axes, near, far and vertical extent. */
+SL_API sl_status sl_bench_run_view(sl_bench bench, const sl_view *view, sl_error *err);
 /* Run frames first..first+count-1 of a path (count clamped to the path's end); progress reports
  * frames done. */
 SL_API sl_status sl_bench_run_path(sl_bench bench, sl_path path, uint32_t first, uint32_t count, sl_error *err);

@@ -3,7 +3,7 @@
  * A culler is created for a scene by method name with options given as "key=value" pairs
  * separated by commas or white space ("coherence=false, plane_masks=1"). Unknown keys, repeated
  * keys, empty or malformed values and values out of range are rejected with a message naming the
- * key and listing the valid ones. Each frame, sl_culler_cull turns a camera into the ascending
+ * key and listing the valid ones. Each frame, sl_culler_cull_view turns a view (or sl_culler_cull a camera) into the ascending
  * list of object ids the method could not rule out; sl_culler_stats then tells what it cost.
  *
  * A method is conservative (it never drops an object that owns a pixel in the exact image: the
@@ -26,6 +26,7 @@
 #include "geom.h"
 #include "scene.h"
 #include "camera.h"
+#include "view.h"
 #include "raster.h"
 
 #ifdef __cplusplus
@@ -106,8 +107,15 @@ SL_API sl_status sl_culler_create(const char *method, sl_scene scene, const char
 /* Release a culler. NULL is ignored. */
 SL_API void sl_culler_destroy(sl_culler culler);
 
-/* Cull one frame: write the ids of the objects that may be visible from cam, strictly ascending,
- * to out_ids and their number to *out_count. capacity must be at least the scene's object count. */
+/* Cull one frame: write the ids of the objects that may be visible from view (view.h: from a
+ * camera or an engine's matrices; off-axis, orthographic, reversed-z, infinite far), strictly
+ * ascending, to out_ids and their number to *out_count. capacity must be at least the scene's
+ * object count. A view with an infinite far plane is culled as its sl_view_bound_far by the
+ * scene's bounds (same visible set). Refused: a view no constructor made, or one whose near plane
+ * the method's depth format cannot resolve (sl_view_check_depth, naming the limit). */
+SL_API sl_status sl_culler_cull_view(sl_culler culler, const sl_view *view, uint32_t *out_ids, uint32_t capacity,
+                                     uint32_t *out_count, sl_error *err);
+/* sl_culler_cull_view of sl_view_from_camera(cam): the same ids as before views existed. */
 SL_API sl_status sl_culler_cull(sl_culler culler, const sl_camera *cam, uint32_t *out_ids, uint32_t capacity,
                                 uint32_t *out_count, sl_error *err);
 /* Statistics of the last cull (all zero before the first). */

@@ -40,6 +40,7 @@
 #include "geom.h"
 #include "scene.h"
 #include "camera.h"
+#include "view.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -135,7 +136,12 @@ SL_API sl_status sl_oracle_create(sl_scene scene, const sl_oracle_options *optio
 /* Release an oracle, its buffers and results. NULL is ignored. */
 SL_API void sl_oracle_destroy(sl_oracle oracle);
 
-/* Render the scene from a camera (perspective or orthographic) and report the exact visible set. */
+/* Render the scene from a view (view.h: from a camera or an engine's matrices; perspective or
+ * orthographic, off-axis, any depth convention) and report the exact visible set. The image is
+ * that of the view's normal form (view_proj: unmirrored, front faces counter-clockwise as seen);
+ * an infinite far plane is bounded by the scene's box first (sl_view_bound_far). */
+SL_API sl_status sl_oracle_render_view(sl_oracle oracle, const sl_view *view, sl_oracle_frame *out, sl_error *err);
+/* sl_oracle_render_view of sl_view_from_camera(cam). */
 SL_API sl_status sl_oracle_render(sl_oracle oracle, const sl_camera *cam, sl_oracle_frame *out, sl_error *err);
 
 /* Cube-map faces, in this order. Each face is a 90-degree square view from the eye:

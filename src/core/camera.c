@@ -6,6 +6,7 @@
  * 0.1 m / 5000 m camera is badly conditioned in float, and the planes are built geometrically
  * from the basis (not extracted from the view-projection matrix) for the same reason. */
 #include "sightline/camera.h"
+#include "sightline/view.h"
 #include "core/dvec3.h"
 #include "core/sl_core.h"
 
@@ -72,30 +73,33 @@ sl_status sl_camera_validate(const sl_camera *c, sl_error *err)
     return SL_OK;
 }
 
+/* The view terms the depth checks read (view.h), without validating the camera. */
+static sl_view depth_terms(const sl_camera *c)
+{
+    sl_view v;
+    memset(&v, 0, sizeof v);
+    v.eye = c->position;
+    v.projection = c->projection;
+    v.near_plane = c->near_plane;
+    v.far_plane = c->far_plane;
+    v.source = SL_VIEW_FROM_CAMERA;
+    return v;
+}
+
 double sl_camera_min_near(const sl_camera *c, sl_depth_format format)
 {
-    if (!c || format == SL_DEPTH_NONE || c->projection == SL_ORTHOGRAPHIC)
+    if (!c)
         return 0;
-    double m = fabs((double)c->position.x) + fabs((double)c->position.y) + fabs((double)c->position.z) + 1.0;
-    double lo = m * SL_MARGIN_REL; /* the float depth's relative resolution (core/margins.h) */
-    if (format == SL_DEPTH_CLIP_Z)
-        lo = fmax(lo, (double)c->far_plane / SL_CAMERA_MAX_FAR_NEAR);
-    return lo;
+    sl_view v = depth_terms(c);
+    return sl_view_min_near(&v, format);
 }
 
 sl_status sl_camera_check_depth(const sl_camera *c, sl_depth_format format, const char *who, sl_error *err)
 {
     if (!c)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "camera: NULL");
-    double lo = sl_camera_min_near(c, format);
-    if ((double)c->near_plane >= lo)
-        return SL_OK;
-    bool zfar = format == SL_DEPTH_CLIP_Z;
-    return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                   "camera: near plane %g m: %s's %s needs near >= %.3g m (2^-20 of |x|+|y|+|z|+1 m at this eye%s)",
-                   (double)c->near_plane, who ? who : "the renderer",
-                   zfar ? "float depth (1 - z/w)/2" : "float depth 1/w",
-                   lo, zfar ? ", and far/near <= 16777216" : "");
+    sl_view v = depth_terms(c);
+    return sl_view_check_depth(&v, format, who, err);
 }
 
 void sl_camera_basis(const sl_camera *cam, sl_vec3 *forward, sl_vec3 *right, sl_vec3 *up)

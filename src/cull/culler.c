@@ -253,11 +253,32 @@ sl_status sl_culler_cull(sl_culler c, const sl_camera *cam, uint32_t *out_ids, u
     if (!c || !cam || !out_ids || !out_count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_cull: culler, camera, out_ids and out_count must not be NULL");
     memset(&c->stats, 0, sizeof c->stats);
-    sl_status st = sl_camera_validate(cam, err);
+    sl_view view;
+    sl_status st = sl_view_from_camera(cam, &view, err);
     if (st != SL_OK)
         return st;
+    return sl_culler_cull_view(c, &view, out_ids, capacity, out_count, err);
+}
+
+sl_status sl_culler_cull_view(sl_culler c, const sl_view *view_in, uint32_t *out_ids, uint32_t capacity,
+                              uint32_t *out_count, sl_error *err)
+{
+    if (out_count)
+        *out_count = 0;
+    if (!c || !view_in || !out_ids || !out_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "sl_culler_cull_view: culler, view, out_ids and out_count must not be NULL");
+    memset(&c->stats, 0, sizeof c->stats);
+    sl_status st = sl_view_validate(view_in, err);
+    if (st != SL_OK)
+        return st;
+    /* the methods never see an infinite far plane: bounded by the scene's box (same visible set) */
+    sl_view bounded;
+    const sl_view *view;
+    if ((st = sl_scene_finite_view(c->scene, view_in, &bounded, &view, err)) != SL_OK)
+        return st;
     /* a projection the method's depth format cannot resolve is refused (issue 12 §1) */
-    if ((st = sl_camera_check_depth(cam, c->method->depth, c->method->name, err)) != SL_OK)
+    if ((st = sl_view_check_depth(view, c->method->depth, c->method->name, err)) != SL_OK)
         return st;
     uint32_t n = sl_scene_object_count(c->scene);
     if (n != c->object_count)
@@ -269,15 +290,15 @@ sl_status sl_culler_cull(sl_culler c, const sl_camera *cam, uint32_t *out_ids, u
                        c->method->name, capacity, n);
     double t0 = sl_now();
     uint32_t count = 0;
-    bool outside = !sl_oracle_in_domain(c->scene, cam->position, NULL);
+    bool outside = !sl_oracle_in_domain(c->scene, view->eye, NULL);
     if (outside) {
         /* no method's guarantee holds there (nor the oracle's truth): the frustum set, flagged */
         st = frustum_fallback(c, err);
         if (st == SL_OK)
-            st = sl_cull_method_vfc.cull(c->method == &sl_cull_method_vfc ? c->state : c->frustum_state, cam,
+            st = sl_cull_method_vfc.cull(c->method == &sl_cull_method_vfc ? c->state : c->frustum_state, view,
                                          out_ids, capacity, &count, &c->stats, err);
     } else {
-        st = c->method->cull(c->state, cam, out_ids, capacity, &count, &c->stats, err);
+        st = c->method->cull(c->state, view, out_ids, capacity, &count, &c->stats, err);
     }
     double t1 = sl_now();
     if (st != SL_OK) {

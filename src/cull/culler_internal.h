@@ -4,11 +4,14 @@
  * Adding a method: write src/cull/<name>.c defining `const sl_cull_method sl_cull_method_<name>`
  * and add one line X(<name>) to SL_CULL_METHODS in src/cull/registry.c. The wrapper (culler.c)
  * does the rest: it parses the options, calls configure, rejects keys configure did not read,
- * validates cameras and capacities, times each frame, fills the visible counts, checks that the
+ * validates views and capacities, times each frame, fills the visible counts, checks that the
  * output is strictly ascending and in range, and keeps the effective option string.
  *
  * Life of a culler: configure(opts) -> create(scene, config) -> { cull(camera) | scene_changed() }*
- * -> destroy(state). configure must read every option it understands (an option it does not read
+ * -> destroy(state). cull gets a validated sl_view (view.h) with a finite far plane (the wrapper bounds
+ * an infinite one by the scene's box, sl_view_bound_far) that the method's depth format resolves;
+ * a method reads only the view (off-axis and orthographic views included: take the near
+ * rectangle, the per-axis focal lengths and the frustum from it, never a field of view). configure must read every option it understands (an option it does not read
  * is an error) and may not touch the scene; create does the heavy work (BVH, buffers) and
  * allocates everything cull will need, through the allocator it is given.
  */
@@ -28,7 +31,7 @@ typedef struct sl_cull_method {
     sl_cull_guarantee guarantee;  /* with the default options */
     size_t config_size;           /* bytes of the method's parsed-options struct (may be 0) */
     /* the depth it stores or projects with (SL_DEPTH_NONE: frustum planes only); sl_culler_cull
-     * refuses a camera that format cannot resolve (sl_camera_check_depth) */
+     * refuses a view that format cannot resolve (sl_view_check_depth) */
     sl_depth_format depth;
     /* takes res=any|culling (sl_occ_common): res=culling is the tighter mode whose guarantee is
      * SL_CONSERVATIVE_AT_RESOLUTION (the default, res=any, keeps `guarantee`) */
@@ -41,7 +44,7 @@ typedef struct sl_cull_method {
     sl_status (*create)(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err);
     /* Cull one frame: write ids strictly ascending to out (capacity >= object count) and fill the
      * counters and phases of stats (zeroed by the caller). Must not allocate. */
-    sl_status (*cull)(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+    sl_status (*cull)(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                       sl_cull_stats *stats, sl_error *err);
     /* Objects moved: refit. NULL when the method keeps nothing that depends on object boxes. */
     sl_status (*scene_changed)(void *state, sl_error *err);

@@ -463,7 +463,7 @@ static void sector_box(const cullmap_state *s, const sl_urban_view *v, double r,
 }
 
 /* One frame; the visible objects are written to out (unsorted). */
-static uint32_t cullmap_frame(cullmap_state *s, const sl_camera *cam, sl_urban_view *v, uint32_t *out,
+static uint32_t cullmap_frame(cullmap_state *s, const sl_view *view, sl_urban_view *v, uint32_t *out,
                               sl_cull_stats *stats, double *t_select, double *t_traverse)
 {
     sl_urban_scene *u = &s->us;
@@ -479,7 +479,7 @@ static uint32_t cullmap_frame(cullmap_state *s, const sl_camera *cam, sl_urban_v
     s->map.stamp = s->cmap.stamp = s->frame;
     s->edges_used = s->edges_hidden = 0;
     s->drawn_count = 0;
-    sl_urban_view_make(u, cam, v);
+    sl_urban_view_make(u, view, v);
     double t0 = sl_now();
     /* stale values outside the spans are never read: in_spans guards every read */
     s->have_spans = sl_urban_frustum_spans(u, v, &s->j0, &s->j1, s->x0, s->x1);
@@ -654,7 +654,7 @@ static uint32_t cullmap_frame(cullmap_state *s, const sl_camera *cam, sl_urban_v
     return n;
 }
 
-static sl_status cullmap_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status cullmap_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                               sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
@@ -662,7 +662,7 @@ static sl_status cullmap_cull(void *state, const sl_camera *cam, uint32_t *out, 
     cullmap_state *s = state;
     sl_urban_view v;
     double ts, tt;
-    uint32_t n = cullmap_frame(s, cam, &v, out, stats, &ts, &tt);
+    uint32_t n = cullmap_frame(s, view, &v, out, stats, &ts, &tt);
     double t0 = sl_now();
     sl_cull_sort_ids(out, n, s->sort_scratch);
     sl_cull_phase(stats, "shadows", ts);
@@ -714,7 +714,8 @@ sl_status sl_cullmap_render_png(sl_scene scene, const sl_camera *cam, const char
 {
     if (!scene || !cam || !path)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_cullmap_render_png: scene, camera and path are required");
-    sl_status st = sl_camera_validate(cam, err);
+    sl_view view;
+    sl_status st = sl_view_from_camera(cam, &view, err);
     if (st != SL_OK)
         return st;
     const sl_allocator *a = sl_default_allocator();
@@ -752,7 +753,7 @@ sl_status sl_cullmap_render_png(sl_scene scene, const sl_camera *cam, const char
     memset(&stats, 0, sizeof stats);
     sl_urban_view v;
     double ts, tt;
-    uint32_t n = cullmap_frame(s, cam, &v, ids, &stats, &ts, &tt);
+    uint32_t n = cullmap_frame(s, &view, &v, ids, &stats, &ts, &tt);
     for (uint32_t k = 0; k < n; k++)
         visible[ids[k]] = 1;
     /* the highest shadow value in view, for the colour ramp */

@@ -155,11 +155,11 @@ static sl_status dhorizon_create(sl_scene scene, const void *config, const sl_al
     return SL_OK;
 }
 
-static sl_status dhorizon_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status dhorizon_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                                sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
-    return sl_urban_sweep_cull(state, cam, out, count, stats, err);
+    return sl_urban_sweep_cull(state, view, out, count, stats, err);
 }
 
 const sl_cull_method sl_cull_method_dhorizon = {

@@ -152,7 +152,7 @@ static uint32_t clip_near(const sl_occ_view *v, const sl_vec3 *p, uint32_t n, do
         scale = fmax(scale, fabs(P[0] * p[i].x) + fabs(P[1] * p[i].y) + fabs(P[2] * p[i].z) + fabs(P[3]));
     }
     double gl = sqrt(P[0] * P[0] + P[1] * P[1] + P[2] * P[2]);
-    double tau = 1e-6 * scale + 2e-5 * (double)v->cam.near_plane * gl;
+    double tau = 1e-6 * scale + 2e-5 * v->view.near_plane * gl;
     uint32_t m = 0;
     for (uint32_t i = 0; i < n; i++) {
         uint32_t j = (i + 1) % n;
@@ -378,7 +378,7 @@ static bool skip(void *ctx, uint32_t slot, const sl_aabb *box)
     return shadowed(f->s, f->ns, box, f->v, &f->tests);
 }
 
-static sl_status frusta_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status frusta_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                              sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
@@ -386,7 +386,7 @@ static sl_status frusta_cull(void *state, const sl_camera *cam, uint32_t *out, u
     frusta_state *s = state;
     double t0 = sl_now();
     sl_occ_view v;
-    sl_occ_view_init(&v, cam);
+    sl_occ_view_init(&v, view);
     uint32_t np = sl_occ_base_select(&s->b, &v, &s->cfg.c, &stats->nodes_visited);
     /* rank the chosen proxies' faces */
     uint32_t nf = 0;

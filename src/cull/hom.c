@@ -415,14 +415,14 @@ static bool skip(void *ctx, uint32_t slot, const sl_aabb *box)
     return occluded(f->s, f->v, box, f->st);
 }
 
-static sl_status hom_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status hom_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
     hom_state *s = state;
     double t0 = sl_now();
     sl_occ_view v;
-    sl_occ_view_init(&v, cam);
+    sl_occ_view_init(&v, view);
     sl_status st = sl_occ_raster_begin(&s->r, &v, err);
     if (st == SL_OK)
         st = size_buffers(s, v.width, v.height, err);

@@ -214,7 +214,7 @@ static void test_object(sl_urban_sweep *s, const sl_urban_view *v, const sl_hori
         s->obj_stamp[o] = s->frame;
 }
 
-sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t *out, uint32_t *count,
+sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_view *view, uint32_t *out, uint32_t *count,
                               sl_cull_stats *stats, sl_error *err)
 {
     (void)err;
@@ -229,7 +229,7 @@ sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t 
     }
     s->nodes_visited = s->occlusion_tests = s->objects_tested = s->skipped = 0;
     sl_urban_view v;
-    sl_urban_view_make(u, cam, &v);
+    sl_urban_view_make(u, view, &v);
     uint32_t n = 0;
     if (!v.perspective) {
         /* no eye point to build a horizon around: frustum culling over the grid */
@@ -390,11 +390,11 @@ static sl_status horizon_create(sl_scene scene, const void *config, const sl_all
     return SL_OK;
 }
 
-static sl_status horizon_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status horizon_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                               sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
-    return sl_urban_sweep_cull(state, cam, out, count, stats, err);
+    return sl_urban_sweep_cull(state, view, out, count, stats, err);
 }
 
 static sl_status horizon_scene_changed(void *state, sl_error *err)

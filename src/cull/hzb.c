@@ -300,14 +300,14 @@ static void visit(void *ctx, uint32_t id, const sl_aabb *box)
         maybe_render(f, id);
 }
 
-static sl_status hzb_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status hzb_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
     hzb_state *s = state;
     double t0 = sl_now();
     sl_occ_view v;
-    sl_occ_view_init(&v, cam);
+    sl_occ_view_init(&v, view);
     sl_status st = sl_occ_raster_begin(&s->r, &v, err);
     if (st == SL_OK && s->cfg.far_layer)
         st = sl_occ_raster_begin(&s->far, &v, err);

@@ -464,14 +464,14 @@ static bool drawable(const lg_state *s, const sl_occ_view *v, uint32_t id)
     return p != SL_NONE && sl_occ_usable(s->b.occ, p, v) && sl_occ_quality(s->b.occ, p, v) >= s->cfg.c.min_quality;
 }
 
-static sl_status lg_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status lg_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                          sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
     lg_state *s = state;
     double t0 = sl_now();
     sl_occ_view v;
-    sl_occ_view_init(&v, cam);
+    sl_occ_view_init(&v, view);
     sl_status st = sl_occ_raster_begin(&s->r, &v, err);
     if (st == SL_OK)
         st = size_grid(s, v.width, v.height, err);

@@ -1063,14 +1063,14 @@ static uint32_t seed(plp_state *s, const frame *f)
     return n;
 }
 
-static sl_status plp_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status plp_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
     plp_state *s = state;
     double t0 = sl_now();
     sl_occ_view v;
-    sl_occ_view_init(&v, cam);
+    sl_occ_view_init(&v, view);
     sl_status st = sl_occ_raster_begin(&s->r, &v, err);
     if (st != SL_OK) {
         sl_error_prefix(err, "%s", name_of(s));

@@ -190,12 +190,11 @@ static uint32_t frustum_filter(const pvs_state *s, const sl_frustum *fr, const u
 /* The box of the near-plane region: the part of the frustum between the eye (the eye plane for
  * an orthographic camera) and the near plane, i.e. the near rectangle and its copy moved back by
  * the near distance; widened by a margin for float rounding. */
-static sl_aabb near_box(const sl_camera *cam, const sl_frustum *fr)
+static sl_aabb near_box(const sl_view *view, const sl_frustum *fr)
 {
-    sl_vec3 f, r, u;
-    sl_camera_basis(cam, &f, &r, &u);
+    sl_vec3 f = view->forward;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    double nearv = cam->near_plane;
+    double nearv = view->near_plane;
     for (int k = 0; k < 4; k++) {
         const sl_vec3 *c = &fr->corners[k];
         double p[2][3] = {{c->x, c->y, c->z}, {c->x - nearv * f.x, c->y - nearv * f.y, c->z - nearv * f.z}};
@@ -205,11 +204,11 @@ static sl_aabb near_box(const sl_camera *cam, const sl_frustum *fr)
                 hi[a] = fmax(hi[a], p[j][a]);
             }
     }
-    double e[3] = {cam->position.x, cam->position.y, cam->position.z};
+    double e[3] = {view->eye.x, view->eye.y, view->eye.z};
     sl_aabb b;
     float *bl = &b.min.x, *bh = &b.max.x;
     for (int a = 0; a < 3; a++) {
-        if (cam->projection == SL_PERSPECTIVE) {
+        if (view->projection == SL_PERSPECTIVE) {
             lo[a] = fmin(lo[a], e[a]);
             hi[a] = fmax(hi[a], e[a]);
         }
@@ -257,14 +256,14 @@ static sl_status load_union(pvs_state *s, const uint32_t *cells, uint32_t n, sl_
     return SL_OK;
 }
 
-static sl_status pvs_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status pvs_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
     pvs_state *s = state;
     double t0 = sl_now();
-    sl_frustum fr = sl_camera_frustum(cam);
-    uint32_t cell = sl_viewcells_locate(s->cells, s->scene, cam->position);
+    sl_frustum fr = view->frustum;
+    uint32_t cell = sl_viewcells_locate(s->cells, s->scene, view->eye);
     stats->nodes_visited = 1;
     /* What the near plane cuts open is seen from the near-plane region, not from the eye alone:
      * take the union of the sets of every cell that region's box meets; where the box reaches
@@ -272,7 +271,7 @@ static sl_status pvs_cull(void *state, const sl_camera *cam, uint32_t *out, uint
      * what a sight line from there shows, and every object is a candidate (docs/pvs.md). */
     bool all = cell == SL_NONE;
     if (!all) {
-        sl_aabb nb = near_box(cam, &fr);
+        sl_aabb nb = near_box(view, &fr);
         bool covered;
         uint32_t nc = sl_viewcells_overlap(s->cells, s->scene, &nb, s->near_cells, s->cell_count, &covered);
         if (!covered || nc == 0) {

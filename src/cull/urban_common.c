@@ -522,30 +522,29 @@ sl_status sl_urban_scene_refresh(sl_urban_scene *u, sl_error *err)
 
 /* ===== the view ================================================================================= */
 
-void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *camera, sl_urban_view *v)
+void sl_urban_view_make(const sl_urban_scene *u, const sl_view *view, sl_urban_view *v)
 {
     /* the far plane just beyond the world box's farthest corner: a point of the frustum within
      * that distance of the eye has a depth within it too, so nothing the methods see is lost */
-    sl_camera bounded = *camera;
-    const sl_camera *cam = &bounded;
-    double reach2 = 0, e3[3] = {camera->position.x, camera->position.y, camera->position.z};
+    sl_view bounded;
+    const sl_view *cam = view;
+    double reach2 = 0, e3[3] = {view->eye.x, view->eye.y, view->eye.z};
     for (int a = 0; a < 3; a++) {
         double d = fmax(fabs(u->world[0][a] - e3[a]), fabs(u->world[1][a] - e3[a]));
         reach2 += d * d;
     }
     double reach = sqrt(reach2) * (1 + 1e-3) + 1.0;
-    reach = fmax(reach, 2.0 * camera->near_plane);
-    if (isfinite(reach) && reach < camera->far_plane)
-        bounded.far_plane = (float)reach;
+    reach = fmax(reach, 2.0 * view->near_plane);
+    if (isfinite(reach) && reach < view->far_plane && sl_view_with_far(view, reach, &bounded, NULL) == SL_OK)
+        cam = &bounded;
     memset(v, 0, sizeof *v);
     v->perspective = cam->projection == SL_PERSPECTIVE;
-    v->eye[0] = cam->position.x;
-    v->eye[1] = cam->position.y;
-    v->eye[2] = cam->position.z;
-    sl_vec3 f, r, up;
-    sl_camera_basis(cam, &f, &r, &up);
+    v->eye[0] = cam->eye.x;
+    v->eye[1] = cam->eye.y;
+    v->eye[2] = cam->eye.z;
+    sl_vec3 f = cam->forward;
     v->forward[0] = f.x, v->forward[1] = f.y, v->forward[2] = f.z;
-    sl_frustum fr = sl_camera_frustum(cam);
+    sl_frustum fr = cam->frustum;
     for (int i = 0; i < 6; i++) {
         v->planes[i] = fr.planes[i];
         v->slack[i] = sl_margin_plane_slack(fr.planes[i].d);

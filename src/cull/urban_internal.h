@@ -144,7 +144,7 @@ struct sl_urban_view {
  * 1e17 m away or more, and the azimuth range comes from the float far corners (far 1e20 m missed
  * objects); everything the methods can cull lies within that
  * distance, so the result is the same as with the camera's far plane. */
-void sl_urban_view_make(const sl_urban_scene *u, const sl_camera *cam, sl_urban_view *v);
+void sl_urban_view_make(const sl_urban_scene *u, const sl_view *view, sl_urban_view *v);
 /* Box against the frustum planes (with the rounding slack of vfc): false only when outside. */
 bool sl_urban_box_in_frustum(const sl_urban_view *v, const sl_aabb *b);
 
@@ -357,7 +357,7 @@ sl_status sl_urban_sweep_create(sl_scene scene, float cell, uint32_t bins, bool 
                                 sl_urban_sweep **out, sl_error *err);
 void sl_urban_sweep_destroy(sl_urban_sweep *s);
 /* One frame: the ascending ids of the objects that may be visible. */
-sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_camera *cam, uint32_t *out, uint32_t *count,
+sl_status sl_urban_sweep_cull(sl_urban_sweep *s, const sl_view *view, uint32_t *out, uint32_t *count,
                               sl_cull_stats *stats, sl_error *err);
 /* How the sweep left a node (the frontier entry's kind, in the top two bits of the entry). */
 enum {

@@ -273,7 +273,7 @@ static bool faces_away(const vfc_state *s, uint32_t id, const sl_vec3 *eye)
     return true;
 }
 
-static sl_status vfc_cull(void *state, const sl_camera *cam, uint32_t *out, uint32_t capacity, uint32_t *count,
+static sl_status vfc_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                           sl_cull_stats *stats, sl_error *err)
 {
     (void)capacity;
@@ -287,13 +287,13 @@ static sl_status vfc_cull(void *state, const sl_camera *cam, uint32_t *out, uint
         sl_cull_phase(stats, "traverse", sl_cull_ms(t0, sl_now()));
         return SL_OK;
     }
-    sl_frustum fr = sl_camera_frustum(cam);
+    sl_frustum fr = view->frustum;
     float slack[6];
     for (int i = 0; i < 6; i++)
         slack[i] = sl_margin_plane_slack(fr.planes[i].d);
     /* back-face rejection is for a perspective eye; an orthographic view always sees some front face */
-    bool backface = s->cfg.backface && s->planes && cam->projection == SL_PERSPECTIVE;
-    const sl_vec3 eye = cam->position;
+    bool backface = s->cfg.backface && s->planes && view->projection == SL_PERSPECTIVE;
+    const sl_vec3 eye = view->eye;
     const sl_aabb *const obj_box = b->object_bounds;
     const sl_bvh_node *nodes = b->nodes;
     const sl_object_rec *objects = sl_scene_objects(s->scene);

@@ -303,42 +303,38 @@ void sl_es_trace(const sl_es *es, const sl_es_ray *rays, sl_es_hit *hits, uint32
 
 sl_status sl_es_render_ids(const sl_es *es, const sl_camera *cam, uint32_t *tri_ids, sl_error *err)
 {
+    sl_view view;
+    sl_status st = sl_view_from_camera(cam, &view, err);
+    return st != SL_OK ? st : sl_es_render_view_ids(es, &view, tri_ids, err);
+}
+
+sl_status sl_es_render_view_ids(const sl_es *es, const sl_view *view, uint32_t *tri_ids, sl_error *err)
+{
     if (!es || !tri_ids)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_es_render_ids: arguments must not be NULL");
-    sl_status st = sl_camera_validate(cam, err);
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_es_render_view_ids: arguments must not be NULL");
+    sl_status st = sl_view_validate(view, err);
     if (st != SL_OK)
         return st;
-    if ((uint64_t)cam->width * cam->height > (1ull << 28))
-        return sl_fail(err, SL_ERROR_LIMIT, "embree render: %ux%u pixels are too many", cam->width, cam->height);
-    sl_vec3 f, r, u;
-    sl_camera_basis(cam, &f, &r, &u);
-    const double aspect = (double)cam->width / cam->height;
-    const bool persp = cam->projection == SL_PERSPECTIVE;
-    const double hy = persp ? tan(0.5 * cam->fov_y) : 0.5 * cam->ortho_height, hx = hy * aspect;
+    if ((uint64_t)view->width * view->height > (1ull << 28))
+        return sl_fail(err, SL_ERROR_LIMIT, "embree render: %ux%u pixels are too many", view->width, view->height);
     sl_es_ray rays[TRACE_CHUNK];
     sl_es_hit hits[TRACE_CHUNK];
-    const uint64_t total = (uint64_t)cam->width * cam->height;
+    const uint64_t total = (uint64_t)view->width * view->height;
     for (uint64_t base = 0; base < total; base += TRACE_CHUNK) {
         uint32_t m = (uint32_t)SL_MIN((uint64_t)TRACE_CHUNK, total - base);
         for (uint32_t i = 0; i < m; i++) {
             uint64_t px = base + i;
-            double sx = (2.0 * ((double)(px % cam->width) + 0.5) / cam->width - 1.0) * hx;
-            double sy = (1.0 - 2.0 * ((double)(px / cam->width) + 0.5) / cam->height) * hy;
+            /* the pixel centre's sight line through the view's inverse projection (perspective:
+             * dir has unit length along forward, so t is the view depth, as the near/far planes) */
+            double org[3], dir[3];
+            sl_view_pixel_ray(view, (double)(px % view->width) + 0.5, (double)(px / view->width) + 0.5, org, dir);
             sl_es_ray *ray = &rays[i];
-            if (persp) {
-                /* dir has unit length along forward: t is the view depth, as the near/far planes */
-                ray->org[0] = cam->position.x, ray->org[1] = cam->position.y, ray->org[2] = cam->position.z;
-                ray->dir[0] = (float)(f.x + sx * r.x + sy * u.x);
-                ray->dir[1] = (float)(f.y + sx * r.y + sy * u.y);
-                ray->dir[2] = (float)(f.z + sx * r.z + sy * u.z);
-            } else {
-                ray->org[0] = (float)(cam->position.x + sx * r.x + sy * u.x);
-                ray->org[1] = (float)(cam->position.y + sx * r.y + sy * u.y);
-                ray->org[2] = (float)(cam->position.z + sx * r.z + sy * u.z);
-                ray->dir[0] = f.x, ray->dir[1] = f.y, ray->dir[2] = f.z;
+            for (int k = 0; k < 3; k++) {
+                ray->org[k] = (float)org[k];
+                ray->dir[k] = (float)dir[k];
             }
-            ray->tnear = cam->near_plane;
-            ray->tfar = cam->far_plane;
+            ray->tnear = (float)view->near_plane;
+            ray->tfar = (float)view->far_plane; /* an infinite far plane stays infinite */
         }
         sl_es_trace(es, rays, hits, m);
         for (uint32_t i = 0; i < m; i++)

@@ -21,6 +21,7 @@
 #define SL_REGION_EMBREE_SCENE_H
 
 #include "sightline/camera.h"
+#include "sightline/view.h"
 #include "sightline/scene.h"
 
 typedef struct sl_es sl_es;
@@ -85,5 +86,8 @@ void sl_es_trace(const sl_es *es, const sl_es_ray *rays, sl_es_hit *hits, uint32
  * bound the depth along the view direction, as for the point oracle) and write the global triangle
  * id seen by every pixel (SL_NONE for none) to tri_ids, width*height entries, row 0 at the top. */
 sl_status sl_es_render_ids(const sl_es *es, const sl_camera *cam, uint32_t *tri_ids, sl_error *err);
+/* The same for a view (view.h; any projection it takes, off-axis and infinite far included): one ray
+ * per pixel centre of its normal-form image (sl_view_pixel_ray), the image the oracle renders. */
+sl_status sl_es_render_view_ids(const sl_es *es, const sl_view *view, uint32_t *tri_ids, sl_error *err);
 
 #endif

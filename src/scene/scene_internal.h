@@ -7,6 +7,7 @@
 #define SL_SCENE_INTERNAL_H
 
 #include "sightline/scene.h"
+#include "sightline/view.h"
 #include "core/sl_core.h"
 
 /* One mesh: a range of the shared vertex array and a range of the shared index array. Indices
@@ -95,6 +96,11 @@ struct sl_scene_t {
 };
 
 /* Shorthand accessors for hot loops. */
+/* The view of a validated v with a finite far plane: v itself, or its sl_view_bound_far by the
+ * scene's bounds (one pass over the object boxes) written to *tmp; *out points to the one to use
+ * (src/scene/scene_view.c; the culler wrapper and the oracle). */
+sl_status sl_scene_finite_view(sl_scene s, const sl_view *v, sl_view *tmp, const sl_view **out, sl_error *err);
+
 static inline const sl_mesh_rec *sl_scene_meshes(const struct sl_scene_t *s) { return (const sl_mesh_rec *)s->meshes.data; }
 static inline const sl_object_rec *sl_scene_objects(const struct sl_scene_t *s) { return (const sl_object_rec *)s->objects.data; }
 static inline const float *sl_scene_positions(const struct sl_scene_t *s) { return (const float *)s->positions.data; }

@@ -205,22 +205,78 @@ static sl_status judge(struct sl_bench_t *b, bench_method *m, sl_bench_record *r
     return SL_OK;
 }
 
+/* The camera a report shows for a frame given as a view of matrices: the eye, the orientation of
+ * its axes, near and far, the vertical extent (fov of the larger of |bottom|, |top|; the off-axis
+ * shift is not kept). */
+static sl_camera camera_of_view(const sl_view *v)
+{
+    if (v->source == SL_VIEW_FROM_CAMERA)
+        return v->camera;
+    sl_camera c;
+    memset(&c, 0, sizeof c);
+    c.position = v->eye;
+    double fx = v->forward.x, fy = v->forward.y, fz = v->forward.z;
+    double yaw = atan2(fy, fx), pitch = asin(fz > 1 ? 1 : fz < -1 ? -1 : fz);
+    double cy = cos(yaw), sy = sin(yaw), cp = cos(pitch), sp = sin(pitch);
+    double r0[3] = {sy, -cy, 0}, u0[3] = {-sp * cy, -sp * sy, cp}, r[3] = {v->right.x, v->right.y, v->right.z};
+    double cr = r[0] * r0[0] + r[1] * r0[1] + r[2] * r0[2], sr = -(r[0] * u0[0] + r[1] * u0[1] + r[2] * u0[2]);
+    c.yaw = (float)yaw;
+    c.pitch = (float)pitch;
+    c.roll = (float)atan2(sr, cr);
+    c.projection = v->projection;
+    double ext = fmax(fabs(v->rect_bottom), fabs(v->rect_top));
+    c.fov_y = v->projection == SL_PERSPECTIVE ? (float)(2.0 * atan(ext / v->near_plane)) : 1.0f;
+    c.ortho_height = (float)(v->rect_top - v->rect_bottom);
+    c.near_plane = (float)v->near_plane;
+    c.far_plane = (float)v->far_plane;
+    c.width = v->width;
+    c.height = v->height;
+    return c;
+}
+
+static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *err);
+
 sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
 {
     if (!b || !cam_in)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_run_frame: bench and camera must not be NULL");
-    if (sl_scene_object_count(b->scene) != b->object_count)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                       "sl_bench_run_frame: the scene has %u objects, %u when the bench was made: make a new bench",
-                       sl_scene_object_count(b->scene), b->object_count);
     sl_camera cam = *cam_in;
     if (b->opt.width) {
         cam.width = b->opt.width;
         cam.height = b->opt.height;
     }
+    sl_view view;
+    sl_status st = sl_view_from_camera(&cam, &view, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "%s: frame %u: oracle", b->label, (uint32_t)b->frames.count);
+        return st;
+    }
+    return run_view(b, &view, err);
+}
+
+sl_status sl_bench_run_view(sl_bench b, const sl_view *view_in, sl_error *err)
+{
+    if (!b || !view_in)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_run_view: bench and view must not be NULL");
+    sl_view view;
+    sl_status st = b->opt.width ? sl_view_with_viewport(view_in, b->opt.width, b->opt.height, &view, err)
+                                : sl_view_validate(view_in, err);
+    if (st != SL_OK) {
+        sl_error_prefix(err, "%s: frame %u", b->label, (uint32_t)b->frames.count);
+        return st;
+    }
+    return run_view(b, b->opt.width ? &view : view_in, err);
+}
+
+static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *err)
+{
+    if (sl_scene_object_count(b->scene) != b->object_count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "sl_bench_run_frame: the scene has %u objects, %u when the bench was made: make a new bench",
+                       sl_scene_object_count(b->scene), b->object_count);
     uint32_t fi = (uint32_t)b->frames.count;
     b->have_truth = false;
-    sl_status st = sl_oracle_render(b->oracle, &cam, &b->truth, err);
+    sl_status st = sl_oracle_render_view(b->oracle, view, &b->truth, err);
     if (st != SL_OK) {
         sl_error_prefix(err, "%s: frame %u: oracle", b->label, fi);
         return st;
@@ -231,7 +287,7 @@ sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
     fr.index = fi;
     fr.source = fi;
     fr.time = (float)fi;
-    fr.camera = cam;
+    fr.camera = camera_of_view(view);
     fr.visible_count = b->truth.visible_count;
     for (uint32_t i = 0; i < b->truth.visible_count; i++)
         fr.triangles_visible += b->triangles[b->truth.visible[i]];
@@ -253,7 +309,7 @@ sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
             continue;
         sl_bench_record *rec = &recs[mi];
         for (uint32_t r = 0; r < b->opt.repeat; r++) {
-            st = sl_culler_cull(m->culler, &cam, m->result, SL_MAX(b->object_count, 1), &m->result_count, err);
+            st = sl_culler_cull_view(m->culler, view, m->result, SL_MAX(b->object_count, 1), &m->result_count, err);
             if (st != SL_OK) {
                 sl_error_prefix(err, "%s: frame %u: %s", b->label, fi, m->name);
                 return st;

@@ -583,13 +583,29 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
 {
     if (!o || !cam || !out)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_render: oracle, camera and out must not be NULL");
-    sl_status st = sl_camera_validate(cam, err);
-    if (st == SL_OK)
-        st = sl_camera_check_depth(cam, SL_DEPTH_CLIP_Z, "the oracle", err); /* its depth: issue 12 §1 */
+    sl_view view;
+    sl_status st = sl_view_from_camera(cam, &view, err);
     if (st != SL_OK)
         return st;
+    return sl_oracle_render_view(o, &view, out, err);
+}
+
+sl_status sl_oracle_render_view(sl_oracle o, const sl_view *view_in, sl_oracle_frame *out, sl_error *err)
+{
+    if (!o || !view_in || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_oracle_render_view: oracle, view and out must not be NULL");
+    sl_status st = sl_view_validate(view_in, err);
+    if (st != SL_OK)
+        return st;
+    /* an infinite far plane: bounded by the scene's box (the same image: nothing lies beyond) */
+    sl_view bounded;
+    const sl_view *view;
+    if ((st = sl_scene_finite_view(o->scene, view_in, &bounded, &view, err)) != SL_OK)
+        return st;
+    if ((st = sl_view_check_depth(view, SL_DEPTH_CLIP_Z, "the oracle", err)) != SL_OK) /* its depth: issue 12 §1 */
+        return st;
     double t0 = sl_now();
-    uint32_t w = o->opt.width ? o->opt.width : cam->width, h = o->opt.height ? o->opt.height : cam->height;
+    uint32_t w = o->opt.width ? o->opt.width : view->width, h = o->opt.height ? o->opt.height : view->height;
     if (w > SL_ORACLE_MAX_SIZE || h > SL_ORACLE_MAX_SIZE || (uint64_t)w * h > SL_ORACLE_MAX_PIXELS)
         return sl_fail(err, SL_ERROR_LIMIT, "sl_oracle_render: resolution %ux%u exceeds the limit (%u per side, %u pixels)",
                        w, h, SL_ORACLE_MAX_SIZE, SL_ORACLE_MAX_PIXELS);
@@ -599,7 +615,7 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
     if (st != SL_OK)
         return st;
     out->samples_per_pixel = ns;
-    sl_mat4 vp = sl_camera_view_proj(cam);
+    sl_mat4 vp = view->view_proj;
     for (uint32_t i = 0; i < ns && st == SL_OK; i++)
         st = render_view(o, i, &vp, pos[i][0], pos[i][1], i == 0, out, err);
     if (st == SL_OK)
@@ -609,7 +625,7 @@ sl_status sl_oracle_render(sl_oracle o, const sl_camera *cam, sl_oracle_frame *o
         memset(out, 0, sizeof *out);
         return st;
     }
-    out->out_of_domain = !sl_oracle_in_domain(o->scene, cam->position, &out->eye_leaf);
+    out->out_of_domain = !sl_oracle_in_domain(o->scene, view->eye, &out->eye_leaf);
     out->ms = (sl_now() - t0) * 1000.0;
     return SL_OK;
 }

@@ -195,4 +195,23 @@ for r in 0:40 0:2; do
 done
 [ "${cells[1]}" -gt 0 ] && [ "${cells[1]}" -lt "${cells[0]}" ] ||
     fail "--frames 0:2 baked ${cells[1]} cells, the whole path ${cells[0]}: expected fewer, but some"
+
+# one frame from an engine's matrices (issue 13 §1): the reversed-z infinite-far, y-flipped
+# Vulkan-style view of the eye at (0, 0, 1.7) looking along +X, every default method (pvs baked
+# along it) judged with no violation; refusals exit 2
+VM=0,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0,1
+PREV=1.299038,0,0,0,0,-1.732051,0,0,0,0,0,-1,0,0,0.1,0
+expect 0 "$SL" bench city:tiny --view-matrix $VM --proj-matrix $PREV --clip-depth reversed --width 160 --height 120 \
+    --no-plots --quiet --json --out "$tmp/bv"
+has '"violations":0' "$tmp/out"
+has '"frames":1,' "$tmp/out"
+has '"name":"pvs"' "$tmp/out"
+expect 2 "$SL" bench city:tiny --view-matrix $VM --proj-matrix $PREV --walk 5
+has "only one of" "$tmp/err"
+expect 2 "$SL" bench city:tiny --proj-matrix $PREV
+has "go together" "$tmp/err"
+expect 2 "$SL" bench city:tiny --walk 5 --clip-depth reversed
+has "applies to --view-matrix" "$tmp/err"
+expect 2 "$SL" bench city:tiny --view-matrix $VM --proj-matrix 1,0,0,0,0,1,0,0,0,0,0,-1,0,0,0,0 --clip-depth reversed
+has "near plane" "$tmp/err"
 echo "PASS"

@@ -77,4 +77,35 @@ has "beyond" "$tmp/err"
 expect 0 "$SL" render city:tiny --camera "0,0,1.7,45,0,0" --cullmap --out "$tmp/cm"
 is_png "$tmp/cm/frame-00000-cullmap.png"
 [ ! -e "$tmp/cm/frame-00000-id.png" ] || fail "--cullmap alone also wrote the id image"
+
+# an engine's matrices (issue 13 §1): the reversed-z infinite-far view of --camera 0,0,1.7,0,0,0
+# draws the camera's id image; a Vulkan-style y-flipped [0,1] one too; refusals name the reason
+VM=0,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0,1
+PREV=1.299038,0,0,0,0,1.732051,0,0,0,0,0,-1,0,0,0.1,0
+PVK=1.299038,0,0,0,0,-1.732051,0,0,0,0,-1.00002,-1,0,0,-0.100002,0
+expect 0 "$SL" render city:tiny --camera 0,0,1.7,0,0,0 --width 160 --height 120 --images id --out "$tmp/vc"
+expect 0 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PREV --clip-depth reversed --width 160 --height 120 \
+    --images id,depth --out "$tmp/vr"
+cmp -s "$tmp/vc/frame-00000-id.png" "$tmp/vr/frame-00000-id.png" || fail "reversed-z matrices: not the camera's image"
+is_png "$tmp/vr/frame-00000-depth.png"
+expect 0 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PVK --clip-depth zero-one --width 160 --height 120 \
+    --images id --out "$tmp/vk"
+cmp -s "$tmp/vc/frame-00000-id.png" "$tmp/vk/frame-00000-id.png" || fail "y-flipped [0,1] matrices: not the camera's image"
+expect 0 "$SL" render --help
+has "view-matrix" "$tmp/out"
+has "clip-depth" "$tmp/out"
+expect 2 "$SL" render city:tiny --view-matrix $VM
+has "go together" "$tmp/err"
+expect 2 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PREV --camera 0,0,2,0,0,0
+expect 2 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PREV --clip-depth d3d
+has "expected gl, zero-one or reversed" "$tmp/err"
+expect 2 "$SL" render city:tiny --view-matrix 1,2,3 --proj-matrix $PREV
+has "16 comma-separated" "$tmp/err"
+expect 2 "$SL" render city:tiny --view-matrix 0,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0,1 --proj-matrix 1.3,0.2,0,0,0,1.7,0,0,0,0,0,-1,0,0,0.1,0 --clip-depth reversed
+has "skew" "$tmp/err"
+expect 2 "$SL" render city:tiny --view-matrix 2,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0,1 --proj-matrix $PREV --clip-depth reversed
+has "rigid" "$tmp/err"
+expect 2 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PREV --clip-depth reversed --cullmap
+has "cullmap needs --camera" "$tmp/err"
+expect 2 "$SL" render city:tiny --camera 0,0,2,0,0,0 --clip-depth gl
 echo "PASS"

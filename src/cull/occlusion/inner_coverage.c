@@ -542,7 +542,7 @@ void sl_occ_render_mesh_hull(sl_occ_raster *r, const sl_occ_set *s, const sl_occ
          * is among the front planes, convex or not; the silhouette may lie inside the hull by the
          * part's convexity tolerance (dev * stretch metres at forward distance 1 / dmax at least):
          * the hull is eroded by twice that on screen */
-        double grow = 2.0 * p->dev * stretch * (double)v->focal * dmax;
+        double grow = 2.0 * p->dev * stretch * (double)v->focal_max * dmax;
         n = hull_draw(r, v, pv, p->vcount, fidx, fstart, flen, p->tcount, front, grow, n);
     }
     render_shrunk_batch(r, v, n);

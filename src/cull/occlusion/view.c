@@ -8,35 +8,29 @@
 
 /* ---- the view ---- */
 
-void sl_occ_view_init(sl_occ_view *v, const sl_camera *cam)
+void sl_occ_view_init(sl_occ_view *v, const sl_view *view)
 {
     memset(v, 0, sizeof *v);
-    v->cam = *cam;
-    v->vp = sl_camera_view_proj(cam);
-    v->eye = cam->position;
-    sl_vec3 right, up;
-    sl_camera_basis(cam, &v->fwd, &right, &up);
-    v->fr = sl_camera_frustum(cam);
+    v->view = *view;
+    v->vp = view->view_proj;
+    v->eye = view->eye;
+    v->fwd = view->forward;
+    v->fr = view->frustum;
     for (int i = 0; i < 6; i++)
         v->slack[i] = sl_margin_plane_slack(v->fr.planes[i].d);
-    v->ortho = cam->projection == SL_ORTHOGRAPHIC;
-    v->width = cam->width;
-    v->height = cam->height;
+    v->ortho = view->projection == SL_ORTHOGRAPHIC;
+    v->width = view->width;
+    v->height = view->height;
     v->depth = v->ortho ? SL_RASTER_DEPTH_LINEAR_Z : SL_RASTER_DEPTH_INV_W;
-    if (v->ortho)
-        v->focal = (float)cam->height / cam->ortho_height;
-    else
-        v->focal = (float)((double)cam->height / (2.0 * tan(0.5 * (double)cam->fov_y)));
+    /* off-axis or non-square pixels: per axis; each use takes the one that keeps its guarantee */
+    v->focal = (float)fmin(view->focal_x, view->focal_y);
+    v->focal_max = (float)fmax(view->focal_x, view->focal_y);
     /* the near region's reach: the farthest near-rectangle corner (exact, in double), grown for
      * the float corners and the float matrix the renderer clips with */
-    double nr = 0;
-    if (!v->ortho) {
-        double t = tan(0.5 * (double)cam->fov_y), a = (double)cam->width / (double)cam->height;
-        nr = (double)cam->near_plane * sqrt(1.0 + t * t * (1.0 + a * a));
-    }
+    double nr = v->ortho ? 0 : view->near_corner_dist;
     double mag = fabs((double)v->eye.x) + fabs((double)v->eye.y) + fabs((double)v->eye.z);
     v->near_reach = (float)(nr * 1.001 + 1e-6 * mag + 1e-6);
-    v->near_depth = (float)((double)cam->near_plane * 1.001 + 1e-6 * mag + 1e-6);
+    v->near_depth = (float)(view->near_plane * 1.001 + 1e-6 * mag + 1e-6);
 }
 
 bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b)

@@ -7,6 +7,7 @@
 
 #include "core/sl_core.h"
 #include "sightline/camera.h"
+#include "sightline/view.h"
 #include "sightline/raster.h"
 
 #include <math.h>
@@ -23,14 +24,17 @@ static inline float sl_occ_maxf(float a, float b) { return a > b ? a : b; }
 /* ---- the frame's view ---- */
 
 typedef struct sl_occ_view {
-    sl_camera cam;
+    sl_view view;             /* the frame's view (finite far plane) */
     sl_mat4 vp;               /* world to clip (float, what the rasterizer is given) */
     sl_vec3 eye, fwd;
     sl_frustum fr;
     float slack[6];           /* plane slack (sl_margin_plane_slack) */
     bool ortho;
     float focal;              /* pixels per metre at unit forward distance (perspective), or pixels
-                                 per metre (orthographic) */
+                                 per metre (orthographic): the smaller of the view's x and y focal
+                                 lengths (the larger pixel footprint: margins in metres that must
+                                 cover some pixels) */
+    float focal_max;          /* the larger of the two (pixel counts that must cover some metres) */
     uint32_t width, height;
     sl_raster_depth depth;    /* INV_W for perspective, LINEAR_Z for orthographic */
     /* the near region (the points nearer than the near plane that a pixel's ray can pass): every
@@ -39,8 +43,8 @@ typedef struct sl_occ_view {
     float near_depth, near_reach;
 } sl_occ_view;
 
-/* Fill a view from a validated camera. */
-void sl_occ_view_init(sl_occ_view *v, const sl_camera *cam);
+/* Fill a view from a validated view with a finite far plane. */
+void sl_occ_view_init(sl_occ_view *v, const sl_view *view);
 
 /* A box's screen footprint: the half-open pixel rectangle of every pixel its projection touches
  * (grown by 1/64 pixel for rounding) and the depth of its nearest point in the rasterizer's
