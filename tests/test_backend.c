@@ -560,6 +560,79 @@ static void test_hoq_oracle_map(void **state)
     free(list);
 }
 
+/* ---- the eye inside a queried box ---- */
+
+static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const uint32_t *idx, uint32_t nt)
+{
+    sl_error err;
+    sl_mesh_desc md = {pos, NULL, nv, idx, nt};
+    uint32_t mesh, obj;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, 0, 0};
+    assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
+    return obj;
+}
+
+/* The eye inside the box of a visible object O whose box reaches past a wall W drawn before it: the
+ * box's faces in front of the eye are the far ones, behind W, so a query over the box would find
+ * no sample although O shows in front of W. hoq must count such a box as visible unqueried. */
+static void test_hoq_eye_in_box(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    /* W (object 0): a big wall at x = 10, drawn first (the two share the root leaf, in the order
+     * of their box centres along x: 10 before O's 17.5) */
+    const float wall[] = {10, -100, -100, 10, 100, -100, 10, 100, 100, 10, -100, 100};
+    const uint32_t quad[] = {0, 1, 2, 0, 2, 3};
+    add_mesh_object(s, wall, 4, quad, 2);
+    /* O (object 1): a quad at x = 5 in view, and two slivers, behind the eye and beyond the wall
+     * (off screen), that stretch its box around the eye and past the wall on every side of the
+     * view: every ray leaves the box behind W */
+    const float o[] = {5, -1, -1, 5, 1, -1, 5, 1, 1, 5, -1, 1, -5, -50, -50, -5, -49.9f, -50, -5, -50, -49.9f,
+                       40, 50, 50, 40, 49.9f, 50, 40, 50, 49.9f};
+    const uint32_t oi[] = {0, 1, 2, 0, 2, 3, 4, 5, 6, 7, 8, 9};
+    add_mesh_object(s, o, 10, oi, 4);
+    sl_camera cam = sl_camera_default();
+    cam.position = (sl_vec3){0, 0, 0};
+    cam.width = 64;
+    cam.height = 48;
+    sl_oracle or;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &or, &err), SL_OK);
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_render(or, &cam, &fr, &err), SL_OK);
+    assert_int_equal(fr.visible_count, 2); /* O in front of W, W around it */
+    sl_culler c;
+    assert_int_equal(sl_culler_create("hoq", s, "leaf_size=4", NULL, &c, &err), SL_OK);
+    uint32_t out[2], k;
+    assert_int_equal(sl_culler_cull(c, &cam, out, 2, &k, &err), SL_OK);
+    sl_cull_metrics mt;
+    assert_int_equal(sl_metrics_compare(s, &fr, out, k, &mt, NULL, NULL, 0, &err), SL_OK);
+    if (mt.missed_count)
+        fail_msg("hoq dropped %u visible objects with the eye inside a box (kept %u)", mt.missed_count, k);
+    sl_cull_stats cs;
+    sl_culler_stats(c, &cs);
+    assert_int_equal(cs.queries, 0); /* W unqueried (nothing drawn yet), O's box holds the eye */
+    /* and the query it skipped would have answered 0 samples: W is drawn, O's box queried */
+    sl_draw_backend_cpu cpu;
+    assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
+    sl_draw_backend be = sl_draw_backend_cpu_table(cpu);
+    sl_draw_query q;
+    assert_int_equal(be.create_queries(be.user, 1, &q, &err), SL_OK);
+    sl_mat4 vp = sl_camera_view_proj(&cam);
+    assert_int_equal(be.begin_frame(be.user, vp.m, cam.width, cam.height, &err), SL_OK);
+    uint32_t w = 0;
+    assert_int_equal(be.draw_objects(be.user, &w, 1, &err), SL_OK);
+    sl_aabb ob = sl_scene_object_bounds(s, 1);
+    assert_int_equal(run_query_box(&be, q, &ob), 0);
+    assert_int_equal(be.end_frame(be.user, &err), SL_OK);
+    sl_draw_backend_cpu_destroy(cpu);
+    sl_culler_destroy(c);
+    sl_oracle_destroy(or);
+    sl_scene_destroy(s);
+}
+
 /* ---- checks ---- */
 
 static void test_params_refused(void **state)
@@ -604,6 +677,7 @@ int main(void)
         cmocka_unit_test(test_cpu_latency),
         cmocka_unit_test(test_hoq_oracle_city),
         cmocka_unit_test(test_hoq_oracle_map),
+        cmocka_unit_test(test_hoq_eye_in_box),
         cmocka_unit_test(test_params_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -269,14 +269,19 @@ static sl_status hoq_cull(void *state, const sl_camera *cam, uint32_t *out, uint
     f.out = out;
     f.err = err;
     /* the view: the only lines that read the camera */
-    sl_mat4 vpf = sl_camera_view_proj(cam);
+    sl_mat4 vpf = sl_camera_view_proj(cam), proj = sl_camera_proj(cam);
     uint32_t width = cam->width, height = cam->height;
     f.frustum = sl_camera_frustum(cam);
     f.eye[0] = cam->position.x, f.eye[1] = cam->position.y, f.eye[2] = cam->position.z;
-    if (cam->projection == SL_ORTHOGRAPHIC)
-        f.ortho_footprint = (double)cam->ortho_height / height;
+    bool ortho = cam->projection == SL_ORTHOGRAPHIC;
+
+    /* a pixel's width in eye space, from the projection's scales (per unit of depth in perspective,
+     * the eye distance bounding the depth): the larger of the two axes */
+    double px = fmax(2.0 / (fabs((double)proj.m[0]) * width), 2.0 / (fabs((double)proj.m[5]) * height));
+    if (ortho)
+        f.ortho_footprint = px;
     else
-        f.footprint = 2.0 * tan(0.5 * (double)cam->fov_y) / height;
+        f.footprint = px;
 
     for (int i = 0; i < 16; i++)
         f.vp[i] = (double)vpf.m[i];
