@@ -52,6 +52,7 @@ typedef struct shared_job {
     uint32_t thread;
     uint32_t mismatches;
     char message[640];
+    pthread_barrier_t *start; /* all threads cull at once (their cullers made) */
 } shared_job;
 
 static void *run_thread(void *p)
@@ -60,14 +61,19 @@ static void *run_thread(void *p)
     sl_error err;
     sl_culler c[NM];
     sl_culler_params params = {NULL, j->accel};
-    for (size_t m = 0; m < NM; m++)
-        if (sl_culler_create_with(g_methods[m], j->scene, NULL, &params, NULL, &c[m], &err) != SL_OK) {
-            snprintf(j->message, sizeof j->message, "%s: %s", g_methods[m], err.message);
+    size_t made = 0;
+    for (; made < NM; made++)
+        if (sl_culler_create_with(g_methods[made], j->scene, NULL, &params, NULL, &c[made], &err) != SL_OK) {
+            snprintf(j->message, sizeof j->message, "%s: %s", g_methods[made], err.message);
             j->mismatches++;
-            for (size_t k = 0; k < m; k++)
-                sl_culler_destroy(c[k]);
-            return NULL;
+            break;
         }
+    pthread_barrier_wait(j->start);
+    if (made < NM) {
+        for (size_t k = 0; k < made; k++)
+            sl_culler_destroy(c[k]);
+        return NULL;
+    }
     uint32_t *out = malloc(j->n * sizeof *out);
     uint32_t nv = sl_path_count(j->views);
     /* every thread culls every view, starting at a different one */
@@ -124,8 +130,10 @@ static void test_threads_same_ids(void **state)
     }
     shared_job jobs[THREADS];
     pthread_t th[THREADS];
+    pthread_barrier_t start;
+    assert_int_equal(pthread_barrier_init(&start, NULL, THREADS), 0);
     for (uint32_t t = 0; t < THREADS; t++) {
-        jobs[t] = (shared_job){s, accel, views, n, ref, ref_count, t, 0, ""};
+        jobs[t] = (shared_job){s, accel, views, n, ref, ref_count, t, 0, "", &start};
         assert_int_equal(pthread_create(&th[t], NULL, run_thread, &jobs[t]), 0);
     }
     uint32_t bad = 0;
@@ -135,6 +143,7 @@ static void test_threads_same_ids(void **state)
             print_error("thread %u: %u mismatches, last: %s\n", t, jobs[t].mismatches, jobs[t].message);
         bad += jobs[t].mismatches;
     }
+    pthread_barrier_destroy(&start);
     assert_int_equal(bad, 0);
     free(ref);
     free(ref_count);
