@@ -22,6 +22,7 @@
 #include <unistd.h>
 
 #include "core/sl_core.h"
+#include "cull/hoq.h"
 #include "raster/raster_ref.h"
 #include "scene/scene_internal.h"
 #include "sightline/backend.h"
@@ -388,9 +389,9 @@ static sl_draw_backend zero_table(zero_backend *z)
     return t;
 }
 
-/* hoq's kept objects over vfc's on the street views: measured 0.453 (and under SL_SANITIZED's
- * fewer views), plus a quarter of the way to 1. */
-#define HOQ_FLOOR 0.60
+/* hoq's kept objects over vfc's on the street views: measured 0.394 (0.453 with objects queried
+ * by their boxes), plus a quarter of the way to 1. */
+#define HOQ_FLOOR 0.55
 
 typedef struct hoq_run {
     sl_culler c;
@@ -448,7 +449,7 @@ static void test_hoq_oracle_city(void **state)
     sl_draw_backend given = sl_draw_backend_cpu_table(cpu);
     zero_backend zb = {sl_draw_backend_cpu_table(cpu2)};
     sl_draw_backend broken = zero_table(&zb);
-    hoq_run runs[5];
+    hoq_run runs[6];
     memset(runs, 0, sizeof runs);
     sl_culler_params with_given = {&given, NULL}, with_broken = {&broken, NULL};
     assert_int_equal(sl_culler_create("hoq", s, NULL, NULL, &runs[0].c, &err), SL_OK);
@@ -456,17 +457,18 @@ static void test_hoq_oracle_city(void **state)
     assert_int_equal(sl_culler_create("hoq", s, "latency=1", NULL, &runs[2].c, &err), SL_OK);
     assert_int_equal(sl_culler_create("hoq", s, "object_queries=false", NULL, &runs[3].c, &err), SL_OK);
     assert_int_equal(sl_culler_create_with("hoq", s, NULL, &with_broken, NULL, &runs[4].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("hoq", s, "node_queries=false", NULL, &runs[5].c, &err), SL_OK);
     assert_int_equal(sl_culler_guarantee(runs[0].c), SL_CONSERVATIVE_AT_RESOLUTION);
     sl_path street = views_of(s, SL_VIEWS_STREET, sanitized() ? 8 : 100, 61, 320, 240);
     sl_path fly = views_of(s, SL_VIEWS_FLYOVER, sanitized() ? 3 : 30, 62, 320, 240);
-    run_hoq(s, street, runs, 5, 3, "street");
+    run_hoq(s, street, runs, 6, 3, "street");
     uint64_t street_kept = runs[0].kept;
-    run_hoq(s, fly, runs, 5, 3, "flyover");
+    run_hoq(s, fly, runs, 6, 3, "flyover");
     sl_camera in = sl_path_intrinsics(fly);
     in.projection = SL_ORTHOGRAPHIC;
     in.ortho_height = 160;
     assert_int_equal(sl_path_set_intrinsics(fly, &in, &err), SL_OK);
-    run_hoq(s, fly, runs, 5, 3, "orthographic");
+    run_hoq(s, fly, runs, 6, 3, "orthographic");
     sl_cull_stats st;
     sl_culler_stats(runs[0].c, &st);
     /* the frustum set for scale */
@@ -486,8 +488,8 @@ static void test_hoq_oracle_city(void **state)
                   (unsigned long long)runs[1].kept, (unsigned long long)runs[2].stalls,
                   (unsigned long long)runs[2].queries, (unsigned long long)runs[3].kept,
                   (unsigned long long)runs[3].missed, (unsigned long long)runs[4].missed, (unsigned long long)vr.kept);
-    for (int r = 0; r < 4; r++)
-        if (runs[r].missed)
+    for (int r = 0; r < 6; r++)
+        if (r != 4 && runs[r].missed)
             fail_msg("hoq run %d missed %llu visible objects at the culling resolution", r,
                      (unsigned long long)runs[r].missed);
     assert_true(runs[0].queries > 0);
@@ -498,7 +500,7 @@ static void test_hoq_oracle_city(void **state)
     sl_draw_backend_cpu_get_stats(cpu, &cs);
     assert_int_equal(cs.queries, runs[1].queries);
     assert_true(cs.objects_drawn == runs[1].kept);
-    for (int r = 0; r < 5; r++)
+    for (int r = 0; r < 6; r++)
         sl_culler_destroy(runs[r].c);
     sl_culler_destroy(vfc);
     sl_path_destroy(street);
@@ -560,6 +562,90 @@ static void test_hoq_oracle_map(void **state)
     free(list);
 }
 
+/* ---- hoq's query box covers its object ---- */
+
+/* The pixel centres an object covers (drawn alone by the CPU backend) that its box, drawn alone by
+ * the reference rasterizer (nearest face kept), does not cover at least as near: the raw box
+ * misses some (vertex snapping moves an object's silhouette out of its box's by up to 1/512 pixel,
+ * coplanar faces round apart), hoq's grown box (the node query) must miss far fewer. */
+static void test_hoq_box_covers(void **state)
+{
+    (void)state;
+    sl_scene s = tiny_city();
+    sl_error err;
+    sl_draw_backend_cpu cpu;
+    assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
+    sl_draw_backend be = sl_draw_backend_cpu_table(cpu);
+    uint32_t n = sl_scene_object_count(s);
+    sl_refrast_scratch sc;
+    memset(&sc, 0, sizeof sc);
+    assert_true(sl_refrast_scratch_reserve(NULL, &sc, 8));
+    uint64_t pixels = 0, raw_bad = 0, grown_bad = 0, unqueried = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        uint32_t w = pass ? 160 : 64, h = w * 3 / 4;
+        sl_path p = views_of(s, SL_VIEWS_STREET, sanitized() ? 3 : (pass ? 10 : 20), 5, w, h);
+        float *bd = malloc((size_t)w * h * sizeof *bd);
+        uint32_t *bi = malloc((size_t)w * h * sizeof *bi);
+        sl_refrast_target t = {w, h, bi, bd, NULL, 2.0 * SL_REFRAST_GUARD_PX / w, 2.0 * SL_REFRAST_GUARD_PX / h};
+        for (uint32_t v = 0; v < sl_path_count(p); v++) {
+            sl_camera cam = sl_path_camera(p, v);
+            sl_mat4 vp = sl_camera_view_proj(&cam), proj = sl_camera_proj(&cam);
+            sl_hoq_view hv;
+            sl_hoq_view_set(&hv, &vp, &proj, w, h, cam.position, false, 0.0625f);
+            for (uint32_t o = 0; o < n; o++) {
+                assert_int_equal(be.begin_frame(be.user, vp.m, w, h, &err), SL_OK);
+                assert_int_equal(be.draw_objects(be.user, &o, 1, &err), SL_OK);
+                assert_int_equal(be.end_frame(be.user, &err), SL_OK);
+                const float *d;
+                const uint32_t *ids;
+                sl_draw_backend_cpu_buffers(cpu, &d, &ids, NULL, NULL);
+                sl_aabb boxes[2];
+                boxes[0] = sl_scene_object_bounds_array(s)[o];
+                bool queried = sl_hoq_grow_box(&hv, &boxes[0], &boxes[1]);
+                for (int k = 0; k < 2; k++) {
+                    if (k == 1 && !queried) {
+                        unqueried++;
+                        continue;
+                    }
+                    float pos[24];
+                    for (int c = 0; c < 8; c++) {
+                        pos[3 * c] = (c & 1) ? boxes[k].max.x : boxes[k].min.x;
+                        pos[3 * c + 1] = (c & 2) ? boxes[k].max.y : boxes[k].min.y;
+                        pos[3 * c + 2] = (c & 4) ? boxes[k].max.z : boxes[k].min.z;
+                    }
+                    sl_refrast_clear(&t);
+                    sl_refrast_mesh(&t, &sc, hv.vp, pos, 8, g_box_tris, 12, 0, SL_REFRAST_CULL_NONE);
+                    for (size_t i = 0; i < (size_t)w * h; i++) {
+                        if (ids[i] == SL_NONE)
+                            continue;
+                        pixels += k == 0;
+                        bool bad = bi[i] == SL_NONE || bd[i] < d[i];
+                        raw_bad += k == 0 && bad;
+                        grown_bad += k == 1 && bad;
+                    }
+                }
+            }
+        }
+        free(bd);
+        free(bi);
+        sl_path_destroy(p);
+    }
+    print_message("%llu object pixels: the raw box misses %llu, the grown box %llu (%llu boxes not queried)\n",
+                  (unsigned long long)pixels, (unsigned long long)raw_bad, (unsigned long long)grown_bad,
+                  (unsigned long long)unqueried);
+    /* the margin covers what the raw box misses, but for a surface seen at a grazing angle, whose
+     * depth the snapping extrapolates beyond its box (docs/backend.md: why objects are queried by
+     * their triangles): measured 5 raw, 1 grown, on a ground polygon at under a degree */
+    if (!sanitized()) {
+        assert_true(raw_bad > 0); /* the margin has work to do on these views */
+        assert_true(grown_bad * 4 <= raw_bad);
+    }
+    assert_true(grown_bad <= raw_bad);
+    sl_refrast_scratch_free(NULL, &sc);
+    sl_draw_backend_cpu_destroy(cpu);
+    sl_scene_destroy(s);
+}
+
 /* ---- the eye inside a queried box ---- */
 
 static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const uint32_t *idx, uint32_t nt)
@@ -573,20 +659,22 @@ static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const
     return obj;
 }
 
-/* The eye inside the box of a visible object O whose box reaches past a wall W drawn before it: the
- * box's faces in front of the eye are the far ones, behind W, so a query over the box would find
- * no sample although O shows in front of W. hoq must count such a box as visible unqueried. */
+/* The eye inside the box of a BVH node holding a visible object O, whose box reaches past a wall W
+ * drawn before it: the box's faces in front of the eye are the far ones, behind W, so a query over
+ * the box would find no sample although O shows in front of W. hoq must count such a box as
+ * visible unqueried. (Objects are queried by their own triangles, which need no such rule; the
+ * nodes are tested here: leaf_size=1, object_queries=false.) */
 static void test_hoq_eye_in_box(void **state)
 {
     (void)state;
     sl_scene s;
     sl_error err;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
-    /* W (object 0): a big wall at x = 10, drawn first (the two share the root leaf, in the order
-     * of their box centres along x: 10 before O's 17.5) */
-    const float wall[] = {10, -100, -100, 10, 100, -100, 10, 100, 100, 10, -100, 100};
-    const uint32_t quad[] = {0, 1, 2, 0, 2, 3};
-    add_mesh_object(s, wall, 4, quad, 2);
+    /* W (object 0): a big wall at x = 10 and a sliver behind the eye, so that its box holds the
+     * eye too and, its centre being nearer, its leaf comes first (sl_bvh_traverse's tie rule) */
+    const float wall[] = {10, -100, -100, 10, 100, -100, 10, 100, 100, 10, -100, 100, -6, 0, 0, -6, 0.1f, 0, -6, 0, 0.1f};
+    const uint32_t wi[] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    add_mesh_object(s, wall, 7, wi, 3);
     /* O (object 1): a quad at x = 5 in view, and two slivers, behind the eye and beyond the wall
      * (off screen), that stretch its box around the eye and past the wall on every side of the
      * view: every ray leaves the box behind W */
@@ -604,7 +692,7 @@ static void test_hoq_eye_in_box(void **state)
     assert_int_equal(sl_oracle_render(or, &cam, &fr, &err), SL_OK);
     assert_int_equal(fr.visible_count, 2); /* O in front of W, W around it */
     sl_culler c;
-    assert_int_equal(sl_culler_create("hoq", s, "leaf_size=4", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("hoq", s, "leaf_size=1,object_queries=false", NULL, &c, &err), SL_OK);
     uint32_t out[2], k;
     assert_int_equal(sl_culler_cull(c, &cam, out, 2, &k, &err), SL_OK);
     sl_cull_metrics mt;
@@ -613,7 +701,7 @@ static void test_hoq_eye_in_box(void **state)
         fail_msg("hoq dropped %u visible objects with the eye inside a box (kept %u)", mt.missed_count, k);
     sl_cull_stats cs;
     sl_culler_stats(c, &cs);
-    assert_int_equal(cs.queries, 0); /* W unqueried (nothing drawn yet), O's box holds the eye */
+    assert_int_equal(cs.queries, 0); /* both leaves' boxes hold the eye */
     /* and the query it skipped would have answered 0 samples: W is drawn, O's box queried */
     sl_draw_backend_cpu cpu;
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
@@ -678,6 +766,7 @@ int main(void)
         cmocka_unit_test(test_hoq_oracle_city),
         cmocka_unit_test(test_hoq_oracle_map),
         cmocka_unit_test(test_hoq_eye_in_box),
+        cmocka_unit_test(test_hoq_box_covers),
         cmocka_unit_test(test_params_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
