@@ -139,7 +139,7 @@ SL_API void sl_draw_backend_cpu_reset_stats(sl_draw_backend_cpu cpu);
  * Valid until the next begin_frame or destroy. */
 SL_API void sl_draw_backend_cpu_buffers(sl_draw_backend_cpu cpu, const float **depth, const uint32_t **ids,
                                         uint32_t *width, uint32_t *height);
-/* Bytes held (buffers, query slots, scratch). */
+/* Bytes held: the buffers and query slots exactly, the vertex scratch approximately. */
 SL_API size_t sl_draw_backend_cpu_memory(sl_draw_backend_cpu cpu);
 
 #ifdef __cplusplus
