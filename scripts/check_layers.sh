@@ -24,7 +24,7 @@ public_of() { # the layer implementing public header $1
     accel.h) echo accel ;;
     raster.h) echo raster ;;
     pvs.h | region.h) echo pvs ;;
-    cull.h | urban.h) echo cull ;;
+    cull.h | urban.h | backend.h) echo cull ;;
     bake.h) echo region ;;
     import.h) echo import ;;
     truth.h | bench.h) echo truth ;;

@@ -43,6 +43,11 @@ mutants=(
   # (the delta-H skip answering "no" always is an equivalent mutant: it almost never fires, docs/urban.md)
   'dhorizon-no-reuse@@src/cull/dhorizon.c@@s/bool reuse = s->have_prev && /bool reuse = false \&\& s->have_prev \&\& /@@test_method_own test_horizon'
   'dhorizon-reuse-all@@src/cull/dhorizon.c@@s/(    \(void\)id;\n)/$1    if (s) return true;\n/@@test_method_own test_horizon test_urban_oracle'
+  'hoq-visible@@src/cull/hoq.c@@s/    return samples > 0;/    return true;/@@test_backend'
+  'hoq-hidden@@src/cull/hoq.c@@s/    return samples > 0;/    return false;/@@test_backend'
+  'hoq-near-queried@@src/cull/hoq.c@@s/if \(!\(z >= -w\) \|\| !\(w > 0\)\)/if (0 \&\& z < -w \&\& w > 0)/@@test_backend'
+  'hoq-no-margin@@src/cull/hoq.c@@s/float m = \(float\)\(v->margin \* px/float m = 0 * (float)(v->margin * px/@@test_backend'
+  'backend-no-latency@@src/cull/backend_cpu.c@@s/s->ready_frame = b->frame \+ b->latency;/s->ready_frame = b->frame;/@@test_backend'
   'pvs-everything@@src/cull/pvs.c@@s/bool all = cell == SL_NONE;/bool all = true;/@@test_pvs_build test_domain'
   'pvs-no-frustum@@src/cull/pvs.c@@s/sl_frustum_classify_box\(fr->planes, slack, &bounds\[id\], 0x3fu, false, NULL\) >= 0/fr/@@test_pvs_build test_domain'
   'pvs-cell-only@@src/cull/pvs.c@@s/uint32_t nc = sl_viewcells_overlap\(s->cells, s->scene, &nb, s->near_cells, s->cell_count, &covered\);/uint32_t nc = 1; covered = true; s->near_cells[0] = cell; (void)nb;/@@test_pvs_build test_near_wall'

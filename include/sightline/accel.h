@@ -109,6 +109,47 @@ SL_API uint32_t sl_bvh_query_aabb(sl_bvh bvh, const sl_aabb *box, uint32_t *out,
 SL_API uint32_t sl_bvh_query_ray(sl_bvh bvh, sl_vec3 origin, sl_vec3 dir, float tmax, uint32_t *out,
                                  uint32_t capacity);
 
+/* ===== shared per-scene acceleration ============================================================
+ * sl_scene_accel holds a scene's object BVH once, for every culler created with it (cull.h,
+ * sl_culler_create_with): a server with one culler per client keeps one tree, not one per client.
+ * The methods that walk an object BVH (vfc and the occlusion framework's hzb, hom, frusta, lazygrid,
+ * lazygrid_z, busygrid, and hoq) use the handle's tree instead of building their own; their
+ * leaf_size option must equal the handle's (else creation fails naming both); the other methods keep
+ * no object BVH and ignore the handle.
+ *
+ * Objects moving (sl_scene_set_object_transform) with a shared handle: the owner calls
+ * sl_scene_accel_scene_changed (refit, rebuild when degraded) while no culler that uses the handle
+ * culls, then sl_culler_scene_changed on each of those cullers before its next cull (a culler with a
+ * shared handle refits only what it owns, never the handle's tree).
+ *
+ * Thread safety: create, scene_changed and destroy need exclusive access (no culler using the handle
+ * culling); the getters and every culler's reads of the tree may run on any number of threads at
+ * once. The handle must outlive the cullers created with it; the scene must outlive the handle. */
+
+typedef struct sl_scene_accel_t *sl_scene_accel;
+
+typedef struct sl_scene_accel_options {
+    uint32_t leaf_size;         /* most objects per BVH leaf, 1..16; 0: 4 (the methods' default) */
+    uint32_t threads;           /* build threads, as sl_bvh_options.threads (the tree is the same) */
+    const sl_allocator *alloc;  /* NULL: the default allocator */
+} sl_scene_accel_options;
+
+/* Build the handle's BVH over the scene's objects (what the methods would build: the SAH builder
+ * with the default bins and leaf_size). options may be NULL. */
+SL_API sl_status sl_scene_accel_create(sl_scene scene, const sl_scene_accel_options *options, sl_scene_accel *out,
+                                       sl_error *err);
+/* Release it (after every culler created with it). NULL is ignored. */
+SL_API void sl_scene_accel_destroy(sl_scene_accel accel);
+/* The scene, the object BVH and its leaf size. */
+SL_API sl_scene sl_scene_accel_scene(sl_scene_accel accel);
+SL_API sl_bvh sl_scene_accel_bvh(sl_scene_accel accel);
+SL_API uint32_t sl_scene_accel_leaf_size(sl_scene_accel accel);
+/* Objects moved: refit the tree and rebuild it when degraded (sl_bvh_rebuild_if_degraded with the
+ * default ratio); exclusive access (see above). */
+SL_API sl_status sl_scene_accel_scene_changed(sl_scene_accel accel, sl_error *err);
+/* Bytes held by the handle (the tree included). */
+SL_API size_t sl_scene_accel_memory(sl_scene_accel accel);
+
 /* ===== 2D scene grid ============================================================================ */
 
 typedef struct sl_grid_t *sl_grid;

@@ -28,6 +28,8 @@
 #include "camera.h"
 #include "view.h"
 #include "raster.h"
+#include "accel.h"
+#include "backend.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -68,6 +70,8 @@ typedef struct sl_cull_stats {
     uint64_t triangles_visible; /* their triangles: what a renderer would draw (filled by the interface) */
     uint64_t occlusion_tests;   /* boxes or nodes tested against occluders */
     uint64_t queries;           /* occlusion queries issued (hardware-style methods) */
+    uint64_t query_stalls;      /* query results waited for before they were ready (a draw backend's
+                                   latency; see backend.h) */
     uint64_t pixels_rasterized; /* occluder pixels written into a depth/occlusion buffer */
     uint64_t pixel_queries;     /* buffer pixels read by occlusion tests */
     uint32_t phase_count;       /* named phases below, at most SL_CULL_MAX_PHASES */
@@ -104,6 +108,30 @@ SL_API sl_status sl_cull_method_check_options(const char *method, const char *op
  * bad options. */
 SL_API sl_status sl_culler_create(const char *method, sl_scene scene, const char *options, const sl_allocator *alloc,
                                   sl_culler *out, sl_error *err);
+/* What a culler may be created with besides its options (sl_culler_create_with). A zeroed struct
+ * (or NULL) is what sl_culler_create uses. */
+typedef struct sl_culler_params {
+    /* A draw backend (backend.h) for the methods that draw (hoq); copied at creation, its user
+     * pointer must stay valid while the culler lives. NULL: such a method uses a CPU reference
+     * backend of its own (sl_draw_backend_cpu). A method that draws nothing refuses a backend
+     * (SL_ERROR_INVALID_ARGUMENT naming the method). */
+    const sl_draw_backend *backend;
+    /* A shared per-scene acceleration handle (accel.h) of the same scene, whose object BVH the
+     * methods that walk one use instead of building their own (their leaf_size must match the
+     * handle's, else SL_ERROR_INVALID_ARGUMENT naming both); methods without an object BVH ignore
+     * it. Rules for moving objects: accel.h, "shared per-scene acceleration". */
+    sl_scene_accel accel;
+} sl_culler_params;
+
+/* Does the method take a draw backend (sl_culler_params.backend)? An unknown method: false. */
+SL_API bool sl_cull_method_draws(const char *method);
+
+/* sl_culler_create with params (may be NULL). The culler keeps params->accel and a copy of
+ * *params->backend; one culler is still used by one thread at a time, and cullers sharing one
+ * accel may cull on distinct threads at once. */
+SL_API sl_status sl_culler_create_with(const char *method, sl_scene scene, const char *options,
+                                       const sl_culler_params *params, const sl_allocator *alloc, sl_culler *out,
+                                       sl_error *err);
 /* Release a culler. NULL is ignored. */
 SL_API void sl_culler_destroy(sl_culler culler);
 

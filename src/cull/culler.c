@@ -2,6 +2,7 @@
  * every method gets for free (see culler_internal.h). */
 #include "culler_internal.h"
 
+#include "accel/bvh_internal.h"
 #include "scene/scene_internal.h"
 
 #include <ctype.h>
@@ -21,6 +22,8 @@ struct sl_culler_t {
     char options[SL_OPTS_MAX_CHARS + 1];
     void *frustum_state;          /* vfc with its defaults, for eyes outside the domain (BSP scenes);
                                      NULL until needed, and for vfc itself (its own state serves) */
+    sl_draw_backend backend;      /* the copy extras.backend points to */
+    sl_cull_extras extras;        /* what sl_culler_create_with was given (for the fallback too) */
 };
 
 extern const sl_cull_method sl_cull_method_vfc;
@@ -152,6 +155,37 @@ sl_status sl_cull_method_check_options(const char *method, const char *options, 
 
 /* ---- the culler ---- */
 
+sl_status sl_cull_object_bvh(sl_scene scene, const sl_cull_extras *x, uint32_t leaf_size, const sl_allocator *alloc,
+                             sl_bvh *out, bool *owned, sl_error *err)
+{
+    *out = NULL;
+    *owned = false;
+    if (x && x->accel) {
+        uint32_t have = sl_scene_accel_leaf_size(x->accel);
+        if (have != leaf_size)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                           "leaf_size=%u but the shared acceleration handle's BVH has leaf_size %u (create the "
+                           "culler with leaf_size=%u, or give it no handle)", leaf_size, have, have);
+        *out = sl_scene_accel_bvh(x->accel);
+        return SL_OK;
+    }
+    sl_bvh_options bo = {0};
+    bo.max_leaf_size = leaf_size;
+    bo.alloc = alloc;
+    sl_status st = sl_bvh_build(scene, &bo, out, err);
+    *owned = st == SL_OK;
+    return st;
+}
+
+/* The method's create, with the extras when it takes them. */
+static sl_status create_state(const sl_cull_method *m, sl_scene scene, const void *config, const sl_cull_extras *x,
+                              const sl_allocator *alloc, void **state, sl_error *err)
+{
+    if (m->create_with)
+        return m->create_with(scene, config, x, alloc, state, err);
+    return m->create(scene, config, alloc, state, err);
+}
+
 static void destroy_state(struct sl_culler_t *c)
 {
     if (c->state)
@@ -178,7 +212,13 @@ static sl_status frustum_fallback(struct sl_culler_t *c, sl_error *err)
     if (st == SL_OK)
         st = configure(v, NULL, config, opts, &g, err);
     if (st == SL_OK)
-        st = v->create(c->scene, config, &c->alloc, &c->frustum_state, err);
+    {
+        /* vfc's default leaf size: the shared tree when it has it */
+        sl_cull_extras fx = {NULL, c->extras.accel};
+        if (fx.accel && sl_scene_accel_leaf_size(fx.accel) != SL_BVH_DEFAULT_LEAF_SIZE)
+            fx.accel = NULL;
+        st = create_state(v, c->scene, config, &fx, &c->alloc, &c->frustum_state, err);
+    }
     if (st != SL_OK) {
         c->frustum_state = NULL;
         sl_error_prefix(err, "%s: frustum fallback for eyes outside the domain", c->method->name);
@@ -191,6 +231,19 @@ static sl_status frustum_fallback(struct sl_culler_t *c, sl_error *err)
 sl_status sl_culler_create(const char *method, sl_scene scene, const char *options, const sl_allocator *alloc,
                            sl_culler *out, sl_error *err)
 {
+    return sl_culler_create_with(method, scene, options, NULL, alloc, out, err);
+}
+
+bool sl_cull_method_draws(const char *method)
+{
+    uint32_t index;
+    return sl_cull_method_find(method, &index, NULL) == SL_OK && sl_cull_registry_get(index)->draws;
+}
+
+sl_status sl_culler_create_with(const char *method, sl_scene scene, const char *options,
+                                const sl_culler_params *params, const sl_allocator *alloc, sl_culler *out,
+                                sl_error *err)
+{
     if (!out)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: out is NULL");
     *out = NULL;
@@ -201,6 +254,18 @@ sl_status sl_culler_create(const char *method, sl_scene scene, const char *optio
     if (st != SL_OK)
         return st;
     const sl_cull_method *m = sl_cull_registry_get(index);
+    if (params && params->backend) {
+        if (!m->draws)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                           "%s: this method draws nothing and takes no draw backend (methods that draw: hoq)", m->name);
+        if ((st = sl_draw_backend_check(params->backend, err)) != SL_OK) {
+            sl_error_prefix(err, "%s", m->name);
+            return st;
+        }
+    }
+    if (params && params->accel && sl_scene_accel_scene(params->accel) != scene)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: the shared acceleration handle is of another scene",
+                       m->name);
     alloc = sl_alloc_or_default(alloc);
     struct sl_culler_t *c = sl_calloc(alloc, 1, sizeof *c);
     sl_opts *opts = sl_alloc(alloc, sizeof *opts);
@@ -213,11 +278,16 @@ sl_status sl_culler_create(const char *method, sl_scene scene, const char *optio
     c->method = m;
     c->scene = scene;
     c->object_count = sl_scene_object_count(scene);
+    if (params && params->backend) {
+        c->backend = *params->backend;
+        c->extras.backend = &c->backend;
+    }
+    c->extras.accel = params ? params->accel : NULL;
     st = configure(m, options, config, opts, &c->guarantee, err);
     if (st != SL_OK)
         goto done;
     memcpy(c->options, opts->effective, sizeof c->options);
-    st = m->create(scene, config, &c->alloc, &c->state, err);
+    st = create_state(m, scene, config, &c->extras, &c->alloc, &c->state, err);
     if (st == SL_OK) {
         sl_bsp_view bsp;
         if (sl_scene_bsp(scene, &bsp) && bsp.node_count > 0)

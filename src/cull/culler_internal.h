@@ -24,6 +24,20 @@
 
 /* ---- methods ---- */
 
+/* What sl_culler_create_with hands a method's create_with besides its options: each member may be
+ * NULL (sl_culler_params of cull.h; backend already checked with sl_draw_backend_check). */
+typedef struct sl_cull_extras {
+    const sl_draw_backend *backend; /* only for a method with `draws` */
+    sl_scene_accel accel;           /* the same scene's shared handle */
+} sl_cull_extras;
+
+/* The object BVH a method walks: the shared handle's when extras has one (its leaf size must be
+ * leaf_size: else SL_ERROR_INVALID_ARGUMENT naming both, *owned false), else a new one built with
+ * leaf_size through alloc (*owned true: the method destroys it). A method with a shared tree must
+ * not refit it in scene_changed (the handle's owner does, accel.h). extras may be NULL. */
+sl_status sl_cull_object_bvh(sl_scene scene, const sl_cull_extras *extras, uint32_t leaf_size, const sl_allocator *alloc,
+                             sl_bvh *out, bool *owned, sl_error *err);
+
 typedef struct sl_cull_method {
     const char *name;
     const char *summary;
@@ -46,6 +60,12 @@ typedef struct sl_cull_method {
      * counters and phases of stats (zeroed by the caller). Must not allocate. */
     sl_status (*cull)(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
                       sl_cull_stats *stats, sl_error *err);
+    /* create with extras (sl_culler_create_with): used instead of create when not NULL (create may
+     * then be NULL); a method without it ignores the accel and is refused a backend. */
+    sl_status (*create_with)(sl_scene scene, const void *config, const sl_cull_extras *extras,
+                             const sl_allocator *alloc, void **state, sl_error *err);
+    /* the method draws through a backend (sl_cull_extras.backend; NULL: it makes its own) */
+    bool draws;
     /* Objects moved: refit. NULL when the method keeps nothing that depends on object boxes. */
     sl_status (*scene_changed)(void *state, sl_error *err);
     void (*destroy)(void *state);

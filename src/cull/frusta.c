@@ -85,14 +85,14 @@ static void frusta_destroy(void *state)
     sl_free(&a, s, sizeof *s);
 }
 
-static sl_status frusta_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state,
-                               sl_error *err)
+static sl_status frusta_create(sl_scene scene, const void *config, const sl_cull_extras *extras,
+                               const sl_allocator *alloc, void **state, sl_error *err)
 {
     frusta_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "frusta: out of memory");
     s->cfg = *(const frusta_config *)config;
-    sl_status st = sl_occ_base_init(&s->b, scene, "frusta", &s->cfg.c, true, 16, true, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, "frusta", &s->cfg.c, true, 16, true, extras, alloc, err);
     if (st != SL_OK) {
         sl_free(alloc, s, sizeof *s);
         return st;
@@ -433,7 +433,7 @@ const sl_cull_method sl_cull_method_frusta = {
     .depth = SL_DEPTH_INV_W,
     .config_size = sizeof(frusta_config),
     .configure = frusta_configure,
-    .create = frusta_create,
+    .create_with = frusta_create,
     .cull = frusta_cull,
     .scene_changed = frusta_scene_changed,
     .destroy = frusta_destroy,

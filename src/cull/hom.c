@@ -91,13 +91,14 @@ static void hom_destroy(void *state)
     sl_free(&a, s, sizeof *s);
 }
 
-static sl_status hom_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
+static sl_status hom_create(sl_scene scene, const void *config, const sl_cull_extras *extras,
+                            const sl_allocator *alloc, void **state, sl_error *err)
 {
     hom_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hom: out of memory");
     s->cfg = *(const hom_config *)config;
-    sl_status st = sl_occ_base_init(&s->b, scene, "hom", &s->cfg.c, true, 0, true, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, "hom", &s->cfg.c, true, 0, true, extras, alloc, err);
     if (st != SL_OK) {
         sl_free(alloc, s, sizeof *s);
         return st;
@@ -470,7 +471,7 @@ const sl_cull_method sl_cull_method_hom = {
     .depth = SL_DEPTH_INV_W,
     .config_size = sizeof(hom_config),
     .configure = hom_configure,
-    .create = hom_create,
+    .create_with = hom_create,
     .cull = hom_cull,
     .scene_changed = hom_scene_changed,
     .destroy = hom_destroy,

@@ -137,7 +137,8 @@ static void hzb_destroy(void *state)
     sl_free(&a, s, sizeof *s);
 }
 
-static sl_status hzb_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
+static sl_status hzb_create(sl_scene scene, const void *config, const sl_cull_extras *extras,
+                            const sl_allocator *alloc, void **state, sl_error *err)
 {
     hzb_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
@@ -147,7 +148,7 @@ static sl_status hzb_create(sl_scene scene, const void *config, const sl_allocat
         s->cfg.c.dump = s->cfg.c.dump_buf;
     if (s->cfg.c.record)
         s->cfg.c.record = s->cfg.c.record_buf;
-    sl_status st = sl_occ_base_init(&s->b, scene, "hzb", &s->cfg.c, false, 0, true, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, "hzb", &s->cfg.c, false, 0, true, extras, alloc, err);
     if (st != SL_OK) {
         sl_free(alloc, s, sizeof *s);
         return st;
@@ -368,7 +369,7 @@ const sl_cull_method sl_cull_method_hzb = {
     .depth = SL_DEPTH_CLIP_Z,
     .config_size = sizeof(hzb_config),
     .configure = hzb_configure,
-    .create = hzb_create,
+    .create_with = hzb_create,
     .cull = hzb_cull,
     .scene_changed = hzb_scene_changed,
     .destroy = hzb_destroy,

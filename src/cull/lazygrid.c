@@ -159,14 +159,15 @@ static sl_status size_heaps(lg_state *s, sl_error *err)
 
 static const char *const g_names[] = {"lazygrid", "lazygrid-z", "busygrid"};
 
-static sl_status lg_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
+static sl_status lg_create(sl_scene scene, const void *config, const sl_cull_extras *extras,
+                           const sl_allocator *alloc, void **state, sl_error *err)
 {
     lg_state *s = sl_calloc(alloc, 1, sizeof *s);
     const lg_config *cfg = config;
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", g_names[cfg->variant]);
     s->cfg = *cfg;
-    sl_status st = sl_occ_base_init(&s->b, scene, g_names[cfg->variant], &s->cfg.c, false, 0, false, alloc, err);
+    sl_status st = sl_occ_base_init(&s->b, scene, g_names[cfg->variant], &s->cfg.c, false, 0, false, extras, alloc, err);
     if (st != SL_OK) {
         sl_free(alloc, s, sizeof *s);
         return st;
@@ -599,7 +600,7 @@ static sl_status lg_cull(void *state, const sl_view *view, uint32_t *out, uint32
         .depth = SL_DEPTH_INV_W,                                                                                       \
         .config_size = sizeof(lg_config),                                                                              \
         .configure = CONF,                                                                                             \
-        .create = lg_create,                                                                                           \
+        .create_with = lg_create,                                                                                           \
         .cull = lg_cull,                                                                                               \
         .scene_changed = lg_scene_changed,                                                                             \
         .destroy = lg_destroy,                                                                                         \

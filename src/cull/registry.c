@@ -16,7 +16,8 @@
     X(hom)                      \
     X(frusta)                   \
     X(plp)                      \
-    X(cplp)
+    X(cplp)                     \
+    X(hoq)
 
 #define SL_DECLARE_METHOD(name) extern const sl_cull_method sl_cull_method_##name;
 SL_CULL_METHODS(SL_DECLARE_METHOD)

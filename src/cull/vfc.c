@@ -36,6 +36,7 @@ typedef struct vfc_state {
     sl_scene scene;
     vfc_config cfg;
     sl_bvh bvh;
+    bool bvh_owned;           /* false: the shared handle's (sl_cull_extras.accel), never refitted here */
     uint8_t *node_last;       /* per node slot: plane that last rejected it, or NO_PLANE */
     uint32_t node_slots;
     uint8_t *object_last;     /* per object slot of the BVH (leaf order) */
@@ -172,7 +173,8 @@ static void vfc_destroy(void *state)
     if (!s)
         return;
     const sl_allocator *a = &s->alloc;
-    sl_bvh_destroy(s->bvh);
+    if (s->bvh_owned)
+        sl_bvh_destroy(s->bvh);
     free_coherence(s);
     sl_free(a, s->object_last, s->object_count);
     sl_free(a, s->sort_scratch, (size_t)s->object_count * sizeof(uint32_t));
@@ -184,7 +186,8 @@ static void vfc_destroy(void *state)
     sl_free(a, s, sizeof *s);
 }
 
-static sl_status vfc_create(sl_scene scene, const void *config, const sl_allocator *alloc, void **state, sl_error *err)
+static sl_status vfc_create(sl_scene scene, const void *config, const sl_cull_extras *extras, const sl_allocator *alloc,
+                            void **state, sl_error *err)
 {
     vfc_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
@@ -192,10 +195,7 @@ static sl_status vfc_create(sl_scene scene, const void *config, const sl_allocat
     s->alloc = *alloc;
     s->scene = scene;
     s->cfg = *(const vfc_config *)config;
-    sl_bvh_options bo = {0};
-    bo.max_leaf_size = s->cfg.leaf_size;
-    bo.alloc = alloc;
-    sl_status st = sl_bvh_build(scene, &bo, &s->bvh, err);
+    sl_status st = sl_cull_object_bvh(scene, extras, s->cfg.leaf_size, alloc, &s->bvh, &s->bvh_owned, err);
     if (st != SL_OK) {
         sl_error_prefix(err, "vfc");
         vfc_destroy(s);
@@ -220,6 +220,8 @@ static sl_status vfc_create(sl_scene scene, const void *config, const sl_allocat
 static sl_status vfc_scene_changed(void *state, sl_error *err)
 {
     vfc_state *s = state;
+    if (!s->bvh_owned)
+        return reset_coherence(s, err); /* the handle's owner refitted the tree (accel.h) */
     sl_status st = sl_bvh_refit(s->bvh, s->scene, err);
     bool rebuilt = false;
     if (st == SL_OK)
@@ -361,7 +363,7 @@ const sl_cull_method sl_cull_method_vfc = {
     .guarantee = SL_CONSERVATIVE,
     .config_size = sizeof(vfc_config),
     .configure = vfc_configure,
-    .create = vfc_create,
+    .create_with = vfc_create,
     .cull = vfc_cull,
     .scene_changed = vfc_scene_changed,
     .destroy = vfc_destroy,

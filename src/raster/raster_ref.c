@@ -246,10 +246,39 @@ static inline bool depth_plane(double x0, double y0, double z0, double x1, doubl
     return true;
 }
 
+/* Counting mode (sl_refrast_mesh_count); NULL when drawing as the oracle does. */
+typedef struct count_ctx {
+    bool test_only;
+    uint64_t passed;
+} count_ctx;
+
+/* One row's span [lo, hi] in counting mode: the same depths as the drawing loop below, each
+ * fragment at least as near as the stored depth counted, and stored unless test_only. Kept apart
+ * so the oracle's loop is unchanged. */
+static void count_span(uint32_t *ids, float *depth, int64_t lo, int64_t hi, double zrow, double dzdx, double zlo,
+                       double zhi, uint32_t id, count_ctx *cc)
+{
+    const bool test_only = cc->test_only;
+    uint64_t n = 0;
+    for (int64_t x = lo; x <= hi; x++) {
+        double z = zrow + dzdx * ((double)x + 0.5);
+        z = z < zlo ? zlo : z > zhi ? zhi : z;
+        float zf = (float)z;
+        if (zf >= depth[x]) {
+            n++;
+            if (!test_only && (zf > depth[x] || id < ids[x])) {
+                depth[x] = zf;
+                ids[x] = id;
+            }
+        }
+    }
+    cc->passed += n;
+}
+
 /* Draw one triangle into the target's rows: coverage from the snapped positions, depth from the
  * exact ones (so snapping moves edges by at most 1/512 pixel but never tilts the depth). */
 static void draw_triangle(const sl_refrast_target *t, const svert *v0, const svert *v1, const svert *v2, uint32_t id,
-                          sl_refrast_cull cull)
+                          sl_refrast_cull cull, count_ctx *cc)
 {
     int32_t X0 = v0->X, Y0 = v0->Y, X1 = v1->X, Y1 = v1->Y, X2 = v2->X, Y2 = v2->Y;
     int64_t area = ((int64_t)X1 - X0) * ((int64_t)Y2 - Y0) - ((int64_t)Y1 - Y0) * ((int64_t)X2 - X0);
@@ -303,6 +332,10 @@ static void draw_triangle(const sl_refrast_target *t, const svert *v0, const sve
         if (t->overdraw)
             for (int64_t x = lo; x <= hi; x++)
                 t->overdraw[row + (size_t)x]++;
+        if (cc) {
+            count_span(ids, depth, lo, hi, zrow, dzdx, zlo, zhi, id, cc);
+            continue;
+        }
         for (int64_t x = lo; x <= hi; x++) {
             double z = zrow + dzdx * ((double)x + 0.5);
             z = z < zlo ? zlo : z > zhi ? zhi : z;
@@ -343,7 +376,7 @@ static int clip_polygon(const double (*in)[4], int n, double (*out)[4], int p, d
 /* Clip a triangle that straddles some planes (code = union of its vertex outcodes), then draw
  * the resulting convex polygon as a fan. */
 static void draw_clipped(const sl_refrast_target *t, const double *c0, const double *c1, const double *c2, uint8_t code,
-                         uint32_t id, sl_refrast_cull cull)
+                         uint32_t id, sl_refrast_cull cull, count_ctx *cc)
 {
     double buf[2][MAX_POLY][4];
     int n = 3, cur = 0;
@@ -363,12 +396,12 @@ static void draw_clipped(const sl_refrast_target *t, const double *c0, const dou
         if (!project(t, buf[cur][i], &v[i]))
             return;
     for (int i = 1; i + 1 < n; i++)
-        draw_triangle(t, &v[0], &v[i], &v[i + 1], id, cull);
+        draw_triangle(t, &v[0], &v[i], &v[i + 1], id, cull, cc);
 }
 
-void sl_refrast_mesh(const sl_refrast_target *t, sl_refrast_scratch *s, const double m[16], const float *positions,
+static void mesh(const sl_refrast_target *t, sl_refrast_scratch *s, const double m[16], const float *positions,
                     uint32_t vertex_count, const uint32_t *indices, uint32_t triangle_count, uint32_t id,
-                    sl_refrast_cull cull)
+                    sl_refrast_cull cull, count_ctx *count)
 {
     /* transform every vertex once; snap the ones that need no clipping */
     for (uint32_t v = 0; v < vertex_count; v++) {
@@ -387,9 +420,25 @@ void sl_refrast_mesh(const sl_refrast_target *t, sl_refrast_scratch *s, const do
         if (ca & cb & cc)
             continue; /* all three outside one plane */
         if ((ca | cb | cc) == 0)
-            draw_triangle(t, &s->screen[a], &s->screen[b], &s->screen[c], id, cull);
+            draw_triangle(t, &s->screen[a], &s->screen[b], &s->screen[c], id, cull, count);
         else
             draw_clipped(t, s->clip + 4 * (size_t)a, s->clip + 4 * (size_t)b, s->clip + 4 * (size_t)c, ca | cb | cc,
-                         id, cull);
+                         id, cull, count);
     }
+}
+
+void sl_refrast_mesh(const sl_refrast_target *t, sl_refrast_scratch *s, const double m[16], const float *positions,
+                    uint32_t vertex_count, const uint32_t *indices, uint32_t triangle_count, uint32_t id,
+                    sl_refrast_cull cull)
+{
+    mesh(t, s, m, positions, vertex_count, indices, triangle_count, id, cull, NULL);
+}
+
+uint64_t sl_refrast_mesh_count(const sl_refrast_target *t, sl_refrast_scratch *s, const double m[16],
+                               const float *positions, uint32_t vertex_count, const uint32_t *indices,
+                               uint32_t triangle_count, uint32_t id, sl_refrast_cull cull, bool test_only)
+{
+    count_ctx counted = {test_only, 0};
+    mesh(t, s, m, positions, vertex_count, indices, triangle_count, id, cull, &counted);
+    return counted.passed;
 }

@@ -83,4 +83,14 @@ void sl_refrast_mesh(const sl_refrast_target *t, sl_refrast_scratch *s, const do
                     uint32_t vertex_count, const uint32_t *indices, uint32_t triangle_count, uint32_t id,
                     sl_refrast_cull cull);
 
+/* The same with the fragments counted (the CPU draw backend's occlusion queries, cull/backend_cpu.c):
+ * returns the number of fragments at least as near as the depth stored where they fall (zf >=
+ * depth, before the fragment's own write), every triangle's fragments counted (an overlap counts
+ * twice, as GL_SAMPLES_PASSED does with one sample per pixel and glDepthFunc(GL_LEQUAL) in the
+ * standard depth order). test_only: nothing is written (a query draw, depth writes off); else
+ * fragments are stored by the rule above, exactly as sl_refrast_mesh stores them. */
+uint64_t sl_refrast_mesh_count(const sl_refrast_target *t, sl_refrast_scratch *s, const double m[16],
+                               const float *positions, uint32_t vertex_count, const uint32_t *indices,
+                               uint32_t triangle_count, uint32_t id, sl_refrast_cull cull, bool test_only);
+
 #endif

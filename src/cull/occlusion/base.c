@@ -8,7 +8,8 @@ static size_t at_least_one(size_t n) { return n ? n : 1; }
 void sl_occ_base_free(sl_occ_base *b)
 {
     const sl_allocator *a = &b->alloc;
-    sl_bvh_destroy(b->bvh);
+    if (b->bvh_owned)
+        sl_bvh_destroy(b->bvh);
     sl_occ_set_destroy(b->occ);
     sl_free(a, b->node_area, at_least_one(b->node_slots) * sizeof(float));
     sl_free(a, b->heap, at_least_one(b->pick_cap) * sizeof(sl_occ_pick));
@@ -36,19 +37,17 @@ static sl_status base_node_areas(sl_occ_base *b, sl_error *err)
 }
 
 sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, const sl_occ_common *c, bool faces,
-                           uint32_t mesh_faces, bool select, const sl_allocator *alloc, sl_error *err)
+                           uint32_t mesh_faces, bool select, const sl_cull_extras *extras, const sl_allocator *alloc,
+                           sl_error *err)
 {
     memset(b, 0, sizeof *b);
     b->alloc = *alloc;
     b->scene = scene;
     b->method = method;
     b->object_count = sl_scene_object_count(scene);
-    sl_bvh_options bo = {0};
-    bo.max_leaf_size = c->leaf_size;
-    bo.alloc = alloc;
     /* res=any draws prisms face by face (render_prism_eroded): their vertices are kept */
     sl_occ_options oo = {c->inset, c->all_objects, faces || c->res_any, mesh_faces, c->res_any && !c->inner_faces};
-    sl_status st = sl_bvh_build(scene, &bo, &b->bvh, err);
+    sl_status st = sl_cull_object_bvh(scene, extras, c->leaf_size, alloc, &b->bvh, &b->bvh_owned, err);
     if (st == SL_OK)
         st = sl_occ_set_create(scene, &oo, alloc, &b->occ, err);
     if (st == SL_OK) {
@@ -75,8 +74,9 @@ sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, c
 
 sl_status sl_occ_base_scene_changed(sl_occ_base *b, sl_error *err)
 {
-    sl_status st = sl_bvh_refit(b->bvh, b->scene, err);
-    if (st == SL_OK)
+    /* a shared tree is refitted by the handle's owner before this (accel.h) */
+    sl_status st = b->bvh_owned ? sl_bvh_refit(b->bvh, b->scene, err) : SL_OK;
+    if (st == SL_OK && b->bvh_owned)
         st = sl_bvh_rebuild_if_degraded(b->bvh, b->scene, 0, NULL, err);
     if (st == SL_OK)
         st = base_node_areas(b, err);

@@ -18,6 +18,7 @@ typedef struct sl_occ_base {
     sl_scene scene;
     const char *method;       /* static name, for error messages */
     sl_bvh bvh;
+    bool bvh_owned;           /* false: the shared handle's tree (sl_cull_extras.accel), not refitted here */
     sl_occ_set *occ;
     float *node_area;         /* per BVH node slot (sl_occ_node_areas); NULL unless selecting */
     uint32_t node_slots;
@@ -28,14 +29,16 @@ typedef struct sl_occ_base {
     uint32_t *sort_scratch;   /* object_count entries */
 } sl_occ_base;
 
-/* Build the BVH (c->leaf_size) and the proxies (c->inset, c->all_objects, faces/mesh_faces as
- * given); when `select`, also the node areas and the buffers for c->occluders picks. On failure
- * everything built is freed and the error is prefixed with `method`. */
+/* Build the BVH (c->leaf_size; the shared handle's when extras has one, sl_cull_object_bvh) and
+ * the proxies (c->inset, c->all_objects, faces/mesh_faces as given); when `select`, also the node
+ * areas and the buffers for c->occluders picks. extras may be NULL. On failure everything built is
+ * freed and the error is prefixed with `method`. */
 sl_status sl_occ_base_init(sl_occ_base *b, sl_scene scene, const char *method, const sl_occ_common *c, bool faces,
-                           uint32_t mesh_faces, bool select, const sl_allocator *alloc, sl_error *err);
+                           uint32_t mesh_faces, bool select, const sl_cull_extras *extras, const sl_allocator *alloc,
+                           sl_error *err);
 void sl_occ_base_free(sl_occ_base *b);
-/* Objects moved: refit the BVH (rebuilt when the refit degrades it), refresh the node areas and
- * disable the prisms of moved objects. */
+/* Objects moved: refit the BVH (rebuilt when the refit degrades it; a shared tree is left to its
+ * owner, accel.h), refresh the node areas and disable the prisms of moved objects. */
 sl_status sl_occ_base_scene_changed(sl_occ_base *b, sl_error *err);
 /* Choose the frame's occluders (sl_occ_select with c's count, budget and min_quality) into
  * b->picks and b->pick_ids, nearest first; returns their number. */
