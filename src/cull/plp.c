@@ -373,7 +373,7 @@ static void collect_object(member_ctx *m, uint32_t o, bool by_box)
             sl_aabb_grow(&tb, sl_affine_point(xf, (sl_vec3){p[0], p[1], p[2]}));
         }
         /* grow by the rounding of the transform */
-        float g = 1e-6f * (fabsf(tb.min.x) + fabsf(tb.min.y) + fabsf(tb.min.z) + fabsf(tb.max.x) + fabsf(tb.max.y) +
+        float g = SL_MARGIN_XFORM_REL_F * (fabsf(tb.min.x) + fabsf(tb.min.y) + fabsf(tb.min.z) + fabsf(tb.max.x) + fabsf(tb.max.y) +
                            fabsf(tb.max.z) + 1.0f);
         tb.min.x -= g, tb.min.y -= g, tb.min.z -= g, tb.max.x += g, tb.max.y += g, tb.max.z += g;
         each_leaf(s, &tb, add_member, m);
