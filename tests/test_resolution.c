@@ -31,6 +31,7 @@
 
 #include "../bench/near_wall_views.h"
 #include "support/box_mesh.h"
+#include "support/city_views.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -168,15 +169,10 @@ static void test_every_resolution(void **state)
     const uint32_t W = 192, H = 144;
     sl_error err;
     {
-        sl_city_options co = sl_city_defaults(SL_CITY_SMALL);
         sl_scene s;
-        assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
         uint32_t nv = sanitized() ? 6 : 40;
-        sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-        po.intrinsics.width = W;
-        po.intrinsics.height = H;
         sl_path p;
-        assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, nv, 1313, &po, NULL, &p, &err), SL_OK);
+        assert_int_equal(sl_test_city_views(SL_CITY_SMALL, nv, 1313, W, H, &s, &p, &err), SL_OK);
         sl_camera *cams = malloc(nv * sizeof *cams);
         for (uint32_t f = 0; f < nv; f++)
             cams[f] = sl_path_camera(p, f);
@@ -225,15 +221,10 @@ static void test_every_resolution(void **state)
 static void test_oracle_samples(void **state)
 {
     (void)state;
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
     sl_scene s;
     sl_error err;
-    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 80;
-    po.intrinsics.height = 60;
     sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 4, 5, &po, NULL, &p, &err), SL_OK);
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 4, 5, 80, 60, &s, &p, &err), SL_OK);
     sl_oracle_options om = sl_oracle_default_options(), o4 = om, oj = om, oc = om;
     om.samples = SL_ORACLE_SAMPLES_MSAA4;
     o4.width = 320;
