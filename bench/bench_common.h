@@ -1,12 +1,17 @@
 /* Pieces every bench program shares: the machine line printed with each table (the CPU model from
- * /proc/cpuinfo, the core count, the load average) and medians and percentiles of a sample.
+ * /proc/cpuinfo, the core count, the load average), medians and percentiles of a sample, the exit
+ * on a fatal error and the --methods list (name[:key=value...] specs).
  *
  * Header-only on purpose: CMake builds every .c file of bench/ as a program of its own, so the shared code
  * lives here as static inline functions, written once. */
 #ifndef SL_BENCH_COMMON_H
 #define SL_BENCH_COMMON_H
 
+#include "sightline/cull.h"
+
 #include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -70,6 +75,70 @@ static inline double bench_median(double *v, size_t n)
         return 0;
     qsort(v, n, sizeof *v, bench_cmp_double);
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* "PROG: WHAT[: the error's message]" on stderr, exit status 2. */
+static inline void bench_die(const char *prog, const char *what, const sl_error *err)
+{
+    fprintf(stderr, "%s: %s%s%s\n", prog, what, err ? ": " : "", err ? err->message : "");
+    exit(2);
+}
+
+/* One method of a --methods list. */
+typedef struct bench_method_spec {
+    char spec[256];  /* as given */
+    char name[64];   /* the registry name */
+    char opts[320];  /* key=value,... for sl_culler_create */
+    bool threaded;   /* takes threads= (and got threads=T unless the spec set its own) */
+} bench_method_spec;
+
+/* "name[:key=value[:key=value...]]" (the list itself is comma-separated, so options are separated
+ * by colons here) into m; with threads > 0 the options get threads=T where the method takes it.
+ * edit (may be NULL) rewrites the options (comma-separated, in place) before they are checked.
+ * Options the method refuses: bench_die. */
+static inline void bench_method_parse(const char *prog, const char *spec, uint32_t threads, void (*edit)(char *opts),
+                                      bench_method_spec *m)
+{
+    memset(m, 0, sizeof *m);
+    snprintf(m->spec, sizeof m->spec, "%s", spec);
+    const char *colon = strchr(spec, ':');
+    size_t nl = colon ? (size_t)(colon - spec) : strlen(spec);
+    snprintf(m->name, sizeof m->name, "%.*s", (int)nl, spec);
+    char ob[256];
+    snprintf(ob, sizeof ob, "%s", colon ? colon + 1 : "");
+    for (char *c = ob; *c; c++)
+        if (*c == ':')
+            *c = ',';
+    if (edit)
+        edit(ob);
+    char probe[290];
+    if (strstr(ob, "threads=") || threads == 0)
+        snprintf(probe, sizeof probe, "%s", ob); /* the spec sets its own thread count */
+    else
+        snprintf(probe, sizeof probe, "threads=%u%s%s", threads, *ob ? "," : "", ob);
+    sl_error err;
+    m->threaded = sl_cull_method_check_options(m->name, probe, &err) == SL_OK;
+    snprintf(m->opts, sizeof m->opts, "%s", m->threaded ? probe : ob);
+    if (!m->threaded && sl_cull_method_check_options(m->name, m->opts, &err) != SL_OK)
+        bench_die(prog, spec, &err);
+}
+
+/* The comma-separated list (NULL: the nd defaults) into out[0..max); returns how many. */
+static inline uint32_t bench_methods_parse(const char *prog, const char *list, const char *const *defaults, size_t nd,
+                                           uint32_t threads, void (*edit)(char *opts), bench_method_spec *out,
+                                           uint32_t max)
+{
+    uint32_t n = 0;
+    if (list) {
+        char buf[1024];
+        snprintf(buf, sizeof buf, "%s", list);
+        for (char *t = strtok(buf, ","); t && n < max; t = strtok(NULL, ","))
+            bench_method_parse(prog, t, threads, edit, &out[n++]);
+    } else {
+        for (size_t i = 0; i < nd && n < max; i++)
+            bench_method_parse(prog, defaults[i], threads, edit, &out[n++]);
+    }
+    return n;
 }
 
 #endif

@@ -13,6 +13,7 @@
 #ifndef SL_BENCH_NEAR_WALL_VIEWS_H
 #define SL_BENCH_NEAR_WALL_VIEWS_H
 
+#include "core/dvec3.h"
 #include "sightline/camera.h"
 #include "sightline/scene.h"
 
@@ -43,13 +44,6 @@ typedef struct nw_table {
     double *cum;              /* cumulative area up to and including entry i */
 } nw_table;
 
-static inline sl_vec3 nw_sub(sl_vec3 a, sl_vec3 b) { return (sl_vec3){a.x - b.x, a.y - b.y, a.z - b.z}; }
-static inline sl_vec3 nw_cross(sl_vec3 a, sl_vec3 b)
-{
-    return (sl_vec3){a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-static inline double nw_len(sl_vec3 a) { return sqrt((double)a.x * a.x + (double)a.y * a.y + (double)a.z * a.z); }
-
 static inline void nw_corners(sl_scene s, uint32_t object, uint32_t t, sl_vec3 p[3])
 {
     sl_object_view ov = sl_scene_object(s, object);
@@ -79,7 +73,7 @@ static inline bool nw_table_build(sl_scene s, nw_table *tb)
         for (uint32_t t = 0; t < tc; t++) {
             sl_vec3 p[3];
             nw_corners(s, i, t, p);
-            double a = 0.5 * nw_len(nw_cross(nw_sub(p[1], p[0]), nw_sub(p[2], p[0])));
+            double a = 0.5 * sl_v3_len(sl_v3_cross(sl_v3_sub(p[1], p[0]), sl_v3_sub(p[2], p[0])));
             if (!(a > 1e-6) || !isfinite(a))
                 continue;
             acc += a;
@@ -121,8 +115,8 @@ static inline double nw_view(sl_scene s, const nw_table *tb, nw_rng *r, const sl
         }
         sl_vec3 p[3];
         nw_corners(s, tb->object[lo], tb->tri[lo], p);
-        sl_vec3 nv = nw_cross(nw_sub(p[1], p[0]), nw_sub(p[2], p[0]));
-        double nl = nw_len(nv);
+        sl_vec3 nv = sl_v3_cross(sl_v3_sub(p[1], p[0]), sl_v3_sub(p[2], p[0]));
+        double nl = sl_v3_len(nv);
         if (!(nl > 0))
             continue;
         double n[3] = {nv.x / nl, nv.y / nl, nv.z / nl};

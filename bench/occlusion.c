@@ -46,44 +46,9 @@ static const char *const g_default_methods[] = {
     /* each method alone: the shared hidden-object test (mesh_test, sample_tris) off */
     "hzb:shared=false", "lazygrid:shared=false", "lazygrid-z:shared=false", "busygrid:shared=false"};
 
-typedef struct method {
-    char spec[256];
-    char name[64];
-    char opts[320];
-    bool raster;                /* takes threads= */
-} method;
+typedef bench_method_spec method;
 
-static void die(const char *what, const sl_error *err)
-{
-    fprintf(stderr, "bench_occlusion: %s%s%s\n", what, err ? ": " : "", err ? err->message : "");
-    exit(2);
-}
-
-/* "name[:key=value[:key=value...]]" into a method (the list itself is comma-separated, so options
- * are separated by colons here); options get threads=T when the method has a rasterizer. */
-static void parse_method(const char *spec, uint32_t threads, method *m)
-{
-    snprintf(m->spec, sizeof m->spec, "%s", spec);
-    const char *colon = strchr(spec, ':');
-    size_t nl = colon ? (size_t)(colon - spec) : strlen(spec);
-    snprintf(m->name, sizeof m->name, "%.*s", (int)nl, spec);
-    char ob[256];
-    snprintf(ob, sizeof ob, "%s", colon ? colon + 1 : "");
-    for (char *c = ob; *c; c++)
-        if (*c == ':')
-            *c = ',';
-    const char *o = ob;
-    char probe[290];
-    if (strstr(o, "threads="))
-        snprintf(probe, sizeof probe, "%s", o); /* the spec sets its own thread count */
-    else
-        snprintf(probe, sizeof probe, "threads=%u%s%s", threads, *o ? "," : "", o);
-    sl_error err;
-    m->raster = sl_cull_method_check_options(m->name, probe, &err) == SL_OK;
-    snprintf(m->opts, sizeof m->opts, "%s", m->raster ? probe : o);
-    if (!m->raster && sl_cull_method_check_options(m->name, m->opts, &err) != SL_OK)
-        die(spec, &err);
-}
+static void die(const char *what, const sl_error *err) { bench_die("bench_occlusion", what, err); }
 
 static sl_scene make_city(const char *preset)
 {
@@ -215,16 +180,8 @@ int main(int argc, char **argv)
     if (frames < 1 || repeat < 1 || width < 1 || height < 1 || threads < 1 || threads > 16 || !(fps > 0))
         die("bad numeric option", NULL);
     method methods[MAX_METHODS];
-    uint32_t nm = 0;
-    if (list) {
-        char buf[1024];
-        snprintf(buf, sizeof buf, "%s", list);
-        for (char *t = strtok(buf, ","); t && nm < MAX_METHODS; t = strtok(NULL, ","))
-            parse_method(t, threads, &methods[nm++]);
-    } else {
-        for (size_t i = 0; i < SL_COUNTOF(g_default_methods); i++)
-            parse_method(g_default_methods[i], threads, &methods[nm++]);
-    }
+    uint32_t nm = bench_methods_parse("bench_occlusion", list, g_default_methods, SL_COUNTOF(g_default_methods), threads,
+                                      NULL, methods, MAX_METHODS);
     sl_error err;
     printf("# bench_occlusion\n\n");
     /* ---- 1. walkthrough ---- */

@@ -49,25 +49,11 @@ typedef struct method {
     double round_ms[64];
 } method;
 
-static void die(const char *what, const sl_error *err)
-{
-    fprintf(stderr, "bench_resolution: %s%s%s\n", what, err ? ": " : "", err ? err->message : "");
-    exit(2);
-}
+static void die(const char *what, const sl_error *err) { bench_die("bench_resolution", what, err); }
 
-/* "name[:key=value...]" -> name and "key=value,..."; threads=T added where the method takes it. */
-static void parse_method(const char *spec, uint32_t threads, method *m)
+/* The options of a method spec, as this build takes them. */
+static void edit_opts(char *ob)
 {
-    memset(m, 0, sizeof *m);
-    snprintf(m->spec, sizeof m->spec, "%s", spec);
-    const char *colon = strchr(spec, ':');
-    size_t nl = colon ? (size_t)(colon - spec) : strlen(spec);
-    snprintf(m->name, sizeof m->name, "%.*s", (int)nl, spec);
-    char ob[256];
-    snprintf(ob, sizeof ob, "%s", colon ? colon + 1 : "");
-    for (char *c = ob; *c; c++)
-        if (*c == ':')
-            *c = ',';
 #ifndef SL_ORACLE_MAX_SAMPLES
     /* built against a tree from before res= (to compare sets and times): its only mode is today's
      * res=culling */
@@ -79,19 +65,9 @@ static void parse_method(const char *spec, uint32_t threads, method *m)
         if (e && ob[e - 1] == ',')
             ob[e - 1] = 0;
     }
+#else
+    (void)ob;
 #endif
-    char probe[290];
-    if (strstr(ob, "threads=") || threads == 0)
-        snprintf(probe, sizeof probe, "%s", ob);
-    else
-        snprintf(probe, sizeof probe, "threads=%u%s%s", threads, *ob ? "," : "", ob);
-    sl_error err;
-    if (sl_cull_method_check_options(m->name, probe, &err) == SL_OK)
-        snprintf(m->opts, sizeof m->opts, "%s", probe);
-    else if (sl_cull_method_check_options(m->name, ob, &err) == SL_OK)
-        snprintf(m->opts, sizeof m->opts, "%s", ob);
-    else
-        die(spec, &err);
 }
 
 static uint64_t fnv(uint64_t h, const uint32_t *ids, uint32_t n)
@@ -177,15 +153,16 @@ int main(int argc, char **argv)
     bool centre = true;
 #endif
     method *ms = calloc(MAX_METHODS, sizeof *ms);
-    uint32_t nm = 0;
-    if (list) {
-        char buf[1024];
-        snprintf(buf, sizeof buf, "%s", list);
-        for (char *t = strtok(buf, ","); t && nm < MAX_METHODS; t = strtok(NULL, ","))
-            parse_method(t, threads, &ms[nm++]);
-    } else {
-        for (size_t i = 0; i < SL_COUNTOF(g_default_methods); i++)
-            parse_method(g_default_methods[i], threads, &ms[nm++]);
+    bench_method_spec specs[MAX_METHODS];
+    uint32_t nm = bench_methods_parse("bench_resolution", list, g_default_methods, SL_COUNTOF(g_default_methods),
+                                      threads, edit_opts, specs, MAX_METHODS);
+    _Static_assert(sizeof ms->spec == sizeof specs->spec && sizeof ms->name == sizeof specs->name &&
+                       sizeof ms->opts == sizeof specs->opts,
+                   "method and bench_method_spec hold the same strings");
+    for (uint32_t i = 0; i < nm; i++) {
+        memcpy(ms[i].spec, specs[i].spec, sizeof ms[i].spec);
+        memcpy(ms[i].name, specs[i].name, sizeof ms[i].name);
+        memcpy(ms[i].opts, specs[i].opts, sizeof ms[i].opts);
     }
     sl_error err;
     sl_city_preset p;

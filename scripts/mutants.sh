@@ -33,6 +33,7 @@ mutants=(
   'plp-no-budget@@src/cull/plp.c@@s/while \(s->heap_n && f\.tris < s->cfg\.c\.budget\)/while (s->heap_n)/@@test_method_own test_occlusion'
   'cplp-visible@@src/cull/plp.c@@s/return sl_occ_raster_test\(&f->s->r, r\.x0, r\.y0, r\.x1, r\.y1, r\.dnear\) == SL_RASTER_VISIBLE;/return true;/@@test_method_own test_occlusion'
   'cplp-hidden@@src/cull/plp.c@@s/return sl_occ_raster_test\(&f->s->r, r\.x0, r\.y0, r\.x1, r\.y1, r\.dnear\) == SL_RASTER_VISIBLE;/return false;/@@test_method_own test_occlusion test_occlusion_oracle'
+  'hole-facing-ignored@@src/cull/occlusion/inner_coverage.c@@s/ok = !hull_facing\(v, nrm, a\);/ok = true || !hull_facing(v, nrm, a);/@@test_resolution'
   'occluder-skipped@@src/cull/occlusion/raster.c@@s/(uint32_t sl_occ_raster_render\([^)]*\)\n\{\n)/$1    if (n) return 0;\n/@@test_method_own test_occlusion'
   'cullmap-visible@@src/cull/cullmap.c@@s/if \(czrow\[bi\] >= ctrow\[bi\]\) \{/if (0 \&\& czrow[bi] >= ctrow[bi]) {/; s/if \(!\(g->max_z\[c\] > zc\)\)/if (0 \&\& !(g->max_z[c] > zc))/; s/\|\| !\(u->boxes\[o\]\.max\.z > zc\)\)/|| (0 \&\& !(u->boxes[o].max.z > zc)))/@@test_method_own test_cullmap'
   'cullmap-hidden@@src/cull/cullmap.c@@s/\|\| !\(u->boxes\[o\]\.max\.z > zc\)\)/|| 1 || !(u->boxes[o].max.z > zc))/@@test_method_own test_cullmap test_urban_oracle'

@@ -1,8 +1,8 @@
-/* The shared double-vector kit and ray-triangle test (src/core/dvec3.h), which the occluder
- * shrinker's and the view cells' point-in-mesh parity tests, the GVS tests, the camera and the city
- * generator use: hits inside, on an edge and at a vertex count, from either face; misses beside,
- * behind the origin and parallel to the plane do not; the parity of a closed box tells inside from
- * outside. */
+/* The shared vector kit and ray-triangle test (src/core/dvec3.h), which the occluder shrinker's and
+ * the view cells' point-in-mesh parity tests, the GVS tests, the camera, the city generator (3- and
+ * 2-vectors) and the near-wall views (float 3-vectors) use: hits inside, on an edge and at a vertex
+ * count, from either face; misses beside, behind the origin and parallel to the plane do not; the
+ * parity of a closed box tells inside from outside; the kit's functions give the textbook values. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -88,6 +88,22 @@ static void test_kit(void **state)
     assert_true(f.x == 0.5f && f.y == 1 && f.z == 2);
     const double arr[3] = {7, 8, 9};
     assert_true(sl_d3_of_array(arr).y == 8);
+    /* 2-vectors (the city generator's plan geometry) */
+    sl_dvec2 p = sl_d2(3, -4), q = sl_d2(1, 2);
+    assert_true(sl_d2_len(p) == 5 && sl_d2_dot(p, q) == 3 - 8 && sl_d2_cross(p, q) == 3 * 2 - -4 * 1);
+    assert_true(sl_d2_cross(sl_d2(1, 0), sl_d2(0, 1)) > 0); /* counter-clockwise */
+    sl_dvec2 d = sl_d2_sub(sl_d2_add(p, q), q), m = sl_d2_lerp(p, q, 0.25), l = sl_d2_left(sl_d2(1, 0));
+    assert_true(d.x == p.x && d.y == p.y && m.x == 2.5 && m.y == -2.5 && l.x == 0 && l.y == 1);
+    sl_dvec2 n = sl_d2_unit(sl_d2_scale(p, 2)), n0 = sl_d2_unit(sl_d2(0, 0));
+    assert_true(fabs(n.x - 0.6) < 1e-15 && fabs(n.y + 0.8) < 1e-15 && n0.x == 0 && n0.y == 0);
+    sl_dvec3 h = sl_d3_of_d2(q, 7);
+    assert_true(h.x == 1 && h.y == 2 && h.z == 7);
+    /* float 3-vectors: in float, the length in double */
+    sl_vec3 fa = {1, 2, 3}, fb = {-4, 5, 0.5f}, fc = sl_v3_cross(fa, fb), fd = sl_v3_sub(fa, fb);
+    assert_true(fc.x == 2 * 0.5f - 3 * 5 && fc.y == 3 * -4 - 1 * 0.5f && fc.z == 1 * 5 - 2 * -4);
+    assert_true(fd.x == 5 && fd.y == -3 && fd.z == 2.5f);
+    assert_true(sl_v3_len((sl_vec3){3, 4, 12}) == 13);
+    assert_true(sl_v3_len((sl_vec3){3e30f, 4e30f, 0}) > 4.9e30); /* no float overflow */
 }
 
 int main(void)

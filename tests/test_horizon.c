@@ -270,7 +270,9 @@ static void test_near_and_inside(void **state)
     sl_scene_destroy(s);
 }
 
-/* dhorizon along a fast drive, every frame against the oracle, with its guard and without. */
+/* dhorizon along a slow and a fast drive, every frame against the oracle, with its guard and
+ * without: no misses; the frames that restart from the last frontier are those the guard allows,
+ * and the delta-H rule skips nodes on those frames only. */
 static void test_dhorizon_fast(void **state)
 {
     (void)state;
@@ -289,10 +291,12 @@ static void test_dhorizon_fast(void **state)
     assert_int_equal(sl_oracle_create(s, &oo, NULL, &o, &err), SL_OK);
     uint32_t n = sl_scene_object_count(s), *ids = malloc(n * sizeof *ids), cnt;
     const float speeds[2] = {14, 150}; /* about 0.5 and 5 m per frame at 30 fps */
-    uint64_t skipped = 0, frames_checked = 0;
+    uint64_t skipped[3] = {0}, frames_checked = 0;
+    const uint32_t frames = san ? 40 : 150;
+    uint32_t delta_frames[2][3] = {{0}};
     for (int sp = 0; sp < 2; sp++) {
         sl_path_options po = sl_path_options_default(SL_PATH_DRIVE);
-        po.frames = san ? 40 : 150;
+        po.frames = frames;
         po.speed = speeds[sp];
         po.seed = 3 + (uint64_t)sp;
         sl_path p;
@@ -315,14 +319,33 @@ static void test_dhorizon_fast(void **state)
                 assert_int_equal(m.missed_count, 0);
                 sl_cull_stats st;
                 sl_culler_stats(c[k], &st);
-                skipped += st.queries;
+                bool delta = false;
+                for (uint32_t q = 0; q < st.phase_count; q++)
+                    delta |= strcmp(st.phase_names[q], "sweep-delta") == 0;
+                /* the delta-H rule skips nodes on delta frames only */
+                if (!delta)
+                    assert_int_equal(st.queries, 0);
+                skipped[k] += st.queries;
+                delta_frames[sp][k] += delta;
             }
             frames_checked++;
         }
         sl_path_destroy(p);
     }
+    fprintf(stderr, "dhorizon fast drives: delta frames %u %u %u (slow), %u %u %u (fast) of %u each; nodes skipped %llu %llu %llu\n",
+            delta_frames[0][0], delta_frames[0][1], delta_frames[0][2], delta_frames[1][0], delta_frames[1][1],
+            delta_frames[1][2], frames, (unsigned long long)skipped[0], (unsigned long long)skipped[1],
+            (unsigned long long)skipped[2]);
     assert_true(frames_checked > 0);
-    (void)skipped;
+    /* without the guard every frame but the very first restarts from the frontier (the second
+     * drive's first frame too: max_move = 10 km spans the city); with it the 0.5 m frames mostly
+     * do and the 5 m frames (beyond max_move = 4 m) never */
+    for (int k = 1; k < 3; k++) {
+        assert_int_equal(delta_frames[0][k], frames - 1);
+        assert_int_equal(delta_frames[1][k], frames);
+    }
+    assert_true(delta_frames[0][0] > frames / 2);
+    assert_int_equal(delta_frames[1][0], 0);
     free(ids);
     sl_oracle_destroy(o);
     for (int k = 0; k < 3; k++)

@@ -40,6 +40,7 @@
 #include "sightline/truth.h"
 
 #include "../bench/near_wall_views.h"
+#include "support/city_views.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -580,16 +581,11 @@ static void test_pvs_union(void **state)
 static void test_near_plane_limit(void **state)
 {
     (void)state;
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
     sl_scene s;
     sl_error err;
-    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 160;
-    po.intrinsics.height = 120;
-    sl_path p;
     uint32_t views = sanitized() ? 4 : 30;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, views, 9, &po, NULL, &p, &err), SL_OK);
+    sl_path p;
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, views, 9, 160, 120, &s, &p, &err), SL_OK);
     uint32_t n = sl_scene_object_count(s), *out = malloc(n * sizeof *out), missed[4], mpx[4];
     sl_oracle o;
     assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
@@ -676,17 +672,11 @@ static void test_huge_far(void **state)
     static const float fars[] = {1e6f, 1e10f, 1e20f, 3e38f};
     uint64_t misses = 0;
     for (int city = 0; city < 2; city++) {
-        sl_city_options co = sl_city_defaults(city ? SL_CITY_SMALL : SL_CITY_TINY);
         sl_scene s;
         sl_error err;
-        assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-        sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-        po.intrinsics.width = 160;
-        po.intrinsics.height = 120;
-        sl_path p;
         uint32_t views = sanitized() ? 3 : 12;
-        assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, views, 31 + (uint64_t)city, &po, NULL, &p, &err),
-                         SL_OK);
+        sl_path p;
+        assert_int_equal(sl_test_city_views(city ? SL_CITY_SMALL : SL_CITY_TINY, views, 31 + (uint64_t)city, 160, 120, &s, &p, &err), SL_OK);
         uint32_t n = sl_scene_object_count(s), *out = malloc(n * sizeof *out), missed[4], mpx[4];
         sl_oracle o;
         assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);

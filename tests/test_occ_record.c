@@ -16,6 +16,7 @@
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
+#include "support/city_views.h"
 
 static void write_bytes(const char *path, const void *p, size_t n)
 {
@@ -28,15 +29,10 @@ static void write_bytes(const char *path, const void *p, size_t n)
 /* Record frame 1 of a short street walk through the tiny city with `method`. */
 static void record(const char *method, const char *rec)
 {
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
     sl_scene s;
     sl_error err;
-    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 320;
-    po.intrinsics.height = 240;
     sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 3, 8, &po, NULL, &p, &err), SL_OK);
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 3, 8, 320, 240, &s, &p, &err), SL_OK);
     char opts[400];
     snprintf(opts, sizeof opts, "record=%s,debug_frame=1", rec);
     sl_culler c;

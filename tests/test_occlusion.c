@@ -24,6 +24,7 @@
 #include "sightline/path.h"
 #include "sightline/truth.h"
 #include "support/counting_alloc.h"
+#include "support/city_views.h"
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 
@@ -758,15 +759,10 @@ static void test_options(void **state)
 static void test_no_allocation(void **state)
 {
     (void)state;
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
     sl_scene s;
     sl_error err;
-    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 256;
-    po.intrinsics.height = 192;
     sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 6, 3, &po, NULL, &p, &err), SL_OK);
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 6, 3, 256, 192, &s, &p, &err), SL_OK);
     uint32_t n = sl_scene_object_count(s), *out = malloc(n * sizeof *out);
     for (size_t i = 0; i < SL_COUNTOF(g_all); i++) {
         sl_test_counter cnt = {0};
@@ -836,16 +832,11 @@ static void test_degenerate_scenes(void **state)
 static void test_lazy_equals_busy(void **state)
 {
     (void)state;
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
     sl_scene s;
     sl_error err;
-    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 640;
-    po.intrinsics.height = 480;
-    sl_path p;
     uint32_t views = sanitized() ? 6 : 30;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, views, 5, &po, NULL, &p, &err), SL_OK);
+    sl_path p;
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, views, 5, 640, 480, &s, &p, &err), SL_OK);
     sl_culler lazy, busy;
     assert_int_equal(sl_culler_create("lazygrid", s, NULL, NULL, &lazy, &err), SL_OK);
     assert_int_equal(sl_culler_create("busygrid", s, NULL, NULL, &busy, &err), SL_OK);
@@ -907,15 +898,10 @@ static void reseal(uint8_t *bytes, size_t size)
 static void test_dump_record_replay(void **state)
 {
     (void)state;
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
     sl_scene s;
     sl_error err;
-    assert_int_equal(sl_gen_city(&co, NULL, &s, &err), SL_OK);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 320;
-    po.intrinsics.height = 240;
     sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, 3, 8, &po, NULL, &p, &err), SL_OK);
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 3, 8, 320, 240, &s, &p, &err), SL_OK);
     char dir[] = "/tmp/sl_occ_testXXXXXX";
     assert_non_null(mkdtemp(dir));
     static const char *const methods[] = {"hzb", "hom", "lazygrid-z", "cplp"};

@@ -13,6 +13,7 @@
 
 #include "core/sl_core.h"
 #include "sightline/pvs.h"
+#include "support/city_views.h"
 
 #define NCELL 200 /* seven blocks of 32, the last partial */
 #define NOBJ 3000
@@ -23,20 +24,11 @@ static uint64_t g_off[NCELL + 1];
 static uint32_t *g_ids;
 static sl_pvs g_pvs;
 
+/* NCELL unit cells in a row (tests/support/city_views.h) */
 static sl_viewcells make_cells(void)
 {
-    sl_viewcell c[NCELL];
-    memset(c, 0, sizeof c);
-    for (int i = 0; i < NCELL; i++) {
-        c[i].shape = SL_CELL_BOX;
-        c[i].cluster = -1;
-        c[i].z_min = 1;
-        c[i].z_max = 2;
-        c[i].bounds = (sl_aabb){{(float)i, 0, 1}, {(float)i + 1, 1, 2}};
-    }
-    sl_viewcells vc;
-    sl_error err;
-    assert_int_equal(sl_viewcells_create(c, NCELL, NULL, &vc, &err), SL_OK);
+    sl_viewcells vc = sl_test_row_cells(NCELL, NULL);
+    assert_non_null(vc);
     return vc;
 }
 

@@ -13,6 +13,7 @@
 #include "core/sl_core.h"
 #include "sightline/pvs.h"
 #include "support/counting_alloc.h"
+#include "support/city_views.h"
 
 #define NCELL 70  /* three blocks of 32, the last partial */
 #define NOBJ 1000
@@ -21,20 +22,11 @@ static char g_dir[256];
 
 static void path_of(char *buf, size_t n, const char *name) { snprintf(buf, n, "%s/%s", g_dir, name); }
 
+/* NCELL unit cells in a row (tests/support/city_views.h) */
 static sl_viewcells make_cells(const sl_allocator *a)
 {
-    sl_viewcell c[NCELL];
-    memset(c, 0, sizeof c);
-    for (int i = 0; i < NCELL; i++) {
-        c[i].shape = SL_CELL_BOX;
-        c[i].cluster = -1;
-        c[i].z_min = 1;
-        c[i].z_max = 2;
-        c[i].bounds = (sl_aabb){{(float)i, 0, 1}, {(float)i + 1, 1, 2}};
-    }
-    sl_viewcells vc;
-    sl_error err;
-    assert_int_equal(sl_viewcells_create(c, NCELL, a, &vc, &err), SL_OK);
+    sl_viewcells vc = sl_test_row_cells(NCELL, a);
+    assert_non_null(vc);
     return vc;
 }
 

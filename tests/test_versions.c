@@ -130,7 +130,7 @@ static void test_slscene(void **state)
                    "format version 2.0 is newer than this reader", "upgrade Sightline");
     wr32(h + 8, 0); /* before the first */
     expect_message(sl_scene_load_memory(h, sizeof h, "old.slscene", NULL, &s, &err), SL_ERROR_FORMAT, &err,
-                   "format version 0 does not exist", NULL);
+                   "format version 0.0 does not exist", NULL);
     assert_null(s);
 }
 

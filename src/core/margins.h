@@ -61,4 +61,38 @@ static inline float sl_margin_plane_slack(float d) { return SL_MARGIN_PLANE_REL_
  * frustum's, relative to each term since shadow planes are not normalised to |d|. */
 #define SL_MARGIN_SHADOW_REL 1e-6f
 
+/* Slack of a height, a slope or an elevation tangent compared against a horizon (1e-6 relative to
+ * 1 + |value|): the horizon stores float values (2^-24 relative) computed through a division and
+ * atan/tan in double; sixteen times the float rounding. A node is skipped or called hidden only
+ * when it clears the horizon by this. Users: sl_horizon_occluded (urban_common.c: the top raised,
+ * the bottom lowered by it) and dhorizon's skip test (sl_dhorizon_skip: last frame's bound and
+ * this frame's horizon). */
+#define SL_MARGIN_HEIGHT_REL 1e-6
+static inline double sl_margin_height_slack(double h) { return SL_MARGIN_HEIGHT_REL * (1.0 + fabs(h)); }
+
+/* Cell-mapping slack of a 2D grid, relative to 1 m + the magnitude of the coordinates (1e-6): a
+ * float point is mapped to its cell through a float subtraction of the origin and a division
+ * (a few 2^-24 of the magnitude), so a box is widened by this before its cells are listed. Users:
+ * the urban grid (urban_common.c: the absolute floor of u->margin, the eye-relative part of the
+ * frustum's cell spans) and the sample method's cull-map window (method_sample.c). */
+#define SL_MARGIN_GRID_REL 1e-6
+static inline double sl_margin_grid_slack(double mag) { return SL_MARGIN_GRID_REL * (1.0 + mag); }
+
+/* Growth of a box of transformed points (1e-6 relative to 1 + the sum of its coordinates'
+ * magnitudes): the affine transform rounds each coordinate by a few 2^-24 of the magnitudes in
+ * its dot products. Users: plp's per-triangle boxes (the cells a triangle is filed in). */
+#define SL_MARGIN_XFORM_REL_F 1e-6f
+
+/* The near region grown for float rounding (near_reach, near_depth of sl_occ_view_init; urban's
+ * near_guard of sl_urban_view_make): exact in double, then grown by a factor 1.001 (the float
+ * near-rectangle corners and the float matrix the renderer clips with) plus 1e-6 of the eye's
+ * |x|+|y|+|z| plus 1e-6 m. Those two functions still spell the numbers out (issue 13: the view
+ * rewrite moves them); new code uses these. */
+#define SL_MARGIN_NEAR_FACTOR 1.001
+#define SL_MARGIN_NEAR_EYE_REL 1e-6
+static inline double sl_margin_near_grow(double r, double eye_mag)
+{
+    return r * SL_MARGIN_NEAR_FACTOR + SL_MARGIN_NEAR_EYE_REL * eye_mag + SL_MARGIN_NEAR_EYE_REL;
+}
+
 #endif

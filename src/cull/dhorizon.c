@@ -120,17 +120,17 @@ bool sl_dhorizon_skip(sl_urban_sweep *s, const sl_urban_view *v, uint32_t id, do
     const sl_horizon *old = &s->hz[s->cur ^ 1], *cur = &s->hz[s->cur];
     double min_h, max_b;
     sl_horizon_range(cur, a0, span, &min_h, &max_b);
-    if (!(max_b <= lo - 1e-6 * (1 + fabs(lo))) || !(min_h > -INFINITY))
+    if (!(max_b <= lo - sl_margin_height_slack(lo)) || !(min_h > -INFINITY))
         return false;
     /* every point of the node was below last frame's horizon as it stood when the sweep reached it,
      * at most dmax + dh away then: bound that horizon over the widened azimuths, then add the
      * elevation change */
     double was = sl_horizon_max(old, ea0, espan);
     double need = was == -INFINITY ? -INFINITY : tan(sl_urban_min(atan(was) + db, M_PI_2));
-    if (!(min_h > need + 1e-6 * (1 + fabs(need)))) {
+    if (!(min_h > need + sl_margin_height_slack(need))) {
         was = sl_horizon_max_before(old, ea0, espan, dmax + dh, 512);
         need = was == -INFINITY ? -INFINITY : tan(sl_urban_min(atan(was) + db, M_PI_2));
-        if (!(min_h > need + 1e-6 * (1 + fabs(need))))
+        if (!(min_h > need + sl_margin_height_slack(need)))
             return false;
     }
     return true;

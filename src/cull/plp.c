@@ -377,7 +377,7 @@ static void collect_object(member_ctx *m, uint32_t o, bool by_box)
             sl_aabb_grow(&tb, sl_affine_point(xf, (sl_vec3){p[0], p[1], p[2]}));
         }
         /* grow by the rounding of the transform */
-        float g = 1e-6f * (fabsf(tb.min.x) + fabsf(tb.min.y) + fabsf(tb.min.z) + fabsf(tb.max.x) + fabsf(tb.max.y) +
+        float g = SL_MARGIN_XFORM_REL_F * (fabsf(tb.min.x) + fabsf(tb.min.y) + fabsf(tb.min.z) + fabsf(tb.max.x) + fabsf(tb.max.y) +
                            fabsf(tb.max.z) + 1.0f);
         tb.min.x -= g, tb.min.y -= g, tb.min.z -= g, tb.max.x += g, tb.max.y += g, tb.max.z += g;
         each_leaf(s, &tb, add_member, m);
@@ -760,14 +760,15 @@ static uint32_t heap_pop(plp_state *s, float *rho)
  * bits (checked on every call of the test suite and a 300-frame walk while this was written;
  * were a build to fuse multiply-adds in one and not the other, both would stay conservative: the
  * rectangle's 1/64-pixel growth and the depth's 2^-20 nudge cover far more than a rounding).
- * Without SSE2 the scalar functions are called. */
+ * The frustum planes are the shared classifier's SSE lanes (core/frustum_classify.h,
+ * sl_frustum_lanes_reject, tested bit-identical to sl_frustum_classify_box). Without SSE2 the
+ * scalar functions are called. */
 typedef struct fast_view {
 #if PLP_SSE
     __m128 col[4];              /* the world-to-clip matrix's columns */
-    __m128 pa[2][2], pb[2][2], pc[2][2], pd[2][2], nslack[2][2]; /* [all six | no near][lanes 0-3 | 4-7] */
     __m128 hw, hh;
 #endif
-    int dummy;
+    sl_frustum_lanes planes[2]; /* the frustum planes: all six | all but the near plane (0x2f) */
 } fast_view;
 
 static void fast_view_init(fast_view *fv, const sl_occ_view *v)
@@ -775,32 +776,14 @@ static void fast_view_init(fast_view *fv, const sl_occ_view *v)
 #if PLP_SSE
     for (int c = 0; c < 4; c++)
         fv->col[c] = _mm_loadu_ps(v->vp.m + 4 * c);
-    for (int set = 0; set < 2; set++) {
-        float a[8] = {0}, b[8] = {0}, c[8] = {0}, d[8] = {0}, ns[8] = {0}; /* unused lanes: 0 < -0 is false */
-        for (int i = 0; i < 6; i++) {
-            if (set == 1 && i == 4)
-                continue; /* mask 0x2f: not the near plane */
-            const sl_plane *p = &v->fr.planes[i];
-            a[i] = p->a, b[i] = p->b, c[i] = p->c, d[i] = p->d, ns[i] = -v->slack[i];
-        }
-        for (int h = 0; h < 2; h++) {
-            fv->pa[set][h] = _mm_loadu_ps(a + 4 * h);
-            fv->pb[set][h] = _mm_loadu_ps(b + 4 * h);
-            fv->pc[set][h] = _mm_loadu_ps(c + 4 * h);
-            fv->pd[set][h] = _mm_loadu_ps(d + 4 * h);
-            fv->nslack[set][h] = _mm_loadu_ps(ns + 4 * h);
-        }
-    }
     fv->hw = _mm_set1_ps(0.5f * (float)v->width);
     fv->hh = _mm_set1_ps(0.5f * (float)v->height);
-#else
-    (void)v;
 #endif
-    fv->dummy = 0;
+    sl_frustum_lanes_init(&fv->planes[0], v->fr.planes, v->slack, 0x3fu);
+    sl_frustum_lanes_init(&fv->planes[1], v->fr.planes, v->slack, 0x2fu);
 }
 
 #if PLP_SSE
-static inline __m128 sel_ps(__m128 m, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
 static inline __m128 bcast_ps(__m128 v, int i)
 {
     switch (i) {
@@ -822,28 +805,10 @@ static inline float hmax_ps(__m128 v)
 }
 #endif
 
-/* sl_occ_frustum_classify(v, b, all ? 0x3f : 0x2f) >= 0. */
-static bool fast_in_planes(const fast_view *fv, const sl_occ_view *v, const sl_aabb *b, bool all)
+/* sl_occ_frustum_classify(v, b, all ? 0x3f : 0x2f) >= 0, by the shared classifier's SSE lanes. */
+static bool fast_in_planes(const fast_view *fv, const sl_aabb *b, bool all)
 {
-#if PLP_SSE
-    (void)v;
-    const int set = all ? 0 : 1;
-    const __m128 zero = _mm_setzero_ps();
-    __m128 out = zero;
-    for (int h = 0; h < 2; h++) {
-        __m128 a = fv->pa[set][h], bb = fv->pb[set][h], c = fv->pc[set][h];
-        __m128 px = sel_ps(_mm_cmpge_ps(a, zero), _mm_set1_ps(b->max.x), _mm_set1_ps(b->min.x));
-        __m128 py = sel_ps(_mm_cmpge_ps(bb, zero), _mm_set1_ps(b->max.y), _mm_set1_ps(b->min.y));
-        __m128 pz = sel_ps(_mm_cmpge_ps(c, zero), _mm_set1_ps(b->max.z), _mm_set1_ps(b->min.z));
-        __m128 dot = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(a, px), _mm_mul_ps(bb, py)), _mm_mul_ps(c, pz)),
-                                fv->pd[set][h]);
-        out = _mm_or_ps(out, _mm_cmplt_ps(dot, fv->nslack[set][h]));
-    }
-    return _mm_movemask_ps(out) == 0;
-#else
-    (void)fv;
-    return sl_occ_frustum_classify(v, b, all ? 0x3fu : 0x2fu) >= 0;
-#endif
+    return !sl_frustum_lanes_reject(&fv->planes[all ? 0 : 1], b);
 }
 
 #if PLP_SSE
@@ -943,7 +908,7 @@ typedef struct frame {
  * and the near plane carry rays too); orthographic: all six. */
 static bool in_view(const frame *f, const sl_aabb *b)
 {
-    return fast_in_planes(&f->fv, f->v, b, f->v->ortho);
+    return fast_in_planes(&f->fv, b, f->v->ortho);
 }
 
 /* Does the rasterizer show any part of box b? (visible, crossing the near plane, or unknown) */
@@ -964,7 +929,7 @@ static void report(frame *f, uint32_t o)
     if (s->ostamp[o] == s->frame_id || s->hstamp[o] == s->frame_id)
         return;
     const sl_aabb *ob = &sl_scene_object_bounds_array(s->scene)[o];
-    if (!fast_in_planes(&f->fv, f->v, ob, true)) {
+    if (!fast_in_planes(&f->fv, ob, true)) {
         s->hstamp[o] = s->frame_id; /* outside the view: never drawn, whichever cell lists it again */
         return;
     }

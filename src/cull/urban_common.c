@@ -301,7 +301,7 @@ sl_status sl_urban_scene_build(sl_scene scene, float cell, const sl_allocator *a
                     (sl_urban_max(sl_urban_max(fabs((double)g->min_x), fabs((double)g->max_x)),
                           sl_urban_max(fabs((double)g->min_y), fabs((double)g->max_y))) +
                      g->cell) +
-                1e-6;
+                SL_MARGIN_GRID_REL;
     const size_t nc = u->ncells;
     u->object_count = sl_scene_object_count(scene);
     const size_t no = u->object_count ? u->object_count : 1;
@@ -568,7 +568,7 @@ void sl_urban_view_make(const sl_urban_scene *u, const sl_view *view, sl_urban_v
             degenerate = true;
     }
     v->far = far * (1 + 1e-6) + 1e-3;
-    v->near_guard = cam->near_plane / sl_urban_max(cmin, 1e-3) * 1.001 + 1e-3;
+    v->near_guard = cam->near_plane / sl_urban_max(cmin, 1e-3) * SL_MARGIN_NEAR_FACTOR + 1e-3; /* core/margins.h */
     v->full_az = !v->perspective || up_in || down_in || degenerate;
     if (!v->full_az) {
         double rx = 0, ry = 0;
@@ -618,7 +618,7 @@ bool sl_urban_box_in_frustum(const sl_urban_view *v, const sl_aabb *b)
 bool sl_urban_frustum_spans(const sl_urban_scene *u, const sl_urban_view *v, uint32_t *j0, uint32_t *j1, int32_t *x0,
                             int32_t *x1)
 {
-    const double m = u->margin + 1e-3 + 1e-6 * (fabs(v->eye[0]) + fabs(v->eye[1]));
+    const double m = u->margin + 1e-3 + SL_MARGIN_GRID_REL * (fabs(v->eye[0]) + fabs(v->eye[1]));
     double ylo = INFINITY, yhi = -INFINITY;
     for (int k = 0; k < v->npoly; k++) {
         ylo = sl_urban_min(ylo, v->poly[k][1]);
@@ -1157,7 +1157,7 @@ static int az_bins(const sl_horizon *h, double a0, double span, uint32_t r[2][2]
 
 bool sl_horizon_occluded(const sl_horizon *h, double a0, double span, double top, double bottom)
 {
-    const float t = float_up(top + 1e-6 * (1 + fabs(top))), b = float_down(bottom - 1e-6 * (1 + fabs(bottom)));
+    const float t = float_up(top + sl_margin_height_slack(top)), b = float_down(bottom - sl_margin_height_slack(bottom));
     uint32_t r[2][2];
     int nr = az_bins(h, a0, span, r);
     for (int q = 0; q < nr; q++) {

@@ -375,19 +375,7 @@ struct sl_pvs_t {
 };
 
 /* Format an error naming the file and offset. */
-#define FAIL_AT(err, p, offset, ...)                                                                                  \
-    fail_at(err, (p)->name, (uint64_t)(offset), __VA_ARGS__)
-
-static sl_status fail_at(sl_error *err, const char *name, uint64_t offset, const char *fmt, ...) SL_PRINTF(4, 5);
-static sl_status fail_at(sl_error *err, const char *name, uint64_t offset, const char *fmt, ...)
-{
-    char msg[400];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    return sl_fail(err, SL_ERROR_FORMAT, "%s: offset %llu: %s", name, (unsigned long long)offset, msg);
-}
+#define FAIL_AT(err, p, offset, ...) sl_container_fail_at(err, (p)->name, (uint64_t)(offset), __VA_ARGS__)
 
 void sl_pvs_destroy(sl_pvs p)
 {
@@ -418,50 +406,26 @@ static bool zero_bytes(const uint8_t *p, uint64_t n)
 static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
 {
     const uint8_t *b = p->bytes;
-    if (p->size < PVS_HEADER)
-        return FAIL_AT(err, p, 0, "truncated: expected at least the 64-byte header, file has %llu bytes",
-                       (unsigned long long)p->size);
-    if (memcmp(b + H_MAGIC, k_magic, 8) != 0)
-        return FAIL_AT(err, p, 0, "not a .slpvs file (bad magic)");
-    uint32_t major = rd32(b + H_MAJOR), minor = rd32(b + H_MINOR);
-    if (major == 0)
-        return FAIL_AT(err, p, H_MAJOR, "format version 0.%u does not exist", minor);
-    if (major > PVS_MAJOR)
-        return sl_fail(err, SL_ERROR_UNSUPPORTED, "%s: format version %u.%u is newer than this reader (%u.%u): upgrade Sightline",
-                       p->name, major, minor, PVS_MAJOR, PVS_MINOR);
-    uint64_t hh = sl_hash64(b, H_HEADER_HASH, 0);
-    if (hh != rd64(b + H_HEADER_HASH))
-        return FAIL_AT(err, p, H_HEADER_HASH, "header checksum mismatch (stored %016llx, computed %016llx)",
-                       (unsigned long long)rd64(b + H_HEADER_HASH), (unsigned long long)hh);
+    static const sl_container_format fmt = {k_magic, ".slpvs", PVS_MAJOR, PVS_MINOR, 0, PVS_MAX_SECTIONS};
+    sl_container_header ch;
+    sl_status st = sl_container_check_header(b, p->size, &fmt, p->name, &ch, err);
+    if (st != SL_OK)
+        return st;
+    const uint32_t major = ch.major, minor = ch.minor, header_size = ch.header_size, nsec = ch.count;
+    const uint32_t entry = ch.entry_size;
+    const uint64_t table = ch.table_offset, tsize = ch.table_size;
     p->minor = minor;
-    uint32_t header_size = rd32(b + H_HEADER_SIZE), nsec = rd32(b + H_SECTIONS), entry = rd32(b + H_ENTRY);
-    uint64_t table = rd64(b + H_TABLE), fsize = rd64(b + H_FILE_SIZE);
-    if (rd32(b + H_FLAGS) != 0 && minor <= PVS_MINOR)
-        return FAIL_AT(err, p, H_FLAGS, "unknown flags %08x", rd32(b + H_FLAGS));
-    if (header_size < PVS_HEADER || header_size > 4096)
-        return FAIL_AT(err, p, H_HEADER_SIZE, "header size %u is outside 64..4096", header_size);
-    if (entry < PVS_ENTRY || entry > 4096)
-        return FAIL_AT(err, p, H_ENTRY, "section entry size %u is outside 48..4096", entry);
-    if (nsec > PVS_MAX_SECTIONS)
-        return FAIL_AT(err, p, H_SECTIONS, "%u sections (at most %u)", nsec, PVS_MAX_SECTIONS);
-    if (fsize > p->size)
-        return FAIL_AT(err, p, H_FILE_SIZE, "truncated: expected %llu bytes, file has %llu", (unsigned long long)fsize,
-                       (unsigned long long)p->size);
-    if (fsize < p->size)
-        return FAIL_AT(err, p, H_FILE_SIZE, "extended: expected %llu bytes, file has %llu (bytes after the end)",
-                       (unsigned long long)fsize, (unsigned long long)p->size);
-    uint64_t tsize = (uint64_t)nsec * entry;
-    if (table < header_size || table > p->size || tsize > p->size - table)
-        return FAIL_AT(err, p, H_TABLE, "section table at %llu (%llu bytes) lies outside the file",
-                       (unsigned long long)table, (unsigned long long)tsize);
-    uint64_t th = sl_hash64(b + table, (size_t)tsize, 0);
-    if (th != rd64(b + H_TABLE_HASH))
-        return FAIL_AT(err, p, table, "section table checksum mismatch (stored %016llx, computed %016llx)",
-                       (unsigned long long)rd64(b + H_TABLE_HASH), (unsigned long long)th);
+    if (ch.flags != 0 && minor <= PVS_MINOR)
+        return FAIL_AT(err, p, H_FLAGS, "unknown flags %08x", ch.flags);
+    if ((st = sl_container_check_table(b + table, &ch, 0, p->name, err)) != SL_OK)
+        return st;
     bool seen[S_COUNT] = {false};
-    /* sections sorted by offset, to check they neither overlap nor leave non-zero gaps */
-    uint64_t spans[PVS_MAX_SECTIONS][2];
+    /* the header, the table and the non-empty sections: they neither overlap nor leave non-zero gaps */
+    sl_container_span spans[PVS_MAX_SECTIONS + 2];
+    char tags[PVS_MAX_SECTIONS][5];
     uint32_t nspans = 0;
+    spans[nspans++] = (sl_container_span){0, header_size, "header", -1};
+    spans[nspans++] = (sl_container_span){table, table + tsize, "section table", -2};
     for (uint32_t i = 0; i < nsec; i++) {
         const uint8_t *e = b + table + (uint64_t)i * entry;
         uint64_t eo = table + (uint64_t)i * entry;
@@ -504,33 +468,17 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
                                    (unsigned long long)p->hash[k], (unsigned long long)h);
             }
         }
-        spans[nspans][0] = off;
-        spans[nspans][1] = off + size;
-        nspans++;
+        memcpy(tags[i], tag, sizeof tags[i]);
+        if (size)
+            spans[nspans++] = (sl_container_span){off, off + size, tags[i], (int)i};
     }
     for (int s = 0; s < S_COUNT; s++)
         if (k_secs[s].required && !seen[s])
             return FAIL_AT(err, p, table, "required section '%s' is missing", k_secs[s].tag);
-    /* insertion sort of at most 64 spans, then overlap and padding checks */
-    for (uint32_t i = 1; i < nspans; i++)
-        for (uint32_t j = i; j > 0 && spans[j][0] < spans[j - 1][0]; j--) {
-            uint64_t t0 = spans[j][0], t1 = spans[j][1];
-            spans[j][0] = spans[j - 1][0], spans[j][1] = spans[j - 1][1];
-            spans[j - 1][0] = t0, spans[j - 1][1] = t1;
-        }
-    uint64_t end = table + tsize;
+    /* a newer minor version may use the header's bytes past 64 */
     if (!zero_bytes(b + PVS_HEADER, header_size - PVS_HEADER) && minor <= PVS_MINOR)
         return FAIL_AT(err, p, PVS_HEADER, "header padding is not zero");
-    for (uint32_t i = 0; i < nspans; i++) {
-        if (spans[i][0] < end)
-            return FAIL_AT(err, p, spans[i][0], "sections overlap");
-        if (!zero_bytes(b + end, spans[i][0] - end))
-            return FAIL_AT(err, p, end, "padding before the section at %llu is not zero", (unsigned long long)spans[i][0]);
-        end = spans[i][1];
-    }
-    if (!zero_bytes(b + end, p->size - end))
-        return FAIL_AT(err, p, end, "padding at the end of the file is not zero");
-    return SL_OK;
+    return sl_container_check_layout(spans, nspans, p->size, b, NULL, NULL, p->name, err);
 }
 
 /* PVSH, CELL, SETS, BLKS, META: counts, ranges and cross references. */
@@ -708,7 +656,7 @@ static sl_status read_file(struct sl_pvs_t *p, const char *path, sl_error *err)
     }
     if (sb.st_size == 0) {
         close(fd);
-        return fail_at(err, path, 0, "truncated: the file is empty (a .slpvs has at least %u bytes)", PVS_HEADER);
+        return sl_container_fail_at(err, path, 0, "truncated: the file is empty (a .slpvs has at least %u bytes)", PVS_HEADER);
     }
     if ((uint64_t)sb.st_size > SIZE_MAX - PVS_ALIGN) {
         close(fd);
@@ -735,7 +683,7 @@ static sl_status read_file(struct sl_pvs_t *p, const char *path, sl_error *err)
             /* the file lost bytes since fstat: someone truncated or is rewriting it */
             uint64_t now = fstat(fd, &sb) == 0 ? (uint64_t)sb.st_size : (uint64_t)at;
             close(fd);
-            return fail_at(err, path, at, "truncated while reading: expected %zu bytes, file has %llu", n,
+            return sl_container_fail_at(err, path, at, "truncated while reading: expected %zu bytes, file has %llu", n,
                            (unsigned long long)now);
         }
         at += (size_t)got;

@@ -118,7 +118,26 @@ bool sl_refrast_box_visible(const double vp[16], const sl_aabb *box, uint32_t wi
 {
     if (sl_aabb_is_empty(box))
         return false;
-    uint8_t all_out = 0x3f;
+    /* the true frustum planes (not the guard band) of the matrix, inside where clip x, y, z lie
+     * within +-w (left, right, bottom, top, near, far), unit normals, through the one box
+     * classifier with its plane slack: a box beyond one of them covers no pixel centre, since
+     * centres lie strictly inside the side planes */
+    sl_plane planes[6];
+    for (int i = 0; i < 6; i++) {
+        const int r = i < 4 ? i / 2 : 2; /* the clip row tested against w */
+        const double s = i < 4 ? (i & 1 ? -1.0 : 1.0) : (i == 4 ? 1.0 : -1.0);
+        double q[4];
+        for (int c = 0; c < 4; c++)
+            q[c] = vp[4 * c + 3] + s * vp[4 * c + r];
+        double len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+        if (!(len > 0) || !isfinite(len))
+            return true; /* a degenerate matrix: no plane to reject by */
+        planes[i] = (sl_plane){(float)(q[0] / len), (float)(q[1] / len), (float)(q[2] / len), (float)(q[3] / len)};
+    }
+    float slack[6];
+    sl_frustum_slacks(planes, slack);
+    if (sl_frustum_classify_box(planes, slack, box, 0x3fu, false, NULL) < 0)
+        return false;
     bool all_front = true;
     double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
     for (int k = 0; k < 8; k++) {
@@ -127,16 +146,6 @@ bool sl_refrast_box_visible(const double vp[16], const sl_aabb *box, uint32_t wi
         double c[4];
         for (int r = 0; r < 4; r++)
             c[r] = vp[r] * p[0] + vp[4 + r] * p[1] + vp[8 + r] * p[2] + vp[12 + r];
-        /* the true frustum planes (not the guard band): a box outside one of them covers no
-         * pixel centre, since centres lie strictly inside the side planes */
-        uint8_t code = 0;
-        if (!(c[2] + c[3] >= 0)) code |= 1;
-        if (!(c[3] - c[2] >= 0)) code |= 2;
-        if (!(c[0] + c[3] >= 0)) code |= 4;
-        if (!(c[3] - c[0] >= 0)) code |= 8;
-        if (!(c[1] + c[3] >= 0)) code |= 16;
-        if (!(c[3] - c[1] >= 0)) code |= 32;
-        all_out &= code;
         if (c[3] > 0) {
             double sx = (c[0] / c[3] + 1.0) * 0.5 * (double)width, sy = (1.0 - c[1] / c[3]) * 0.5 * (double)height;
             xmin = fmin(xmin, sx), xmax = fmax(xmax, sx);
@@ -145,8 +154,6 @@ bool sl_refrast_box_visible(const double vp[16], const sl_aabb *box, uint32_t wi
             all_front = false;
         }
     }
-    if (all_out)
-        return false;
     if (!all_front)
         return true; /* the box reaches behind the eye: its projection is unbounded */
     /* with every corner in front of the eye the box projects inside the hull of its projected

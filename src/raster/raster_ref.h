@@ -55,8 +55,9 @@ void sl_refrast_clear(const sl_refrast_target *t);
 void sl_refrast_merge(const sl_refrast_target *dst, const sl_refrast_target *src, uint32_t y0, uint32_t y1);
 
 /* Can an object with this world box cover a pixel centre? From the world-to-clip matrix
- * (column-major doubles): false only when the box lies outside a frustum plane, or its projection
- * (with every corner in front of the eye) lies between pixel centres with a margin. */
+ * (column-major doubles): false only when the box lies outside a frustum plane of the matrix (the
+ * shared classifier, sl_frustum_classify_box, with its plane slack), or its projection (with
+ * every corner in front of the eye) lies between pixel centres with a margin. */
 bool sl_refrast_box_visible(const double vp[16], const sl_aabb *box, uint32_t width, uint32_t height);
 
 /* Grow the scratch space to hold n vertices. */

@@ -1025,7 +1025,7 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
         g.min_x = win.mx;
         g.min_y = win.my;
         g.cell = k;
-        g.margin = 1e-6 * (1.0 + fabs(win.mx) + fabs(win.my));
+        g.margin = SL_MARGIN_GRID_REL * (1.0 + fabs(win.mx) + fabs(win.my));
         g.z = w->zs;
         g.floor = w->floor;
         g.top = w->top;

@@ -227,7 +227,7 @@ static void release(gc_city *c)
 {
     const sl_allocator *a = c->alloc;
     size_t nx = (size_t)c->nx, ny = (size_t)c->ny;
-    sl_free(a, c->node, (nx + 1) * (ny + 1) * sizeof(gc_v2));
+    sl_free(a, c->node, (nx + 1) * (ny + 1) * sizeof(sl_dvec2));
     sl_free(a, c->hedge, nx * (ny + 1) * sizeof(gc_edge));
     sl_free(a, c->vedge, (nx + 1) * ny * sizeof(gc_edge));
     sl_free(a, c->cell, nx * ny * sizeof(gc_cell));

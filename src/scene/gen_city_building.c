@@ -19,7 +19,7 @@
 enum { ROOF_FLAT = 0, ROOF_MANSARD, ROOF_HIP, ROOF_GABLE };
 
 typedef struct lot {
-    gc_v2 p[GC_MAX_POLY];
+    sl_dvec2 p[GC_MAX_POLY];
     uint8_t tag[GC_MAX_POLY];
     int n;
 } lot;
@@ -33,7 +33,7 @@ typedef struct bldg {
     double base, eave, gf, fh, bay;
     double roof_r, roof_slope;      /* inset and rise per metre of inset */
     uint32_t color;
-    gc_v2 cell[4];                  /* the cell's ground quad: no protrusion may leave it */
+    sl_dvec2 cell[4]; /* the cell's ground quad: no protrusion may leave it */
 } bldg;
 
 static const uint32_t facade_palette[] = {0xE8D8B0FFu, 0xD9C28FFFu, 0xC9A66BFFu, 0xE6E0D4FFu, 0xBFB8AAFFu,
@@ -45,15 +45,15 @@ static bool exterior(uint8_t tag) { return tag == GC_TAG_STREET || tag == GC_TAG
 /* ---- a local frame on one wall: u along the wall, v = z, w outward ---- */
 
 typedef struct frame {
-    gc_v2 a, u, w;
+    sl_dvec2 a, u, w;
 } frame;
 
-static frame wall_frame(gc_v2 a, gc_v2 b)
+static frame wall_frame(sl_dvec2 a, sl_dvec2 b)
 {
     frame f;
     f.a = a;
-    f.u = gc_norm2(gc_sub2(b, a));
-    f.w = gc_v2_make(f.u.y, -f.u.x); /* right of the direction: outward for a CCW footprint */
+    f.u = sl_d2_unit(sl_d2_sub(b, a));
+    f.w = sl_d2(f.u.y, -f.u.x); /* right of the direction: outward for a CCW footprint */
     return f;
 }
 
@@ -101,14 +101,15 @@ static int bays(const bldg *b, double len) { return (int)floor(len / b->bay); }
 
 static void wall(gc_mesh *m, const bldg *b, int e, uint32_t detail)
 {
-    gc_v2 A = b->f.p[e], B = b->f.p[(e + 1) % b->f.n];
+    sl_dvec2 A = b->f.p[e], B = b->f.p[(e + 1) % b->f.n];
     sl_dvec3 none = {0, 0, 0};
     if (!b->windows[e]) {
-        gc_quad(m, gc_at(A, b->base), gc_at(B, b->base), gc_at(B, b->eave), gc_at(A, b->eave), none);
+        gc_quad(m, sl_d3_of_d2(A, b->base), sl_d3_of_d2(B, b->base), sl_d3_of_d2(B, b->eave), sl_d3_of_d2(A, b->eave),
+                none);
         return;
     }
     frame f = wall_frame(A, B);
-    double len = gc_len2(gc_sub2(B, A));
+    double len = sl_d2_len(sl_d2_sub(B, A));
     int nb = bays(b, len);
     double pw = len / nb;
     bool street = b->f.tag[e] == GC_TAG_STREET;
@@ -135,7 +136,7 @@ static void band(gc_mesh *m, const bldg *b, double delta, double zlo, double zhi
 {
     const lot *f = &b->f;
     double off[GC_MAX_POLY] = {0};
-    gc_v2 o[GC_MAX_POLY];
+    sl_dvec2 o[GC_MAX_POLY];
     int n = f->n;
     for (int e = 0; e < n; e++)
         off[e] = exterior(f->tag[e]) ? -delta : 0.0;
@@ -146,38 +147,39 @@ static void band(gc_mesh *m, const bldg *b, double delta, double zlo, double zhi
         if (off[e] == 0)
             continue;
         int e1 = (e + 1) % n, e0 = (e + n - 1) % n;
-        gc_v2 A = f->p[e], B = f->p[e1], A2 = o[e], B2 = o[e1];
-        gc_v2 U = gc_norm2(gc_sub2(B, A)), W = gc_v2_make(U.y, -U.x);
+        sl_dvec2 A = f->p[e], B = f->p[e1], A2 = o[e], B2 = o[e1];
+        sl_dvec2 U = sl_d2_unit(sl_d2_sub(B, A)), W = sl_d2(U.y, -U.x);
         /* at a party wall the band ends on the party line, unless that line leans outward over
          * the wall's end (a mitre cut): then it ends square. Either way it stays inside the
          * cell's ground quad, so it never reaches into the street or a park next door. */
-        if (off[e0] == 0 && gc_dot2(gc_sub2(A2, A), U) < 0)
-            A2 = gc_add2(A, gc_scale2(W, delta));
-        if (off[e1] == 0 && gc_dot2(gc_sub2(B2, B), U) > 0)
-            B2 = gc_add2(B, gc_scale2(W, delta));
-        gc_v2 P0 = gc_add2(A, gc_scale2(W, delta));
+        if (off[e0] == 0 && sl_d2_dot(sl_d2_sub(A2, A), U) < 0)
+            A2 = sl_d2_add(A, sl_d2_scale(W, delta));
+        if (off[e1] == 0 && sl_d2_dot(sl_d2_sub(B2, B), U) > 0)
+            B2 = sl_d2_add(B, sl_d2_scale(W, delta));
+        sl_dvec2 P0 = sl_d2_add(A, sl_d2_scale(W, delta));
         double tlo = -INFINITY, thi = INFINITY;
         for (int k = 0; k < 4; k++) {
-            gc_v2 nk = gc_left2(gc_sub2(b->cell[(k + 1) & 3], b->cell[k]));
-            double ca = gc_dot2(gc_sub2(P0, b->cell[k]), nk), cb = gc_dot2(U, nk);
+            sl_dvec2 nk = sl_d2_left(sl_d2_sub(b->cell[(k + 1) & 3], b->cell[k]));
+            double ca = sl_d2_dot(sl_d2_sub(P0, b->cell[k]), nk), cb = sl_d2_dot(U, nk);
             if (cb > 1e-12)
                 tlo = fmax(tlo, -ca / cb);
             else if (cb < -1e-12)
                 thi = fmin(thi, -ca / cb);
         }
-        double ta = gc_dot2(gc_sub2(A2, P0), U), tb = gc_dot2(gc_sub2(B2, P0), U);
+        double ta = sl_d2_dot(sl_d2_sub(A2, P0), U), tb = sl_d2_dot(sl_d2_sub(B2, P0), U);
         if (ta < tlo)
-            A2 = gc_add2(P0, gc_scale2(U, tlo));
+            A2 = sl_d2_add(P0, sl_d2_scale(U, tlo));
         if (tb > thi)
-            B2 = gc_add2(P0, gc_scale2(U, thi));
+            B2 = sl_d2_add(P0, sl_d2_scale(U, thi));
         sl_dvec3 out = sl_d3(U.y, -U.x, 0), uu = sl_d3(U.x, U.y, 0);
-        gc_quad(m, gc_at(A2, zlo), gc_at(B2, zlo), gc_at(B2, zhi), gc_at(A2, zhi), out);
-        gc_quad(m, gc_at(A, zhi), gc_at(B, zhi), gc_at(B2, zhi), gc_at(A2, zhi), up);
-        gc_quad(m, gc_at(A, zlo), gc_at(B, zlo), gc_at(B2, zlo), gc_at(A2, zlo), down);
+        gc_quad(m, sl_d3_of_d2(A2, zlo), sl_d3_of_d2(B2, zlo), sl_d3_of_d2(B2, zhi), sl_d3_of_d2(A2, zhi), out);
+        gc_quad(m, sl_d3_of_d2(A, zhi), sl_d3_of_d2(B, zhi), sl_d3_of_d2(B2, zhi), sl_d3_of_d2(A2, zhi), up);
+        gc_quad(m, sl_d3_of_d2(A, zlo), sl_d3_of_d2(B, zlo), sl_d3_of_d2(B2, zlo), sl_d3_of_d2(A2, zlo), down);
         if (off[e0] == 0)
-            gc_quad(m, gc_at(A, zlo), gc_at(A2, zlo), gc_at(A2, zhi), gc_at(A, zhi), sl_d3_scale(uu, -1));
+            gc_quad(m, sl_d3_of_d2(A, zlo), sl_d3_of_d2(A2, zlo), sl_d3_of_d2(A2, zhi), sl_d3_of_d2(A, zhi),
+                    sl_d3_scale(uu, -1));
         if (off[e1] == 0)
-            gc_quad(m, gc_at(B, zlo), gc_at(B2, zlo), gc_at(B2, zhi), gc_at(B, zhi), uu);
+            gc_quad(m, sl_d3_of_d2(B, zlo), sl_d3_of_d2(B2, zlo), sl_d3_of_d2(B2, zhi), sl_d3_of_d2(B, zhi), uu);
     }
 }
 
@@ -186,8 +188,8 @@ static void fins(gc_mesh *m, const bldg *b)
 {
     sl_dvec3 up = {0, 0, 1}, down = {0, 0, -1};
     for (int e = 0; e < b->f.n; e++) {
-        gc_v2 A = b->f.p[e], B = b->f.p[(e + 1) % b->f.n];
-        double len = gc_len2(gc_sub2(B, A));
+        sl_dvec2 A = b->f.p[e], B = b->f.p[(e + 1) % b->f.n];
+        double len = sl_d2_len(sl_d2_sub(B, A));
         int nb = bays(b, len);
         if (nb < 2)
             continue;
@@ -206,7 +208,7 @@ static void fins(gc_mesh *m, const bldg *b)
 }
 
 /* Inset of the roof: exterior edges move in by r, party/blank edges stay (fire walls). */
-static bool roof_inset(const bldg *b, double r, gc_v2 *out)
+static bool roof_inset(const bldg *b, double r, sl_dvec2 *out)
 {
     double off[GC_MAX_POLY] = {0};
     for (int e = 0; e < b->f.n; e++)
@@ -216,7 +218,7 @@ static bool roof_inset(const bldg *b, double r, gc_v2 *out)
 
 static double roof_max_inset(const bldg *b)
 {
-    gc_v2 tmp[GC_MAX_POLY];
+    sl_dvec2 tmp[GC_MAX_POLY];
     double lo = 0, hi = sqrt(fabs(gc_area(b->f.p, b->f.n)));
     for (int it = 0; it < 20; it++) {
         double mid = 0.5 * (lo + hi);
@@ -231,7 +233,7 @@ static double roof_max_inset(const bldg *b)
 static void roof_sloped(gc_mesh *m, const bldg *b, double r, double rise)
 {
     const lot *f = &b->f;
-    gc_v2 in[GC_MAX_POLY];
+    sl_dvec2 in[GC_MAX_POLY];
     if (!(r > 0.3) || !roof_inset(b, r, in)) {
         gc_cap(m, f->p, f->n, b->eave, true);
         return;
@@ -239,10 +241,11 @@ static void roof_sloped(gc_mesh *m, const bldg *b, double r, double rise)
     double z0 = b->eave, z1 = b->eave + rise;
     for (int e = 0; e < f->n; e++) {
         int e1 = (e + 1) % f->n;
-        gc_v2 U = gc_norm2(gc_sub2(f->p[e1], f->p[e]));
+        sl_dvec2 U = sl_d2_unit(sl_d2_sub(f->p[e1], f->p[e]));
         /* slopes face outward and up; a fire wall on a party edge faces outward */
         sl_dvec3 want = exterior(f->tag[e]) ? sl_d3(U.y, -U.x, 1) : sl_d3(U.y, -U.x, 0);
-        gc_quad(m, gc_at(f->p[e], z0), gc_at(f->p[e1], z0), gc_at(in[e1], z1), gc_at(in[e], z1), want);
+        gc_quad(m, sl_d3_of_d2(f->p[e], z0), sl_d3_of_d2(f->p[e1], z0), sl_d3_of_d2(in[e1], z1), sl_d3_of_d2(in[e], z1),
+                want);
     }
     gc_cap(m, in, f->n, z1, true);
 }
@@ -253,22 +256,22 @@ static void roof_gable(gc_mesh *m, const bldg *b)
     /* gable ends on the pair of opposite edges with more party walls (else the shorter pair) */
     int party02 = (f->tag[0] == GC_TAG_PARTY) + (f->tag[2] == GC_TAG_PARTY);
     int party13 = (f->tag[1] == GC_TAG_PARTY) + (f->tag[3] == GC_TAG_PARTY);
-    double l02 = gc_len2(gc_sub2(f->p[1], f->p[0])) + gc_len2(gc_sub2(f->p[3], f->p[2]));
-    double l13 = gc_len2(gc_sub2(f->p[2], f->p[1])) + gc_len2(gc_sub2(f->p[0], f->p[3]));
+    double l02 = sl_d2_len(sl_d2_sub(f->p[1], f->p[0])) + sl_d2_len(sl_d2_sub(f->p[3], f->p[2]));
+    double l13 = sl_d2_len(sl_d2_sub(f->p[2], f->p[1])) + sl_d2_len(sl_d2_sub(f->p[0], f->p[3]));
     int s = party02 != party13 ? (party02 > party13 ? 0 : 1) : (l02 <= l13 ? 0 : 1);
-    gc_v2 p0 = f->p[s], p1 = f->p[s + 1], p2 = f->p[(s + 2) & 3], p3 = f->p[(s + 3) & 3];
-    double span = 0.5 * (gc_len2(gc_sub2(p1, p0)) + gc_len2(gc_sub2(p3, p2)));
+    sl_dvec2 p0 = f->p[s], p1 = f->p[s + 1], p2 = f->p[(s + 2) & 3], p3 = f->p[(s + 3) & 3];
+    double span = 0.5 * (sl_d2_len(sl_d2_sub(p1, p0)) + sl_d2_len(sl_d2_sub(p3, p2)));
     double z0 = b->eave, z1 = b->eave + 0.5 * span * b->roof_slope;
-    sl_dvec3 m0 = gc_at(gc_lerp2(p0, p1, 0.5), z1), m2 = gc_at(gc_lerp2(p2, p3, 0.5), z1);
-    gc_v2 u01 = gc_norm2(gc_sub2(p1, p0)), u12 = gc_norm2(gc_sub2(p2, p1)), u23 = gc_norm2(gc_sub2(p3, p2)),
-          u30 = gc_norm2(gc_sub2(p0, p3));
+    sl_dvec3 m0 = sl_d3_of_d2(sl_d2_lerp(p0, p1, 0.5), z1), m2 = sl_d3_of_d2(sl_d2_lerp(p2, p3, 0.5), z1);
+    sl_dvec2 u01 = sl_d2_unit(sl_d2_sub(p1, p0)), u12 = sl_d2_unit(sl_d2_sub(p2, p1)),
+             u23 = sl_d2_unit(sl_d2_sub(p3, p2)), u30 = sl_d2_unit(sl_d2_sub(p0, p3));
     sl_dvec3 w1 = sl_d3(u12.y, -u12.x, 1), w3 = sl_d3(u30.y, -u30.x, 1);
-    gc_tri(m, gc_at(p1, z0), gc_at(p2, z0), m2, w1);
-    gc_tri(m, gc_at(p1, z0), m2, m0, w1);
-    gc_tri(m, gc_at(p3, z0), gc_at(p0, z0), m0, w3);
-    gc_tri(m, gc_at(p3, z0), m0, m2, w3);
-    gc_tri(m, gc_at(p0, z0), gc_at(p1, z0), m0, sl_d3(u01.y, -u01.x, 0));
-    gc_tri(m, gc_at(p2, z0), gc_at(p3, z0), m2, sl_d3(u23.y, -u23.x, 0));
+    gc_tri(m, sl_d3_of_d2(p1, z0), sl_d3_of_d2(p2, z0), m2, w1);
+    gc_tri(m, sl_d3_of_d2(p1, z0), m2, m0, w1);
+    gc_tri(m, sl_d3_of_d2(p3, z0), sl_d3_of_d2(p0, z0), m0, w3);
+    gc_tri(m, sl_d3_of_d2(p3, z0), m0, m2, w3);
+    gc_tri(m, sl_d3_of_d2(p0, z0), sl_d3_of_d2(p1, z0), m0, sl_d3(u01.y, -u01.x, 0));
+    gc_tri(m, sl_d3_of_d2(p2, z0), sl_d3_of_d2(p3, z0), m2, sl_d3(u23.y, -u23.x, 0));
 }
 
 /* Build the mesh, add the object and its footprint. */
@@ -279,7 +282,7 @@ static sl_status emit_building(gc_city *c, bldg *b)
     gc_mesh_reset(m);
     lot *f = &b->f;
     for (int e = 0; e < f->n; e++) {
-        double len = gc_len2(gc_sub2(f->p[(e + 1) % f->n], f->p[e]));
+        double len = sl_d2_len(sl_d2_sub(f->p[(e + 1) % f->n], f->p[e]));
         b->windows[e] = detail >= 3 && !b->tower &&
                         (f->tag[e] == GC_TAG_STREET || (f->tag[e] == GC_TAG_COURT && detail >= 4)) && bays(b, len) >= 1 &&
                         len / bays(b, len) >= 2.6;
@@ -319,7 +322,7 @@ static sl_status emit_building(gc_city *c, bldg *b)
         gc_cap(m, f->p, f->n, b->eave, true);
         if (detail >= 1 && b->tower) {
             /* a plant room on the roof */
-            gc_v2 in[GC_MAX_POLY];
+            sl_dvec2 in[GC_MAX_POLY];
             double r = 0.3 * gc_max_inset(f->p, f->n);
             if (r > 1 && gc_offset_all(f->p, f->n, r, in) && gc_convex(in, f->n))
                 gc_prism(m, in, f->n, b->eave, b->eave + 3.5, true, false);
@@ -331,11 +334,11 @@ static sl_status emit_building(gc_city *c, bldg *b)
         return c->err ? c->err->status : SL_ERROR_INTERNAL;
     /* the occluder must lie inside the building: walls with recesses move in by their depth */
     double off[GC_MAX_POLY] = {0};
-    gc_v2 fpoly[GC_MAX_POLY];
+    sl_dvec2 fpoly[GC_MAX_POLY];
     for (int e = 0; e < f->n; e++)
         off[e] = b->windows[e] ? GC_RECESS : 0.0;
     if (!gc_offset(f->p, f->n, off, fpoly))
-        memcpy(fpoly, f->p, sizeof(gc_v2) * (size_t)f->n);
+        memcpy(fpoly, f->p, sizeof(sl_dvec2) * (size_t)f->n);
     float xy[2 * GC_MAX_POLY];
     for (int k = 0; k < f->n; k++)
         xy[2 * k] = (float)fpoly[k].x, xy[2 * k + 1] = (float)fpoly[k].y;
@@ -351,12 +354,12 @@ static sl_status emit_building(gc_city *c, bldg *b)
 
 typedef struct cut {
     double key;     /* side + position along it in [0,1) */
-    gc_v2 outer, inner;
+    sl_dvec2 outer, inner;
 } cut;
 
-static void lot_push(lot *l, gc_v2 p, uint8_t tag)
+static void lot_push(lot *l, sl_dvec2 p, uint8_t tag)
 {
-    if (l->n > 0 && gc_len2(gc_sub2(p, l->p[l->n - 1])) < 1e-6) {
+    if (l->n > 0 && sl_d2_len(sl_d2_sub(p, l->p[l->n - 1])) < 1e-6) {
         l->tag[l->n - 1] = tag;
         return;
     }
@@ -368,8 +371,8 @@ static void lot_push(lot *l, gc_v2 p, uint8_t tag)
 }
 
 /* Perimeter lots of outer quad B around inner quad I; returns the lot count. */
-static int perimeter_lots(sl_rng *r, const gc_v2 B[4], const gc_v2 I[4], const uint8_t stag[4], double depth, double lotw,
-                          lot *lots, int max_lots)
+static int perimeter_lots(sl_rng *r, const sl_dvec2 B[4], const sl_dvec2 I[4], const uint8_t stag[4], double depth,
+                          double lotw, lot *lots, int max_lots)
 {
     bool merged[4];
     for (int k = 0; k < 4; k++)
@@ -378,23 +381,23 @@ static int perimeter_lots(sl_rng *r, const gc_v2 B[4], const gc_v2 I[4], const u
     cut inner_cuts[4][32];
     int ninner[4] = {0, 0, 0, 0};
     for (int k = 0; k < 4; k++) {
-        gc_v2 a = B[k], b = B[(k + 1) & 3];
-        double len = gc_len2(gc_sub2(b, a));
-        gc_v2 U = gc_norm2(gc_sub2(b, a));
-        gc_v2 ia = I[k], ib = I[(k + 1) & 3];
-        double ilen = gc_len2(gc_sub2(ib, ia));
-        gc_v2 iu = gc_norm2(gc_sub2(ib, ia));
+        sl_dvec2 a = B[k], b = B[(k + 1) & 3];
+        double len = sl_d2_len(sl_d2_sub(b, a));
+        sl_dvec2 U = sl_d2_unit(sl_d2_sub(b, a));
+        sl_dvec2 ia = I[k], ib = I[(k + 1) & 3];
+        double ilen = sl_d2_len(sl_d2_sub(ib, ia));
+        sl_dvec2 iu = sl_d2_unit(sl_d2_sub(ib, ia));
         long nseg = SL_MAX(1L, lround(len / lotw));
         double last = -1e9;
         for (long q = 1; q < nseg && ninner[k] < 32; q++) {
             double s = len * (double)q / (double)nseg + sl_rng_range(r, -0.15f, 0.15f) * len / (double)nseg;
             if (s < depth + 3 || s > len - depth - 3 || s - last < 6)
                 continue;
-            gc_v2 P = gc_add2(a, gc_scale2(U, s));
-            double t = gc_dot2(gc_sub2(P, ia), iu);
+            sl_dvec2 P = sl_d2_add(a, sl_d2_scale(U, s));
+            double t = sl_d2_dot(sl_d2_sub(P, ia), iu);
             if (t < 3 || t > ilen - 3)
                 continue;
-            cut cu = {k + s / len, P, gc_add2(ia, gc_scale2(iu, t))};
+            cut cu = {k + s / len, P, sl_d2_add(ia, sl_d2_scale(iu, t))};
             inner_cuts[k][ninner[k]++] = cu;
             last = s;
         }
@@ -463,12 +466,12 @@ static int perimeter_lots(sl_rng *r, const gc_v2 B[4], const gc_v2 I[4], const u
 }
 
 /* Slabs across the longer axis of quad B. */
-static int slab_lots(sl_rng *r, const gc_v2 B[4], const uint8_t stag[4], double lotw, lot *lots, int max_lots)
+static int slab_lots(sl_rng *r, const sl_dvec2 B[4], const uint8_t stag[4], double lotw, lot *lots, int max_lots)
 {
-    double l02 = gc_len2(gc_sub2(B[1], B[0])) + gc_len2(gc_sub2(B[3], B[2]));
-    double l13 = gc_len2(gc_sub2(B[2], B[1])) + gc_len2(gc_sub2(B[0], B[3]));
+    double l02 = sl_d2_len(sl_d2_sub(B[1], B[0])) + sl_d2_len(sl_d2_sub(B[3], B[2]));
+    double l13 = sl_d2_len(sl_d2_sub(B[2], B[1])) + sl_d2_len(sl_d2_sub(B[0], B[3]));
     int s = l02 >= l13 ? 0 : 1;
-    gc_v2 q0 = B[s], q1 = B[s + 1], q2 = B[(s + 2) & 3], q3 = B[(s + 3) & 3];
+    sl_dvec2 q0 = B[s], q1 = B[s + 1], q2 = B[(s + 2) & 3], q3 = B[(s + 3) & 3];
     uint8_t t0 = stag[s], t1 = stag[s + 1], t2 = stag[(s + 2) & 3], t3 = stag[(s + 3) & 3];
     double len = 0.5 * (s == 0 ? l02 : l13);
     long n = SL_MAX(1L, lround(len / lotw));
@@ -482,10 +485,10 @@ static int slab_lots(sl_rng *r, const gc_v2 B[4], const uint8_t stag[4], double 
         lot *l = &lots[q];
         l->n = 0;
         double ta = ts[q], tb = ts[q + 1];
-        lot_push(l, gc_lerp2(q0, q1, ta), t0);
-        lot_push(l, gc_lerp2(q0, q1, tb), q == n - 1 ? t1 : GC_TAG_PARTY);
-        lot_push(l, gc_lerp2(q3, q2, tb), t2);
-        lot_push(l, gc_lerp2(q3, q2, ta), q == 0 ? t3 : GC_TAG_PARTY);
+        lot_push(l, sl_d2_lerp(q0, q1, ta), t0);
+        lot_push(l, sl_d2_lerp(q0, q1, tb), q == n - 1 ? t1 : GC_TAG_PARTY);
+        lot_push(l, sl_d2_lerp(q3, q2, tb), t2);
+        lot_push(l, sl_d2_lerp(q3, q2, ta), q == 0 ? t3 : GC_TAG_PARTY);
     }
     return (int)n;
 }
@@ -517,7 +520,7 @@ static sl_status block(gc_city *c, int i, int j)
         stag[k] = street || border ? GC_TAG_STREET : GC_TAG_BLANK;
     }
     /* lots live inside the cell's ground quad, so they can never reach into the street */
-    gc_v2 B[4];
+    sl_dvec2 B[4];
     if (!gc_offset(cl->ground, 4, off, B) || !gc_convex(B, 4) || gc_min_edge(B, 4) < 6 || gc_area(B, 4) < 100) {
         cl->type = GC_CELL_PLAZA; /* too small to build on: left open */
         c->n_plazas++;
@@ -530,7 +533,7 @@ static sl_status block(gc_city *c, int i, int j)
     double lotw = sl_rng_range(&r, 13.0f, 24.0f), depth = sl_rng_range(&r, 11.0f, 15.5f);
 
     if (cl->type == GC_CELL_TOWER) {
-        gc_v2 T[4];
+        sl_dvec2 T[4];
         double margin = SL_MAX(6.0, sl_rng_range(&r, 0.12f, 0.22f) * gc_min_edge(B, 4));
         if (gc_offset_all(B, 4, margin, T) && gc_convex(T, 4) && gc_min_edge(T, 4) >= 10) {
             bldg b;
@@ -540,9 +543,9 @@ static sl_status block(gc_city *c, int i, int j)
             if (sl_rng_float(&r) < 0.5f) {
                 double ch = 0.18 * gc_min_edge(T, 4);
                 for (int k = 0; k < 4; k++) {
-                    gc_v2 prev = T[(k + 3) & 3], next = T[(k + 1) & 3];
-                    b.f.p[2 * k] = gc_add2(T[k], gc_scale2(gc_norm2(gc_sub2(prev, T[k])), ch));
-                    b.f.p[2 * k + 1] = gc_add2(T[k], gc_scale2(gc_norm2(gc_sub2(next, T[k])), ch));
+                    sl_dvec2 prev = T[(k + 3) & 3], next = T[(k + 1) & 3];
+                    b.f.p[2 * k] = sl_d2_add(T[k], sl_d2_scale(sl_d2_unit(sl_d2_sub(prev, T[k])), ch));
+                    b.f.p[2 * k + 1] = sl_d2_add(T[k], sl_d2_scale(sl_d2_unit(sl_d2_sub(next, T[k])), ch));
                 }
                 b.f.n = 8;
             } else {
@@ -564,7 +567,7 @@ static sl_status block(gc_city *c, int i, int j)
     c->n_blocks++;
     lot lots[64];
     int nl;
-    gc_v2 I[4];
+    sl_dvec2 I[4];
     if (gc_offset_all(B, 4, depth, I) && gc_convex(I, 4) && gc_min_edge(I, 4) >= 6 && gc_area(I, 4) >= 60) {
         nl = perimeter_lots(&r, B, I, stag, depth, lotw, lots, 64);
         gc_court court;

@@ -5,18 +5,18 @@
 
 /* ---- 2D polygons ---- */
 
-bool gc_line_isect(gc_v2 p, gc_v2 d, gc_v2 q, gc_v2 e, gc_v2 *out)
+bool gc_line_isect(sl_dvec2 p, sl_dvec2 d, sl_dvec2 q, sl_dvec2 e, sl_dvec2 *out)
 {
-    double den = gc_cross2(d, e);
-    double scale = gc_len2(d) * gc_len2(e);
+    double den = sl_d2_cross(d, e);
+    double scale = sl_d2_len(d) * sl_d2_len(e);
     if (!(fabs(den) > 1e-9 * scale))
         return false;
-    double t = gc_cross2(gc_sub2(q, p), e) / den;
-    *out = gc_add2(p, gc_scale2(d, t));
+    double t = sl_d2_cross(sl_d2_sub(q, p), e) / den;
+    *out = sl_d2_add(p, sl_d2_scale(d, t));
     return true;
 }
 
-double gc_area(const gc_v2 *p, int n)
+double gc_area(const sl_dvec2 *p, int n)
 {
     double a = 0;
     for (int i = 0; i < n; i++) {
@@ -26,37 +26,37 @@ double gc_area(const gc_v2 *p, int n)
     return 0.5 * a;
 }
 
-bool gc_convex(const gc_v2 *p, int n)
+bool gc_convex(const sl_dvec2 *p, int n)
 {
     for (int i = 0; i < n; i++) {
-        gc_v2 a = p[(i + n - 1) % n], b = p[i], c = p[(i + 1) % n];
-        if (!(gc_cross2(gc_sub2(b, a), gc_sub2(c, b)) > 1e-9))
+        sl_dvec2 a = p[(i + n - 1) % n], b = p[i], c = p[(i + 1) % n];
+        if (!(sl_d2_cross(sl_d2_sub(b, a), sl_d2_sub(c, b)) > 1e-9))
             return false;
     }
     return true;
 }
 
-static int orient2(gc_v2 a, gc_v2 b, gc_v2 c)
+static int orient2(sl_dvec2 a, sl_dvec2 b, sl_dvec2 c)
 {
-    double v = gc_cross2(gc_sub2(b, a), gc_sub2(c, a));
+    double v = sl_d2_cross(sl_d2_sub(b, a), sl_d2_sub(c, a));
     return (v > 0) - (v < 0);
 }
 
-static bool seg_touch(gc_v2 a, gc_v2 b, gc_v2 c, gc_v2 d)
+static bool seg_touch(sl_dvec2 a, sl_dvec2 b, sl_dvec2 c, sl_dvec2 d)
 {
     int o1 = orient2(a, b, c), o2 = orient2(a, b, d), o3 = orient2(c, d, a), o4 = orient2(c, d, b);
     if (o1 != o2 && o3 != o4)
         return true;
     /* collinear overlap */
     if (o1 == 0 && o2 == 0) {
-        gc_v2 u = gc_sub2(b, a);
-        double t0 = gc_dot2(gc_sub2(c, a), u), t1 = gc_dot2(gc_sub2(d, a), u), l = gc_dot2(u, u);
+        sl_dvec2 u = sl_d2_sub(b, a);
+        double t0 = sl_d2_dot(sl_d2_sub(c, a), u), t1 = sl_d2_dot(sl_d2_sub(d, a), u), l = sl_d2_dot(u, u);
         return !(SL_MAX(t0, t1) < 0 || SL_MIN(t0, t1) > l);
     }
     return false;
 }
 
-bool gc_simple(const gc_v2 *p, int n)
+bool gc_simple(const sl_dvec2 *p, int n)
 {
     for (int i = 0; i < n; i++)
         for (int j = i + 2; j < n; j++) {
@@ -68,37 +68,37 @@ bool gc_simple(const gc_v2 *p, int n)
     return true;
 }
 
-double gc_min_edge(const gc_v2 *p, int n)
+double gc_min_edge(const sl_dvec2 *p, int n)
 {
     double m = INFINITY;
     for (int i = 0; i < n; i++)
-        m = fmin(m, gc_len2(gc_sub2(p[(i + 1) % n], p[i])));
+        m = fmin(m, sl_d2_len(sl_d2_sub(p[(i + 1) % n], p[i])));
     return m;
 }
 
-bool gc_offset(const gc_v2 *p, int n, const double *off, gc_v2 *out)
+bool gc_offset(const sl_dvec2 *p, int n, const double *off, sl_dvec2 *out)
 {
     for (int i = 0; i < n; i++) {
         int h = (i + n - 1) % n;
-        gc_v2 dh = gc_sub2(p[i], p[h]), di = gc_sub2(p[(i + 1) % n], p[i]);
-        gc_v2 nh = gc_left2(gc_norm2(dh)), ni = gc_left2(gc_norm2(di));
-        gc_v2 ph = gc_add2(p[h], gc_scale2(nh, off[h])), pi = gc_add2(p[i], gc_scale2(ni, off[i]));
+        sl_dvec2 dh = sl_d2_sub(p[i], p[h]), di = sl_d2_sub(p[(i + 1) % n], p[i]);
+        sl_dvec2 nh = sl_d2_left(sl_d2_unit(dh)), ni = sl_d2_left(sl_d2_unit(di));
+        sl_dvec2 ph = sl_d2_add(p[h], sl_d2_scale(nh, off[h])), pi = sl_d2_add(p[i], sl_d2_scale(ni, off[i]));
         if (!gc_line_isect(ph, dh, pi, di, &out[i])) {
             /* collinear neighbours: the moved vertex is the mean of both moved positions */
-            gc_v2 a = gc_add2(p[i], gc_scale2(nh, off[h])), b = gc_add2(p[i], gc_scale2(ni, off[i]));
-            out[i] = gc_lerp2(a, b, 0.5);
+            sl_dvec2 a = sl_d2_add(p[i], sl_d2_scale(nh, off[h])), b = sl_d2_add(p[i], sl_d2_scale(ni, off[i]));
+            out[i] = sl_d2_lerp(a, b, 0.5);
         }
     }
     for (int i = 0; i < n; i++) {
         int j = (i + 1) % n;
-        gc_v2 eo = gc_sub2(p[j], p[i]), en = gc_sub2(out[j], out[i]);
-        if (!(gc_dot2(eo, en) > 0) || !(gc_len2(en) > 0.05))
+        sl_dvec2 eo = sl_d2_sub(p[j], p[i]), en = sl_d2_sub(out[j], out[i]);
+        if (!(sl_d2_dot(eo, en) > 0) || !(sl_d2_len(en) > 0.05))
             return false;
     }
     return gc_area(out, n) > 0.01;
 }
 
-bool gc_offset_all(const gc_v2 *p, int n, double off, gc_v2 *out)
+bool gc_offset_all(const sl_dvec2 *p, int n, double off, sl_dvec2 *out)
 {
     double o[GC_MAX_POLY];
     for (int i = 0; i < n; i++)
@@ -106,9 +106,9 @@ bool gc_offset_all(const gc_v2 *p, int n, double off, gc_v2 *out)
     return gc_offset(p, n, o, out);
 }
 
-double gc_max_inset(const gc_v2 *p, int n)
+double gc_max_inset(const sl_dvec2 *p, int n)
 {
-    gc_v2 tmp[GC_MAX_POLY];
+    sl_dvec2 tmp[GC_MAX_POLY];
     double lo = 0, hi = sqrt(fabs(gc_area(p, n)));
     for (int it = 0; it < 24; it++) {
         double mid = 0.5 * (lo + hi);
@@ -120,24 +120,24 @@ double gc_max_inset(const gc_v2 *p, int n)
     return lo;
 }
 
-bool gc_inside_convex(const gc_v2 *p, int n, gc_v2 q, double margin)
+bool gc_inside_convex(const sl_dvec2 *p, int n, sl_dvec2 q, double margin)
 {
     for (int i = 0; i < n; i++) {
-        gc_v2 d = gc_sub2(p[(i + 1) % n], p[i]);
-        double l = gc_len2(d);
-        if (!(l > 0) || gc_cross2(d, gc_sub2(q, p[i])) / l < margin)
+        sl_dvec2 d = sl_d2_sub(p[(i + 1) % n], p[i]);
+        double l = sl_d2_len(d);
+        if (!(l > 0) || sl_d2_cross(d, sl_d2_sub(q, p[i])) / l < margin)
             return false;
     }
     return true;
 }
 
-static bool in_triangle(gc_v2 a, gc_v2 b, gc_v2 c, gc_v2 q)
+static bool in_triangle(sl_dvec2 a, sl_dvec2 b, sl_dvec2 c, sl_dvec2 q)
 {
-    return gc_cross2(gc_sub2(b, a), gc_sub2(q, a)) >= 0 && gc_cross2(gc_sub2(c, b), gc_sub2(q, b)) >= 0 &&
-           gc_cross2(gc_sub2(a, c), gc_sub2(q, c)) >= 0;
+    return sl_d2_cross(sl_d2_sub(b, a), sl_d2_sub(q, a)) >= 0 && sl_d2_cross(sl_d2_sub(c, b), sl_d2_sub(q, b)) >= 0 &&
+           sl_d2_cross(sl_d2_sub(a, c), sl_d2_sub(q, c)) >= 0;
 }
 
-int gc_triangulate(const gc_v2 *p, int n, uint8_t tri[][3])
+int gc_triangulate(const sl_dvec2 *p, int n, uint8_t tri[][3])
 {
     uint8_t v[GC_MAX_POLY];
     int m = n, t = 0;
@@ -146,14 +146,14 @@ int gc_triangulate(const gc_v2 *p, int n, uint8_t tri[][3])
     while (m > 3) {
         int ear = -1;
         for (int k = 0; k < m && ear < 0; k++) {
-            gc_v2 a = p[v[(k + m - 1) % m]], b = p[v[k]], c = p[v[(k + 1) % m]];
-            if (!(gc_cross2(gc_sub2(b, a), gc_sub2(c, b)) > 1e-12))
+            sl_dvec2 a = p[v[(k + m - 1) % m]], b = p[v[k]], c = p[v[(k + 1) % m]];
+            if (!(sl_d2_cross(sl_d2_sub(b, a), sl_d2_sub(c, b)) > 1e-12))
                 continue; /* reflex or flat: not an ear */
             bool empty = true;
             for (int q = 0; q < m && empty; q++) {
                 if (q == k || q == (k + 1) % m || q == (k + m - 1) % m)
                     continue;
-                gc_v2 r = p[v[q]];
+                sl_dvec2 r = p[v[q]];
                 /* a vertex coinciding with a corner (touching polygons) does not block the ear */
                 if ((r.x == a.x && r.y == a.y) || (r.x == c.x && r.y == c.y))
                     continue;
@@ -280,7 +280,7 @@ void gc_tri(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 want)
     gc_face(m, p, 3, want);
 }
 
-void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up)
+void gc_cap(gc_mesh *m, const sl_dvec2 *p, int n, double z, bool up)
 {
     uint8_t tri[GC_MAX_POLY][3];
     int nt;
@@ -296,7 +296,7 @@ void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up)
     sl_dvec3 nn = sl_d3(0, 0, up ? 1 : -1);
     uint32_t base = m->nv;
     for (int i = 0; i < n; i++)
-        gc_vert(m, gc_at(p[i], z), nn);
+        gc_vert(m, sl_d3_of_d2(p[i], z), nn);
     for (int t = 0; t < nt; t++) {
         if (up)
             gc_tri_idx(m, base + tri[t][0], base + tri[t][1], base + tri[t][2]);
@@ -305,12 +305,12 @@ void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up)
     }
 }
 
-void gc_prism(gc_mesh *m, const gc_v2 *p, int n, double z0, double z1, bool top, bool bottom)
+void gc_prism(gc_mesh *m, const sl_dvec2 *p, int n, double z0, double z1, bool top, bool bottom)
 {
     sl_dvec3 none = {0, 0, 0};
     for (int i = 0; i < n; i++) {
-        gc_v2 a = p[i], b = p[(i + 1) % n];
-        gc_quad(m, gc_at(a, z0), gc_at(b, z0), gc_at(b, z1), gc_at(a, z1), none);
+        sl_dvec2 a = p[i], b = p[(i + 1) % n];
+        gc_quad(m, sl_d3_of_d2(a, z0), sl_d3_of_d2(b, z0), sl_d3_of_d2(b, z1), sl_d3_of_d2(a, z1), none);
     }
     if (top)
         gc_cap(m, p, n, z1, true);
@@ -320,6 +320,6 @@ void gc_prism(gc_mesh *m, const gc_v2 *p, int n, double z0, double z1, bool top,
 
 void gc_box(gc_mesh *m, sl_dvec3 lo, sl_dvec3 hi, bool bottom)
 {
-    gc_v2 r[4] = {{lo.x, lo.y}, {hi.x, lo.y}, {hi.x, hi.y}, {lo.x, hi.y}};
+    sl_dvec2 r[4] = {{lo.x, lo.y}, {hi.x, lo.y}, {hi.x, hi.y}, {lo.x, hi.y}};
     gc_prism(m, r, 4, lo.z, hi.z, true, bottom);
 }

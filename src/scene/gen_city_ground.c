@@ -19,20 +19,20 @@
 
 /* Drape a convex quad (or triangle) on the terrain: a bilinear grid of about one terrain cell,
  * smooth normals from the height field. Without terrain: one flat face. */
-static void drape(gc_city *c, const gc_v2 *p, int n, double lift)
+static void drape(gc_city *c, const sl_dvec2 *p, int n, double lift)
 {
     gc_mesh *m = &c->mesh;
     sl_dvec3 up = {0, 0, 1};
     if (!c->has_terrain) {
         sl_dvec3 pts[4];
         for (int k = 0; k < n; k++)
-            pts[k] = gc_at(p[k], lift);
+            pts[k] = sl_d3_of_d2(p[k], lift);
         gc_face(m, pts, n, up);
         return;
     }
-    gc_v2 q[4] = {p[0], p[1], p[2], n == 3 ? p[2] : p[3]};
-    double lu = fmax(gc_len2(gc_sub2(q[1], q[0])), gc_len2(gc_sub2(q[2], q[3])));
-    double lv = fmax(gc_len2(gc_sub2(q[3], q[0])), gc_len2(gc_sub2(q[2], q[1])));
+    sl_dvec2 q[4] = {p[0], p[1], p[2], n == 3 ? p[2] : p[3]};
+    double lu = fmax(sl_d2_len(sl_d2_sub(q[1], q[0])), sl_d2_len(sl_d2_sub(q[2], q[3])));
+    double lv = fmax(sl_d2_len(sl_d2_sub(q[3], q[0])), sl_d2_len(sl_d2_sub(q[2], q[1])));
     int nu = (int)SL_CLAMP(ceil(lu / c->tcell), 1.0, 64.0), nv = (int)SL_CLAMP(ceil(lv / c->tcell), 1.0, 64.0);
     if (!gc_mesh_reserve(m, (uint32_t)((nu + 1) * (nv + 1)), (uint32_t)(2 * nu * nv)))
         return;
@@ -40,8 +40,8 @@ static void drape(gc_city *c, const gc_v2 *p, int n, double lift)
     for (int v = 0; v <= nv; v++)
         for (int u = 0; u <= nu; u++) {
             double s = (double)u / nu, t = (double)v / nv;
-            gc_v2 a = gc_lerp2(gc_lerp2(q[0], q[1], s), gc_lerp2(q[3], q[2], s), t);
-            gc_vert(m, gc_at(a, gc_ground(c, a.x, a.y) + lift), gc_ground_normal(c, a.x, a.y));
+            sl_dvec2 a = sl_d2_lerp(sl_d2_lerp(q[0], q[1], s), sl_d2_lerp(q[3], q[2], s), t);
+            gc_vert(m, sl_d3_of_d2(a, gc_ground(c, a.x, a.y) + lift), gc_ground_normal(c, a.x, a.y));
         }
     for (int v = 0; v < nv; v++)
         for (int u = 0; u < nu; u++) {
@@ -59,7 +59,7 @@ static void drape(gc_city *c, const gc_v2 *p, int n, double lift)
 }
 
 typedef struct piece {
-    gc_v2 p[4];
+    sl_dvec2 p[4];
     int n;
     uint32_t tile;
 } piece;
@@ -91,9 +91,9 @@ static sl_status street_tiles(gc_city *c)
                     if (!pc.n)
                         continue;
                 }
-                gc_v2 ctr = {0, 0};
+                sl_dvec2 ctr = {0, 0};
                 for (int k = 0; k < pc.n; k++)
-                    ctr = gc_add2(ctr, gc_scale2(pc.p[k], 1.0 / pc.n));
+                    ctr = sl_d2_add(ctr, sl_d2_scale(pc.p[k], 1.0 / pc.n));
                 uint32_t tx = (uint32_t)SL_CLAMP((ctr.x - c->x0) / GC_TILE, 0.0, (double)ntx - 1);
                 uint32_t ty = (uint32_t)SL_CLAMP((ctr.y - c->y0) / GC_TILE, 0.0, (double)nty - 1);
                 pc.tile = ty * ntx + tx;
@@ -142,53 +142,54 @@ done:
 }
 
 /* Vertical wall from the water up to the bank along a water edge a->b, facing the water. */
-static void quay_wall(gc_city *c, gc_v2 a, gc_v2 b)
+static void quay_wall(gc_city *c, sl_dvec2 a, sl_dvec2 b)
 {
-    gc_v2 d = gc_sub2(b, a);
+    sl_dvec2 d = sl_d2_sub(b, a);
     sl_dvec3 want = sl_d3(-d.y, d.x, 0);
-    gc_quad(&c->mesh, gc_at(a, GC_WATER_Z), gc_at(b, GC_WATER_Z), gc_at(b, 0.0), gc_at(a, 0.0), want);
+    gc_quad(&c->mesh, sl_d3_of_d2(a, GC_WATER_Z), sl_d3_of_d2(b, GC_WATER_Z), sl_d3_of_d2(b, 0.0), sl_d3_of_d2(a, 0.0),
+            want);
 }
 
 /* Points where the line p + t*d crosses the two water edges, ordered along d. */
-static bool water_span(gc_v2 p, gc_v2 d, const gc_v2 w[4], gc_v2 *s0, gc_v2 *s1)
+static bool water_span(sl_dvec2 p, sl_dvec2 d, const sl_dvec2 w[4], sl_dvec2 *s0, sl_dvec2 *s1)
 {
-    gc_v2 a, b;
-    if (!gc_line_isect(p, d, w[0], gc_sub2(w[1], w[0]), &a) || !gc_line_isect(p, d, w[3], gc_sub2(w[2], w[3]), &b))
+    sl_dvec2 a, b;
+    if (!gc_line_isect(p, d, w[0], sl_d2_sub(w[1], w[0]), &a) || !gc_line_isect(p, d, w[3], sl_d2_sub(w[2], w[3]), &b))
         return false;
-    if (gc_dot2(gc_sub2(b, a), d) < 0) {
-        gc_v2 t = a;
+    if (sl_d2_dot(sl_d2_sub(b, a), d) < 0) {
+        sl_dvec2 t = a;
         a = b, b = t;
     }
     *s0 = a, *s1 = b;
-    return gc_len2(gc_sub2(b, a)) > 0.5;
+    return sl_d2_len(sl_d2_sub(b, a)) > 0.5;
 }
 
 static sl_status bridge(gc_city *c, int i, int j)
 {
     gc_mesh *m = &c->mesh;
     gc_mesh_reset(m);
-    gc_v2 q[4];
+    sl_dvec2 q[4];
     gc_edge_quad(c, false, i, j, q);
     double top = 0.15, bot = -0.9;
     sl_dvec3 up = {0, 0, 1}, down = {0, 0, -1}, none = {0, 0, 0};
     sl_dvec3 t4[4], b4[4];
     for (int k = 0; k < 4; k++)
-        t4[k] = gc_at(q[k], top), b4[k] = gc_at(q[k], bot);
+        t4[k] = sl_d3_of_d2(q[k], top), b4[k] = sl_d3_of_d2(q[k], bot);
     gc_face(m, t4, 4, up);
     gc_face(m, b4, 4, down);
     for (int k = 0; k < 4; k++)
         gc_quad(m, b4[k], b4[(k + 1) & 3], t4[(k + 1) & 3], t4[k], none);
     /* parapets along both kerbs, over the water only (the banks stay walkable) */
-    gc_v2 lo[4], hi[4], wr[4], wl[4];
+    sl_dvec2 lo[4], hi[4], wr[4], wl[4];
     gc_river_quads(c, i, j, lo, hi, wr);
     gc_river_quads(c, i - 1, j, lo, hi, wl);
     for (int side = 0; side < 2; side++) {
-        gc_v2 a = side == 0 ? q[0] : q[2], b = side == 0 ? q[1] : q[3];
-        gc_v2 d = gc_sub2(b, a), s0, s1;
+        sl_dvec2 a = side == 0 ? q[0] : q[2], b = side == 0 ? q[1] : q[3];
+        sl_dvec2 d = sl_d2_sub(b, a), s0, s1;
         if (!water_span(a, d, side == 0 ? wr : wl, &s0, &s1))
             continue;
-        gc_v2 in = gc_scale2(gc_left2(gc_norm2(d)), 0.3);
-        gc_v2 poly[4] = {s0, s1, gc_add2(s1, in), gc_add2(s0, in)};
+        sl_dvec2 in = sl_d2_scale(sl_d2_left(sl_d2_unit(d)), 0.3);
+        sl_dvec2 poly[4] = {s0, s1, sl_d2_add(s1, in), sl_d2_add(s0, in)};
         gc_prism(m, poly, 4, top, top + 1.1, true, false);
     }
     return gc_commit_object(c, SL_KIND_GROUND, 0, COLOR_BRIDGE, NULL) ? SL_OK : c->err->status;
@@ -205,7 +206,7 @@ sl_status gc_groundwork(gc_city *c)
             gc_cell *cl = gc_cellp(c, i, j);
             gc_mesh_reset(&c->mesh);
             if (cl->type == GC_CELL_RIVER) {
-                gc_v2 lo[4], hi[4], w[4];
+                sl_dvec2 lo[4], hi[4], w[4];
                 if (gc_river_quads(c, i, j, lo, hi, w)) {
                     drape(c, lo, 4, 0.0);
                     drape(c, hi, 4, 0.0);
@@ -217,7 +218,7 @@ sl_status gc_groundwork(gc_city *c)
                 gc_mesh_reset(&c->mesh);
                 sl_dvec3 wq[4];
                 for (int k = 0; k < 4; k++)
-                    wq[k] = gc_at(w[k], GC_WATER_Z);
+                    wq[k] = sl_d3_of_d2(w[k], GC_WATER_Z);
                 gc_face(&c->mesh, wq, 4, sl_d3(0, 0, 1));
                 if (!gc_commit_object(c, SL_KIND_WATER, 0, COLOR_WATER, NULL))
                     return c->err->status;

@@ -40,51 +40,33 @@
 #define GC_MAX_POLY 16        /* vertices of a building footprint */
 #define GC_PI 3.14159265358979323846
 
-/* ---- vectors ---- */
-typedef struct gc_v2 { double x, y; } gc_v2;
-
-static inline gc_v2 gc_v2_make(double x, double y) { gc_v2 r = {x, y}; return r; }
-static inline gc_v2 gc_add2(gc_v2 a, gc_v2 b) { return gc_v2_make(a.x + b.x, a.y + b.y); }
-static inline gc_v2 gc_sub2(gc_v2 a, gc_v2 b) { return gc_v2_make(a.x - b.x, a.y - b.y); }
-static inline gc_v2 gc_scale2(gc_v2 a, double s) { return gc_v2_make(a.x * s, a.y * s); }
-static inline double gc_dot2(gc_v2 a, gc_v2 b) { return a.x * b.x + a.y * b.y; }
-static inline double gc_cross2(gc_v2 a, gc_v2 b) { return a.x * b.y - a.y * b.x; }
-static inline double gc_len2(gc_v2 a) { return sqrt(a.x * a.x + a.y * a.y); }
-static inline gc_v2 gc_lerp2(gc_v2 a, gc_v2 b, double t) { return gc_v2_make(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t); }
-static inline gc_v2 gc_norm2(gc_v2 a)
-{
-    double l = gc_len2(a);
-    return l > 0 ? gc_scale2(a, 1.0 / l) : gc_v2_make(0, 0);
-}
-/* Left normal of a direction (inward for a CCW polygon's edge). */
-static inline gc_v2 gc_left2(gc_v2 d) { return gc_v2_make(-d.y, d.x); }
-static inline sl_dvec3 gc_at(gc_v2 p, double z) { return sl_d3(p.x, p.y, z); }
+/* ---- vectors: the core kit (core/dvec3.h: sl_dvec2, sl_d2_*, sl_dvec3, sl_d3_*) ---- */
 
 /* ---- 2D polygons (gen_city_geom.c) ---- */
 
 /* Intersection of lines p + t*d and q + u*e; false when (nearly) parallel. */
-bool gc_line_isect(gc_v2 p, gc_v2 d, gc_v2 q, gc_v2 e, gc_v2 *out);
+bool gc_line_isect(sl_dvec2 p, sl_dvec2 d, sl_dvec2 q, sl_dvec2 e, sl_dvec2 *out);
 /* Signed area (positive for CCW). */
-double gc_area(const gc_v2 *p, int n);
+double gc_area(const sl_dvec2 *p, int n);
 /* True when every turn is a left turn (strictly convex CCW polygon). */
-bool gc_convex(const gc_v2 *p, int n);
+bool gc_convex(const sl_dvec2 *p, int n);
 /* True when no two non-adjacent edges touch. */
-bool gc_simple(const gc_v2 *p, int n);
+bool gc_simple(const sl_dvec2 *p, int n);
 /* Shortest edge length. */
-double gc_min_edge(const gc_v2 *p, int n);
+double gc_min_edge(const sl_dvec2 *p, int n);
 /* Move edge i (p[i] -> p[i+1]) of a CCW polygon to its left (inward) by off[i] (negative:
  * outward); vertices are the intersections of consecutive moved edges. Returns false when the
  * result is not a like polygon (an edge flipped or shrank below 5 cm, or the area vanished). */
-bool gc_offset(const gc_v2 *p, int n, const double *off, gc_v2 *out);
+bool gc_offset(const sl_dvec2 *p, int n, const double *off, sl_dvec2 *out);
 /* Same with one offset for all edges. */
-bool gc_offset_all(const gc_v2 *p, int n, double off, gc_v2 *out);
+bool gc_offset_all(const sl_dvec2 *p, int n, double off, sl_dvec2 *out);
 /* Largest uniform inward offset keeping a like polygon (bisection; convex polygons). */
-double gc_max_inset(const gc_v2 *p, int n);
+double gc_max_inset(const sl_dvec2 *p, int n);
 /* Point strictly inside a CCW convex polygon, at least `margin` from every edge. */
-bool gc_inside_convex(const gc_v2 *p, int n, gc_v2 q, double margin);
+bool gc_inside_convex(const sl_dvec2 *p, int n, sl_dvec2 q, double margin);
 /* Ear-clipping triangulation of a simple CCW polygon (n <= GC_MAX_POLY); returns the triangle
  * count (n-2) and fills tri with vertex indices. */
-int gc_triangulate(const gc_v2 *p, int n, uint8_t tri[][3]);
+int gc_triangulate(const sl_dvec2 *p, int n, uint8_t tri[][3]);
 
 /* ---- mesh builder (gen_city_geom.c) ----
  * A scratch mesh reused for every building/prop/ground piece, then copied into the scene with
@@ -125,9 +107,9 @@ void gc_face(gc_mesh *m, const sl_dvec3 *p, int n, sl_dvec3 want);
 void gc_quad(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 d, sl_dvec3 want);
 void gc_tri(gc_mesh *m, sl_dvec3 a, sl_dvec3 b, sl_dvec3 c, sl_dvec3 want);
 /* Horizontal cap of a simple CCW polygon at height z, facing up (or down). */
-void gc_cap(gc_mesh *m, const gc_v2 *p, int n, double z, bool up);
+void gc_cap(gc_mesh *m, const sl_dvec2 *p, int n, double z, bool up);
 /* Vertical prism over a CCW polygon between z0 and z1: the walls, plus caps when asked. */
-void gc_prism(gc_mesh *m, const gc_v2 *p, int n, double z0, double z1, bool top, bool bottom);
+void gc_prism(gc_mesh *m, const sl_dvec2 *p, int n, double z0, double z1, bool top, bool bottom);
 /* Axis-aligned box (local prop coordinates); bottom face optional. */
 void gc_box(gc_mesh *m, sl_dvec3 lo, sl_dvec3 hi, bool bottom);
 
@@ -144,11 +126,11 @@ typedef struct gc_edge {
 
 typedef struct gc_cell {
     uint32_t type;            /* GC_CELL_* */
-    gc_v2 ground[4];          /* the cell bounded by its streets' kerb lines */
+    sl_dvec2 ground[4];       /* the cell bounded by its streets' kerb lines */
 } gc_cell;
 
 typedef struct gc_court {
-    gc_v2 q[4];               /* CCW courtyard quad */
+    sl_dvec2 q[4];            /* CCW courtyard quad */
     uint32_t cell;            /* cell index, keys the random stream */
     uint32_t pad;
 } gc_court;
@@ -162,7 +144,7 @@ typedef struct gc_city {
     double x0, y0, x1, y1;    /* extent */
     int nx, ny;               /* cells along x and y */
     int river_row;            /* cell row of the river, -1 without */
-    gc_v2 *node;              /* (nx+1)*(ny+1), index j*(nx+1)+i */
+    sl_dvec2 *node;           /* (nx+1)*(ny+1), index j*(nx+1)+i */
     gc_edge *hedge;           /* nx*(ny+1): node (i,j) -> (i+1,j), index j*nx+i */
     gc_edge *vedge;           /* (nx+1)*ny: node (i,j) -> (i,j+1), index j*(nx+1)+i */
     gc_cell *cell;            /* nx*ny, index j*nx+i */
@@ -185,7 +167,7 @@ typedef struct gc_city {
     uint32_t n_trees, n_lamps, n_cars;
 } gc_city;
 
-static inline gc_v2 gc_node(const gc_city *c, int i, int j) { return c->node[(size_t)j * (c->nx + 1) + i]; }
+static inline sl_dvec2 gc_node(const gc_city *c, int i, int j) { return c->node[(size_t)j * (c->nx + 1) + i]; }
 static inline gc_edge *gc_hedge(gc_city *c, int i, int j) { return &c->hedge[(size_t)j * c->nx + i]; }
 static inline gc_edge *gc_vedge(gc_city *c, int i, int j) { return &c->vedge[(size_t)j * (c->nx + 1) + i]; }
 static inline gc_cell *gc_cellp(gc_city *c, int i, int j) { return &c->cell[(size_t)j * c->nx + i]; }
@@ -201,22 +183,22 @@ enum {
 gc_edge *gc_cell_side_edge(gc_city *c, int i, int j, int k);
 bool gc_cell_side_border(const gc_city *c, int i, int j, int k);
 /* Line of side k of cell (i,j) moved inward by off: point p, direction d (corner k to k+1). */
-void gc_side_line(const gc_city *c, int i, int j, int k, double off, gc_v2 *p, gc_v2 *d);
+void gc_side_line(const gc_city *c, int i, int j, int k, double off, sl_dvec2 *p, sl_dvec2 *d);
 /* Cell quad bounded by its side lines moved inward by off[k]; false if degenerate. */
-bool gc_cell_quad(const gc_city *c, int i, int j, const double off[4], gc_v2 out[4]);
+bool gc_cell_quad(const gc_city *c, int i, int j, const double off[4], sl_dvec2 out[4]);
 /* Free-space quad of a street edge: out[0]->out[1] is the kerb on the right of the direction
  * a->b, out[3]->out[2] the kerb on the left. `horizontal` picks hedge(i,j) or vedge(i,j). */
-void gc_edge_quad(gc_city *c, bool horizontal, int i, int j, gc_v2 out[4]);
+void gc_edge_quad(gc_city *c, bool horizontal, int i, int j, sl_dvec2 out[4]);
 /* Free-space polygon of an interior lattice node (intersection): the corners of the cells around
  * it, CCW, coincident corners merged. Returns the vertex count (0 when there is none, 3 or 4). */
-int gc_node_poly(gc_city *c, int i, int j, gc_v2 out[4]);
+int gc_node_poly(gc_city *c, int i, int j, sl_dvec2 out[4]);
 /* Lower and upper bank quads and the water quad of river cell (i,j). */
-bool gc_river_quads(gc_city *c, int i, int j, gc_v2 bank_lo[4], gc_v2 bank_hi[4], gc_v2 water[4]);
+bool gc_river_quads(gc_city *c, int i, int j, sl_dvec2 bank_lo[4], sl_dvec2 bank_hi[4], sl_dvec2 water[4]);
 
 /* Terrain height at (x,y) (bilinear, as sl_scene_ground_height), 0 without terrain. */
 double gc_ground(const gc_city *c, double x, double y);
 /* Lowest terrain height over a simple polygon (exact for the bilinear height field). */
-double gc_ground_min_poly(const gc_city *c, const gc_v2 *p, int n);
+double gc_ground_min_poly(const gc_city *c, const sl_dvec2 *p, int n);
 /* Terrain normal at (x,y). */
 sl_dvec3 gc_ground_normal(const gc_city *c, double x, double y);
 

@@ -35,17 +35,17 @@ bool gc_cell_side_border(const gc_city *c, int i, int j, int k)
     }
 }
 
-void gc_side_line(const gc_city *c, int i, int j, int k, double off, gc_v2 *p, gc_v2 *d)
+void gc_side_line(const gc_city *c, int i, int j, int k, double off, sl_dvec2 *p, sl_dvec2 *d)
 {
     int k2 = (k + 1) & 3;
-    gc_v2 a = gc_node(c, i + corner_di[k], j + corner_dj[k]), b = gc_node(c, i + corner_di[k2], j + corner_dj[k2]);
-    *d = gc_sub2(b, a);
-    *p = gc_add2(a, gc_scale2(gc_left2(gc_norm2(*d)), off));
+    sl_dvec2 a = gc_node(c, i + corner_di[k], j + corner_dj[k]), b = gc_node(c, i + corner_di[k2], j + corner_dj[k2]);
+    *d = sl_d2_sub(b, a);
+    *p = sl_d2_add(a, sl_d2_scale(sl_d2_left(sl_d2_unit(*d)), off));
 }
 
-bool gc_cell_quad(const gc_city *c, int i, int j, const double off[4], gc_v2 out[4])
+bool gc_cell_quad(const gc_city *c, int i, int j, const double off[4], sl_dvec2 out[4])
 {
-    gc_v2 p[4], d[4];
+    sl_dvec2 p[4], d[4];
     for (int k = 0; k < 4; k++)
         gc_side_line(c, i, j, k, off[k], &p[k], &d[k]);
     for (int k = 0; k < 4; k++) {
@@ -56,7 +56,7 @@ bool gc_cell_quad(const gc_city *c, int i, int j, const double off[4], gc_v2 out
     return gc_convex(out, 4) && gc_area(out, 4) > 1.0;
 }
 
-void gc_edge_quad(gc_city *c, bool horizontal, int i, int j, gc_v2 out[4])
+void gc_edge_quad(gc_city *c, bool horizontal, int i, int j, sl_dvec2 out[4])
 {
     if (horizontal) {
         const gc_cell *below = gc_cellp(c, i, j - 1), *above = gc_cellp(c, i, j);
@@ -73,24 +73,24 @@ static double half_width(gc_city *c, int i, int j, int k)
     return (e->flags & GC_EDGE_STREET) ? 0.5 * e->width : 0.0;
 }
 
-static gc_v2 isect_or(gc_v2 p, gc_v2 d, gc_v2 q, gc_v2 e)
+static sl_dvec2 isect_or(sl_dvec2 p, sl_dvec2 d, sl_dvec2 q, sl_dvec2 e)
 {
-    gc_v2 r = p;
+    sl_dvec2 r = p;
     gc_line_isect(p, d, q, e, &r);
     return r;
 }
 
-bool gc_river_quads(gc_city *c, int i, int j, gc_v2 lo[4], gc_v2 hi[4], gc_v2 water[4])
+bool gc_river_quads(gc_city *c, int i, int j, sl_dvec2 lo[4], sl_dvec2 hi[4], sl_dvec2 water[4])
 {
-    const gc_v2 *g = gc_cellp(c, i, j)->ground;
+    const sl_dvec2 *g = gc_cellp(c, i, j)->ground;
     double bank = c->opt->bank_width;
-    gc_v2 pwb, dwb, pwt, dwt;
+    sl_dvec2 pwb, dwb, pwt, dwt;
     gc_side_line(c, i, j, 0, half_width(c, i, j, 0) + bank, &pwb, &dwb);
     gc_side_line(c, i, j, 2, half_width(c, i, j, 2) + bank, &pwt, &dwt);
     /* banks end at the cell's sides (a bridge's kerb or the divider between river cells); the
      * water runs on under bridges to the bridge's centre line */
-    gc_v2 pl = g[3], dl = gc_sub2(g[0], g[3]), pr = g[1], dr = gc_sub2(g[2], g[1]);
-    gc_v2 pl0 = pl, dl0 = dl, pr0 = pr, dr0 = dr;
+    sl_dvec2 pl = g[3], dl = sl_d2_sub(g[0], g[3]), pr = g[1], dr = sl_d2_sub(g[2], g[1]);
+    sl_dvec2 pl0 = pl, dl0 = dl, pr0 = pr, dr0 = dr;
     if (gc_cell_side_edge(c, i, j, 3)->flags & GC_EDGE_STREET)
         gc_side_line(c, i, j, 3, 0, &pl0, &dl0);
     if (gc_cell_side_edge(c, i, j, 1)->flags & GC_EDGE_STREET)
@@ -190,7 +190,7 @@ sl_status gc_layout(gc_city *c)
     size_t nn = (size_t)(nx + 1) * (ny + 1);
     double *X = sl_calloc(a, (size_t)nx + 1, sizeof(double)), *Y = sl_calloc(a, (size_t)ny + 1, sizeof(double));
     double *Yl = sl_calloc(a, (size_t)ny_land + 1, sizeof(double));
-    c->node = sl_calloc(a, nn, sizeof(gc_v2));
+    c->node = sl_calloc(a, nn, sizeof(sl_dvec2));
     c->hedge = sl_calloc(a, (size_t)nx * (ny + 1), sizeof(gc_edge));
     c->vedge = sl_calloc(a, (size_t)(nx + 1) * ny, sizeof(gc_edge));
     c->cell = sl_calloc(a, (size_t)nx * ny, sizeof(gc_cell));
@@ -276,7 +276,7 @@ sl_status gc_layout(gc_city *c)
             if (j > 0 && j < ny && !c->hline_avenue[j])
                 y += o->jitter * SL_MIN(Y[j] - Y[j - 1], Y[j + 1] - Y[j]) * jy;
             y += weight * amp * sin(2 * GC_PI * (X[i] - c->x0) / lambda + phase);
-            c->node[(size_t)j * (nx + 1) + i] = gc_v2_make(x, y);
+            c->node[(size_t)j * (nx + 1) + i] = sl_d2(x, y);
         }
     }
 
@@ -387,16 +387,16 @@ sl_status gc_layout(gc_city *c)
     for (int j = 1; j < ny; j++)
         for (int i = 0; i < nx; i++)
             if (!(gc_hedge(c, i, j)->flags & GC_EDGE_STREET)) {
-                gc_v2 *ga = gc_cellp(c, i, j)->ground, *gb = gc_cellp(c, i, j - 1)->ground;
-                ga[0] = gb[3] = gc_lerp2(ga[0], gb[3], 0.5);
-                ga[1] = gb[2] = gc_lerp2(ga[1], gb[2], 0.5);
+                sl_dvec2 *ga = gc_cellp(c, i, j)->ground, *gb = gc_cellp(c, i, j - 1)->ground;
+                ga[0] = gb[3] = sl_d2_lerp(ga[0], gb[3], 0.5);
+                ga[1] = gb[2] = sl_d2_lerp(ga[1], gb[2], 0.5);
             }
     for (int j = 0; j < ny; j++)
         for (int i = 1; i < nx; i++)
             if (!(gc_vedge(c, i, j)->flags & GC_EDGE_STREET)) {
-                gc_v2 *ga = gc_cellp(c, i, j)->ground, *gb = gc_cellp(c, i - 1, j)->ground;
-                ga[0] = gb[1] = gc_lerp2(ga[0], gb[1], 0.5);
-                ga[3] = gb[2] = gc_lerp2(ga[3], gb[2], 0.5);
+                sl_dvec2 *ga = gc_cellp(c, i, j)->ground, *gb = gc_cellp(c, i - 1, j)->ground;
+                ga[0] = gb[1] = sl_d2_lerp(ga[0], gb[1], 0.5);
+                ga[3] = gb[2] = sl_d2_lerp(ga[3], gb[2], 0.5);
             }
     for (int j = 0; j < ny; j++)
         for (int i = 0; i < nx; i++)
@@ -451,8 +451,8 @@ static double river_center(const gc_city *c, double x)
 {
     int jr = c->river_row;
     for (int i = 0; i < c->nx; i++) {
-        gc_v2 a0 = gc_node(c, i, jr), b0 = gc_node(c, i + 1, jr);
-        gc_v2 a1 = gc_node(c, i, jr + 1), b1 = gc_node(c, i + 1, jr + 1);
+        sl_dvec2 a0 = gc_node(c, i, jr), b0 = gc_node(c, i + 1, jr);
+        sl_dvec2 a1 = gc_node(c, i, jr + 1), b1 = gc_node(c, i + 1, jr + 1);
         if (x <= b0.x || i == c->nx - 1) {
             double t0 = SL_CLAMP((x - a0.x) / (b0.x - a0.x), 0.0, 1.0), t1 = SL_CLAMP((x - a1.x) / (b1.x - a1.x), 0.0, 1.0);
             return 0.5 * (a0.y + (b0.y - a0.y) * t0 + a1.y + (b1.y - a1.y) * t1);
@@ -534,7 +534,7 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-double gc_ground_min_poly(const gc_city *c, const gc_v2 *p, int n)
+double gc_ground_min_poly(const gc_city *c, const sl_dvec2 *p, int n)
 {
     if (!c->has_terrain)
         return 0.0;
@@ -543,7 +543,7 @@ double gc_ground_min_poly(const gc_city *c, const gc_v2 *p, int n)
      * on its boundary, where each piece of an edge within one cell is a parabola. */
     double m = INFINITY, xa = INFINITY, ya = INFINITY, xb = -INFINITY, yb = -INFINITY;
     for (int e = 0; e < n; e++) {
-        gc_v2 a = p[e], b = p[(e + 1) % n];
+        sl_dvec2 a = p[e], b = p[(e + 1) % n];
         xa = fmin(xa, a.x), xb = fmax(xb, a.x), ya = fmin(ya, a.y), yb = fmax(yb, a.y);
         double ts[256];
         int nt = 0;
@@ -559,7 +559,7 @@ double gc_ground_min_poly(const gc_city *c, const gc_v2 *p, int n)
         qsort(ts, (size_t)nt, sizeof ts[0], cmp_double);
         for (int k = 0; k + 1 < nt; k++) {
             double t0 = ts[k], t1 = ts[k + 1];
-            gc_v2 q0 = gc_lerp2(a, b, t0), q1 = gc_lerp2(a, b, t1), qm = gc_lerp2(a, b, 0.5 * (t0 + t1));
+            sl_dvec2 q0 = sl_d2_lerp(a, b, t0), q1 = sl_d2_lerp(a, b, t1), qm = sl_d2_lerp(a, b, 0.5 * (t0 + t1));
             double f0 = gc_ground(c, q0.x, q0.y), f1 = gc_ground(c, q1.x, q1.y), fm = gc_ground(c, qm.x, qm.y);
             double C = 2 * (f0 + f1 - 2 * fm), B = f1 - f0 - C;
             m = fmin(m, fmin(f0, f1));
@@ -599,19 +599,19 @@ sl_dvec3 gc_ground_normal(const gc_city *c, double x, double y)
 
 /* ---- street network ---- */
 
-int gc_node_poly(gc_city *c, int i, int j, gc_v2 out[4])
+int gc_node_poly(gc_city *c, int i, int j, sl_dvec2 out[4])
 {
     if (i <= 0 || j <= 0 || i >= c->nx || j >= c->ny)
         return 0;
-    gc_v2 p[4] = {gc_cellp(c, i, j)->ground[0], gc_cellp(c, i - 1, j)->ground[1], gc_cellp(c, i - 1, j - 1)->ground[2],
-                  gc_cellp(c, i, j - 1)->ground[3]};
+    sl_dvec2 p[4] = {gc_cellp(c, i, j)->ground[0], gc_cellp(c, i - 1, j)->ground[1],
+                     gc_cellp(c, i - 1, j - 1)->ground[2], gc_cellp(c, i, j - 1)->ground[3]};
     int n = 0;
     for (int k = 0; k < 4; k++) {
-        if (n > 0 && gc_len2(gc_sub2(p[k], out[n - 1])) < 1e-3)
+        if (n > 0 && sl_d2_len(sl_d2_sub(p[k], out[n - 1])) < 1e-3)
             continue;
         out[n++] = p[k];
     }
-    if (n > 1 && gc_len2(gc_sub2(out[n - 1], out[0])) < 1e-3)
+    if (n > 1 && sl_d2_len(sl_d2_sub(out[n - 1], out[0])) < 1e-3)
         n--;
     if (n < 3 || !(gc_area(out, n) > 0.05))
         return 0;
@@ -624,7 +624,7 @@ static bool is_open_cell(uint32_t type)
     return type == GC_CELL_PARK || type == GC_CELL_SQUARE || type == GC_CELL_PLAZA;
 }
 
-static sl_status add_poly(gc_city *c, const gc_v2 *p, int n)
+static sl_status add_poly(gc_city *c, const sl_dvec2 *p, int n)
 {
     float xy[2 * GC_MAX_POLY];
     for (int k = 0; k < n; k++)
@@ -636,7 +636,7 @@ sl_status gc_streets(gc_city *c)
 {
     int nx = c->nx, ny = c->ny;
     sl_status st;
-    gc_v2 q[4];
+    sl_dvec2 q[4];
     /* free space: street segments, intersections, squares and parks, river banks */
     for (int j = 1; j < ny; j++)
         for (int i = 0; i < nx; i++)
@@ -664,7 +664,7 @@ sl_status gc_streets(gc_city *c)
             if (is_open_cell(cl->type) && (st = add_poly(c, cl->ground, 4)) != SL_OK)
                 return st;
             if (cl->type == GC_CELL_RIVER) {
-                gc_v2 lo[4], hi[4], w[4];
+                sl_dvec2 lo[4], hi[4], w[4];
                 if (gc_river_quads(c, i, j, lo, hi, w) &&
                     ((st = add_poly(c, lo, 4)) != SL_OK || (st = add_poly(c, hi, 4)) != SL_OK))
                     return st;
@@ -722,7 +722,8 @@ sl_status gc_streets(gc_city *c)
             gc_cell *cl = gc_cellp(c, i, j);
             if (!is_open_cell(cl->type))
                 continue;
-            gc_v2 ctr = gc_scale2(gc_add2(gc_add2(cl->ground[0], cl->ground[1]), gc_add2(cl->ground[2], cl->ground[3])), 0.25);
+            sl_dvec2 ctr = sl_d2_scale(
+                sl_d2_add(sl_d2_add(cl->ground[0], cl->ground[1]), sl_d2_add(cl->ground[2], cl->ground[3])), 0.25);
             sl_street_node sn = {(float)ctr.x, (float)ctr.y};
             uint32_t id = (uint32_t)nodes.count;
             if (!sl_array_push(c->alloc, &nodes, sizeof sn, &sn, 1))

@@ -23,15 +23,15 @@ static const uint32_t car_colors[] = {0xC0392BFFu, 0x2C3E50FFu, 0xECF0F1FFu, 0x7
 
 /* ---- meshes (local: base at z = 0, cars along +x) ---- */
 
-static void ngon(gc_v2 *p, int n, double r, double phase)
+static void ngon(sl_dvec2 *p, int n, double r, double phase)
 {
     for (int k = 0; k < n; k++)
-        p[k] = gc_v2_make(r * cos(phase + 2 * GC_PI * k / n), r * sin(phase + 2 * GC_PI * k / n));
+        p[k] = sl_d2(r * cos(phase + 2 * GC_PI * k / n), r * sin(phase + 2 * GC_PI * k / n));
 }
 
 static void trunk(gc_mesh *m, double r, double h)
 {
-    gc_v2 p[6];
+    sl_dvec2 p[6];
     ngon(p, 6, r, 0);
     gc_prism(m, p, 6, 0, h, false, false);
 }
@@ -57,13 +57,13 @@ static void icosahedron(gc_mesh *m, double r, double zc)
 /* Cone or bicone crown: an n-gon ring of radius r at z0, apex at z1, optional lower apex. */
 static void crown(gc_mesh *m, int n, double r, double zring, double ztop, double zbottom, bool cap)
 {
-    gc_v2 p[8];
+    sl_dvec2 p[8];
     ngon(p, n, r, 0.3);
     for (int k = 0; k < n; k++) {
-        gc_v2 a = p[k], b = p[(k + 1) % n], mid = gc_lerp2(a, b, 0.5);
-        gc_tri(m, gc_at(a, zring), gc_at(b, zring), sl_d3(0, 0, ztop), sl_d3(mid.x, mid.y, 0.5));
+        sl_dvec2 a = p[k], b = p[(k + 1) % n], mid = sl_d2_lerp(a, b, 0.5);
+        gc_tri(m, sl_d3_of_d2(a, zring), sl_d3_of_d2(b, zring), sl_d3(0, 0, ztop), sl_d3(mid.x, mid.y, 0.5));
         if (!cap)
-            gc_tri(m, gc_at(b, zring), gc_at(a, zring), sl_d3(0, 0, zbottom), sl_d3(mid.x, mid.y, -0.5));
+            gc_tri(m, sl_d3_of_d2(b, zring), sl_d3_of_d2(a, zring), sl_d3(0, 0, zbottom), sl_d3(mid.x, mid.y, -0.5));
     }
     if (cap)
         gc_cap(m, p, n, zring, false);
@@ -114,7 +114,7 @@ static bool make_meshes(gc_city *c)
     }
     if (o->lamp_spacing > 0) {
         gc_mesh_reset(m);
-        gc_v2 p[6];
+        sl_dvec2 p[6];
         ngon(p, 6, 0.08, 0);
         gc_prism(m, p, 6, 0, 5.2, true, false);
         gc_box(m, sl_d3(0.05, -0.04, 5.0), sl_d3(1.3, 0.04, 5.1), true);
@@ -141,7 +141,7 @@ static bool make_meshes(gc_city *c)
 
 /* ---- placement ---- */
 
-static sl_status place(gc_city *c, uint32_t mesh, uint32_t kind, uint32_t flags, uint32_t color, gc_v2 at, double z,
+static sl_status place(gc_city *c, uint32_t mesh, uint32_t kind, uint32_t flags, uint32_t color, sl_dvec2 at, double z,
                        double yaw, double scale)
 {
     double cs = cos(yaw) * scale, sn = sin(yaw) * scale;
@@ -150,7 +150,7 @@ static sl_status place(gc_city *c, uint32_t mesh, uint32_t kind, uint32_t flags,
     return sl_scene_add_object(c->scene, &d, NULL, c->err);
 }
 
-static sl_status tree(gc_city *c, sl_rng *r, gc_v2 at, double scale, bool street)
+static sl_status tree(gc_city *c, sl_rng *r, sl_dvec2 at, double scale, bool street)
 {
     uint32_t v = 0;
     if (!street) {
@@ -163,9 +163,9 @@ static sl_status tree(gc_city *c, sl_rng *r, gc_v2 at, double scale, bool street
     return place(c, c->tree_mesh[v], SL_KIND_TREE, SL_OBJECT_OCCLUDER, color, at, gc_ground(c, at.x, at.y), yaw, scale);
 }
 
-static gc_v2 quad_at(const gc_v2 q[4], double s, double f)
+static sl_dvec2 quad_at(const sl_dvec2 q[4], double s, double f)
 {
-    return gc_lerp2(gc_lerp2(q[0], q[1], s), gc_lerp2(q[3], q[2], s), f);
+    return sl_d2_lerp(sl_d2_lerp(q[0], q[1], s), sl_d2_lerp(q[3], q[2], s), f);
 }
 
 static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
@@ -174,11 +174,11 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
     const gc_edge *e = horizontal ? gc_hedge(c, i, j) : gc_vedge(c, i, j);
     if (!(e->flags & GC_EDGE_STREET))
         return SL_OK;
-    gc_v2 q[4];
+    sl_dvec2 q[4];
     gc_edge_quad(c, horizontal, i, j, q);
-    gc_v2 na = gc_node(c, i, j), nb = horizontal ? gc_node(c, i + 1, j) : gc_node(c, i, j + 1);
+    sl_dvec2 na = gc_node(c, i, j), nb = horizontal ? gc_node(c, i + 1, j) : gc_node(c, i, j + 1);
     double yaw = atan2(nb.y - na.y, nb.x - na.x);
-    double w = e->width, len = 0.5 * (gc_len2(gc_sub2(q[1], q[0])) + gc_len2(gc_sub2(q[2], q[3])));
+    double w = e->width, len = 0.5 * (sl_d2_len(sl_d2_sub(q[1], q[0])) + sl_d2_len(sl_d2_sub(q[2], q[3])));
     double sw = SL_CLAMP(0.2 * w, 1.5, 5.0), carriage = w - 2 * sw;
     bool on_bridge = (e->flags & GC_EDGE_BRIDGE) != 0;
     uint32_t code = (horizontal ? 0u : 1u) << 31 | (uint32_t)i;
@@ -191,7 +191,7 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
         int side = (int)sl_rng_below(&r, 2);
         double f = SL_MAX(0.4, sw - 0.4) / w;
         for (int k = 0; k < n; k++, side ^= 1) {
-            gc_v2 at = quad_at(q, (k + 0.5) / n, side ? 1 - f : f);
+            sl_dvec2 at = quad_at(q, (k + 0.5) / n, side ? 1 - f : f);
             /* the arm reaches over the carriageway: left of the direction from the right kerb */
             double ay = yaw + (side ? -0.5 : 0.5) * GC_PI;
             double z = on_bridge ? 0.15 : gc_ground(c, at.x, at.y);
@@ -255,7 +255,7 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
                 uint32_t v = sl_rng_below(&r, 10) < 6 ? 1 : (sl_rng_below(&r, 3) == 0 ? 2 : 0);
                 uint32_t color = car_colors[sl_rng_below(&r, (uint32_t)SL_COUNTOF(car_colors))];
                 double jit = sl_rng_range(&r, -0.6f, 0.6f);
-                gc_v2 at = quad_at(q, (s + jit) / len, lanes[l].f);
+                sl_dvec2 at = quad_at(q, (s + jit) / len, lanes[l].f);
                 double z = on_bridge ? 0.15 : gc_ground(c, at.x, at.y);
                 int dir = lanes[l].dir ? lanes[l].dir : (sl_rng_below(&r, 2) ? 1 : -1);
                 if ((st = place(c, c->car_mesh[v], SL_KIND_CAR, SL_OBJECT_DYNAMIC | SL_OBJECT_OCCLUDER, color, at, z,
@@ -268,7 +268,7 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
 }
 
 /* Trees on a jittered grid inside a convex quad, at least `margin` from its edges. */
-static sl_status grove(gc_city *c, sl_rng *r, const gc_v2 q[4], double per_ha, double margin)
+static sl_status grove(gc_city *c, sl_rng *r, const sl_dvec2 q[4], double per_ha, double margin)
 {
     double g = 100.0 / sqrt(per_ha);
     double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
@@ -276,7 +276,7 @@ static sl_status grove(gc_city *c, sl_rng *r, const gc_v2 q[4], double per_ha, d
         x0 = fmin(x0, q[k].x), x1 = fmax(x1, q[k].x), y0 = fmin(y0, q[k].y), y1 = fmax(y1, q[k].y);
     for (double y = y0 + 0.5 * g; y < y1; y += g)
         for (double x = x0 + 0.5 * g; x < x1; x += g) {
-            gc_v2 at = gc_v2_make(x + sl_rng_range(r, -0.4f, 0.4f) * g, y + sl_rng_range(r, -0.4f, 0.4f) * g);
+            sl_dvec2 at = sl_d2(x + sl_rng_range(r, -0.4f, 0.4f) * g, y + sl_rng_range(r, -0.4f, 0.4f) * g);
             double scale = sl_rng_range(r, 0.8f, 1.3f);
             if (!gc_inside_convex(q, 4, at, margin))
                 continue;
@@ -315,26 +315,26 @@ sl_status gc_props(gc_city *c)
                 if ((st = grove(c, &r, cl->ground, o->trees_per_ha, 4.0)) != SL_OK)
                     return st;
             } else if (cl->type == GC_CELL_SQUARE && o->street_tree_spacing > 0) {
-                gc_v2 in[4];
+                sl_dvec2 in[4];
                 if (!gc_offset_all(cl->ground, 4, 4.0, in))
                     continue;
                 for (int k = 0; k < 4; k++) {
-                    double len = gc_len2(gc_sub2(in[(k + 1) & 3], in[k]));
+                    double len = sl_d2_len(sl_d2_sub(in[(k + 1) & 3], in[k]));
                     int n = (int)floor(len / o->street_tree_spacing);
                     for (int t = 0; t < n; t++)
-                        if ((st = tree(c, &r, gc_lerp2(in[k], in[(k + 1) & 3], (t + 0.5) / n), 0.8, true)) != SL_OK)
+                        if ((st = tree(c, &r, sl_d2_lerp(in[k], in[(k + 1) & 3], (t + 0.5) / n), 0.8, true)) != SL_OK)
                             return st;
                 }
             } else if (cl->type == GC_CELL_RIVER && o->street_tree_spacing > 0 && o->bank_width >= 5) {
-                gc_v2 lo[4], hi[4], w[4];
+                sl_dvec2 lo[4], hi[4], w[4];
                 if (!gc_river_quads(c, i, j, lo, hi, w))
                     continue;
                 for (int b = 0; b < 2; b++) {
-                    const gc_v2 *q = b ? hi : lo;
-                    double len = 0.5 * (gc_len2(gc_sub2(q[1], q[0])) + gc_len2(gc_sub2(q[2], q[3])));
+                    const sl_dvec2 *q = b ? hi : lo;
+                    double len = 0.5 * (sl_d2_len(sl_d2_sub(q[1], q[0])) + sl_d2_len(sl_d2_sub(q[2], q[3])));
                     int n = (int)floor((len - 4) / o->street_tree_spacing);
                     for (int t = 0; t < n; t++) {
-                        gc_v2 at = quad_at(q, (2 + (t + 0.5) * o->street_tree_spacing) / len, 0.5);
+                        sl_dvec2 at = quad_at(q, (2 + (t + 0.5) * o->street_tree_spacing) / len, 0.5);
                         if ((st = tree(c, &r, at, sl_rng_range(&r, 0.75f, 0.95f), true)) != SL_OK)
                             return st;
                     }
@@ -352,7 +352,7 @@ sl_status gc_props(gc_city *c)
             int n = 1 + (int)sl_rng_below(&r, 3);
             for (int t = 0; t < n; t++)
                 for (int attempt = 0; attempt < 8; attempt++) {
-                    gc_v2 at = quad_at(ct->q, sl_rng_float(&r), sl_rng_float(&r));
+                    sl_dvec2 at = quad_at(ct->q, sl_rng_float(&r), sl_rng_float(&r));
                     if (gc_inside_convex(ct->q, 4, at, 3.5)) {
                         if ((st = tree(c, &r, at, sl_rng_range(&r, 0.7f, 1.0f), true)) != SL_OK)
                             return st;

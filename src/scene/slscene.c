@@ -365,12 +365,11 @@ typedef struct reader {
 static sl_status bad_at(reader *r, uint64_t offset, const char *fmt, ...) SL_PRINTF(3, 4);
 static sl_status bad_at(reader *r, uint64_t offset, const char *fmt, ...)
 {
-    char why[384];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(why, sizeof why, fmt, ap);
+    sl_status st = sl_container_vfail_at(r->err, r->name, offset, fmt, ap);
     va_end(ap);
-    return sl_fail(r->err, SL_ERROR_FORMAT, "%s: offset %llu: %s", r->name, (unsigned long long)offset, why);
+    return st;
 }
 
 static sl_status bad_sec(reader *r, const sls_entry *e, const char *fmt, ...) SL_PRINTF(3, 4);
@@ -648,91 +647,28 @@ static sl_status check_semantics(reader *r, struct sl_scene_t *s)
     return SL_OK;
 }
 
-typedef struct range {
-    uint64_t begin, end;
-    int entry; /* -1: header, -2: table */
-} range;
-
-static int cmp_range(const void *x, const void *y)
-{
-    const range *a = x, *b = y;
-    return a->begin < b->begin ? -1 : a->begin > b->begin ? 1 : (a->entry > b->entry) - (a->entry < b->entry);
-}
-
-static const char *range_name(const range *rg, const sls_entry *ents)
-{
-    return rg->entry == -1 ? "header" : rg->entry == -2 ? "section table" : ents[rg->entry].tag;
-}
-
-/* Padding in [begin, end) must be zero. */
-static sl_status check_zero(reader *r, uint64_t begin, uint64_t end)
-{
-    uint8_t buf[4096];
-    while (begin < end) {
-        uint64_t n = end - begin < sizeof buf ? end - begin : sizeof buf;
-        const uint8_t *p = buf;
-        if (r->base)
-            p = r->base + begin;
-        else {
-            sl_status st = read_at(r, begin, buf, n);
-            if (st != SL_OK)
-                return st;
-        }
-        for (uint64_t k = 0; k < n; k++)
-            if (p[k])
-                return bad_at(r, begin + k, "padding byte is not zero");
-        begin += n;
-    }
-    return SL_OK;
-}
+static sl_status read_cb(void *ctx, uint64_t offset, void *buf, uint64_t n) { return read_at(ctx, offset, buf, n); }
 
 /* Parse and check the header and the section table; fills ents (count entries). */
 static sl_status read_table(reader *r, sls_entry **out_ents, uint32_t *out_count)
 {
     *out_ents = NULL;
     *out_count = 0;
-    uint8_t head[SLS_HEADER_SIZE];
-    if (r->size < SLS_HEADER_SIZE)
-        return bad_at(r, r->size, "file is %llu bytes, shorter than the %u-byte header (truncated?)",
-                      (unsigned long long)r->size, SLS_HEADER_SIZE);
-    sl_status st = read_at(r, 0, head, SLS_HEADER_SIZE);
-    if (st != SL_OK)
+    uint8_t head[SLS_HEADER_SIZE] = {0};
+    sl_status st = SL_OK;
+    if (r->size >= SLS_HEADER_SIZE && (st = read_at(r, 0, head, SLS_HEADER_SIZE)) != SL_OK)
         return st;
-    if (memcmp(head + H_MAGIC, k_magic, sizeof k_magic) != 0)
-        return bad_at(r, H_MAGIC, "bad magic: not a .slscene file");
-    uint32_t major = rd32(head + H_MAJOR);
-    r->minor = rd32(head + H_MINOR);
-    if (major > SLS_MAJOR)
-        return sl_fail(r->err, SL_ERROR_UNSUPPORTED,
-                       "%s: offset %u: format version %u.%u is newer than this reader (%u.%u): upgrade Sightline",
-                       r->name, H_MAJOR, major, r->minor, SLS_MAJOR, SLS_MINOR);
-    if (major < 1)
-        return bad_at(r, H_MAJOR, "format version %u does not exist", major);
-    uint64_t hh = sl_hash64(head, H_HEADER_HASH, SLS_HASH_SEED);
-    if (hh != rd64(head + H_HEADER_HASH))
-        return bad_at(r, H_HEADER_HASH, "header checksum mismatch (stored %016llx, computed %016llx)",
-                      (unsigned long long)rd64(head + H_HEADER_HASH), (unsigned long long)hh);
-    r->flags = rd32(head + H_FLAGS);
-    uint32_t header_size = rd32(head + H_HEADER_SIZE), count = rd32(head + H_SECTION_COUNT);
-    uint32_t entry_size = rd32(head + H_ENTRY_SIZE);
-    uint64_t table_offset = rd64(head + H_TABLE_OFFSET), file_size = rd64(head + H_FILE_SIZE);
-    /* newer minor versions may grow the header and the entries; never shrink them */
-    if (header_size < SLS_HEADER_SIZE || header_size > r->size)
-        return bad_at(r, H_HEADER_SIZE, "header size %u is out of range", header_size);
-    if (entry_size < SLS_ENTRY_SIZE || entry_size > 4096)
-        return bad_at(r, H_ENTRY_SIZE, "section entry size %u is out of range", entry_size);
-    if (file_size != r->size)
-        return bad_at(r, H_FILE_SIZE, "header says the file is %llu bytes but it is %llu (truncated or appended to)",
-                      (unsigned long long)file_size, (unsigned long long)r->size);
-    if (count > SLS_MAX_SECTIONS)
-        return bad_at(r, H_SECTION_COUNT, "%u sections is more than the %u allowed", count, SLS_MAX_SECTIONS);
-    uint64_t table_size = (uint64_t)count * entry_size;
-    if (table_offset < header_size || table_offset > r->size || table_size > r->size - table_offset)
-        return bad_at(r, H_TABLE_OFFSET, "section table (%llu bytes at %llu) lies outside the file",
-                      (unsigned long long)table_size, (unsigned long long)table_offset);
+    static const sl_container_format fmt = {k_magic, ".slscene", SLS_MAJOR, SLS_MINOR, SLS_HASH_SEED, SLS_MAX_SECTIONS};
+    sl_container_header ch;
+    if ((st = sl_container_check_header(head, r->size, &fmt, r->name, &ch, r->err)) != SL_OK)
+        return st;
+    r->minor = ch.minor;
+    r->flags = ch.flags;
+    const uint32_t count = ch.count, entry_size = ch.entry_size;
+    const uint64_t table_offset = ch.table_offset, table_size = ch.table_size;
     uint8_t *table = sl_alloc(r->a, table_size ? (size_t)table_size : 1);
     sls_entry *ents = sl_calloc(r->a, count ? count : 1, sizeof *ents);
-    range *ranges = sl_calloc(r->a, (size_t)count + 2, sizeof *ranges);
+    sl_container_span *ranges = sl_calloc(r->a, (size_t)count + 2, sizeof *ranges);
     if (!table || !ents || !ranges) {
         st = sl_fail(r->err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory reading the section table", r->name);
         goto done;
@@ -740,15 +676,11 @@ static sl_status read_table(reader *r, sls_entry **out_ents, uint32_t *out_count
     st = read_at(r, table_offset, table, table_size);
     if (st != SL_OK)
         goto done;
-    uint64_t th = sl_hash64(table, (size_t)table_size, SLS_HASH_SEED);
-    if (th != rd64(head + H_TABLE_HASH)) {
-        st = bad_at(r, table_offset, "section table checksum mismatch (stored %016llx, computed %016llx)",
-                    (unsigned long long)rd64(head + H_TABLE_HASH), (unsigned long long)th);
+    if ((st = sl_container_check_table(table, &ch, SLS_HASH_SEED, r->name, r->err)) != SL_OK)
         goto done;
-    }
     uint32_t nranges = 0;
-    ranges[nranges++] = (range){0, header_size, -1};
-    ranges[nranges++] = (range){table_offset, table_offset + table_size, -2};
+    ranges[nranges++] = (sl_container_span){0, ch.header_size, "header", -1};
+    ranges[nranges++] = (sl_container_span){table_offset, table_offset + table_size, "section table", -2};
     for (uint32_t i = 0; i < count; i++) {
         const uint8_t *p = table + (size_t)i * entry_size;
         uint64_t at = table_offset + (uint64_t)i * entry_size;
@@ -796,23 +728,11 @@ static sl_status read_table(reader *r, sls_entry **out_ents, uint32_t *out_count
                 goto done;
             }
         if (e->size)
-            ranges[nranges++] = (range){e->offset, e->offset + e->size, (int)i};
+            ranges[nranges++] = (sl_container_span){e->offset, e->offset + e->size, e->tag, (int)i};
     }
-    /* no two non-empty sections (nor the header and the table) may share a byte */
-    qsort(ranges, nranges, sizeof *ranges, cmp_range);
-    for (uint32_t i = 1; i < nranges; i++)
-        if (ranges[i].begin < ranges[i - 1].end) {
-            st = bad_at(r, ranges[i].begin, "'%s' overlaps '%s'", range_name(&ranges[i], ents),
-                        range_name(&ranges[i - 1], ents));
-            goto done;
-        }
-    /* bytes outside the header, the table and the sections are alignment padding and must be
-     * zero: together with the checksums, any corrupted byte of a file is then noticed */
-    for (uint32_t i = 0; i < nranges; i++) {
-        uint64_t gap_end = i + 1 < nranges ? ranges[i + 1].begin : r->size;
-        if ((st = check_zero(r, ranges[i].end, gap_end)) != SL_OK)
-            goto done;
-    }
+    /* no two non-empty sections (nor the header and the table) share a byte; the rest is zero */
+    if ((st = sl_container_check_layout(ranges, nranges, r->size, r->base, read_cb, r, r->name, r->err)) != SL_OK)
+        goto done;
     /* presence rules */
     for (size_t d = 0; d < SLS_NDEFS; d++) {
         const sec_def *def = &k_defs[d];

@@ -29,8 +29,8 @@ void sl_occ_view_init(sl_occ_view *v, const sl_view *view)
      * the float corners and the float matrix the renderer clips with */
     double nr = v->ortho ? 0 : view->near_corner_dist;
     double mag = fabs((double)v->eye.x) + fabs((double)v->eye.y) + fabs((double)v->eye.z);
-    v->near_reach = (float)(nr * 1.001 + 1e-6 * mag + 1e-6);
-    v->near_depth = (float)(view->near_plane * 1.001 + 1e-6 * mag + 1e-6);
+    v->near_reach = (float)sl_margin_near_grow(nr, mag);
+    v->near_depth = (float)sl_margin_near_grow(view->near_plane, mag);
 }
 
 bool sl_occ_near_clear(const sl_occ_view *v, const sl_aabb *b)
