@@ -209,7 +209,7 @@ int sl_cmd_render(int argc, char **argv)
     }
     bool matrices = view_text || proj_text;
     if ((camera_text != NULL) + (path_file != NULL) + matrices != 1) {
-        cli_error(cmd, (camera_text != NULL) + (path_file != NULL) + matrices
+        cli_error(cmd, ((camera_text != NULL) + (path_file != NULL) + matrices)
                            ? "give one of --camera, --path and --view-matrix/--proj-matrix"
                            : "missing --camera or --path (or --view-matrix and --proj-matrix)");
         return 2;
