@@ -53,11 +53,12 @@ void slmoc_set_near_clip(slmoc *m, float near_w) { m->moc->SetNearClipPlane(near
 void slmoc_clear(slmoc *m) { m->moc->ClearBuffer(); }
 
 int slmoc_render(slmoc *m, const float *vertices, const unsigned *indices, int triangle_count,
-                 const float model_to_clip[16], int backface, int stride, int offset_y, int offset_w)
+                 const float model_to_clip[16], int backface, int stride, int offset_y, int offset_w, int clip)
 {
     MaskedOcclusionCulling::VertexLayout layout(stride, offset_y, offset_w);
     return (int)m->moc->RenderTriangles(vertices, indices, triangle_count, model_to_clip, winding(backface),
-                                        MaskedOcclusionCulling::CLIP_PLANE_ALL, layout);
+                                        clip ? MaskedOcclusionCulling::CLIP_PLANE_ALL : MaskedOcclusionCulling::CLIP_PLANE_NONE,
+                                        layout);
 }
 
 int slmoc_test_rect(const slmoc *m, float xmin, float ymin, float xmax, float ymax, float wmin)

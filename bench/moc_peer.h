@@ -32,9 +32,10 @@ const char *slmoc_isa_name(int isa);
 void slmoc_set_resolution(slmoc *m, unsigned width, unsigned height);
 void slmoc_set_near_clip(slmoc *m, float near_w);
 void slmoc_clear(slmoc *m);
-/* RenderTriangles with every clip plane (MOC's default); returns VISIBLE or VIEW_CULLED. */
+/* RenderTriangles, clipping against every plane (MOC's default) when clip is nonzero, against none
+ * (CLIP_PLANE_NONE: the caller promises nothing needs clipping) when 0; returns VISIBLE or VIEW_CULLED. */
 int slmoc_render(slmoc *m, const float *vertices, const unsigned *indices, int triangle_count,
-                 const float model_to_clip[16], int backface, int stride, int offset_y, int offset_w);
+                 const float model_to_clip[16], int backface, int stride, int offset_y, int offset_w, int clip);
 int slmoc_test_rect(const slmoc *m, float xmin, float ymin, float xmax, float ymax, float wmin);
 int slmoc_test_triangles(slmoc *m, const float *vertices, const unsigned *indices, int triangle_count,
                          const float model_to_clip[16], int backface, int stride, int offset_y, int offset_w);

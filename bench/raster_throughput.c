@@ -16,7 +16,7 @@
  * does). Without a peer nothing but Sightline's figures is printed: no peer figure is typed in.
  *
  * usage: bench_raster_throughput [--runs N] [--quick] [--smoke] [--threads N] [--isa NAME]... [--size N]
- *                                [--peer moc [--pairs N] [--list]]
+ *                                [--peer moc [--pairs N] [--list] [--peer-clip all|none]]
  *   --runs N     runs per figure (default 7); --quick: 3 runs, fewer triangles; --smoke: one run of
  *                tiny streams on the best path (a test that the program works, no figures to keep)
  *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best)
@@ -24,7 +24,10 @@
  *   --size N     only the triangle figure for bounding squares of N pixels (one of the sizes
  *                above), no clear or query figures: for profiling one size
  *   --peer moc   side by side with MOC (sse41, avx2, avx512 paths); --pairs N: Sightline/MOC pairs
- *                per figure (default 15); --list: print every pair's ratio */
+ *                per figure (default 15); --list: print every pair's ratio; --peer-clip none: MOC
+ *                renders the triangle streams with CLIP_PLANE_NONE (as its FillrateTest does: the
+ *                caller vouches that nothing needs clipping; Sightline has no such switch), default
+ *                all (CLIP_PLANE_ALL, MOC's default) */
 #include "core/sl_core.h"
 #include "sightline/raster.h"
 
@@ -37,6 +40,11 @@
 #include "bench_common.h"
 #ifdef SL_HAVE_MOC
 #include "moc_peer.h"
+#endif
+#ifdef SL_HAVE_BENCH_BUILD_H
+#include "bench_build.h" /* SL_BENCH_BUILD: build type, compilers and flags (written by CMake) */
+#else
+#define SL_BENCH_BUILD "unknown build"
 #endif
 
 #define W 1920
@@ -289,6 +297,7 @@ typedef struct pair_sample {
 } pair_sample;
 
 static bool list_pairs;
+static int peer_clip = 1; /* --peer-clip all (1) or none (0): MOC's clip planes for the triangle streams */
 static const char *const shape_names[] = {"Sightline shape", "FillrateTest shape"};
 
 static void pair_add(pair_sample *ps, double ours, double peer)
@@ -350,7 +359,7 @@ static slmoc *make_moc(int isa, uint32_t w, uint32_t h)
 static int moc_render_stream(slmoc *m, const float *v, const uint32_t *ix, uint32_t n, const float P[16],
                              int backface)
 {
-    return slmoc_render(m, v, ix, (int)n, P, backface, VSTRIDE, 4, 12);
+    return slmoc_render(m, v, ix, (int)n, P, backface, VSTRIDE, 4, 12, peer_clip);
 }
 
 /* Both libraries' winding conventions, checked: a triangle counter-clockwise in NDC is drawn by
@@ -367,7 +376,7 @@ static void check_winding(sl_raster *r, slmoc *m, const float P[16])
         slmoc_clear(m);
         sl_raster_render_triangles(r, tri, 3, ix, 1, VSTRIDE, P, cull == 1 ? SL_RASTER_CULL_CW : SL_RASTER_CULL_CCW,
                                    NULL);
-        slmoc_render(m, tri, ix, 1, P, cull, VSTRIDE, 4, 12);
+        slmoc_render(m, tri, ix, 1, P, cull, VSTRIDE, 4, 12, 1);
         bool ours = sl_raster_test_rect(r, W / 2 - 4, H / 2, W / 2 + 4, H / 2 + 4, 1.0f / QUERY_DIST) ==
                     SL_RASTER_OCCLUDED;
         bool peer = slmoc_test_rect(m, -4.0f / W, -8.0f / H, 4.0f / W, 0.0f, QUERY_DIST) == SLMOC_OCCLUDED;
@@ -462,7 +471,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
     sl_raster_clear(r);
     sl_raster_render_triangles(r, wall, 4, wall_ix, 2, VSTRIDE, P, SL_RASTER_CULL_NONE, NULL);
     slmoc_clear(m);
-    slmoc_render(m, wall, wall_ix, 2, P, 0, VSTRIDE, 4, 12);
+    slmoc_render(m, wall, wall_ix, 2, P, 0, VSTRIDE, 4, 12, 1);
     for (size_t q = 0; q < SL_COUNTOF(qsizes); q++) {
         int qw = qsizes[q][0], qh = qsizes[q][1], reps = query_reps(qw, qh);
         int32_t qx[NQ], qy[NQ];
@@ -541,6 +550,15 @@ int main(int argc, char **argv)
 #ifdef SL_HAVE_MOC
             list_pairs = true;
 #endif
+        } else if (!strcmp(argv[i], "--peer-clip") && i + 1 < argc) {
+            const char *c = argv[++i];
+            if (strcmp(c, "all") && strcmp(c, "none")) {
+                fprintf(stderr, "bench_raster_throughput: --peer-clip must be all or none\n");
+                return 2;
+            }
+#ifdef SL_HAVE_MOC
+            peer_clip = !strcmp(c, "all");
+#endif
         } else if (!strcmp(argv[i], "--quick")) {
             quick = true;
             runs = 3;
@@ -570,7 +588,7 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "usage: %s [--runs N] [--quick] [--smoke] [--threads N] [--isa scalar|sse41|avx2|avx512]... "
-                    "[--size N] [--peer moc [--pairs N] [--list]]\n",
+                    "[--size N] [--peer moc [--pairs N] [--list] [--peer-clip all|none]]\n",
                     argv[0]);
             return 2;
         }
@@ -584,8 +602,10 @@ int main(int argc, char **argv)
         printf("# Occlusion rasterizer side by side with Intel's Masked Occlusion Culling, %dx%d, one thread\n\n", W,
                H);
         printf("machine: %s; %d Sightline/MOC pairs per row, run alternately; thread CPU time; "
-               "median [min-max]; ratio per pair = MOC time / Sightline time (above 1: Sightline faster)\n\n",
-               machine, pairs);
+               "median [min-max]; ratio per pair = MOC time / Sightline time (above 1: Sightline faster); "
+               "MOC's triangle streams with %s\n",
+               machine, pairs, peer_clip ? "CLIP_PLANE_ALL (its default)" : "CLIP_PLANE_NONE (as its FillrateTest)");
+        printf("build: %s\n\n", SL_BENCH_BUILD);
         const sl_raster_isa pisa[] = {SL_RASTER_ISA_SSE41, SL_RASTER_ISA_AVX2, SL_RASTER_ISA_AVX512};
         const int misa[] = {SLMOC_SSE41, SLMOC_AVX2, SLMOC_AVX512};
         for (size_t p = 0; p < SL_COUNTOF(pisa); p++) {
@@ -605,6 +625,7 @@ int main(int argc, char **argv)
 #endif
     printf("# Occlusion rasterizer, %dx%d, one thread\n\n", W, H);
     printf("machine: %s; median of %d runs; single-thread times are thread CPU time\n", machine, runs);
+    printf("build: %s\n", SL_BENCH_BUILD);
     printf("no peer measured (bench_raster_throughput --peer moc, in a build with -DSL_MOC_DIR, measures Intel's "
            "Masked Occlusion Culling side by side)\n\n");
     sl_raster_isa paths[] = {SL_RASTER_ISA_SCALAR, SL_RASTER_ISA_SSE41, SL_RASTER_ISA_AVX2, SL_RASTER_ISA_AVX512};
