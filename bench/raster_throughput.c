@@ -16,7 +16,8 @@
  * does). Without a peer nothing but Sightline's figures is printed: no peer figure is typed in.
  *
  * usage: bench_raster_throughput [--runs N] [--quick] [--smoke] [--threads N] [--isa NAME]... [--size N]
- *                                [--peer moc [--pairs N] [--list] [--peer-clip all|none]]
+ *                                [--peer moc [--pairs N] [--list] [--peer-clip all|none]
+ *                                            [--city tiny|small|vienna [--views N]]]
  *   --runs N     runs per figure (default 7); --quick: 3 runs, fewer triangles; --smoke: one run of
  *                tiny streams on the best path (a test that the program works, no figures to keep)
  *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best)
@@ -27,8 +28,15 @@
  *                per figure (default 15); --list: print every pair's ratio; --peer-clip none: MOC
  *                renders the triangle streams with CLIP_PLANE_NONE (as its FillrateTest does: the
  *                caller vouches that nothing needs clipping; Sightline has no such switch), default
- *                all (CLIP_PLANE_ALL, MOC's default) */
+ *                all (CLIP_PLANE_ALL, MOC's default)
+ *   --city P     instead of the tables above, the city workload as MOC recommends it (front-to-back
+ *                object boxes, a query before each draw, draw only what passed) on the generated
+ *                city P: N street views (frames of the bench walk, default 100) and the same views
+ *                raised 30 m and pitched down; time per view and boxes drawn by each */
 #include "core/sl_core.h"
+#include "sightline/camera.h"
+#include "sightline/gen.h"
+#include "sightline/path.h"
 #include "sightline/raster.h"
 
 #include <math.h>
@@ -506,6 +514,235 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
     sl_raster_destroy(r);
     slmoc_destroy(m);
 }
+
+/* ---- the city workload, as MOC recommends using it ----
+ * Per view: the objects' world boxes inside the view frustum, nearest first (by the distance from
+ * the eye to the box centre; sorted outside the timing, the same order for both), each queried
+ * before it is drawn and drawn (as its box: 12 triangles, back faces culled) only when the query
+ * says it may be visible. Sightline queries with sl_raster_test_aabb (it projects the box itself);
+ * MOC with TestRect, the caller projecting the 8 corners to an NDC rectangle (clamped to the screen)
+ * and their nearest w, as MOC's documentation and examples do (inside MOC's timing); a box with a
+ * corner nearer than the near plane is drawn without a query on MOC's side (Sightline's test says
+ * VISIBLE for it). The same box vertices (x, y, z, z) and indices for both. */
+#define CW 1024
+#define CH 768
+#define CITY_REPS 5 /* Sightline/MOC pairs per view */
+
+typedef struct city_box {
+    float d2;
+    uint32_t object;
+} city_box;
+
+static int cmp_city_box(const void *a, const void *b)
+{
+    float x = ((const city_box *)a)->d2, y = ((const city_box *)b)->d2;
+    return x < y ? -1 : x > y;
+}
+
+static uint32_t box_ix[36];
+
+/* 12 triangles over corners c = x | y << 1 | z << 2, counter-clockwise seen from outside. */
+static void make_box_indices(void)
+{
+    static const int quads[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+    int k = 0;
+    for (int f = 0; f < 6; f++) {
+        const int *q = quads[f];
+        int t[6] = {q[0], q[1], q[2], q[0], q[2], q[3]};
+        for (int i = 0; i < 6; i += 3) {
+            /* orient outward: normal . (centre of triangle - box centre) > 0 on the unit cube */
+            double p[3][3];
+            for (int v = 0; v < 3; v++)
+                for (int a = 0; a < 3; a++)
+                    p[v][a] = (t[i + v] >> a) & 1;
+            double e1[3], e2[3], n[3], c[3];
+            for (int a = 0; a < 3; a++) {
+                e1[a] = p[1][a] - p[0][a];
+                e2[a] = p[2][a] - p[0][a];
+                c[a] = (p[0][a] + p[1][a] + p[2][a]) / 3.0 - 0.5;
+            }
+            n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+            n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+            n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            bool out = n[0] * c[0] + n[1] * c[1] + n[2] * c[2] > 0;
+            box_ix[k++] = (uint32_t)t[i];
+            box_ix[k++] = (uint32_t)(out ? t[i + 1] : t[i + 2]);
+            box_ix[k++] = (uint32_t)(out ? t[i + 2] : t[i + 1]);
+        }
+    }
+}
+
+typedef struct city_views {
+    sl_camera cam[512];
+    uint32_t n;
+} city_views;
+
+static void city_die(const char *what, const sl_error *err) { bench_die("bench_raster_throughput", what, err); }
+
+/* Sightline's side of one view: time (thread CPU) and boxes drawn. */
+static double city_ours(sl_raster *r, const float *bv, const sl_aabb *boxes, const city_box *order, uint32_t n,
+                        const float VP[16], uint32_t *drawn)
+{
+    uint32_t d = 0;
+    double t0 = now();
+    sl_raster_clear(r);
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t o = order[i].object;
+        const float lo[3] = {boxes[o].min.x, boxes[o].min.y, boxes[o].min.z};
+        const float hi[3] = {boxes[o].max.x, boxes[o].max.y, boxes[o].max.z};
+        if (sl_raster_test_aabb(r, lo, hi, VP) != SL_RASTER_VISIBLE)
+            continue;
+        sl_raster_render_triangles(r, bv + 32 * (size_t)o, 8, box_ix, 12, VSTRIDE, VP, SL_RASTER_CULL_CW, NULL);
+        d++;
+    }
+    double t = now() - t0;
+    *drawn = d;
+    return t;
+}
+
+static double city_moc(slmoc *m, const float *bv, const city_box *order, uint32_t n, const float VP[16], float near_w,
+                       uint32_t *drawn)
+{
+    uint32_t d = 0;
+    double t0 = now();
+    slmoc_clear(m);
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t o = order[i].object;
+        const float *c = bv + 32 * (size_t)o;
+        float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY, wmin = INFINITY;
+        for (int k = 0; k < 8; k++) {
+            const float *v = c + 4 * k;
+            float x = VP[0] * v[0] + VP[4] * v[1] + VP[8] * v[2] + VP[12];
+            float y = VP[1] * v[0] + VP[5] * v[1] + VP[9] * v[2] + VP[13];
+            float w = VP[3] * v[0] + VP[7] * v[1] + VP[11] * v[2] + VP[15];
+            wmin = fminf(wmin, w);
+            float iw = 1.0f / w;
+            x0 = fminf(x0, x * iw);
+            x1 = fmaxf(x1, x * iw);
+            y0 = fminf(y0, y * iw);
+            y1 = fmaxf(y1, y * iw);
+        }
+        if (wmin > near_w) {
+            int res = slmoc_test_rect(m, fmaxf(x0, -1.0f), fmaxf(y0, -1.0f), fminf(x1, 1.0f), fminf(y1, 1.0f), wmin);
+            if (res != SLMOC_VISIBLE)
+                continue;
+        }
+        slmoc_render(m, c, box_ix, 12, VP, 1, VSTRIDE, 4, 12, 1);
+        d++;
+    }
+    double t = now() - t0;
+    *drawn = d;
+    return t;
+}
+
+static void city_workload(const char *preset, sl_raster_isa isa, int moc_isa, uint32_t nviews)
+{
+    if (!sl_raster_isa_available(isa))
+        return;
+    make_box_indices();
+    slmoc *m = make_moc(moc_isa, CW, CH);
+    if (slmoc_isa(m) != moc_isa) {
+        printf("## city, %s: MOC runs %s on this CPU: not measured\n\n", sl_raster_isa_name(isa),
+               slmoc_isa_name(slmoc_isa(m)));
+        slmoc_destroy(m);
+        return;
+    }
+    sl_error err;
+    sl_city_preset p;
+    if (sl_city_preset_from_name(preset, &p, &err) != SL_OK)
+        city_die(preset, &err);
+    sl_city_options co = sl_city_defaults(p);
+    sl_scene scene;
+    if (sl_gen_city(&co, NULL, &scene, &err) != SL_OK)
+        city_die("gen city", &err);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.frames = 300;
+    po.fps = 5;
+    po.seed = 1;
+    po.intrinsics.width = CW;
+    po.intrinsics.height = CH;
+    sl_path walk;
+    if (sl_path_generate(scene, &po, NULL, &walk, &err) != SL_OK)
+        city_die("walk", &err);
+    uint32_t nobj = sl_scene_object_count(scene);
+    const sl_aabb *boxes = sl_scene_object_bounds_array(scene);
+    float *bv = xmalloc(sizeof(float) * 32 * nobj);
+    for (uint32_t o = 0; o < nobj; o++)
+        for (int k = 0; k < 8; k++) {
+            float *v = bv + 32 * (size_t)o + 4 * k;
+            v[0] = k & 1 ? boxes[o].max.x : boxes[o].min.x;
+            v[1] = k & 2 ? boxes[o].max.y : boxes[o].min.y;
+            v[2] = k & 4 ? boxes[o].max.z : boxes[o].min.z;
+            v[3] = v[2];
+        }
+    city_box *order = xmalloc(sizeof(city_box) * (nobj ? nobj : 1));
+    sl_raster_options ro = sl_raster_default_options(CW, CH);
+    ro.isa = isa;
+    sl_raster *r = NULL;
+    if (sl_raster_create(&ro, NULL, &r, &err) != SL_OK)
+        city_die("raster", &err);
+    if (nviews > 256)
+        nviews = 256;
+    uint32_t frames = sl_path_count(walk);
+    printf("## city workload, %s, %s (Sightline %s, MOC %s): %u objects; %u street views (walk frames) and the "
+           "same views 30 m higher, pitched 20 degrees down; %ux%u\n\n",
+           preset, sl_raster_isa_name(isa), sl_raster_isa_name(sl_raster_get_isa(r)), slmoc_isa_name(slmoc_isa(m)), nobj,
+           nviews, CW, CH);
+    printf("| views | boxes in frustum | Sightline ms/view | MOC ms/view | MOC time / Sightline time per view | boxes drawn: "
+           "Sightline | boxes drawn: MOC |\n|---|---:|---:|---:|---:|---:|---:|\n");
+    for (int kind = 0; kind < 2; kind++) {
+        double inview = 0, dours = 0, dpeer = 0;
+        static double ours_t[256], peer_t[256], ratio_t[256];
+        for (uint32_t v = 0; v < nviews; v++) {
+            sl_camera cam = sl_path_camera(walk, (uint32_t)((uint64_t)v * frames / nviews));
+            if (kind == 1) {
+                cam.position.z += 30.0f;
+                cam.pitch = -0.35f;
+            }
+            sl_mat4 vp = sl_camera_view_proj(&cam);
+            sl_frustum fr = sl_camera_frustum(&cam);
+            uint32_t n = 0;
+            for (uint32_t o = 0; o < nobj; o++) {
+                if (!sl_frustum_test_aabb(&fr, &boxes[o]))
+                    continue;
+                float dx = 0.5f * (boxes[o].min.x + boxes[o].max.x) - cam.position.x;
+                float dy = 0.5f * (boxes[o].min.y + boxes[o].max.y) - cam.position.y;
+                float dz = 0.5f * (boxes[o].min.z + boxes[o].max.z) - cam.position.z;
+                order[n].d2 = dx * dx + dy * dy + dz * dz;
+                order[n].object = o;
+                n++;
+            }
+            qsort(order, n, sizeof *order, cmp_city_box);
+            slmoc_set_near_clip(m, cam.near_plane);
+            uint32_t a = 0, b = 0;
+            double to[CITY_REPS], tp[CITY_REPS];
+            for (int k = 0; k < CITY_REPS; k++) { /* alternately; per side the median of the repeats */
+                to[k] = city_ours(r, bv, boxes, order, n, vp.m, &a);
+                tp[k] = city_moc(m, bv, order, n, vp.m, cam.near_plane, &b);
+            }
+            ours_t[v] = bench_median(to, CITY_REPS);
+            peer_t[v] = bench_median(tp, CITY_REPS);
+            ratio_t[v] = peer_t[v] / ours_t[v];
+            inview += n;
+            dours += a;
+            dpeer += b;
+        }
+        double mo = bench_median(ours_t, nviews) * 1e3, mp = bench_median(peer_t, nviews) * 1e3;
+        double mr = bench_median(ratio_t, nviews);
+        printf("| %s | %.0f | %.3f | %.3f | %.2fx [%.2fx-%.2fx] | %.1f | %.1f |\n", kind ? "elevated" : "street",
+               inview / nviews, mo, mp, mr, ratio_t[0], ratio_t[nviews - 1], dours / nviews, dpeer / nviews);
+        fflush(stdout);
+    }
+    printf("\n(per view %d Sightline/MOC pairs, each side's median; times: median over the views; ratio: median "
+           "[min-max] over the views; boxes: mean per view)\n\n",
+           CITY_REPS);
+    free(bv);
+    free(order);
+    sl_raster_destroy(r);
+    slmoc_destroy(m);
+    sl_path_destroy(walk);
+    sl_scene_destroy(scene);
+}
 #endif
 
 int main(int argc, char **argv)
@@ -514,7 +751,8 @@ int main(int argc, char **argv)
     bool quick = false;
     uint32_t threads = 0;
     sl_raster_isa only[8];
-    int nonly = 0, only_size = 0, pairs = 15;
+    int nonly = 0, only_size = 0, pairs = 15, views = 100;
+    const char *city = NULL;
     bool peer = false;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--runs") && i + 1 < argc) {
@@ -550,6 +788,14 @@ int main(int argc, char **argv)
 #ifdef SL_HAVE_MOC
             list_pairs = true;
 #endif
+        } else if (!strcmp(argv[i], "--city") && i + 1 < argc) {
+            city = argv[++i];
+        } else if (!strcmp(argv[i], "--views") && i + 1 < argc) {
+            views = atoi(argv[++i]);
+            if (views < 1 || views > 256) {
+                fprintf(stderr, "bench_raster_throughput: --views must be 1..256\n");
+                return 2;
+            }
         } else if (!strcmp(argv[i], "--peer-clip") && i + 1 < argc) {
             const char *c = argv[++i];
             if (strcmp(c, "all") && strcmp(c, "none")) {
@@ -588,7 +834,7 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "usage: %s [--runs N] [--quick] [--smoke] [--threads N] [--isa scalar|sse41|avx2|avx512]... "
-                    "[--size N] [--peer moc [--pairs N] [--list] [--peer-clip all|none]]\n",
+                    "[--size N] [--peer moc [--pairs N] [--list] [--peer-clip all|none] [--city PRESET [--views N]]]\n",
                     argv[0]);
             return 2;
         }
@@ -599,13 +845,19 @@ int main(int argc, char **argv)
     perspective(P, 1.0, (double)W / H, 0.5, 1000);
 #ifdef SL_HAVE_MOC
     if (peer) {
-        printf("# Occlusion rasterizer side by side with Intel's Masked Occlusion Culling, %dx%d, one thread\n\n", W,
-               H);
+        if (city) {
+            printf("# Occlusion culling of a city side by side with Intel's Masked Occlusion Culling, one thread\n\n");
+            printf("machine: %s; thread CPU time\nbuild: %s\n\n", machine, SL_BENCH_BUILD);
+        } else
+            printf("# Occlusion rasterizer side by side with Intel's Masked Occlusion Culling, %dx%d, one thread\n\n", W,
+                   H);
+        if (!city)
         printf("machine: %s; %d Sightline/MOC pairs per row, run alternately; thread CPU time; "
                "median [min-max]; ratio per pair = MOC time / Sightline time (above 1: Sightline faster); "
                "MOC's triangle streams with %s\n",
                machine, pairs, peer_clip ? "CLIP_PLANE_ALL (its default)" : "CLIP_PLANE_NONE (as its FillrateTest)");
-        printf("build: %s\n\n", SL_BENCH_BUILD);
+        if (!city)
+            printf("build: %s\n\n", SL_BENCH_BUILD);
         const sl_raster_isa pisa[] = {SL_RASTER_ISA_SSE41, SL_RASTER_ISA_AVX2, SL_RASTER_ISA_AVX512};
         const int misa[] = {SLMOC_SSE41, SLMOC_AVX2, SLMOC_AVX512};
         for (size_t p = 0; p < SL_COUNTOF(pisa); p++) {
@@ -614,7 +866,9 @@ int main(int argc, char **argv)
                 wanted |= only[i] == pisa[p];
             if (smoke)
                 wanted = p == 0 || (nonly && wanted);
-            if (wanted)
+            if (wanted && city)
+                city_workload(city, pisa[p], misa[p], smoke ? 4 : (uint32_t)views);
+            else if (wanted)
                 peer_path(pisa[p], misa[p], P, pairs, quick, only_size);
         }
         return 0;
@@ -622,6 +876,11 @@ int main(int argc, char **argv)
 #else
     (void)peer;
     (void)pairs;
+    (void)views;
+    if (city) {
+        fprintf(stderr, "bench_raster_throughput: --city is a --peer moc workload\n");
+        return 2;
+    }
 #endif
     printf("# Occlusion rasterizer, %dx%d, one thread\n\n", W, H);
     printf("machine: %s; median of %d runs; single-thread times are thread CPU time\n", machine, runs);
