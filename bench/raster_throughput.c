@@ -864,8 +864,8 @@ int main(int argc, char **argv)
             bool wanted = nonly == 0;
             for (int i = 0; i < nonly; i++)
                 wanted |= only[i] == pisa[p];
-            if (smoke)
-                wanted = p == 0 || (nonly && wanted);
+            if (smoke && !nonly)
+                wanted = p == 0;
             if (wanted && city)
                 city_workload(city, pisa[p], misa[p], smoke ? 4 : (uint32_t)views);
             else if (wanted)
