@@ -31,20 +31,12 @@
 #include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/truth.h"
+#include "support/city_views.h"
+#include "support/pk3_names.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
-
-static sl_scene tiny_city(void)
-{
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
-    sl_scene s;
-    sl_error err;
-    if (sl_gen_city(&co, NULL, &s, &err) != SL_OK)
-        fail_msg("%s", err.message);
-    return s;
-}
 
 static sl_path views_of(sl_scene s, sl_view_kind kind, uint32_t count, uint64_t seed, uint32_t w, uint32_t h)
 {
@@ -63,7 +55,7 @@ static sl_path views_of(sl_scene s, sl_view_kind kind, uint32_t count, uint64_t 
 static void test_cpu_buffer_is_oracle(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_oracle o;
     assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
@@ -149,7 +141,7 @@ static uint64_t run_query_box(sl_draw_backend *be, sl_draw_query q, const sl_aab
 static void test_cpu_counts_brute_force(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     const struct sl_scene_t *sc = s;
     sl_error err;
     sl_draw_backend_cpu cpu;
@@ -241,7 +233,7 @@ static void test_cpu_counts_brute_force(void **state)
 static void test_cpu_latency(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     const uint32_t L = 2;
     sl_draw_backend_cpu_options co = {L};
@@ -441,7 +433,7 @@ static void run_hoq(sl_scene s, sl_path p, hoq_run *runs, uint32_t nr, uint32_t 
 static void test_hoq_oracle_city(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_draw_backend_cpu cpu, cpu2;
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
@@ -510,18 +502,6 @@ static void test_hoq_oracle_city(void **state)
     sl_scene_destroy(s);
 }
 
-typedef struct name_list {
-    char names[128][64];
-    int count;
-} name_list;
-
-static void collect(void *user, const char *entry)
-{
-    name_list *l = user;
-    if (l->count < 128)
-        snprintf(l->names[l->count++], sizeof l->names[0], "%s", entry);
-}
-
 static void test_hoq_oracle_map(void **state)
 {
     (void)state;
@@ -529,9 +509,9 @@ static void test_hoq_oracle_map(void **state)
         print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
         skip();
     }
-    name_list *list = calloc(1, sizeof *list);
+    sl_test_name_list *list = calloc(1, sizeof *list);
     sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, collect, list, &err), SL_OK);
+    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
     assert_true(list->count >= 1);
     sl_scene s;
     if (sl_import_q3bsp(OA_PK3, list->names[0], NULL, NULL, &s, &err) != SL_OK)
@@ -572,7 +552,7 @@ static void test_hoq_oracle_map(void **state)
 static void test_hoq_box_covers(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_draw_backend_cpu cpu;
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
@@ -734,7 +714,7 @@ static void test_hoq_eye_in_box(void **state)
 static void test_params_refused(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_draw_backend_cpu cpu;
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
