@@ -272,6 +272,78 @@ static void test_known_scene_records(void **state)
     sl_scene_destroy(k.scene);
 }
 
+/* The query counts in the reports: hoq (its own CPU backend, latency=1, so every result is waited
+ * for before it is ready: a stall) beside vfc (no queries). frames.csv ends with query_stalls,
+ * frames.json's stats carry it, the summary has a line of queries and stalls per frame. */
+static void test_query_stalls_reported(void **state)
+{
+    (void)state;
+    known k = make_known();
+    sl_bench_method_spec specs[] = {{"vfc", NULL}, {"hoq", "latency=1,leaf_size=1"}};
+    sl_bench_options opt = sl_bench_default_options();
+    opt.label = "known";
+    sl_bench b;
+    sl_error err;
+    assert_int_equal(sl_bench_create(k.scene, specs, 2, &opt, NULL, &b, &err), SL_OK);
+    uint64_t queries = 0, stalls = 0;
+    for (int f = 0; f < 2; f++) {
+        sl_camera c = camera_at(0);
+        assert_int_equal(sl_bench_run_frame(b, &c, &err), SL_OK);
+        sl_bench_record r;
+        assert_int_equal(sl_bench_get_record(b, (uint32_t)f, 1, &r, &err), SL_OK);
+        queries += r.stats.queries;
+        stalls += r.stats.query_stalls;
+        assert_int_equal(r.stats.query_stalls, r.stats.queries); /* latency 1: every wait stalls */
+    }
+    assert_true(stalls > 0);
+    char *dir = temp_dir();
+    char path[256], want[128];
+    snprintf(path, sizeof path, "%s/frames.csv", dir);
+    assert_int_equal(sl_bench_write_csv(&b, 1, path, &err), SL_OK);
+    char *text = read_text(path, NULL);
+    assert_non_null(strstr(text, ",phases,missed,skipped,query_stalls\n"));
+    /* each row's last field: 0 for vfc, hoq's stalls for hoq (the row's queries column too) */
+    uint32_t hoq_rows = 0, vfc_rows = 0;
+    uint64_t csv_stalls = 0;
+    for (const char *line = strchr(text, '\n') + 1; *line; line = strchr(line, '\n') + 1) {
+        const char *end = strchr(line, '\n'), *last = end;
+        while (last > line && last[-1] != ',')
+            last--;
+        if (strstr(line, ",hoq,") && strstr(line, ",hoq,") < end) {
+            hoq_rows++;
+            csv_stalls += strtoull(last, NULL, 10);
+        } else {
+            vfc_rows++;
+            assert_int_equal(strtoull(last, NULL, 10), 0);
+            assert_true(last < end); /* a number, not empty */
+        }
+    }
+    assert_int_equal(hoq_rows, 2);
+    assert_int_equal(vfc_rows, 2);
+    assert_int_equal(csv_stalls, stalls);
+    free(text);
+    snprintf(path, sizeof path, "%s/frames.json", dir);
+    assert_int_equal(sl_bench_write_json(&b, 1, path, &err), SL_OK);
+    text = read_text(path, NULL);
+    sl_bench_record r0;
+    assert_int_equal(sl_bench_get_record(b, 0, 1, &r0, &err), SL_OK);
+    snprintf(want, sizeof want, "\"pixel_queries\":%llu,\"query_stalls\":%llu}",
+             (unsigned long long)r0.stats.pixel_queries, (unsigned long long)r0.stats.query_stalls);
+    assert_non_null(strstr(text, want));
+    free(text);
+    snprintf(path, sizeof path, "%s/summary.md", dir);
+    assert_int_equal(sl_bench_write_summary(&b, 1, path, &err), SL_OK);
+    text = read_text(path, NULL);
+    snprintf(want, sizeof want, "Occlusion queries per frame (mean): hoq %.1f queries (%.1f stalls).", queries / 2.0,
+             stalls / 2.0);
+    assert_non_null(strstr(text, want));
+    assert_null(strstr(text, ": vfc ")); /* no queries, no entry */
+    free(text);
+    remove_dir(dir);
+    sl_bench_destroy(b);
+    sl_scene_destroy(k.scene);
+}
+
 static void test_reports(void **state)
 {
     (void)state;
@@ -662,6 +734,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_known_scene_records),
         cmocka_unit_test(test_reports),
+        cmocka_unit_test(test_query_stalls_reported),
         cmocka_unit_test(test_plot_svg),
         cmocka_unit_test(test_city_walk),
         cmocka_unit_test(test_run_view), cmocka_unit_test(test_errors),

@@ -41,6 +41,7 @@
 
 #include "../bench/near_wall_views.h"
 #include "support/city_views.h"
+#include "support/pk3_names.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -140,18 +141,6 @@ static void report(const tally *t)
                       (unsigned long long)t[i].missed_frames, (unsigned long long)t[i].missed_objects);
 }
 
-typedef struct name_list {
-    char names[128][96];
-    int count;
-} name_list;
-
-static void collect(void *user, const char *entry)
-{
-    name_list *l = user;
-    if (l->count < 128)
-        snprintf(l->names[l->count++], sizeof l->names[0], "%s", entry);
-}
-
 /* 10 OpenArena maps spread over the pk3's list, then the small city. */
 static void test_near_wall_views(void **state)
 {
@@ -162,9 +151,9 @@ static void test_near_wall_views(void **state)
     if (access(OA_PK3, R_OK) != 0) {
         print_message("maps skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
     } else {
-        name_list *list = calloc(1, sizeof *list);
+        sl_test_name_list *list = calloc(1, sizeof *list);
         sl_error err;
-        assert_int_equal(sl_pk3_list_maps(OA_PK3, collect, list, &err), SL_OK);
+        assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
         assert_true(list->count >= 10);
         int maps = sanitized() ? 3 : 10;
         uint32_t per_map = sanitized() ? 8 : 60;

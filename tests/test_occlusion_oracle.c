@@ -23,6 +23,7 @@
 #include "sightline/import.h"
 #include "sightline/path.h"
 #include "sightline/truth.h"
+#include "support/pk3_names.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -234,18 +235,6 @@ static void test_small_city(void **state)
     sl_scene_destroy(s);
 }
 
-typedef struct name_list {
-    char names[128][96];
-    int count;
-} name_list;
-
-static void collect(void *user, const char *entry)
-{
-    name_list *l = user;
-    if (l->count < 128)
-        snprintf(l->names[l->count++], sizeof l->names[0], "%s", entry);
-}
-
 /* Quake III maps: views from the spawn points. CTest: four maps (one under the sanitizers);
  * SL_LONG_TESTS=1: every map, 40 views each at 640x480. */
 static void test_q3_maps(void **state)
@@ -255,9 +244,9 @@ static void test_q3_maps(void **state)
         print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
         skip();
     }
-    name_list *list = calloc(1, sizeof *list);
+    sl_test_name_list *list = calloc(1, sizeof *list);
     sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, collect, list, &err), SL_OK);
+    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
     assert_true(list->count >= 2);
     bool full = long_tests();
     int maps = full ? list->count : (sanitized() ? 1 : 4);

@@ -20,6 +20,7 @@
 #include "sightline/path.h"
 #include "sightline/region.h"
 #include "support/counting_alloc.h"
+#include "support/pk3_names.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -589,18 +590,6 @@ static uint8_t *read_file(const char *path, size_t *size)
     return p;
 }
 
-typedef struct name_list {
-    char names[128][64];
-    int count;
-} name_list;
-
-static void collect(void *user, const char *entry)
-{
-    name_list *l = user;
-    if (l->count < 128)
-        snprintf(l->names[l->count++], 64, "%s", entry);
-}
-
 static void test_pk3(void **state)
 {
     (void)state;
@@ -612,8 +601,8 @@ static void test_pk3(void **state)
     sl_error err;
     sl_scene s;
 
-    name_list list = {0};
-    assert_int_equal(sl_pk3_list_maps(pk3, collect, &list, &err), SL_OK);
+    sl_test_name_list list = {0};
+    assert_int_equal(sl_pk3_list_maps(pk3, sl_test_collect_name, &list, &err), SL_OK);
     assert_int_equal(list.count, 1);
     assert_string_equal(list.names[0], "maps/tiny.bsp");
 
@@ -638,7 +627,7 @@ static void test_pk3(void **state)
     assert_true(contains(err.message, pk3) && contains(err.message, "entry maps/nosuch.bsp not found"));
     assert_int_equal(sl_import_q3bsp(pk3, "textures/x.jpg", NULL, NULL, &s, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_int_equal(sl_import_q3bsp("/nonexistent/q3.pk3", "x", NULL, NULL, &s, &err), SL_ERROR_NOT_FOUND);
-    assert_int_equal(sl_pk3_list_maps(bsp, collect, &list, &err), SL_ERROR_FORMAT);
+    assert_int_equal(sl_pk3_list_maps(bsp, sl_test_collect_name, &list, &err), SL_ERROR_FORMAT);
     assert_true(contains(err.message, "not a zip archive"));
 
     /* the size limit is checked before reading, and named with archive and entry */
@@ -648,7 +637,7 @@ static void test_pk3(void **state)
                      SL_ERROR_LIMIT);
     assert_true(contains(err.message, "mem.pk3: entry maps/tiny.bsp: uncompressed size"));
     list.count = 0;
-    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "mem.pk3", collect, &list, &err), SL_OK);
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "mem.pk3", sl_test_collect_name, &list, &err), SL_OK);
     assert_int_equal(list.count, 1);
     /* every truncation of the archive fails cleanly */
     for (size_t n = 0; n < zsize; n += 7) {
@@ -736,9 +725,9 @@ static void test_openarena_maps(void **state)
     (void)state;
     if (!have_openarena())
         skip();
-    name_list list = {0};
+    sl_test_name_list list = {0};
     sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, collect, &list, &err), SL_OK);
+    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, &list, &err), SL_OK);
     assert_true(list.count >= 40);
     bool sanitized = getenv("SL_SANITIZED") != NULL;
     double t0 = sl_now();
@@ -1183,8 +1172,8 @@ static void test_pk3_names(void **state)
     sl_scene s;
     sl_error err;
     /* the subfolder map, as listed and without its extension */
-    name_list list = {0};
-    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "names.pk3", collect, &list, &err), SL_OK);
+    sl_test_name_list list = {0};
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "names.pk3", sl_test_collect_name, &list, &err), SL_OK);
     assert_int_equal(list.count, 3);
     assert_string_equal(list.names[2], "maps/_init/_init.bsp");
     const char *names[] = {"maps/_init/_init.bsp", "maps/_init/_init", "MAPS/_INIT/_INIT"};
@@ -1203,7 +1192,7 @@ static void test_pk3_names(void **state)
                      SL_ERROR_INVALID_ARGUMENT);
     /* two entries of one name: the local headers and the central directory both say dupe */
     replace_all(zip, zsize, "maps/twin.bsp", "maps/dupe.bsp");
-    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "dupe.pk3", collect, &list, &err), SL_ERROR_FORMAT);
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "dupe.pk3", sl_test_collect_name, &list, &err), SL_ERROR_FORMAT);
     if (!contains(err.message, "dupe.pk3: duplicate entry maps/dupe.bsp"))
         fail_msg("%s", err.message);
     assert_int_equal(sl_pk3_import_memory(zip, zsize, "dupe.pk3", "dupe", SL_PK3_MAX_ENTRY_BYTES, SL_Q3_MAX_TRIANGLES,
@@ -1212,7 +1201,7 @@ static void test_pk3_names(void **state)
     assert_true(contains(err.message, "dupe.pk3: duplicate entry maps/dupe.bsp"));
     /* a control character in the doubled name is escaped */
     replace_all(zip, zsize, "maps/dupe.bsp", "maps/d\x1bpe.bsp");
-    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "esc.pk3", collect, &list, &err), SL_ERROR_FORMAT);
+    assert_int_equal(sl_pk3_list_maps_memory(zip, zsize, "esc.pk3", sl_test_collect_name, &list, &err), SL_ERROR_FORMAT);
     assert_true(contains(err.message, "duplicate entry maps/d\\x1bpe.bsp"));
     assert_false(contains(err.message, "\x1b"));
     free(zip);
@@ -1274,9 +1263,9 @@ static void test_nexuiz_maps(void **state)
     bool sanitized = getenv("SL_SANITIZED") != NULL;
     unsigned maps = 0, loaded = 0, with_views = 0, seen = 0;
     for (size_t k = 0; k < g.gl_pathc; k++) {
-        name_list list = {0};
+        sl_test_name_list list = {0};
         sl_error err;
-        if (sl_pk3_list_maps(g.gl_pathv[k], collect, &list, &err) != SL_OK)
+        if (sl_pk3_list_maps(g.gl_pathv[k], sl_test_collect_name, &list, &err) != SL_OK)
             fail_msg("%s", err.message);
         for (int i = 0; i < list.count; i++) {
             if (sanitized && seen++ % 8)

@@ -21,6 +21,7 @@
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
+#include "support/city_views.h"
 #include "support/counting_alloc.h"
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
@@ -31,16 +32,6 @@ static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
  * ignore the handle) */
 static const char *const g_methods[] = {"vfc", "hzb", "hom", "lazygrid", "frusta", "hoq", "cullmap", "horizon"};
 #define NM (sizeof g_methods / sizeof g_methods[0])
-
-static sl_scene tiny_city(void)
-{
-    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
-    sl_scene s;
-    sl_error err;
-    if (sl_gen_city(&co, NULL, &s, &err) != SL_OK)
-        fail_msg("%s", err.message);
-    return s;
-}
 
 typedef struct shared_job {
     sl_scene scene;
@@ -104,7 +95,7 @@ static void *run_thread(void *p)
 static void test_threads_same_ids(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_scene_accel accel;
     assert_int_equal(sl_scene_accel_create(s, NULL, &accel, &err), SL_OK);
@@ -155,7 +146,7 @@ static void test_threads_same_ids(void **state)
 static void test_memory_one_tree(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_test_counter ac = {0, 0, 0};
     sl_allocator aa = sl_test_counting_allocator(&ac);
@@ -196,7 +187,7 @@ static void test_memory_one_tree(void **state)
 static void test_moving_objects(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city();
+    sl_scene s = sl_test_tiny_city();
     sl_error err;
     sl_scene_accel accel;
     assert_int_equal(sl_scene_accel_create(s, NULL, &accel, &err), SL_OK);
@@ -256,7 +247,7 @@ static void test_moving_objects(void **state)
 static void test_refused(void **state)
 {
     (void)state;
-    sl_scene s = tiny_city(), other = tiny_city();
+    sl_scene s = sl_test_tiny_city(), other = sl_test_tiny_city();
     sl_error err;
     sl_scene_accel accel;
     sl_scene_accel_options ao = {8, 1, NULL};

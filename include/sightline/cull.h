@@ -70,8 +70,6 @@ typedef struct sl_cull_stats {
     uint64_t triangles_visible; /* their triangles: what a renderer would draw (filled by the interface) */
     uint64_t occlusion_tests;   /* boxes or nodes tested against occluders */
     uint64_t queries;           /* occlusion queries issued (hardware-style methods) */
-    uint64_t query_stalls;      /* query results waited for before they were ready (a draw backend's
-                                   latency; see backend.h) */
     uint64_t pixels_rasterized; /* occluder pixels written into a depth/occlusion buffer */
     uint64_t pixel_queries;     /* buffer pixels read by occlusion tests */
     uint32_t phase_count;       /* named phases below, at most SL_CULL_MAX_PHASES */
@@ -81,6 +79,9 @@ typedef struct sl_cull_stats {
     bool out_of_domain;         /* the eye was outside the domain (a BSP leaf without a cluster, see
                                    sl_oracle_in_domain in truth.h): the result is the frustum set of
                                    vfc with its defaults, whatever the method (filled by the interface) */
+    uint64_t query_stalls;      /* query results waited for before they were ready (a draw backend's
+                                   latency; see backend.h). Appended (docs/versions.md: fields are
+                                   added at the end) */
 } sl_cull_stats;
 
 /* A registered method. Strings are static. */

@@ -17,15 +17,19 @@
  * queries sample pixel centres as the oracle does). The depth buffer holds the oracle's fragments
  * of the objects drawn so far, so it is never nearer than the oracle's final buffer at any pixel.
  * An object's query draws its own triangles, whose fragments are the oracle's: one the oracle shows
- * at pixel p is at least as near as the buffer there and passes (exact, no margin needed). A node's
- * box is grown by `margin` pixel footprints at its farthest corner (1/16 by default, against vertex
- * snapping of 1/512 pixel), so it covers its objects' pixels strictly nearer than they are; a box
+ * at pixel p is at least as near as the buffer there and passes (exact, no margin needed). A node
+ * is queried by a box (sl_hoq_grow_box): its box grown by `margin` pixel footprints at its
+ * farthest corner (1/16 by default, against vertex snapping of 1/512 pixel), then moved toward the
+ * eye along the view rays until its farthest point is as near as its nearest one was. The growth
+ * keeps every pixel its objects cover inside the query's footprint; the reach is the depth bound:
+ * the reference rasterizer takes depth from the exact plane at a snapped pixel centre, and for a
+ * surface seen edge-on that extrapolation has no bound but the triangle's vertex range (hoq.h), so
+ * no fragment of the node is nearer than its nearest corner, and the query box is at least that
+ * near everywhere on its footprint (tests/test_backend.c, test_hoq_box_covers: the margin alone
+ * misses 1 pixel in 439,225, a ground polygon under a degree; the query box none). A query box
  * that reaches behind the near plane (or holds the eye) cannot be queried by its faces and counts
- * as visible. The one gap: a surface seen at a grazing angle, whose depth the snapping extrapolates
- * at its edge beyond its box (tests/test_backend.c, test_hoq_box_covers: 1 pixel in 439,225, a
- * ground polygon under a degree), may leave a node box farther than that fragment; node_queries=false
- * closes it (only objects are queried). Objects hidden at the culling resolution may show at another
- * one (the drawn objects are sampled at pixel centres), hence not SL_CONSERVATIVE. */
+ * as visible. Objects hidden at the culling resolution may show at another one (the drawn objects
+ * are sampled at pixel centres), hence not SL_CONSERVATIVE. */
 #include "hoq.h"
 #include "culler_internal.h"
 
@@ -72,7 +76,8 @@ static const char g_help[] =
     "leaf_size=1..16 (default 4): most objects per BVH leaf\n"
     "object_queries=BOOL (default true): query each object of a visible leaf by its own triangles before drawing it\n"
     "node_queries=BOOL (default true): query BVH nodes by their grown boxes (false: only the objects, every answer exact)\n"
-    "margin=0.0625..4 (default 0.0625): pixels each queried box grows by, at its farthest corner\n"
+    "margin=0.0625..4 (default 0.0625): pixels each queried node box grows by, at its farthest corner (before its "
+    "reach toward the eye)\n"
     "latency=0..64 (default 0): frames until a query result is ready, of the CPU backend it makes when "
     "given none (a wait before that is a stall)\n";
 
@@ -171,6 +176,14 @@ void sl_hoq_view_set(sl_hoq_view *v, const sl_mat4 *view_proj, const sl_mat4 *pr
     v->footprint = fmax(2.0 / (fabs((double)proj->m[0]) * width), 2.0 / (fabs((double)proj->m[5]) * height));
     v->ortho = ortho;
     v->margin = margin;
+    v->reach = true;
+}
+
+/* Clip z and w of world point p. */
+static void clip_zw(const sl_hoq_view *v, const double p[3], double *z, double *w)
+{
+    *z = v->vp[2] * p[0] + v->vp[6] * p[1] + v->vp[10] * p[2] + v->vp[14];
+    *w = v->vp[3] * p[0] + v->vp[7] * p[1] + v->vp[11] * p[2] + v->vp[15];
 }
 
 bool sl_hoq_grow_box(const sl_hoq_view *v, const sl_aabb *b, sl_aabb *g)
@@ -189,10 +202,57 @@ bool sl_hoq_grow_box(const sl_hoq_view *v, const sl_aabb *b, sl_aabb *g)
     float m = (float)(v->margin * px + 4e-7 * (ext + 1.0));
     g->min = (sl_vec3){b->min.x - m, b->min.y - m, b->min.z - m};
     g->max = (sl_vec3){b->max.x + m, b->max.y + m, b->max.z + m};
+    double zmin = INFINITY, zmax = -INFINITY, wmin = INFINITY, wmax = -INFINITY;
     for (int k = 0; k < 8; k++) {
         double p[3] = {(k & 1) ? g->max.x : g->min.x, (k & 2) ? g->max.y : g->min.y, (k & 4) ? g->max.z : g->min.z};
-        double z = v->vp[2] * p[0] + v->vp[6] * p[1] + v->vp[10] * p[2] + v->vp[14];
-        double w = v->vp[3] * p[0] + v->vp[7] * p[1] + v->vp[11] * p[2] + v->vp[15];
+        double z, w;
+        clip_zw(v, p, &z, &w);
+        if (!(z >= -w) || !(w > 0))
+            return false;
+        zmin = fmin(zmin, z), zmax = fmax(zmax, z), wmin = fmin(wmin, w), wmax = fmax(wmax, w);
+    }
+    if (!v->reach)
+        return true;
+    /* The reach toward the eye (the depth bound, hoq.h): the query box is the grown box's copy
+     * moved along the view rays until its farthest point is as near as the grown box's nearest.
+     * In perspective the copy is the box scaled about the eye by wmin / wmax (clip x, y and w
+     * scale alike, so it projects onto the grown box's own footprint, at w <= wmin); in
+     * orthographic projection it is the box moved along the rays (the null direction of clip x
+     * and y) by its depth extent. */
+    double lo[3] = {g->min.x, g->min.y, g->min.z}, hi[3] = {g->max.x, g->max.y, g->max.z};
+    double e[3] = {v->eye[0], v->eye[1], v->eye[2]}, shift[3] = {0, 0, 0}, scale = 1;
+    if (v->ortho) {
+        const double r0[3] = {v->vp[0], v->vp[4], v->vp[8]}, r1[3] = {v->vp[1], v->vp[5], v->vp[9]};
+        double r[3] = {r0[1] * r1[2] - r0[2] * r1[1], r0[2] * r1[0] - r0[0] * r1[2], r0[0] * r1[1] - r0[1] * r1[0]};
+        double gr = v->vp[2] * r[0] + v->vp[6] * r[1] + v->vp[10] * r[2];
+        if (!(fabs(gr) > 0) || !isfinite(gr))
+            return false;
+        double t = -(zmax - zmin) / gr;
+        for (int i = 0; i < 3; i++)
+            shift[i] = t * r[i];
+    } else {
+        scale = wmin / wmax;
+    }
+    float nlo[3], nhi[3];
+    for (int i = 0; i < 3; i++) {
+        double a = e[i] + scale * (lo[i] - e[i]) + shift[i], c = e[i] + scale * (hi[i] - e[i]) + shift[i];
+        /* rounded outward, with the rounding of the arithmetic above: a larger copy still holds
+         * the exact one, so its front is at least as near on at least its footprint */
+        double slack = 4e-7 * (fabs(a) + fabs(c) + fabs(e[i]) + fabs(shift[i]) + 1.0);
+        double want_lo = fmin(a, c) - slack, want_hi = fmax(a, c) + slack;
+        nlo[i] = (float)want_lo;
+        nhi[i] = (float)want_hi;
+        if ((double)nlo[i] > want_lo)
+            nlo[i] = nextafterf(nlo[i], -INFINITY);
+        if ((double)nhi[i] < want_hi)
+            nhi[i] = nextafterf(nhi[i], INFINITY);
+    }
+    g->min = (sl_vec3){nlo[0], nlo[1], nlo[2]};
+    g->max = (sl_vec3){nhi[0], nhi[1], nhi[2]};
+    for (int k = 0; k < 8; k++) {
+        double p[3] = {(k & 1) ? g->max.x : g->min.x, (k & 2) ? g->max.y : g->min.y, (k & 4) ? g->max.z : g->min.z};
+        double z, w;
+        clip_zw(v, p, &z, &w);
         if (!(z >= -w) || !(w > 0))
             return false;
     }

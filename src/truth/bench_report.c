@@ -54,7 +54,7 @@ static const char csv_header[] =
     "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,cull_ms_min,"
     "objects_drawn,triangles_drawn,visible_exact,triangles_visible,missed_objects,missed_pixels,extra_objects,"
     "overestimation,objects_in_frustum,triangles_in_frustum,covered_pixels,oracle_ms,objects_tested,nodes_visited,"
-    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped\n";
+    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped,query_stalls\n";
 
 sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
 {
@@ -74,7 +74,7 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
             if (fr->out_of_domain) {
                 /* one row for the skipped frame: where it was, no method, the reason last */
                 csv_text(&f, b->label);
-                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain\n", fr->source,
+                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain,\n", fr->source,
                     (double)fr->time, (double)c->position.x, (double)c->position.y, (double)c->position.z,
                     c->yaw * RAD2DEG, c->pitch * RAD2DEG, c->roll * RAD2DEG);
                 continue;
@@ -105,7 +105,7 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
                 out(&f, ",");
                 for (uint32_t k = 0; k < r->missed_kept; k++)
                     out(&f, "%s%u:%u", k ? ";" : "", r->missed_ids[k], r->missed_pixels[k]);
-                out(&f, ",\n");
+                out(&f, ",,%llu\n", (unsigned long long)s->query_stalls); /* skipped empty, then query_stalls */
             }
         }
     }
@@ -224,10 +224,11 @@ sl_status sl_bench_write_json(const sl_bench *benches, uint32_t count, const cha
                     (unsigned long long)fr->covered_pixels);
                 json_num(&f, fr->oracle_ms);
                 out(&f, ",\"stats\":{\"objects_tested\":%llu,\"nodes_visited\":%llu,\"occlusion_tests\":%llu,"
-                        "\"queries\":%llu,\"pixels_rasterized\":%llu,\"pixel_queries\":%llu}",
+                        "\"queries\":%llu,\"pixels_rasterized\":%llu,\"pixel_queries\":%llu,\"query_stalls\":%llu}",
                     (unsigned long long)s->objects_tested, (unsigned long long)s->nodes_visited,
                     (unsigned long long)s->occlusion_tests, (unsigned long long)s->queries,
-                    (unsigned long long)s->pixels_rasterized, (unsigned long long)s->pixel_queries);
+                    (unsigned long long)s->pixels_rasterized, (unsigned long long)s->pixel_queries,
+                    (unsigned long long)s->query_stalls);
                 out(&f, ",\"phases_ms\":{");
                 for (uint32_t p = 0; p < s->phase_count && p < SL_CULL_MAX_PHASES; p++) {
                     out(&f, "%s", p ? "," : "");
@@ -269,6 +270,33 @@ static const char *ms_text(char *buf, size_t n, double v)
 {
     snprintf(buf, n, v < 10 ? "%.3f" : "%.1f", v);
     return buf;
+}
+
+/* Below a scene's table, for the methods that issue occlusion queries (sl_cull_stats.queries): the
+ * queries and the stalls (results waited for before they were ready) per frame, means over the
+ * judged frames. Nothing when no method queries. */
+static void query_line(struct sl_bench_t *b, FILE *fp)
+{
+    bool any = false;
+    for (uint32_t mi = 0; mi < b->method_count; mi++) {
+        uint64_t queries = 0, stalls = 0;
+        uint32_t frames = 0;
+        for (uint32_t fi = 0; fi < b->frames.count; fi++) {
+            const sl_bench_record *r = bench_rec(b, fi, mi);
+            if (!r->valid)
+                continue;
+            frames++;
+            queries += r->stats.queries;
+            stalls += r->stats.query_stalls;
+        }
+        if (!queries)
+            continue;
+        fprintf(fp, "%s %s %.1f queries (%.1f stalls)", any ? ";" : "Occlusion queries per frame (mean):", b->methods[mi].name,
+                (double)queries / frames, (double)stalls / frames);
+        any = true;
+    }
+    if (any)
+        fprintf(fp, ".\n\n");
 }
 
 static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
@@ -329,6 +357,7 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
                     ms_text(t3, sizeof t3, s.cull_ms.max));
         }
         fprintf(fp, "\n");
+        query_line(b, fp);
     }
 }
 

@@ -1,6 +1,22 @@
 #include "support/city_views.h"
 
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <stdlib.h>
+
+#include <cmocka.h>
+
+sl_scene sl_test_tiny_city(void)
+{
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene s = NULL;
+    sl_error err;
+    if (sl_gen_city(&co, NULL, &s, &err) != SL_OK)
+        fail_msg("%s", err.message);
+    return s;
+}
 
 sl_status sl_test_city_views(sl_city_preset preset, uint32_t count, uint64_t seed, uint32_t w, uint32_t h, sl_scene *s,
                              sl_path *views, sl_error *err)
