@@ -384,6 +384,7 @@ static void test_reports(void **state)
     char *text = read_text(path, NULL);
     assert_int_equal(count_lines(text), 1 + 3 + 2);
     assert_true(!strncmp(text, "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,", 77));
+    assert_true(strstr(text, ",missed,skipped,query_stalls\n") == strchr(text, '\n') - 28); /* camera frames: no view columns */
     char row[128];
     snprintf(row, sizeof row, ",broken,conservative,1.000000,1.000000,2,14,3,26,1,");
     assert_non_null(strstr(text, row));
@@ -648,6 +649,49 @@ static void test_run_view(void **state)
         assert_true(fr.visible_count > 0);
     }
     assert_int_equal(sl_bench_violations(b), 0);
+    /* the reports: the camera frames' columns as before, the view of matrices exactly */
+    char *dir = temp_dir();
+    char path[256];
+    sl_bench both[2] = {a, b};
+    snprintf(path, sizeof path, "%s/frames.csv", dir);
+    assert_int_equal(sl_bench_write_csv(&a, 1, path, &err), SL_OK);
+    char *cams = read_text(path, NULL);
+    assert_non_null(strstr(cams, ",missed,skipped,query_stalls\n"));
+    assert_null(strstr(cams, "mirrored"));
+    assert_int_equal(sl_bench_write_csv(both, 2, path, &err), SL_OK);
+    char *mixed = read_text(path, NULL);
+    assert_non_null(strstr(mixed, ",missed,skipped,query_stalls,view,clip_depth,projection,near,far,rect_left,rect_right,rect_bottom,"
+                                  "rect_top,forward_x,forward_y,forward_z,up_x,up_y,up_z,width,height,mirrored\n"));
+    assert_non_null(strstr(mixed, ",camera,gl,perspective,"));
+    assert_non_null(strstr(mixed, ",matrices,reversed,perspective,"));
+    assert_non_null(strstr(mixed, ",inf,"));  /* the infinite far plane as given */
+    assert_non_null(strstr(mixed, ",160,120,y\n")); /* the y-flipped projection */
+    /* the first file's rows, view columns left out, are rows of the mixed file */
+    for (char *line = strchr(cams, '\n') + 1, *end; *line; line = end + 1) {
+        end = strchr(line, '\n');
+        *end = 0;
+        assert_non_null(strstr(mixed, line));
+    }
+    free(cams);
+    free(mixed);
+    snprintf(path, sizeof path, "%s/frames.json", dir);
+    assert_int_equal(sl_bench_write_json(&b, 1, path, &err), SL_OK);
+    char *text = read_text(path, NULL);
+    assert_non_null(strstr(text, "\"view\":{\"source\":\"matrices\",\"clip_depth\":\"reversed\",\"projection\":\"perspective\","));
+    assert_non_null(strstr(text, "\"far\":null,\"rect\":{\"left\":"));
+    assert_non_null(strstr(text, "\"mirrored_x\":false,\"mirrored_y\":true,\"left_handed\":true}"));
+    size_t views = 0;
+    for (const char *q = text; (q = strstr(q, "\"view\":{")); q++)
+        views++;
+    assert_int_equal(views, (size_t)nv * nm); /* the frames of matrices only, one row per method */
+    free(text);
+    snprintf(path, sizeof path, "%s/summary.md", dir);
+    assert_int_equal(sl_bench_write_summary(&b, 1, path, &err), SL_OK);
+    text = read_text(path, NULL);
+    assert_non_null(strstr(text, "from an engine's matrices (frame 1: reversed depth, perspective, near "));
+    assert_non_null(strstr(text, "far infinite, near rectangle x ["));
+    free(text);
+    remove_dir(dir);
     sl_bench_destroy(a);
     sl_bench_destroy(b);
     /* the options' viewport */
@@ -664,6 +708,11 @@ static void test_run_view(void **state)
     assert_int_equal(sl_bench_get_frame(a, 0, &fr, &err), SL_OK);
     assert_int_equal(fr.camera.width, 64);
     assert_int_equal(fr.camera.height, 32);
+    /* the frame's view: the one culled, at the options' viewport, the same matrices */
+    assert_int_equal(fr.view.source, SL_VIEW_FROM_MATRICES);
+    assert_true(fr.view.width == 64 && fr.view.height == 32);
+    assert_memory_equal(&fr.view.view_proj, &v.view_proj, sizeof v.view_proj);
+    assert_true(fr.view.rect_left == v.rect_left && fr.view.rect_top == v.rect_top);
     sl_view hand;
     memset(&hand, 0, sizeof hand);
     assert_int_equal(sl_bench_run_view(a, &hand, &err), SL_ERROR_INVALID_ARGUMENT);

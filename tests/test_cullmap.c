@@ -11,6 +11,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 #include "core/sl_core.h"
@@ -553,9 +554,9 @@ static void test_options(void **state)
     sl_scene_destroy(s);
 }
 
-static void test_render_png(void **state)
+/* The small town of the image tests: ground, two buildings and a car. */
+static sl_scene png_scene(void)
 {
-    (void)state;
     sl_scene s;
     sl_error err;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
@@ -563,6 +564,14 @@ static void test_render_png(void **state)
     add_building(s, 20, -30, 26, 30, 15);
     add_building(s, -40, 20, -10, 30, 25);
     add_box(s, (sl_vec3){40, -2, 0}, (sl_vec3){44, 2, 1.5f}, SL_KIND_CAR);
+    return s;
+}
+
+static void test_render_png(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene s = png_scene();
     sl_camera cam = sl_camera_default();
     cam.position = (sl_vec3){0, 0, 1.7f};
     char path[512];
@@ -587,6 +596,115 @@ static void test_render_png(void **state)
     sl_scene_destroy(s);
 }
 
+/* Read a PNG written to path (RGBA) and remove the file. */
+static uint8_t *read_png(const char *path, uint32_t *w, uint32_t *h)
+{
+    sl_error err;
+    uint8_t *px;
+    assert_int_equal(sl_png_read_rgba(path, NULL, &px, w, h, &err), SL_OK);
+    unlink(path);
+    return px;
+}
+
+/* The view forms of the images (issue 13 §1): the cull map and the depth image of a view from a
+ * camera are byte for byte those of the camera; the cull map of the camera's own matrices differs
+ * from it in a few pixels at most (float rounding of the frustum's plan), an off-axis view's in
+ * many (its plan turns aside); an infinite far plane is bounded by the scene; the depth image
+ * refuses one. */
+static void test_render_png_view(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene s = png_scene();
+    sl_camera cam = sl_camera_default();
+    cam.position = (sl_vec3){0, 0, 1.7f};
+    cam.yaw = 0.3f;
+    cam.width = 320;
+    cam.height = 240;
+    cam.far_plane = 150;
+    char path[512];
+    snprintf(path, sizeof path, "%s/test_cullmap_view_%ld.png", SL_BINARY_DIR, (long)getpid());
+    uint32_t w0, h0, w, h;
+    assert_int_equal(sl_cullmap_render_png(s, &cam, "cell=2", path, &err), SL_OK);
+    uint8_t *ref = read_png(path, &w0, &h0);
+    const size_t n = (size_t)w0 * h0;
+    /* the view of the camera: the same bytes */
+    sl_view v;
+    assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+    assert_int_equal(sl_cullmap_render_png_view(s, &v, "cell=2", path, &err), SL_OK);
+    uint8_t *px = read_png(path, &w, &h);
+    assert_true(w == w0 && h == h0);
+    assert_memory_equal(px, ref, n * 4);
+    sl_free(NULL, px, n * 4);
+    /* the camera's matrices, given as an engine's */
+    sl_mat4 V = sl_camera_view(&cam), P = sl_camera_proj(&cam);
+    sl_view vm;
+    assert_int_equal(sl_view_from_matrices(V.m, P.m, SL_CLIP_DEPTH_GL, 320, 240, &vm, &err), SL_OK);
+    assert_int_equal(sl_cullmap_render_png_view(s, &vm, "cell=2", path, &err), SL_OK);
+    px = read_png(path, &w, &h);
+    assert_true(w == w0 && h == h0);
+    size_t diff_same = 0;
+    for (size_t k = 0; k < n; k++)
+        diff_same += memcmp(px + 4 * k, ref + 4 * k, 4) != 0;
+    sl_free(NULL, px, n * 4);
+    /* off-axis: the near rectangle shifted by half its width (P02 = 1: column-major m[8]) */
+    float Po[16];
+    memcpy(Po, P.m, sizeof Po);
+    Po[8] = 1.0f;
+    sl_view vo;
+    assert_int_equal(sl_view_from_matrices(V.m, Po, SL_CLIP_DEPTH_GL, 320, 240, &vo, &err), SL_OK);
+    assert_true(vo.rect_left != -vo.rect_right);
+    assert_int_equal(sl_cullmap_render_png_view(s, &vo, "cell=2", path, &err), SL_OK);
+    px = read_png(path, &w, &h);
+    size_t diff_off = 0;
+    for (size_t k = 0; k < n; k++)
+        diff_off += memcmp(px + 4 * k, ref + 4 * k, 4) != 0;
+    sl_free(NULL, px, n * 4);
+    print_message("cull map of the camera's matrices: %zu pixels differ; off-axis: %zu (of %zu)\n", diff_same, diff_off, n);
+    assert_true(diff_same * 200 < n);
+    assert_true(diff_off > 20 * (diff_same + 1));
+    /* an infinite far plane: bounded by the scene */
+    sl_view vi;
+    assert_int_equal(sl_view_with_far(&vm, INFINITY, &vi, &err), SL_OK);
+    assert_int_equal(sl_cullmap_render_png_view(s, &vi, "cell=2", path, &err), SL_OK);
+    sl_free(NULL, read_png(path, &w, &h), (size_t)w * h * 4);
+    /* a view no constructor made is refused */
+    sl_view bad = vm;
+    bad.magic = 0;
+    assert_int_equal(sl_cullmap_render_png_view(s, &bad, NULL, path, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(access(path, F_OK), -1);
+
+    /* the depth image: the view of the camera writes the camera's bytes */
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+    sl_oracle_view ov;
+    assert_int_equal(sl_oracle_get_view(o, 0, &ov, &err), SL_OK);
+    assert_int_equal(sl_image_write_depth(&ov, &cam, path, NULL, &err), SL_OK);
+    uint8_t *dref = read_png(path, &w0, &h0);
+    assert_int_equal(sl_image_write_depth_view(&ov, &v, path, NULL, &err), SL_OK);
+    px = read_png(path, &w, &h);
+    assert_true(w == w0 && h == h0);
+    assert_memory_equal(px, dref, (size_t)w * h * 4);
+    sl_free(NULL, px, (size_t)w * h * 4);
+    /* a view's own near and far: the same image at twice the far plane differs */
+    sl_view v2;
+    assert_int_equal(sl_view_with_far(&v, 300, &v2, &err), SL_OK);
+    assert_int_equal(sl_image_write_depth_view(&ov, &v2, path, NULL, &err), SL_OK);
+    px = read_png(path, &w, &h);
+    assert_true(memcmp(px, dref, (size_t)w * h * 4) != 0);
+    sl_free(NULL, px, (size_t)w * h * 4);
+    sl_free(NULL, dref, (size_t)w0 * h0 * 4);
+    assert_int_equal(sl_image_write_depth_view(&ov, &vi, path, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "sl_view_bound_far"));
+    assert_int_equal(sl_image_write_depth_view(&ov, NULL, path, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(access(path, F_OK), -1);
+    sl_oracle_destroy(o);
+    sl_free(NULL, ref, n * 4);
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -598,6 +716,7 @@ int main(void)
         cmocka_unit_test(test_moving_and_orthographic),
         cmocka_unit_test(test_options),
         cmocka_unit_test(test_render_png),
+        cmocka_unit_test(test_render_png_view),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -757,6 +757,114 @@ static void test_hole_facing_eye(void **state)
     assert_int_equal(missed, 0);
 }
 
+/* The convexity tolerance of a convex part on screen (render_mesh_hull) with non-square pixels: a
+ * tolerance in metres turned into pixels must use the larger of the view's two focal lengths. A
+ * view from engine matrices at 320x240 whose x focal length is ten times its y focal length
+ * (1750 and 175 pixels); a closed box 80 km long away from the eye (so that its tolerance, 1e-6 of
+ * its extent, is 8 cm; the part's dev is 6 cm), its near face 5 m ahead, with a vertex on the near
+ * face's left edge pulled 3 cm inwards: a notch 10.5 pixels deep in x that the part's convex hull
+ * covers (the hull's edge at x = 55, the face's at 65.47 on the middle rows). A thin pole 10 m
+ * ahead seen through the notch just left of the face's edge (x in [65.1, 65.4]): the culling
+ * pixel 65 has its centre on the face, and only the finer samples see the pole. Eroding the hull
+ * by the tolerance at the y focal length (7.3 pixels instead of 73) keeps pixel 65 covered and drops
+ * the pole. A second pole straight behind the near face is hidden (the box is drawn by its hull).
+ * Zero misses against every oracle. */
+static void test_hull_focal_per_axis(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    const float X0 = 5, X1 = 80005, Y = 0.3f, Z = 5, dent = 0.03f;
+    /* A (X0, Y, Z), M the dented vertex (X0, Y - dent, 0), B (X0, Y, -Z), C (X0, -Y, -Z), D (X0, -Y, Z),
+     * then the far face's A' B' C' D' */
+    const float p[] = {X0, Y, Z, X0, Y - dent, 0, X0, Y, -Z, X0, -Y, -Z, X0, -Y, Z,
+                       X1, Y, Z, X1, Y, -Z, X1, -Y, -Z, X1, -Y, Z};
+    enum { A, M, B, C, D, A2, B2, C2, D2 };
+    /* wound outward (counter-clockwise seen from outside) */
+    static const uint32_t idx[] = {
+        D, A, M,    D, M, C,    M, B, C,    /* near face (x = X0), the notch at M */
+        A, A2, M,   M, A2, B2,  M, B2, B,   /* the side y = +Y through M */
+        A2, C2, B2, A2, D2, C2,             /* far face */
+        D, C, D2,   C, C2, D2,              /* side y = -Y */
+        A, D, A2,   D, D2, A2,              /* top z = +Z */
+        B, B2, C,   B2, C2, C,              /* bottom z = -Z */
+    };
+    sl_mesh_desc md = {p, NULL, 9, idx, SL_COUNTOF(idx) / 3};
+    uint32_t mesh, box;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER};
+    assert_int_equal(sl_scene_add_object(s, &od, &box, &err), SL_OK);
+    /* screen x = 160 - 1750 y / x (+y is to the left): the hull's left edge at 55, u pixels inside
+     * it at the angle y / x = (105 - u) / 1750 */
+    const double fx = 1750.0;
+    const float ya = (float)(10.0 * (105.0 - 10.35) / fx), yb = (float)(10.0 * (105.0 - 10.1) / fx);
+    const uint32_t notch_pole = sl_test_add_box(s, (sl_vec3){10, ya, -0.05f}, (sl_vec3){10.005f, yb, 0.05f}, SL_KIND_LAMP, 0);
+    const uint32_t hidden_pole = sl_test_add_box(s, (sl_vec3){20, -0.05f, -0.5f}, (sl_vec3){20.1f, 0.05f, 0.5f}, SL_KIND_LAMP, 0);
+    const uint32_t nobj = sl_scene_object_count(s);
+
+    sl_camera cam = sl_camera_default();
+    cam.position = (sl_vec3){0, 0, 0};
+    cam.yaw = 0;
+    cam.pitch = 0;
+    sl_mat4 V = sl_camera_view(&cam);
+    const double n = 2, f = 100000;
+    float P[16] = {0};
+    P[0] = (float)(fx / 160.0);
+    P[5] = (float)(1.0 / tan(0.6));
+    P[10] = (float)(-(f + n) / (f - n));
+    P[11] = -1;
+    P[14] = (float)(-2.0 * f * n / (f - n));
+    sl_view view;
+    assert_int_equal(sl_view_from_matrices(V.m, P, SL_CLIP_DEPTH_GL, 320, 240, &view, &err), SL_OK);
+    assert_true(view.focal_x > 9.9 * view.focal_y);
+
+    sl_oracle o[NO];
+    for (size_t k = 0; k < NO; k++) {
+        sl_oracle_options oo = sl_oracle_default_options();
+        oo.width = 320 * g_oracles[k].scale;
+        oo.height = 240 * g_oracles[k].scale;
+        oo.samples = g_oracles[k].samples;
+        oo.sample_count = 4;
+        oo.jitter_seed = 20261203;
+        assert_int_equal(sl_oracle_create(s, &oo, NULL, &o[k], &err), SL_OK);
+    }
+    static const char *const methods[] = {"hzb", "lazygrid-z"};
+    uint32_t missed = 0, hidden = 0, out[8], k;
+    bool seen[NO] = {false};
+    for (size_t m = 0; m < SL_COUNTOF(methods); m++) {
+        sl_culler c;
+        assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &c, &err), SL_OK);
+        assert_int_equal(sl_culler_cull_view(c, &view, out, nobj, &k, &err), SL_OK);
+        bool kept_hidden = false;
+        for (uint32_t i = 0; i < k; i++)
+            kept_hidden |= out[i] == hidden_pole;
+        hidden += !kept_hidden;
+        for (size_t q = 0; q < NO; q++) {
+            sl_oracle_frame fr;
+            assert_int_equal(sl_oracle_render_view(o[q], &view, &fr, &err), SL_OK);
+            for (uint32_t i = 0; i < fr.visible_count; i++)
+                seen[q] |= fr.visible[i] == notch_pole;
+            sl_cull_metrics mt;
+            assert_int_equal(sl_metrics_compare(s, &fr, out, k, &mt, NULL, NULL, 0, &err), SL_OK);
+            if (mt.missed_count)
+                print_message("MISS %s against the %s oracle: %u objects (the pole in the notch)\n", methods[m],
+                              g_oracles[q].label, mt.missed_count);
+            missed += mt.missed_count;
+        }
+        sl_culler_destroy(c);
+    }
+    print_message("hull erosion with non-square pixels: the pole in the notch seen by the 2x oracle %d, the 4x %d; "
+                  "the pole behind the box hidden by %u of %zu methods; missed %u\n",
+                  seen[1], seen[2], hidden, SL_COUNTOF(methods), missed);
+    for (size_t q = 0; q < NO; q++)
+        sl_oracle_destroy(o[q]);
+    sl_scene_destroy(s);
+    assert_true(seen[1] && seen[2]);                  /* the finer oracles see the pole through the notch */
+    assert_int_equal(hidden, SL_COUNTOF(methods));    /* and the box occludes */
+    assert_int_equal(missed, 0);
+}
+
 /* res=any refuses the pixel-centre tests; res=culling takes them; the registry says who has it. */
 static void test_res_option(void **state)
 {
@@ -809,6 +917,7 @@ int main(void)
         cmocka_unit_test(test_silhouette_rule),
         cmocka_unit_test(test_thin_inset),
         cmocka_unit_test(test_hole_facing_eye),
+        cmocka_unit_test(test_hull_focal_per_axis),
         cmocka_unit_test(test_every_resolution),
     };
     if (getenv("SL_TEST_FILTER"))

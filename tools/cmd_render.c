@@ -30,7 +30,8 @@ typedef struct render_ctx {
     const char *cmd;
     sl_scene scene;
     sl_oracle oracle;
-    sl_camera camera;          /* this frame's camera */
+    sl_view view;              /* this frame's view (of its camera, or of --view-matrix/--proj-matrix with
+                                  a finite far plane: the one the oracle drew) */
     uint32_t frame;            /* frame number (path index, 0 for --camera) */
     const sl_oracle_frame *truth;
     void *state;               /* the mode's own, from its setup hook */
@@ -59,7 +60,7 @@ static sl_status write_depth(render_ctx *ctx, const char *file, sl_error *err)
 {
     sl_oracle_view v;
     sl_status st = sl_oracle_get_view(ctx->oracle, 0, &v, err);
-    return st == SL_OK ? sl_image_write_depth(&v, &ctx->camera, file, NULL, err) : st;
+    return st == SL_OK ? sl_image_write_depth_view(&v, &ctx->view, file, NULL, err) : st;
 }
 
 static sl_status write_overdraw(render_ctx *ctx, const char *file, sl_error *err)
@@ -71,7 +72,7 @@ static sl_status write_overdraw(render_ctx *ctx, const char *file, sl_error *err
 
 static sl_status write_cullmap(render_ctx *ctx, const char *file, sl_error *err)
 {
-    return sl_cullmap_render_png(ctx->scene, &ctx->camera, NULL, file, err);
+    return sl_cullmap_render_png_view(ctx->scene, &ctx->view, NULL, file, err);
 }
 
 /* The image kinds, in the order they are written. */
@@ -113,7 +114,7 @@ static void usage(FILE *out)
             "  --clip-depth D    the projection's depth range: gl ([-1,1], default), zero-one (D3D, Vulkan,\n"
             "                    Metal [0,1]) or reversed (reversed-z: near 1, far 0); the view is\n"
             "                    normalised to an unmirrored OpenGL view (docs/culler-contract.md, \"Views\");\n"
-            "                    an infinite far plane is bounded by the scene; not with --images cullmap\n"
+            "                    an infinite far plane is bounded by the scene\n"
             "  --frames A:B      with --path: frames A to B-1 (A:, :B and A also work; default all)\n"
             "  --width W         image width (default 1024, or the path's)\n"
             "  --height H        image height (default 768, or the path's)\n"
@@ -232,6 +233,7 @@ int sl_cmd_render(int argc, char **argv)
         return 2;
     }
     sl_view mview;
+    memset(&mview, 0, sizeof mview);
     if (matrices) {
         sl_error verr;
         if (sl_view_from_matrices(vm, pm, depth, width ? width : 1024, height ? height : 768, &mview, &verr) != SL_OK) {
@@ -278,10 +280,6 @@ int sl_cmd_render(int argc, char **argv)
         if (!any_selected)
             selected[m] = modes[m].default_on;
         overdraw |= selected[m] && modes[m].needs_overdraw;
-    }
-    if (matrices && selected[find_mode("cullmap")]) {
-        cli_error(cmd, "--images cullmap needs --camera or --path (the cull map draws a camera's frustum)");
-        return 2;
     }
     if (camera_text) {
         cam.width = width ? width : 1024;
@@ -341,15 +339,6 @@ int sl_cmd_render(int argc, char **argv)
         if (sl_view_bound_far(&mview, &world, &mview, &err) != SL_OK)
             status = cli_fail(cmd, &err);
     }
-    if (matrices) {
-        /* the depth image reads the projection, near and far of a camera */
-        cam.position = mview.eye;
-        cam.projection = mview.projection;
-        cam.near_plane = (float)mview.near_plane;
-        cam.far_plane = (float)mview.far_plane;
-        cam.width = mview.width;
-        cam.height = mview.height;
-    }
     render_ctx ctx[MODE_COUNT];
     bool set_up[MODE_COUNT] = {false};
     memset(ctx, 0, sizeof ctx);
@@ -385,9 +374,9 @@ int sl_cmd_render(int argc, char **argv)
                 c.height = height;
             }
         }
+        sl_view fv = mview;
         sl_oracle_frame truth;
-        if ((matrices ? sl_oracle_render_view(oracle, &mview, &truth, &err) : sl_oracle_render(oracle, &c, &truth, &err)) !=
-            SL_OK) {
+        if ((!matrices && sl_view_from_camera(&c, &fv, &err) != SL_OK) || sl_oracle_render_view(oracle, &fv, &truth, &err) != SL_OK) {
             tool_error_prefix(&err, "frame %u", f);
             status = cli_fail(cmd, &err);
             break;
@@ -402,7 +391,7 @@ int sl_cmd_render(int argc, char **argv)
         for (size_t m = 0; m < MODE_COUNT && !status; m++) {
             if (!selected[m])
                 continue;
-            ctx[m].camera = c;
+            ctx[m].view = fv;
             ctx[m].frame = f;
             ctx[m].truth = &truth;
             snprintf(file, sizeof file, "%s/frame-%05u-%s.png", od.stage, f, modes[m].name);

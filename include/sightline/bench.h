@@ -89,8 +89,12 @@ typedef struct sl_bench_frame {
                                  reports call this the frame number */
     float time;               /* the pose's time in seconds (sl_bench_run_path), else the index */
     sl_camera camera;         /* as rendered (viewport overridden by the options); for a frame of
-                                 sl_bench_run_view of matrices, the view's eye, orientation, near,
-                                 far and vertical extent (reports only) */
+                                 sl_bench_run_view of matrices, an approximate camera: the view's
+                                 eye, orientation, near, far and vertical extent (no off-axis
+                                 shift, no depth convention) */
+    sl_view view;             /* the view the frame was culled from, exactly (after the options'
+                                 viewport; an infinite far plane kept as given): reports print it
+                                 for frames of matrices (docs/bench.md, "the view columns") */
     uint32_t visible_count;   /* exact visible set size */
     uint64_t triangles_visible; /* triangles of the visible objects (an exact method draws these) */
     uint64_t covered_pixels;  /* pixels showing some object */

@@ -217,6 +217,12 @@ SL_API sl_status sl_image_write_ids(const sl_oracle_view *view, const char *path
  * projection. */
 SL_API sl_status sl_image_write_depth(const sl_oracle_view *view, const sl_camera *cam, const char *path,
                                       const sl_allocator *alloc, sl_error *err);
+/* The same image for a view (view.h, from a camera or an engine's matrices): near, far and
+ * projection from `v`, which must be the view the oracle rendered, with a finite far plane (a view
+ * with an infinite far plane is drawn as its sl_view_bound_far by the scene's bounds: pass that).
+ * For sl_view_from_camera(cam) the PNG is byte for byte that of sl_image_write_depth(cam). */
+SL_API sl_status sl_image_write_depth_view(const sl_oracle_view *view, const sl_view *v, const char *path,
+                                           const sl_allocator *alloc, sl_error *err);
 /* PNG of a view's depth complexity (fragments per pixel) on the colour ramp, 0 black and the
  * view's maximum yellow; *max_out (may be NULL) receives that maximum. The view needs its
  * overdraw buffer (oracle option count_overdraw). */

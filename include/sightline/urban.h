@@ -8,6 +8,7 @@
 #include "core.h"
 #include "camera.h"
 #include "scene.h"
+#include "view.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -21,6 +22,12 @@ extern "C" {
  * options: the cullmap culler's options ("cell=4,radius=800"; NULL or "" for the defaults). */
 SL_API sl_status sl_cullmap_render_png(sl_scene scene, const sl_camera *cam, const char *options, const char *path,
                                        sl_error *err);
+/* The same for a view (view.h: from a camera or an engine's matrices; an infinite far plane is
+ * bounded by the scene, as sl_culler_cull_view does): the cells and outlines are those of the
+ * cullmap culler culling that view. For sl_view_from_camera(cam) the PNG is byte for byte that of
+ * sl_cullmap_render_png(cam). */
+SL_API sl_status sl_cullmap_render_png_view(sl_scene scene, const sl_view *view, const char *options, const char *path,
+                                            sl_error *err);
 
 #ifdef __cplusplus
 }

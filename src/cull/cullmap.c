@@ -718,6 +718,23 @@ sl_status sl_cullmap_render_png(sl_scene scene, const sl_camera *cam, const char
     sl_status st = sl_view_from_camera(cam, &view, err);
     if (st != SL_OK)
         return st;
+    return sl_cullmap_render_png_view(scene, &view, options, path, err);
+}
+
+sl_status sl_cullmap_render_png_view(sl_scene scene, const sl_view *view_in, const char *options, const char *path,
+                                     sl_error *err)
+{
+    if (!scene || !view_in || !path)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_cullmap_render_png: scene, view and path are required");
+    sl_status st = sl_view_validate(view_in, err);
+    if (st != SL_OK)
+        return st;
+    /* an infinite far plane: bounded by the scene's box, as sl_culler_cull_view does */
+    sl_view bounded;
+    const sl_view *vp;
+    if ((st = sl_scene_finite_view(scene, view_in, &bounded, &vp, err)) != SL_OK)
+        return st;
+    const sl_view view = *vp;
     const sl_allocator *a = sl_default_allocator();
     sl_opts *opts = sl_alloc(a, sizeof *opts);
     if (!opts)

@@ -288,6 +288,7 @@ static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *e
     fr.source = fi;
     fr.time = (float)fi;
     fr.camera = camera_of_view(view);
+    fr.view = *view;
     fr.visible_count = b->truth.visible_count;
     for (uint32_t i = 0; i < b->truth.visible_count; i++)
         fr.triangles_visible += b->triangles[b->truth.visible[i]];

@@ -54,7 +54,38 @@ static const char csv_header[] =
     "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,cull_ms_min,"
     "objects_drawn,triangles_drawn,visible_exact,triangles_visible,missed_objects,missed_pixels,extra_objects,"
     "overestimation,objects_in_frustum,triangles_in_frustum,covered_pixels,oracle_ms,objects_tested,nodes_visited,"
-    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped,query_stalls\n";
+    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped,query_stalls";
+
+/* The view columns, after the others, only in a file with a frame given by matrices (so that a
+ * file of camera frames keeps its columns byte for byte): the view as culled, exactly. */
+static const char csv_view_header[] =
+    ",view,clip_depth,projection,near,far,rect_left,rect_right,rect_bottom,rect_top,forward_x,forward_y,forward_z,"
+    "up_x,up_y,up_z,width,height,mirrored";
+
+static bool frame_from_matrices(const sl_bench_frame *fr)
+{
+    return fr->view.source == SL_VIEW_FROM_MATRICES;
+}
+
+static bool any_from_matrices(const sl_bench *benches, uint32_t count)
+{
+    for (uint32_t bi = 0; bi < count; bi++)
+        for (uint32_t fi = 0; fi < benches[bi]->frames.count; fi++)
+            if (frame_from_matrices(&SL_AT(benches[bi]->frames, sl_bench_frame, fi)))
+                return true;
+    return false;
+}
+
+static void csv_view(sl_atomic_file *f, const sl_bench_frame *fr)
+{
+    const sl_view *v = &fr->view;
+    out(f, ",%s,%s,%s,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u,%u,%s",
+        frame_from_matrices(fr) ? "matrices" : "camera", sl_clip_depth_name(v->clip_depth),
+        v->projection == SL_ORTHOGRAPHIC ? "orthographic" : "perspective", v->near_plane, v->far_plane, v->rect_left,
+        v->rect_right, v->rect_bottom, v->rect_top, (double)v->forward.x, (double)v->forward.y, (double)v->forward.z,
+        (double)v->up.x, (double)v->up.y, (double)v->up.z, v->width, v->height,
+        v->mirrored_x ? (v->mirrored_y ? "xy" : "x") : (v->mirrored_y ? "y" : ""));
+}
 
 sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
 {
@@ -65,7 +96,8 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
     st = sl_atomic_open(count ? &benches[0]->alloc : NULL, path, &f, err);
     if (st != SL_OK)
         return st;
-    out(&f, "%s", csv_header);
+    const bool views = any_from_matrices(benches, count);
+    out(&f, "%s%s\n", csv_header, views ? csv_view_header : "");
     for (uint32_t bi = 0; bi < count; bi++) {
         struct sl_bench_t *b = benches[bi];
         for (uint32_t fi = 0; fi < b->frames.count; fi++) {
@@ -74,9 +106,12 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
             if (fr->out_of_domain) {
                 /* one row for the skipped frame: where it was, no method, the reason last */
                 csv_text(&f, b->label);
-                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain,\n", fr->source,
+                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain,", fr->source,
                     (double)fr->time, (double)c->position.x, (double)c->position.y, (double)c->position.z,
                     c->yaw * RAD2DEG, c->pitch * RAD2DEG, c->roll * RAD2DEG);
+                if (views)
+                    csv_view(&f, fr);
+                out(&f, "\n");
                 continue;
             }
             for (uint32_t mi = 0; mi < b->method_count; mi++) {
@@ -105,7 +140,10 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
                 out(&f, ",");
                 for (uint32_t k = 0; k < r->missed_kept; k++)
                     out(&f, "%s%u:%u", k ? ";" : "", r->missed_ids[k], r->missed_pixels[k]);
-                out(&f, ",,%llu\n", (unsigned long long)s->query_stalls); /* skipped empty, then query_stalls */
+                out(&f, ",,%llu", (unsigned long long)s->query_stalls); /* skipped empty, then query_stalls */
+                if (views)
+                    csv_view(&f, fr);
+                out(&f, "\n");
             }
         }
     }
@@ -134,6 +172,50 @@ static void json_num(sl_atomic_file *f, double v)
         out(f, "%.9g", v);
     else
         out(f, "null");
+}
+
+static void json_vec(sl_atomic_file *f, sl_vec3 v)
+{
+    out(f, "[");
+    json_num(f, v.x);
+    out(f, ",");
+    json_num(f, v.y);
+    out(f, ",");
+    json_num(f, v.z);
+    out(f, "]");
+}
+
+/* ,"view":{...}: a frame given by matrices, exactly (its "camera" is approximate) */
+static void json_view(sl_atomic_file *f, const sl_view *v)
+{
+    out(f, ",\"view\":{\"source\":\"matrices\",\"clip_depth\":\"%s\",\"projection\":\"%s\",\"eye\":",
+        sl_clip_depth_name(v->clip_depth), v->projection == SL_ORTHOGRAPHIC ? "orthographic" : "perspective");
+    json_vec(f, v->eye);
+    out(f, ",\"forward\":");
+    json_vec(f, v->forward);
+    out(f, ",\"right\":");
+    json_vec(f, v->right);
+    out(f, ",\"up\":");
+    json_vec(f, v->up);
+    out(f, ",\"near\":");
+    json_num(f, v->near_plane);
+    out(f, ",\"far\":");
+    json_num(f, v->far_plane);
+    out(f, ",\"rect\":{\"left\":");
+    json_num(f, v->rect_left);
+    out(f, ",\"right\":");
+    json_num(f, v->rect_right);
+    out(f, ",\"bottom\":");
+    json_num(f, v->rect_bottom);
+    out(f, ",\"top\":");
+    json_num(f, v->rect_top);
+    out(f, "},\"focal_x\":");
+    json_num(f, v->focal_x);
+    out(f, ",\"focal_y\":");
+    json_num(f, v->focal_y);
+    out(f, ",\"width\":%u,\"height\":%u,\"mirrored_x\":%s,\"mirrored_y\":%s,\"left_handed\":%s}", v->width,
+        v->height, v->mirrored_x ? "true" : "false", v->mirrored_y ? "true" : "false",
+        v->left_handed ? "true" : "false");
 }
 
 sl_status sl_bench_write_json(const sl_bench *benches, uint32_t count, const char *path, sl_error *err)
@@ -207,6 +289,8 @@ sl_status sl_bench_write_json(const sl_bench *benches, uint32_t count, const cha
                         "\"height\":%u,\"projection\":\"%s\"}",
                     c->yaw * RAD2DEG, c->pitch * RAD2DEG, c->roll * RAD2DEG, c->fov_y * RAD2DEG, c->width, c->height,
                     c->projection == SL_ORTHOGRAPHIC ? "orthographic" : "perspective");
+                if (frame_from_matrices(fr))
+                    json_view(&f, &fr->view);
                 out(&f, ",\"method\":");
                 json_str(&f, b->methods[mi].name);
                 out(&f, ",\"guarantee\":\"%s\",\"cull_ms\":", sl_cull_guarantee_name(b->methods[mi].guarantee));
@@ -333,6 +417,24 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
             fprintf(fp, " at %ux%u", f0->camera.width, f0->camera.height);
         if (outside)
             fprintf(fp, " (%zu skipped: eye outside the domain, in solid or void space)", outside);
+        /* frames from an engine's matrices: what the view is (the camera columns only approximate it) */
+        const sl_bench_frame *fm = NULL;
+        size_t nmat = 0;
+        for (size_t i = 0; i < nf; i++)
+            if (frame_from_matrices(&SL_AT(b->frames, sl_bench_frame, i)) && !nmat++)
+                fm = &SL_AT(b->frames, sl_bench_frame, i);
+        if (fm) {
+            const sl_view *v = &fm->view;
+            char far_text[32];
+            snprintf(far_text, sizeof far_text, isfinite(v->far_plane) ? "%.6g m" : "infinite", v->far_plane);
+            fprintf(fp, "; %zu from an engine's matrices (frame %u: %s depth, %s, near %.6g m, far %s, near rectangle "
+                        "x [%.6g, %.6g] y [%.6g, %.6g] m%s%s)",
+                    nmat, fm->source, sl_clip_depth_name(v->clip_depth),
+                    v->projection == SL_ORTHOGRAPHIC ? "orthographic" : "perspective", v->near_plane, far_text,
+                    v->rect_left, v->rect_right, v->rect_bottom, v->rect_top,
+                    v->mirrored_x || v->mirrored_y ? ", mirrored in " : "",
+                    v->mirrored_x ? (v->mirrored_y ? "x and y" : "x") : (v->mirrored_y ? "y" : ""));
+        }
         size_t judged = nf - outside;
         fprintf(fp, "; exact visible set %s objects and %s triangles per frame (mean); oracle %.1f ms median, %.1f ms "
                     "p95.\n\n",

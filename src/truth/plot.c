@@ -323,13 +323,49 @@ sl_status sl_image_write_ids(const sl_oracle_view *v, const char *path, const sl
     return st;
 }
 
-/* Distance along the view axis of a stored reversed depth (1 near .. 0 far). */
-static double eye_distance(const sl_camera *cam, float rd)
+/* Distance along the view axis of a stored reversed depth (1 near .. 0 far) of a projection with
+ * near plane n and far plane f (OpenGL depth, as the oracle draws). */
+static double eye_distance(double n, double f, bool ortho, float rd)
 {
-    double n = cam->near_plane, f = cam->far_plane, z = 1.0 - 2.0 * (double)rd; /* NDC z */
-    if (cam->projection == SL_ORTHOGRAPHIC)
+    double z = 1.0 - 2.0 * (double)rd; /* NDC z */
+    if (ortho)
         return 0.5 * (z * (f - n) + f + n);
     return 2.0 * f * n / ((f + n) - z * (f - n));
+}
+
+static sl_status write_depth(const sl_oracle_view *v, double n, double f, bool ortho, const char *path,
+                             const sl_allocator *alloc, sl_error *err)
+{
+    size_t bytes;
+    uint8_t *px = alloc_pixels(alloc, v, 1, &bytes);
+    if (!px)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    size_t count = (size_t)v->width * v->height;
+    bool persp = !ortho;
+    /* the range of distances shown, in the scale the image uses (log for perspective) */
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < count; i++) {
+        if (v->ids[i] == SL_NONE)
+            continue;
+        double d = eye_distance(n, f, ortho, v->depth[i]);
+        double s = persp ? log(SL_MAX(d, 1e-6)) : d;
+        lo = SL_MIN(lo, s);
+        hi = SL_MAX(hi, s);
+    }
+    double span = hi > lo ? hi - lo : 1;
+    for (size_t i = 0; i < count; i++) {
+        if (v->ids[i] == SL_NONE) {
+            px[i] = 0;
+            continue;
+        }
+        double d = eye_distance(n, f, ortho, v->depth[i]);
+        double s = persp ? log(SL_MAX(d, 1e-6)) : d;
+        double t = 1.0 - (s - lo) / span; /* 1 nearest */
+        px[i] = (uint8_t)lround(32.0 + 223.0 * SL_CLAMP(t, 0.0, 1.0)); /* drawn pixels never black */
+    }
+    sl_status st = sl_png_write(path, v->width, v->height, 1, px, 0, err);
+    sl_free(alloc, px, bytes);
+    return st;
 }
 
 sl_status sl_image_write_depth(const sl_oracle_view *v, const sl_camera *cam, const char *path,
@@ -340,36 +376,24 @@ sl_status sl_image_write_depth(const sl_oracle_view *v, const sl_camera *cam, co
         return st;
     if (!cam)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: no camera for the depth image", path);
-    size_t bytes;
-    uint8_t *px = alloc_pixels(alloc, v, 1, &bytes);
-    if (!px)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
-    size_t n = (size_t)v->width * v->height;
-    bool persp = cam->projection != SL_ORTHOGRAPHIC;
-    /* the range of distances shown, in the scale the image uses (log for perspective) */
-    double lo = INFINITY, hi = -INFINITY;
-    for (size_t i = 0; i < n; i++) {
-        if (v->ids[i] == SL_NONE)
-            continue;
-        double d = eye_distance(cam, v->depth[i]);
-        double s = persp ? log(SL_MAX(d, 1e-6)) : d;
-        lo = SL_MIN(lo, s);
-        hi = SL_MAX(hi, s);
-    }
-    double span = hi > lo ? hi - lo : 1;
-    for (size_t i = 0; i < n; i++) {
-        if (v->ids[i] == SL_NONE) {
-            px[i] = 0;
-            continue;
-        }
-        double d = eye_distance(cam, v->depth[i]);
-        double s = persp ? log(SL_MAX(d, 1e-6)) : d;
-        double t = 1.0 - (s - lo) / span; /* 1 nearest */
-        px[i] = (uint8_t)lround(32.0 + 223.0 * SL_CLAMP(t, 0.0, 1.0)); /* drawn pixels never black */
-    }
-    st = sl_png_write(path, v->width, v->height, 1, px, 0, err);
-    sl_free(alloc, px, bytes);
-    return st;
+    return write_depth(v, cam->near_plane, cam->far_plane, cam->projection == SL_ORTHOGRAPHIC, path, alloc, err);
+}
+
+sl_status sl_image_write_depth_view(const sl_oracle_view *v, const sl_view *view, const char *path,
+                                    const sl_allocator *alloc, sl_error *err)
+{
+    sl_status st = check_view(v, path, err);
+    if (st != SL_OK)
+        return st;
+    if (!view)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: no view for the depth image", path);
+    if ((st = sl_view_validate(view, err)) != SL_OK)
+        return st;
+    if (!isfinite(view->far_plane))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "%s: the depth image needs the view the oracle drew: an infinite far plane bounded by the "
+                       "scene first (sl_view_bound_far)", path);
+    return write_depth(v, view->near_plane, view->far_plane, view->projection == SL_ORTHOGRAPHIC, path, alloc, err);
 }
 
 sl_status sl_image_write_overdraw(const sl_oracle_view *v, const char *path, const sl_allocator *alloc,

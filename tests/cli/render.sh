@@ -105,7 +105,10 @@ expect 2 "$SL" render city:tiny --view-matrix 0,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0
 has "skew" "$tmp/err"
 expect 2 "$SL" render city:tiny --view-matrix 2,0,-1,0,-1,0,0,0,0,1,0,0,0,-1.7,0,1 --proj-matrix $PREV --clip-depth reversed
 has "rigid" "$tmp/err"
-expect 2 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PREV --clip-depth reversed --cullmap
-has "cullmap needs --camera" "$tmp/err"
+# the cull map of an engine's view (its infinite far plane bounded by the scene)
+expect 0 "$SL" render city:tiny --view-matrix $VM --proj-matrix $PREV --clip-depth reversed --width 160 --height 120 \
+    --cullmap --out "$tmp/vm"
+is_png "$tmp/vm/frame-00000-cullmap.png"
+[ ! -e "$tmp/vm/frame-00000-id.png" ] || fail "--cullmap alone also wrote the id image"
 expect 2 "$SL" render city:tiny --camera 0,0,2,0,0,0 --clip-depth gl
 echo "PASS"
