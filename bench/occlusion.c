@@ -259,7 +259,7 @@ int main(int argc, char **argv)
     for (uint32_t i = 0; i < nm; i++) {
         double *t = times + (size_t)i * frames;
         double med = bench_percentile(t, frames, 0.5), p95 = bench_percentile(t, frames, 0.95);
-        printf("| %s | %s | %.3f | %.3f | %.1f | %.2f | %.0f | %.0f | %.0f |\n", methods[i].spec,
+        printf("| %s | %s | %.4f | %.4f | %.1f | %.2f | %.0f | %.0f | %.0f |\n", methods[i].spec,
                sl_cull_guarantee_name(sl_culler_guarantee(c[i])), med, p95, kept[i] / frames, kept[i] / visible,
                missed[i], missed_px[i], queries[i] / frames);
     }

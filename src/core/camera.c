@@ -7,6 +7,7 @@
  * from the basis (not extracted from the view-projection matrix) for the same reason. */
 #include "sightline/camera.h"
 #include "sightline/view.h"
+#include "core/camera_internal.h"
 #include "core/dvec3.h"
 #include "core/sl_core.h"
 
@@ -114,10 +115,9 @@ void sl_camera_basis(const sl_camera *cam, sl_vec3 *forward, sl_vec3 *right, sl_
         *up = sl_d3_to_vec3(u);
 }
 
-sl_mat4 sl_camera_view(const sl_camera *cam)
+static sl_mat4 view_of(const sl_camera *cam, sl_dvec3 f, sl_dvec3 r, sl_dvec3 u)
 {
-    sl_dvec3 f, r, u, p = sl_d3_of(cam->position);
-    basis_d(cam, &f, &r, &u);
+    sl_dvec3 p = sl_d3_of(cam->position);
     sl_mat4 m;
     memset(&m, 0, sizeof m);
     /* rows of the rotation are right, up, -forward (the eye looks down -Z); column-major storage */
@@ -128,12 +128,20 @@ sl_mat4 sl_camera_view(const sl_camera *cam)
     return m;
 }
 
+sl_mat4 sl_camera_view(const sl_camera *cam)
+{
+    sl_dvec3 f, r, u;
+    basis_d(cam, &f, &r, &u);
+    return view_of(cam, f, r, u);
+}
+
 static double aspect_of(const sl_camera *cam)
 {
     return cam->height ? (double)cam->width / (double)cam->height : 1.0;
 }
 
-sl_mat4 sl_camera_proj(const sl_camera *cam)
+/* ty = tan(0.5 * fov_y) (perspective; unused for orthographic cameras) */
+static sl_mat4 proj_of(const sl_camera *cam, double ty)
 {
     sl_mat4 m;
     memset(&m, 0, sizeof m);
@@ -146,7 +154,7 @@ sl_mat4 sl_camera_proj(const sl_camera *cam)
         m.m[14] = (float)(-(fa + n) / (fa - n));
         m.m[15] = 1.0f;
     } else {
-        double t = 1.0 / tan(0.5 * cam->fov_y);
+        double t = 1.0 / ty;
         m.m[0] = (float)(t / aspect);
         m.m[5] = (float)t;
         m.m[10] = (float)((fa + n) / (n - fa));
@@ -156,10 +164,17 @@ sl_mat4 sl_camera_proj(const sl_camera *cam)
     return m;
 }
 
-sl_mat4 sl_camera_view_proj(const sl_camera *cam)
+static double tan_half_fov(const sl_camera *cam)
 {
-    sl_mat4 v = sl_camera_view(cam), p = sl_camera_proj(cam), r;
-    /* r = p * v, accumulated in double */
+    return cam->projection == SL_ORTHOGRAPHIC ? 0.0 : tan(0.5 * cam->fov_y);
+}
+
+sl_mat4 sl_camera_proj(const sl_camera *cam) { return proj_of(cam, tan_half_fov(cam)); }
+
+/* p * v, accumulated in double */
+static sl_mat4 mul_pv(sl_mat4 p, sl_mat4 v)
+{
+    sl_mat4 r;
     for (int c = 0; c < 4; c++)
         for (int row = 0; row < 4; row++) {
             double s = 0;
@@ -170,6 +185,8 @@ sl_mat4 sl_camera_view_proj(const sl_camera *cam)
     return r;
 }
 
+sl_mat4 sl_camera_view_proj(const sl_camera *cam) { return mul_pv(sl_camera_proj(cam), sl_camera_view(cam)); }
+
 /* Plane with inward normal n through point q, normalised. */
 static sl_plane plane_through(sl_dvec3 n, sl_dvec3 q)
 {
@@ -178,10 +195,9 @@ static sl_plane plane_through(sl_dvec3 n, sl_dvec3 q)
     return (sl_plane){(float)n.x, (float)n.y, (float)n.z, (float)-sl_d3_dot(n, q)};
 }
 
-sl_frustum sl_camera_frustum(const sl_camera *cam)
+static sl_frustum frustum_of(const sl_camera *cam, sl_dvec3 f, sl_dvec3 r, sl_dvec3 u, double ty)
 {
-    sl_dvec3 f, r, u, p = sl_d3_of(cam->position);
-    basis_d(cam, &f, &r, &u);
+    sl_dvec3 p = sl_d3_of(cam->position);
     double n = cam->near_plane, fa = cam->far_plane, aspect = aspect_of(cam);
     sl_frustum out;
     sl_dvec3 nc = sl_d3_add(p, sl_d3_scale(f, n)), fc = sl_d3_add(p, sl_d3_scale(f, fa));
@@ -195,7 +211,7 @@ sl_frustum sl_camera_frustum(const sl_camera *cam)
         out.planes[2] = plane_through(u, sl_d3_add(p, sl_d3_scale(u, -h)));
         out.planes[3] = plane_through(sl_d3_scale(u, -1), sl_d3_add(p, sl_d3_scale(u, h)));
     } else {
-        double ty = tan(0.5 * cam->fov_y), tx = ty * aspect;
+        double tx = ty * aspect;
         nh = n * ty, nw = n * tx, fh = fa * ty, fw = fa * tx;
         /* each side plane passes through the eye; its inward normal is orthogonal to the edge
          * direction forward -+ t*axis, e.g. left: (right + tx*forward) . (forward - tx*right) = 0 */
@@ -214,6 +230,29 @@ sl_frustum sl_camera_frustum(const sl_camera *cam)
             sl_d3_to_vec3(sl_d3_add(fc, sl_d3_add(sl_d3_scale(r, sx[i] * fw), sl_d3_scale(u, sy[i] * fh))));
     }
     return out;
+}
+
+sl_frustum sl_camera_frustum(const sl_camera *cam)
+{
+    sl_dvec3 f, r, u;
+    basis_d(cam, &f, &r, &u);
+    return frustum_of(cam, f, r, u, tan_half_fov(cam));
+}
+
+void sl_camera_all(const sl_camera *cam, sl_mat4 *view, sl_mat4 *proj, sl_mat4 *view_proj, sl_frustum *frustum,
+                   sl_vec3 *forward, sl_vec3 *right, sl_vec3 *up, double *tan_half_fov_y)
+{
+    sl_dvec3 f, r, u;
+    basis_d(cam, &f, &r, &u);
+    double ty = tan_half_fov(cam);
+    *view = view_of(cam, f, r, u);
+    *proj = proj_of(cam, ty);
+    *view_proj = mul_pv(*proj, *view);
+    *frustum = frustum_of(cam, f, r, u, ty);
+    *forward = sl_d3_to_vec3(f);
+    *right = sl_d3_to_vec3(r);
+    *up = sl_d3_to_vec3(u);
+    *tan_half_fov_y = ty;
 }
 
 void sl_camera_look_at(sl_camera *cam, sl_vec3 target)

@@ -6,6 +6,7 @@
  * (near and far, the near rectangle, the planes) is computed in double from the float entries and
  * rounded once. */
 #include "sightline/view.h"
+#include "core/camera_internal.h"
 #include "core/dvec3.h"
 #include "core/sl_core.h"
 
@@ -40,13 +41,10 @@ bool sl_clip_depth_parse(const char *text, sl_clip_depth *out)
 static void fill_from_camera(const sl_camera *cam, sl_view *v)
 {
     memset(v, 0, sizeof *v);
-    v->view = sl_camera_view(cam);
-    v->proj = sl_camera_proj(cam);
-    v->view_proj = sl_camera_view_proj(cam);
-    v->frustum = sl_camera_frustum(cam);
+    double t;
+    sl_camera_all(cam, &v->view, &v->proj, &v->view_proj, &v->frustum, &v->forward, &v->right, &v->up, &t);
     v->projection = cam->projection;
     v->eye = cam->position;
-    sl_camera_basis(cam, &v->forward, &v->right, &v->up);
     v->near_plane = cam->near_plane;
     v->far_plane = cam->far_plane;
     v->width = cam->width;
@@ -59,7 +57,7 @@ static void fill_from_camera(const sl_camera *cam, sl_view *v)
         v->focal_x = v->focal_y = (double)((float)cam->height / cam->ortho_height);
         v->near_corner_dist = 0;
     } else {
-        double t = tan(0.5 * (double)cam->fov_y), n = cam->near_plane;
+        double n = cam->near_plane; /* t = tan(0.5 * fov_y) */
         v->rect_left = -n * t * a, v->rect_right = n * t * a, v->rect_bottom = -n * t, v->rect_top = n * t;
         v->focal_x = v->focal_y = (double)cam->height / (2.0 * t);
         v->near_corner_dist = n * sqrt(1.0 + t * t * (1.0 + a * a));
