@@ -225,13 +225,7 @@ void sl_occ_render_prism_eroded(sl_occ_raster *r, const sl_occ_set *s, const sl_
             n++;
         }
     }
-    if (!n)
-        return;
-    const float *to_clip = v->ortho ? g_shrunk_ortho : g_shrunk_persp;
-    (void)sl_raster_render_triangles(r->ctx, r->shrunk, 3 * n, r->shrunk_idx, n, 12, to_clip, SL_RASTER_CULL_NONE,
-                                     NULL);
-    if (r->rec)
-        sl_occ_recorder_batch(r->rec, r->shrunk, 12, r->shrunk_idx, n, to_clip, SL_RASTER_CULL_NONE);
+    render_shrunk_batch(r, v, n);
 }
 
 /* res=any, the default (inner=hull): a prism by the inner coverage of its silhouette, not of each
