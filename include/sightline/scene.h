@@ -52,7 +52,10 @@ SL_API const char *sl_object_kind_name(uint32_t kind);
 enum {
     SL_OBJECT_DYNAMIC = 1u << 0,       /* may move between frames (cars) */
     SL_OBJECT_CLOSED_CONVEX = 1u << 1, /* the mesh is a closed convex part (back-face rejection) */
-    SL_OBJECT_OCCLUDER = 1u << 2       /* solid: its own render mesh may serve as an occluder */
+    SL_OBJECT_OCCLUDER = 1u << 2,      /* solid: its own render mesh may serve as an occluder */
+    SL_OBJECT_SEE_THROUGH = 1u << 3    /* alpha-tested or transparent: it can be seen but never hides
+                                          anything (no depth writes in the oracle and the renderer,
+                                          never an occluder; docs/oracle.md) */
 };
 
 typedef struct sl_mesh_desc {
