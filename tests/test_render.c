@@ -54,10 +54,10 @@ static sl_scene box_scene(uint32_t color)
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     float p[24];
     sl_test_box_vertices((sl_vec3){-1, -1, -1}, (sl_vec3){1, 1, 1}, p);
-    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12};
+    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, color, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER};
+    sl_object_desc od = {mesh, NULL, color, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     return s;
 }
@@ -364,17 +364,17 @@ static void test_facing_rule(void **state)
     float p[24];
     uint32_t mesh_big, mesh_small;
     sl_test_box_vertices((sl_vec3){-10, -10, -10}, (sl_vec3){10, 10, 10}, p);
-    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12};
+    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh_big, &err), SL_OK);
     sl_test_box_vertices((sl_vec3){-6, -1, -1}, (sl_vec3){-4, 1, 1}, p);
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh_small, &err), SL_OK);
     /* 0: a closed box around the eye (seen from inside: nothing of it is drawn) */
-    sl_object_desc od = {mesh_big, NULL, 0x808080FFu, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX};
+    sl_object_desc od = {mesh_big, NULL, 0x808080FFu, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     /* 1: the small box mirrored in x (x -> -x): it sits in [4, 6] and its outward faces wind the
      * other way */
     sl_affine mirror = {{-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
-    sl_object_desc om = {mesh_small, &mirror, 0xC04020FFu, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX};
+    sl_object_desc om = {mesh_small, &mirror, 0xC04020FFu, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX, 0};
     assert_int_equal(sl_scene_add_object(s, &om, NULL, &err), SL_OK);
     sl_camera cam = sl_camera_default();
     cam.position = (sl_vec3){0, 0, 0};
