@@ -169,6 +169,23 @@ static void test_materials(void **state)
     assert_true(near(c[0], 255 * k) && near(c[1], 255 * k) && near(c[2], 255 * k));
     sl_renderer_get_info(r, &info);
     assert_true(info.texture_bytes == 0);
+    assert_string_equal(info.texture_warning, "");
+    sl_renderer_destroy(r);
+    /* a texture that does not decode: a warning naming it, and the material's colour */
+    char file[320];
+    snprintf(file, sizeof file, "%s/mask.png", dir);
+    FILE *f = fopen(file, "wb");
+    assert_non_null(f);
+    fputs("not a PNG", f);
+    fclose(f);
+    r = renderer(s, true);
+    sl_renderer_get_info(r, &info);
+    print_message("warning: %s\n", info.texture_warning);
+    assert_non_null(strstr(info.texture_warning, "mask.png"));
+    assert_int_equal(sl_renderer_draw(r, &v, all, 3, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_rgba(r, rgba, &err), SL_OK);
+    c = px(rgba, 15, 24);
+    assert_true(near(c[0], 255 * k) && near(c[1], 255 * k) && near(c[2], 255 * k));
     sl_renderer_destroy(r);
     sl_scene_destroy(s);
 }

@@ -243,6 +243,8 @@ static sl_status shaded_write(render_ctx *ctx, const char *file, sl_error *err)
         }
         sl_renderer_info info;
         sl_renderer_get_info(st->r, &info);
+        if (info.texture_warning[0])
+            fprintf(stderr, "%s: warning: %s\n", ctx->cmd, info.texture_warning);
         static const char *kinds[] = {"auto", "surfaceless", "device", "current"};
         FILE *j = sl_output_stream(st->json);
         fprintf(j, "{\"renderer\":{\"vendor\":\"%s\",\"renderer\":\"%s\",\"version\":\"%s\",\"context\":\"%s\","

@@ -99,7 +99,7 @@ sl_status sl_render_upload_materials(sl_renderer r, sl_error *err)
             if (!px) {
                 /* a missing or undecodable texture: the material's colour alone (white texel) */
                 if (!r->texture_warning[0])
-                    snprintf(r->texture_warning, sizeof r->texture_warning, "material %u texture %s: %s", i, paths[i],
+                    snprintf(r->texture_warning, sizeof r->texture_warning, "material %u texture %.120s: %.120s", i, paths[i],
                              terr.status == SL_OK ? stbi_failure_reason() : terr.message);
                 memset(scaled, 255, (size_t)size * size * 4);
             } else {

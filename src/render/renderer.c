@@ -552,6 +552,7 @@ void sl_renderer_get_info(sl_renderer r, sl_renderer_info *out)
     out->vertex_bytes = r->vertex_bytes;
     out->index_bytes = r->index_bytes;
     out->texture_bytes = r->texture_bytes;
+    snprintf(out->texture_warning, sizeof out->texture_warning, "%s", r->texture_warning);
 }
 
 sl_status sl_renderer_resize(sl_renderer r, uint32_t width, uint32_t height, sl_error *err)
