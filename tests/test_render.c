@@ -133,6 +133,25 @@ static void test_box_pixels(void **state)
     for (uint32_t y = 0; y < 48; y++)
         rows += ids[y * 64 + 32] == 0;
     assert_true(rows >= 16 && rows <= 19);
+    /* colours of the caller's, then the scene's again */
+    {
+        sl_scene s = box_scene(0xC04020FFu);
+        sl_renderer r = make_renderer(s, 64, 48, toward);
+        sl_view v = box_view(64, 48);
+        sl_error err;
+        uint32_t id = 0, green = 0x00FF00FFu;
+        assert_int_equal(sl_renderer_set_colors(r, &green, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(r, dark, &err), SL_OK);
+        c = dark + 4 * (24 * 64 + 32);
+        assert_true(c[0] < 3 && abs(c[1] - (int)lrint(255 * 0.92)) <= 2 && c[2] < 3);
+        assert_int_equal(sl_renderer_set_colors(r, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(r, dark, &err), SL_OK);
+        assert_memory_equal(dark + 4 * (24 * 64 + 32), lit + 4 * (24 * 64 + 32), 3);
+        sl_renderer_destroy(r);
+        sl_scene_destroy(s);
+    }
     /* the sun away from the face: ambient only, base * (0.22 + 0.08) */
     render_box(away, dark, ids, depth);
     c = dark + 4 * (24 * 64 + 32);
