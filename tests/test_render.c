@@ -556,6 +556,41 @@ static void test_present_and_current_context(void **state)
     sl_scene_destroy(s);
 }
 
+/* ---- context kinds: AUTO resolves to a device with a hardware driver or to surfaceless ---- */
+
+static void test_context_kinds(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0xFFFFFFFFu);
+    sl_error err;
+    bool device = sl_renderer_probe(SL_GL_CONTEXT_DEVICE, &err) == SL_OK;
+    if (!device) {
+        print_message("no EGL device with a hardware driver: %s\n", err.message);
+        assert_non_null(strstr(err.message, "device platform"));
+    }
+    bool surfaceless = sl_renderer_probe(SL_GL_CONTEXT_SURFACELESS, &err) == SL_OK;
+    sl_gl_context_kind kinds[3] = {SL_GL_CONTEXT_AUTO, SL_GL_CONTEXT_DEVICE, SL_GL_CONTEXT_SURFACELESS};
+    for (int k = 0; k < 3; k++) {
+        if ((kinds[k] == SL_GL_CONTEXT_DEVICE && !device) || (kinds[k] == SL_GL_CONTEXT_SURFACELESS && !surfaceless))
+            continue;
+        sl_renderer_options o;
+        sl_renderer_options_default(&o);
+        o.width = 16;
+        o.height = 12;
+        o.context = kinds[k];
+        sl_renderer r;
+        assert_int_equal(sl_renderer_create(s, &o, NULL, &r, &err), SL_OK);
+        sl_renderer_info info;
+        sl_renderer_get_info(r, &info);
+        sl_gl_context_kind want = kinds[k] != SL_GL_CONTEXT_AUTO ? kinds[k]
+                                  : device ? SL_GL_CONTEXT_DEVICE : SL_GL_CONTEXT_SURFACELESS;
+        assert_int_equal(info.context, want);
+        print_message("context %d: %s (%s)\n", (int)kinds[k], info.renderer, info.version);
+        sl_renderer_destroy(r);
+    }
+    sl_scene_destroy(s);
+}
+
 /* ---- frames decided by a culler ---- */
 
 static void test_frame_with_culler(void **state)
@@ -616,6 +651,7 @@ int main(void)
         cmocka_unit_test(test_resize_and_png),
         cmocka_unit_test(test_facing_rule),
         cmocka_unit_test(test_two_renderers),
+        cmocka_unit_test(test_context_kinds),
         cmocka_unit_test(test_depth_prepass),
         cmocka_unit_test(test_present_and_current_context),
         cmocka_unit_test(test_frame_with_culler),
