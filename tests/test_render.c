@@ -556,6 +556,31 @@ static void test_present_and_current_context(void **state)
     sl_scene_destroy(s);
 }
 
+/* ---- moved objects: sl_renderer_scene_changed uploads their transforms ---- */
+
+static void test_scene_changed(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0xC04020FFu);
+    sl_renderer r = make_renderer(s, 32, 24, NULL);
+    sl_view v = box_view(32, 24);
+    sl_error err;
+    uint32_t id = 0, ids[32 * 24];
+    sl_affine moved = {{1, 0, 0, 0, 0, 1, 0, 2.5f, 0, 0, 1, 0}}; /* 2.5 m to the left (+y) */
+    assert_int_equal(sl_scene_set_object_transform(s, 0, &moved, &err), SL_OK);
+    /* not told yet: the old place */
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], 0);
+    assert_int_equal(sl_renderer_scene_changed(r, &err), SL_OK);
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], SL_NONE); /* the centre is free now */
+    assert_int_equal(ids[12 * 32 + 2], 0);        /* the box is at the left */
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+}
+
 /* ---- context kinds: AUTO resolves to a device with a hardware driver or to surfaceless ---- */
 
 static void test_context_kinds(void **state)
@@ -651,6 +676,7 @@ int main(void)
         cmocka_unit_test(test_resize_and_png),
         cmocka_unit_test(test_facing_rule),
         cmocka_unit_test(test_two_renderers),
+        cmocka_unit_test(test_scene_changed),
         cmocka_unit_test(test_context_kinds),
         cmocka_unit_test(test_depth_prepass),
         cmocka_unit_test(test_present_and_current_context),
