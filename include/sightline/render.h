@@ -77,14 +77,20 @@ typedef struct sl_renderer_info {
     bool reversed_z;               /* float depth with glClipControl(GL_ZERO_TO_ONE), cleared to 0, GL_GREATER */
     bool timer_queries;
     uint64_t vertex_bytes, index_bytes, texture_bytes; /* uploaded */
+    char texture_warning[288];     /* the first base-colour texture that could not be read or decoded
+                                      (its material is drawn in its base colour), or "" */
 } sl_renderer_info;
-/* What the renderer runs on (GL strings, context, depth convention, bytes uploaded). */
+/* What the renderer runs on and uploaded (zeroed for NULL). */
 SL_API void sl_renderer_get_info(sl_renderer r, sl_renderer_info *out);
 
 /* Change the framebuffer size. */
 SL_API sl_status sl_renderer_resize(sl_renderer r, uint32_t width, uint32_t height, sl_error *err);
 /* Objects moved (sl_scene_set_object_transform): upload their transforms. */
 SL_API sl_status sl_renderer_scene_changed(sl_renderer r, sl_error *err);
+/* Draw every object in a colour of the caller's instead of its own or its material's (0xRRGGBBAA,
+ * one per object, copied; the alpha is ignored: see-through objects stay see-through), e.g. to
+ * highlight a visible set; NULL restores the scene's colours and materials. */
+SL_API sl_status sl_renderer_set_colors(sl_renderer r, const uint32_t *rgba, sl_error *err);
 
 /* What a frame cost and drew. Times in milliseconds; GPU times -1 when timer queries are off. */
 typedef struct sl_render_frame_stats {
