@@ -4,6 +4,7 @@
 #include "tool.h"
 #include "sightline/import.h"
 
+#include <ctype.h>
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -39,6 +40,7 @@ void cli_args_init(cli_args *a, int argc, char **argv)
     a->i = 1;
     a->cmd = argv[0];
     a->error = false;
+    a->unknown[0] = 0;
 }
 
 bool cli_common_option(cli_args *a, const char *name, const char *value, unsigned which, cli_common *c)
@@ -81,7 +83,55 @@ int cli_parse_done(const cli_args *a, const cli_common *c, void (*usage)(FILE *)
         usage(stdout);
         return 0;
     }
+    if (a->error && a->unknown[0])
+        cli_suggest_option(a->cmd, a->unknown, usage);
     return a->error ? 2 : -1;
+}
+
+#define CLI_SUGGEST_MAX 256
+#define CLI_SUGGEST_WORD 48
+
+void cli_suggest_option(const char *cmd, const char *name, void (*usage)(FILE *))
+{
+    if (!usage || !name || !name[0])
+        return;
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    if (!f)
+        return;
+    usage(f);
+    if (fclose(f) != 0 || !text) {
+        free(text);
+        return;
+    }
+    /* the "--word" tokens of the text, each once */
+    char(*words)[CLI_SUGGEST_WORD] = malloc(CLI_SUGGEST_MAX * CLI_SUGGEST_WORD);
+    const char *list[CLI_SUGGEST_MAX];
+    size_t n = 0;
+    for (const char *p = text; words && (p = strstr(p, "--")) != NULL && n < CLI_SUGGEST_MAX;) {
+        const char *q = p + 2;
+        size_t k = 0;
+        while ((isalnum((unsigned char)q[k]) || q[k] == '-') && k + 3 < CLI_SUGGEST_WORD)
+            k++;
+        if (k > 0 && (p == text || !isalnum((unsigned char)p[-1]))) {
+            snprintf(words[n], CLI_SUGGEST_WORD, "--%.*s", (int)k, q);
+            bool dup = false;
+            for (size_t i = 0; i < n && !dup; i++)
+                dup = !strcmp(words[i], words[n]);
+            if (!dup) {
+                list[n] = words[n];
+                n++;
+            }
+        }
+        p = q + k;
+    }
+    char word[80], out[200];
+    snprintf(word, sizeof word, "--%s", name);
+    if (words && sl_text_suggest(word, list, n, out, sizeof out) > 0)
+        cli_error(cmd, "did you mean %s?", out);
+    free(words);
+    free(text);
 }
 
 int cli_action(int argc, char **argv, const char *cmd, void (*usage)(FILE *), const char *const *names, int count,
@@ -217,8 +267,11 @@ bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out
 
 void cli_unknown(cli_args *a, const char *name)
 {
-    if (name)
+    if (name) {
         cli_error(a->cmd, "unknown option --%s (see sightline %s --help)", name, a->cmd);
+        if (!a->unknown[0])
+            snprintf(a->unknown, sizeof a->unknown, "%s", name);
+    }
     else
         cli_error(a->cmd, "unexpected argument (see sightline %s --help)", a->cmd);
     a->error = true;

@@ -43,7 +43,9 @@ static void usage(FILE *out)
             "                       matrices (16 comma-separated numbers each; as `sightline render`):\n"
             "                       off-axis, left-handed, x/y-flipped, reversed-z, infinite far\n\n"
             "methods:\n"
-            "  --methods LIST       comma-separated registry names (default: every registered method that\n"
+            "  --methods LIST       comma-separated NAME[:key=value[:key=value...]] (options of a method\n"
+            "                       separated by colons: hzb:res=culling,vfc; the same grammar in\n"
+            "                       render, view and pvs build --method; default: every registered method that\n"
             "                       runs with its default options, and pvs; one that needs an option is\n"
             "                       reported as not run unless given --method-options; `sightline\n"
             "                       methods` lists them all)\n"
@@ -226,8 +228,11 @@ static int parse(int argc, char **argv, bench_args *g)
         usage(stdout);
         return -1;
     }
-    if (a.error)
+    if (a.error) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, usage);
         return 2;
+    }
     g->map = com.map;
     g->json = com.json;
     g->quiet = com.quiet;
@@ -353,6 +358,19 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             return -1;
         }
         for (char *save = NULL, *tok = strtok_r(names, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+            /* NAME[:key=value[:key=value...]]: the options of one method, colon-separated here
+             * since the list itself is comma-separated */
+            char *inline_opts = strchr(tok, ':');
+            if (inline_opts) {
+                *inline_opts++ = 0;
+                for (char *c = inline_opts; *c; c++)
+                    if (*c == ':')
+                        *c = ',';
+                if (!*inline_opts) {
+                    cli_error(cmd, "--methods: '%s:' has no options after the colon", tok);
+                    return -1;
+                }
+            }
             uint32_t index;
             if (sl_cull_method_find(tok, &index, &err) != SL_OK) {
                 cli_error(cmd, "--methods: %s", err.message);
@@ -367,7 +385,12 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
                 cli_error(cmd, "--methods: at most %u methods", SL_BENCH_MAX_METHODS);
                 return -1;
             }
-            specs[n++] = (sl_bench_method_spec){tok, options_for(g, tok)};
+            if (inline_opts && options_for(g, tok)) {
+                cli_error(cmd, "--methods: options for '%s' are given twice (in --methods and in --method-options)",
+                          tok);
+                return -1;
+            }
+            specs[n++] = (sl_bench_method_spec){tok, inline_opts ? inline_opts : options_for(g, tok)};
         }
         if (!n) {
             cli_error(cmd, "--methods: empty list");
@@ -416,7 +439,10 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             opts = with_file;
         }
         if (sl_cull_method_check_options(specs[k].name, opts, &err) != SL_OK) {
-            cli_error(cmd, "%s%s", specs[k].options ? "--method-options: " : "", err.message);
+            uintptr_t o = (uintptr_t)specs[k].options, b = (uintptr_t)names; /* options inside --methods' copy */
+            bool inline_opts = o && o >= b && o < b + names_size;
+            cli_error(cmd, "%s%s", inline_opts ? "--methods: " : specs[k].options ? "--method-options: " : "",
+                      err.message);
             return -1;
         }
     }

@@ -55,8 +55,8 @@ static void usage_gen(FILE *out)
             "           centre and tilted 30 degrees down; works for any scene, with or without streets\n"
             "Walk and drive need a street network: on a scene without one they fail with \"scene has\n"
             "no street network: use flyover, or a path file\".\n\n"
-            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), or any file assimp\n"
-            "reads.\n\n"
+            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), any file assimp\n"
+            "reads, or city:tiny|small|vienna[:SEED] (the generated city, made on the fly).\n\n"
             "options:\n"
             "  --kind K          walk, drive or flyover (default walk)\n"
             "  -o, --output F    path file to write (required; written atomically)\n"
@@ -335,8 +335,11 @@ static int run_gen(int argc, char **argv, bool random_views)
         random_views ? usage_random(stdout) : usage_gen(stdout);
         return 0;
     }
-    if (a.error)
+    if (a.error) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, random_views ? usage_random : usage_gen);
         return 2;
+    }
     g.scene = com.input;
     g.map = com.map;
     g.json = com.json;
@@ -385,7 +388,7 @@ static int run_gen(int argc, char **argv, bool random_views)
     sl_scene scene;
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&imp, &io);
-    if (sl_scene_open_with(g.scene, g.map, &io, NULL, &scene, &err) != SL_OK)
+    if (cli_open_scene(g.scene, g.map, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     sl_path path;
     sl_status st = random_views ? sl_path_random_views(scene, vk, g.count, g.seed, &g.opt, NULL, &path, &err)
@@ -417,8 +420,11 @@ static int run_info(int argc, char **argv, bool check)
         usage_info(stdout, check ? "check" : "info");
         return 0;
     }
-    if (a.error)
+    if (a.error) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, usage_main);
         return 2;
+    }
     const char *file = com.input;
     bool json = com.json;
     if (!file) {

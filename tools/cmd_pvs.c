@@ -46,8 +46,8 @@ static void usage_build(FILE *out)
             "Make view cells for SCENE and bake the set of objects visible from each cell. The file is\n"
             "byte-identical whatever the thread or process count. A checkpoint journal (OUT.slpvs.ckpt)\n"
             "records every finished cell: an interrupted bake continues with --resume.\n\n"
-            "SCENE is a .slscene, a Quake III .bsp or .pk3 (with --map), or any file assimp reads;\n"
-            "--city PRESET generates the procedural city (tiny, small, vienna) in memory instead.\n\n"
+            "SCENE is a .slscene, a Quake III .bsp or .pk3 (with --map), any file assimp reads, or\n"
+            "city:tiny|small|vienna[:SEED]; --city PRESET (with --seed) is the same as city:PRESET:SEED.\n\n"
             "view cells:\n"
             "  --cells KIND      streets: constrained triangulation of the street space (default with\n"
             "                    streets); grid: squares over the streets; bsp: the map's own clusters\n"
@@ -188,7 +188,7 @@ static sl_status load_scene(const char *path, const char *map, const char *city,
     }
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&pvs_import, &io);
-    return sl_scene_open_with(path, map, &io, NULL, out, err);
+    return cli_open_scene(path, map, &io, NULL, out, NULL, 0, err);
 }
 
 static bool parse_floats(cli_args *a, const char *name, const char *text, float *out, int n)
@@ -606,7 +606,7 @@ static int run_query(int argc, char **argv)
     sl_scene scene = NULL;
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&pvs_import, &io);
-    if (scene_path && sl_scene_open_with(scene_path, map, &io, NULL, &scene, &err) != SL_OK) {
+    if (scene_path && cli_open_scene(scene_path, map, &io, NULL, &scene, NULL, 0, &err) != SL_OK) {
         sl_pvs_destroy(p);
         return cli_fail(a.cmd, &err);
     }
@@ -624,6 +624,13 @@ static int run_query(int argc, char **argv)
     if (has_point)
         cell = sl_viewcells_locate(cells, scene, (sl_vec3){point[0], point[1], point[2]});
     int rc = 0;
+    /* a point in no cell: the nearest one, and a non-zero exit */
+    uint32_t nearest = SL_NONE;
+    double nearest_dist = INFINITY;
+    if (has_point && cell == SL_NONE) {
+        nearest = sl_viewcells_nearest(cells, (sl_vec3){point[0], point[1], point[2]}, &nearest_dist);
+        rc = 1;
+    }
     uint32_t *set = malloc(((size_t)in.object_count + 1) * sizeof *set), n = 0;
     if (!set) {
         cli_error(a.cmd, "out of memory");
@@ -637,9 +644,13 @@ static int run_query(int argc, char **argv)
         cli_json j;
         cli_json_begin(&j, stdout);
         cli_json_string(&j, "file", file);
-        if (cell == SL_NONE)
+        if (cell == SL_NONE) {
             cli_json_key(&j, "cell"), fputs("null", stdout);
-        else
+            if (nearest != SL_NONE) {
+                cli_json_uint(&j, "nearest_cell", nearest);
+                cli_json_double(&j, "nearest_distance", nearest_dist);
+            }
+        } else
             cli_json_uint(&j, "cell", cell);
         cli_json_uint(&j, "visible", n);
         cli_json_uint(&j, "objects", in.object_count);
@@ -652,9 +663,18 @@ static int run_query(int argc, char **argv)
         cli_json_end(&j);
     } else if (cell == SL_NONE) {
         bool outside = scene && !sl_oracle_in_domain(scene, (sl_vec3){point[0], point[1], point[2]}, NULL);
-        printf("no view cell holds (%g, %g, %g)%s: a renderer falls back to view-frustum culling\n", (double)point[0],
-               (double)point[1], (double)point[2],
-               outside ? " (it lies in solid or void space of the map: outside the domain, docs/oracle.md)" : "");
+        char near[200] = "";
+        if (nearest != SL_NONE) {
+            const sl_viewcell *c = &sl_viewcells_data(cells)[nearest];
+            snprintf(near, sizeof near, "; the nearest is cell %u, %.2f m away (box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f)",
+                     nearest, nearest_dist, (double)c->bounds.min.x, (double)c->bounds.min.y,
+                     (double)c->bounds.min.z, (double)c->bounds.max.x, (double)c->bounds.max.y,
+                     (double)c->bounds.max.z);
+        }
+        cli_error(a.cmd, "no view cell holds (%g, %g, %g)%s%s: a renderer falls back to view-frustum culling",
+                  (double)point[0], (double)point[1], (double)point[2],
+                  outside ? " (it lies in solid or void space of the map: outside the domain, docs/oracle.md)" : "",
+                  near);
     } else {
         const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
         printf("cell %u (%s, box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f): %u of %u objects visible\n", cell,
