@@ -78,6 +78,7 @@ typedef struct sl_renderer_info {
     bool timer_queries;
     uint64_t vertex_bytes, index_bytes, texture_bytes; /* uploaded */
 } sl_renderer_info;
+/* What the renderer runs on (GL strings, context, depth convention, bytes uploaded). */
 SL_API void sl_renderer_get_info(sl_renderer r, sl_renderer_info *out);
 
 /* Change the framebuffer size. */
