@@ -330,6 +330,20 @@ static double now_s(void)
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
+static void json_str(FILE *out, const char *s);
+
+/* "1:02:03", "2:03" */
+static void put_hms(char *out, size_t size, double s)
+{
+    if (!(s >= 0) || s > 359999)
+        s = 359999;
+    unsigned t = (unsigned)(s + 0.5), h = t / 3600, m = t / 60 % 60, sec = t % 60;
+    if (h)
+        snprintf(out, size, "%u:%02u:%02u", h, m, sec);
+    else
+        snprintf(out, size, "%u:%02u", m, sec);
+}
+
 static bool progress_cb(void *user, const char *stage, uint64_t done, uint64_t total)
 {
     cli_progress_state *st = user;
@@ -337,19 +351,45 @@ static bool progress_cb(void *user, const char *stage, uint64_t done, uint64_t t
         return true;
     double t = now_s();
     bool new_stage = strncmp(st->stage, stage, sizeof st->stage - 1) != 0;
-    if (!new_stage && t - st->last_draw < 0.1 && done != total)
+    bool last = total && done >= total;
+    if (!new_stage && t - st->last_draw < (st->json ? 1.0 : 0.1) && !last)
         return true;
-    if (new_stage)
+    if (new_stage) {
         snprintf(st->stage, sizeof st->stage, "%s", stage);
+        st->stage_start = t;
+    }
     st->last_draw = t;
+    double el = t - st->stage_start, rate = el > 0 ? (double)done / el : 0;
+    bool eta_known = total && done > 0 && el > 0;
+    double eta = eta_known ? (double)(total > done ? total - done : 0) / rate : 0;
+    if (st->json) {
+        fputs("{\"progress\":", stderr);
+        json_str(stderr, stage);
+        fprintf(stderr, ",\"done\":%llu,\"total\":%llu,\"elapsed_s\":%.3f,\"eta_s\":", (unsigned long long)done,
+                (unsigned long long)total, el);
+        if (eta_known)
+            fprintf(stderr, "%.3f", eta);
+        else
+            fputs("null", stderr);
+        fprintf(stderr, ",\"rate\":%.3f}\n", rate);
+        fflush(stderr);
+        return true;
+    }
+    char els[24], etas[24];
+    put_hms(els, sizeof els, el);
+    if (eta_known)
+        put_hms(etas, sizeof etas, eta);
+    else
+        snprintf(etas, sizeof etas, "?");
     if (total) {
-        int width = 30, fill = (int)((double)done / (double)total * width);
+        int width = 24, fill = (int)((double)done / (double)total * width);
         if (fill > width)
             fill = width;
-        fprintf(stderr, "\r\033[K%-24.24s [%.*s%*s] %5.1f%%", stage, fill, "##############################", width - fill,
-                "", 100.0 * (double)done / (double)total);
+        fprintf(stderr, "\r\033[K%-20.20s [%.*s%*s] %5.1f%% %llu/%llu %.1f/s elapsed %s ETA %s", stage, fill,
+                "########################", width - fill, "", 100.0 * (double)done / (double)total,
+                (unsigned long long)done, (unsigned long long)total, rate, els, etas);
     } else {
-        fprintf(stderr, "\r\033[K%-24.24s %llu", stage, (unsigned long long)done);
+        fprintf(stderr, "\r\033[K%-20.20s %llu %.1f/s elapsed %s", stage, (unsigned long long)done, rate, els);
     }
     fflush(stderr);
     return true;
@@ -364,9 +404,17 @@ sl_progress cli_progress(cli_progress_state *st, bool quiet)
     return p;
 }
 
+sl_progress cli_progress_json(cli_progress_state *st)
+{
+    memset(st, 0, sizeof *st);
+    st->enabled = st->json = true;
+    sl_progress p = {progress_cb, st};
+    return p;
+}
+
 void cli_progress_done(cli_progress_state *st)
 {
-    if (st->enabled && st->stage[0]) {
+    if (st->enabled && !st->json && st->stage[0]) {
         fprintf(stderr, "\r\033[K");
         fflush(stderr);
     }

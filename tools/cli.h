@@ -131,13 +131,18 @@ void cli_import_apply(const cli_import *imp, struct sl_import_options *opt);
 
 /* ---- progress ----
  * A progress bar on stderr when stderr is a terminal, CI is unset and --quiet/--json were not
- * given; silent otherwise. Pass &cli_progress(...) as the library's sl_progress. */
+ * given; silent otherwise. Pass &cli_progress(...) as the library's sl_progress. The bar shows the
+ * stage, done/total, the percentage, the rate per second, the elapsed time and the ETA.
+ * cli_progress_json instead writes one JSON object per line to stderr, at most one a second per
+ * stage plus the last ({"progress":"STAGE","done":D,"total":T,"elapsed_s":E,"eta_s":S,"rate":R};
+ * eta_s null while unknown), for tools reading a --json command (whatever stderr is). */
 typedef struct cli_progress_state {
-    bool enabled;
-    double last_draw;
+    bool enabled, json;
+    double last_draw, stage_start;
     char stage[64];
 } cli_progress_state;
 sl_progress cli_progress(cli_progress_state *st, bool quiet);
+sl_progress cli_progress_json(cli_progress_state *st);
 /* End a progress line (clears the bar). */
 void cli_progress_done(cli_progress_state *st);
 

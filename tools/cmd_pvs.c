@@ -62,7 +62,10 @@ static void usage_build(FILE *out)
             "                    no cell and falls back to frustum culling\n"
             "  --radius M        with --along: distance from the cameras (default 2 m)\n\n"
             "method:\n"
-            "  --method NAME     baking method (default sample); available:\n");
+            "  --method NAME     baking method; default: the one that suits the scene, named on stderr\n"
+            "                    (portal for Quake III cluster cells, adjustable for scenes with building\n"
+            "                    footprints; for other scenes none is conservative: give --method gvs for\n"
+            "                    an aggressive PVS); available:\n");
     for (uint32_t i = 0; i < sl_pvs_method_count(); i++) {
         sl_pvs_method_desc d;
         if (sl_pvs_method_info(i, &d, NULL) != SL_OK)
@@ -334,7 +337,7 @@ static int run_build(int argc, char **argv)
         return 2;
     }
     sl_error err;
-    if (sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
+    if (bo.method && sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
         cli_error(a.cmd, "%s", err.message);
         return 2;
     }
@@ -356,6 +359,32 @@ static int run_build(int argc, char **argv)
                              "--volume ...");
             return 2;
         }
+    }
+    /* no --method: the one that suits the scene, said on stderr */
+    if (!bo.method) {
+        const char *why;
+        if (!strcmp(cells_kind, "bsp")) {
+            bo.method = "portal";
+            why = "the conservative method for Quake III cluster cells";
+        } else if (sl_scene_footprint_count(scene) > 0) {
+            bo.method = "adjustable";
+            why = "the conservative method for scenes with building footprints: sample culls about 0.6% more "
+                  "objects in about 6 times the time, BENCHMARKS.md";
+        } else {
+            sl_scene_destroy(scene);
+            cli_error(a.cmd, "no conservative from-region method applies to this scene: it has no building "
+                             "footprints (adjustable, sample) and no BSP clusters (portal); bake an aggressive PVS "
+                             "with --method gvs, or give --method to choose");
+            return 2;
+        }
+        if (sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
+            sl_scene_destroy(scene);
+            cli_error(a.cmd, "%s", err.message);
+            return 2;
+        }
+        const char *pmi_rank = getenv("PMI_RANK");
+        if (!quiet && !json && (!pmi_rank || atoi(pmi_rank) == 0))
+            fprintf(stderr, "sightline pvs build: method %s (%s; --method NAME to choose)\n", bo.method, why);
     }
     if (!strcmp(cells_kind, "streets"))
         st = sl_viewcells_from_streets(scene, &vo, &cells, &err);
@@ -389,7 +418,7 @@ static int run_build(int argc, char **argv)
         bo.progress = cli_progress(&ps, true); /* the MPI driver reports nothing per cell */
         st = cli_pvs_build_mpi(scene, cells, output, &bo, (double)lease, &stats, &rank, &err);
     } else {
-        bo.progress = cli_progress(&ps, quiet || json);
+        bo.progress = json && !quiet ? cli_progress_json(&ps) : cli_progress(&ps, quiet || json);
         st = sl_pvs_build(scene, cells, output, &bo, &stats, &err);
         cli_progress_done(&ps);
     }

@@ -68,4 +68,25 @@ if [ -f "$PK3" ]; then
 else
     echo "skipping the .pk3 checks: $PK3 is not installed (package openarena-081-maps)"
 fi
+# pvs build without --method takes the method that suits the scene and says which
+expect 0 "$SL" pvs build city:tiny -o "$tmp/d.slpvs" --threads 1 --cell-size 40
+has "method adjustable (the conservative method for scenes with building footprints" "$tmp/err"
+expect 0 "$SL" pvs build city:tiny -o "$tmp/d2.slpvs" --threads 1 --cell-size 40 --json
+has '"method":"adjustable"' "$tmp/out"
+hasnt "method adjustable (" "$tmp/err"
+# --json: progress as JSON lines on stderr, the last one complete
+has '^{"progress":"baking cells","done":[0-9]*,"total":[0-9]*,"elapsed_s":' "$tmp/err"
+last=$(grep '^{"progress"' "$tmp/err" | tail -1)
+d=$(echo "$last" | sed 's/.*"done":\([0-9]*\).*/\1/'); t=$(echo "$last" | sed 's/.*"total":\([0-9]*\).*/\1/')
+[ "$d" = "$t" ] || fail "last progress line $last is not complete"
+expect 0 "$SL" pvs build city:tiny -o "$tmp/d3.slpvs" --threads 1 --cell-size 40 --json --quiet
+hasnt "progress" "$tmp/err"
+expect 2 "$SL" pvs build "$tmp/t.obj" -o "$tmp/e.slpvs" --cells grid
+has "no conservative from-region method applies to this scene" "$tmp/err"
+has "method gvs" "$tmp/err"
+[ ! -e "$tmp/e.slpvs" ] || fail "a refused bake left a file"
+if [ -f "$PK3" ]; then
+    expect 3 "$SL" pvs build "$PK3" --map q3dm6ish -o "$tmp/q.slpvs" --threads 1 --stop-after 1
+    has "method portal (the conservative method for Quake III cluster cells" "$tmp/err"
+fi
 echo "suggest: ok"
