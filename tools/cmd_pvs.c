@@ -133,7 +133,6 @@ static void usage_query(FILE *out)
                  "  --map NAME     map inside a .pk3\n"
                  "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
                  "  --import-timeout S  stop reading an assimp model after S seconds\n"
-            "  --import-timeout S  stop reading an assimp model after S seconds\n"
                  "  --ids          print the object ids too\n"
                  "  --json         machine-readable output\n"
                  "  --help         this text\n\n"
