@@ -99,6 +99,7 @@ sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error
     out->options_help = m->options_help;
     out->guarantee = m->guarantee;
     out->res_culling = m->res_culling;
+    out->suits = m->suits ? m->suits : "";
     return SL_OK;
 }
 

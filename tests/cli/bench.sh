@@ -18,14 +18,28 @@ if [ -n "${SL_SANITIZED:-}" ]; then N=4; else N=12; fi
 expect 0 "$SL" methods --help
 has "usage: sightline methods" "$tmp/out"
 has "example" "$tmp/out"
+# the short table by default: name, guarantee, what it suits; in full with NAME or --long
 expect 0 "$SL" methods
+has "^method  *guarantee  *suits" "$tmp/out"
+has "^vfc  *conservative  *any scene" "$tmp/out"
+has "^cullmap  *conservative  *cities with building footprints" "$tmp/out"
+hasnt "leaf_size=" "$tmp/out"
+n=$("$SL" methods --json | grep -o '"name":' | wc -l)
+[ "$(grep -c '^[a-z]' "$tmp/out")" -eq $((n + 1)) ] || fail "the short table has not one row per method (+ the header)"
+expect 0 "$SL" methods --long
 has "vfc (conservative)" "$tmp/out"
 has "leaf_size=" "$tmp/out"
+has "  suits: any scene" "$tmp/out"
+expect 0 "$SL" methods hzb
+has "^hzb (conservative; res=culling" "$tmp/out"
+has "all_objects=" "$tmp/out"
+hasnt "^vfc" "$tmp/out"
 expect 0 "$SL" methods --json
 has '"name":"vfc"' "$tmp/out"
 has '"guarantee":"conservative"' "$tmp/out"
 expect 0 "$SL" methods vfc --json
 has '"name":"vfc"' "$tmp/out"
+has '"suits":"any scene' "$tmp/out"
 expect 2 "$SL" methods nosuch
 has "unknown culling method 'nosuch'" "$tmp/err"
 expect 2 "$SL" methods --bogus
