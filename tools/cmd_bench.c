@@ -36,6 +36,8 @@ static void usage(FILE *out)
             "  --random KIND        random street or flyover viewpoints (--count N, --seed S)\n"
             "  --count N            random viewpoints (default 100)\n"
             "  --seed S             seed of the walk or the random views (default 1)\n"
+            "  --altitude A         flyover views: height above the scene's lowest point in metres\n"
+            "                       (default from the scene's size, as path gen)\n"
             "  --fps F              walk frames per second (default 30; 1.4 m/s, so 30 fps = 4.7 cm a frame)\n"
             "  --frames A:B         with --path: frames A to B-1 (A:, :B and A also work)\n"
             "  --view-matrix M --proj-matrix M [--clip-depth gl|zero-one|reversed]\n"
@@ -59,7 +61,11 @@ static void usage(FILE *out)
             "                       cell (--random flyover) or an OUT holding a comma or space: pvs is\n"
             "                       reported as not run (an error when --methods names it)\n"
             "  --method-options NAME:key=value,...   options for one method (repeatable)\n"
-            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n\n",
+            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n"
+            "  --max-overestimation X  the recommendation's tightness bound: the fastest conservative\n"
+            "                       method passing at most X times the exact visible set (default 2)\n"
+            "  --max-ms T           its time bound: the tightest method culling in at most T ms median\n"
+            "                       (default 2)\n\n",
             (double)CLI_PVS_ALONG_RADIUS, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD);
     /* two calls: one string literal would pass the 4095 characters C11 compilers must support */
     fputs("rendering:\n"
@@ -81,6 +87,8 @@ static void usage(FILE *out)
           "  --json               print the summary as JSON instead of the table\n"
           "  --strict             exit 1 when a conservative method misses a visible object (default)\n"
           "  --no-strict          report such misses loudly but exit 0\n"
+          "  --allow-empty        accept a run where the oracle sees nothing in most frames (else a\n"
+          "                       warning and exit status 1: such views measure nothing)\n"
           "  --quiet              no progress bar (nor the lines about the PVS bake)\n"
           "  --help               this text\n\n"
           "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
@@ -108,8 +116,8 @@ typedef struct bench_args {
     uint32_t mopt_count;
     uint32_t walk, count, width, height, threads, repeat, map_size;
     uint64_t seed;
-    float fps;
-    bool has_walk, has_eye, no_plots, json, quiet, strict;
+    float fps, altitude, max_over, max_ms;
+    bool has_walk, has_eye, no_plots, json, quiet, strict, allow_empty;
     sl_vec3 eye;
     cli_import import;          /* --allow-external */
 } bench_args;
@@ -195,6 +203,14 @@ static int parse(int argc, char **argv, bench_args *g)
                 g->mopt_name[g->mopt_count] = v;
                 g->mopt_value[g->mopt_count++] = colon + 1;
             }
+        } else if (!strcmp(name, "altitude")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->altitude);
+        } else if (!strcmp(name, "max-overestimation")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->max_over);
+        } else if (!strcmp(name, "max-ms")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->max_ms);
+        } else if (!strcmp(name, "allow-empty")) {
+            g->allow_empty = true;
         } else if (!strcmp(name, "repeat")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->repeat);
         } else if (!strcmp(name, "width")) {
@@ -266,6 +282,14 @@ static int parse(int argc, char **argv, bench_args *g)
     }
     if (!g->width || !g->height || g->width > 16384 || g->height > 16384) {
         cli_error(cmd, "--width/--height must be 1..16384");
+        return 2;
+    }
+    if (g->altitude < 0 || g->altitude > 1e6f) {
+        cli_error(cmd, "--altitude must be 0..1e6 m (0: the default, from the scene's size)");
+        return 2;
+    }
+    if (g->max_over < 0 || g->max_ms < 0 || (g->max_over > 0 && g->max_over < 1)) {
+        cli_error(cmd, "--max-overestimation must be at least 1 and --max-ms positive");
         return 2;
     }
     if (g->repeat < 1 || g->repeat > 1000) {
@@ -489,6 +513,7 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
     po.intrinsics.width = g->width;
     po.intrinsics.height = g->height;
     po.seed = g->seed;
+    po.altitude = g->altitude;
     if (g->has_walk) {
         po.frames = g->walk;
         po.fps = g->fps;
@@ -565,7 +590,9 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
             cli_json_double(j, "triangles_drawn_mean", s.triangles_drawn_mean);
             cli_json_double(j, "visible_mean", s.visible_mean);
             cli_json_double(j, "triangles_visible_mean", s.triangles_visible_mean);
+            cli_json_double(j, "overestimation", s.overestimation);
             cli_json_double(j, "overestimation_mean", s.overestimation_mean);
+            cli_json_uint(j, "frames_empty", s.frames_empty);
             cli_json_double(j, "extra_mean", s.extra_mean);
             cli_json_uint(j, "missed_objects", s.missed_objects_total);
             cli_json_uint(j, "missed_pixels", s.missed_pixels_total);
@@ -580,6 +607,23 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
             cli_json_object_end(j);
         }
         cli_json_array_end(j);
+        sl_bench_recommendation rec;
+        if (sl_bench_recommend(b, &rec, NULL) == SL_OK) {
+            cli_json_object_begin(j, "recommendation");
+            cli_json_double(j, "max_overestimation", rec.max_overestimation);
+            cli_json_double(j, "max_ms", rec.max_ms);
+            sl_bench_method_info fi, ti;
+            if (rec.fastest >= 0 && sl_bench_method(b, (uint32_t)rec.fastest, &fi, NULL) == SL_OK)
+                cli_json_string(j, "fastest", fi.name);
+            else
+                cli_json_key(j, "fastest"), fputs("null", j->out);
+            if (rec.tightest >= 0 && sl_bench_method(b, (uint32_t)rec.tightest, &ti, NULL) == SL_OK)
+                cli_json_string(j, "tightest", ti.name);
+            else
+                cli_json_key(j, "tightest"), fputs("null", j->out);
+            cli_json_string(j, "text", rec.text);
+            cli_json_object_end(j);
+        }
         cli_json_object_end(j);
     }
     cli_json_array_end(j);
@@ -737,6 +781,8 @@ int sl_cmd_bench(int argc, char **argv)
         bo.height = g.height;
         bo.threads = g.threads;
         bo.repeat = g.repeat;
+        bo.max_overestimation = g.max_over;
+        bo.max_ms = g.max_ms;
         bo.label = label;
         bo.progress = prog;
         sl_bench b = NULL;
@@ -817,6 +863,27 @@ int sl_cmd_bench(int argc, char **argv)
                 printf("not run: %s (%s)\n", skipped[i].name, skipped[i].reason);
             printf("results in %s/ (frames.csv, frames.json, summary.md, summary.json%s)\n", g.out_dir,
                    g.no_plots ? "" : ", plots (.svg), maps (-map-METHOD.png)");
+        }
+        /* views that see nothing measure nothing: say so loudly */
+        for (uint32_t i = 0; i < nb; i++) {
+            uint32_t nf = sl_bench_frame_count(benches[i]), empty = 0, judged = 0;
+            for (uint32_t f = 0; f < nf; f++) {
+                sl_bench_frame fr;
+                if (sl_bench_get_frame(benches[i], f, &fr, NULL) != SL_OK || fr.out_of_domain)
+                    continue;
+                judged++;
+                empty += fr.visible_count == 0;
+            }
+            if (judged && 2 * empty > judged) {
+                fprintf(stderr,
+                        "sightline bench: WARNING: in %u of the %u frames of %s the oracle sees no object: those "
+                        "views miss the scene and measure nothing (a flyover too high or too far for the scene? "
+                        "--altitude sets its height; cameras facing away?)%s\n",
+                        empty, judged, sl_bench_label(benches[i]),
+                        g.allow_empty ? "; --allow-empty: exit status 0" : "; exit status 1 (--allow-empty to accept)");
+                if (!g.allow_empty)
+                    status = 1;
+            }
         }
         if (violations) {
             fprintf(stderr,
