@@ -62,7 +62,8 @@ static void usage_build(FILE *out)
             "                    no cell and falls back to frustum culling\n"
             "  --radius M        with --along: distance from the cameras (default 2 m)\n\n"
             "method:\n"
-            "  --method NAME     baking method; default: the one that suits the scene, named on stderr\n"
+            "  --method NAME[:key=value...]  baking method (with its options, as --options takes them);\n"
+            "                    default: the one that suits the scene, named on stderr\n"
             "                    (portal for Quake III cluster cells, adjustable for scenes with building\n"
             "                    footprints; for other scenes none is conservative: give --method gvs for\n"
             "                    an aggressive PVS); available:\n");
@@ -336,6 +337,25 @@ static int run_build(int argc, char **argv)
         return 2;
     }
     sl_error err;
+    /* --method NAME:key=value[:key=value...]: the grammar of --methods elsewhere */
+    char method_buf[512];
+    if (bo.method && strchr(bo.method, ':')) {
+        if (bo.method_options) {
+            cli_error(a.cmd, "--method %s carries options: give them there or in --options, not both", bo.method);
+            return 2;
+        }
+        if (snprintf(method_buf, sizeof method_buf, "%s", bo.method) >= (int)sizeof method_buf) {
+            cli_error(a.cmd, "--method: too long");
+            return 2;
+        }
+        char *colon = strchr(method_buf, ':');
+        *colon++ = 0;
+        for (char *c = colon; *c; c++)
+            if (*c == ':')
+                *c = ',';
+        bo.method = method_buf;
+        bo.method_options = colon;
+    }
     if (bo.method && sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
         cli_error(a.cmd, "%s", err.message);
         return 2;

@@ -45,6 +45,15 @@ has "given twice" "$tmp/err"
 expect 2 "$SL" bench city:tiny --walk 3 --methods hzb:
 has "no options after the colon" "$tmp/err"
 
+# pvs build --method NAME:key=value is the same as --method NAME --options key=value
+expect 0 "$SL" pvs build city:tiny --method adjustable:eps=1:bins=4096 --cell-size 40 --threads 1 -o "$tmp/m1.slpvs" --quiet
+expect 0 "$SL" pvs build city:tiny --method adjustable --options eps=1,bins=4096 --cell-size 40 --threads 1 -o "$tmp/m2.slpvs" --quiet
+cmp -s "$tmp/m1.slpvs" "$tmp/m2.slpvs" || fail "--method adjustable:eps=1:bins=4096 and --options differ"
+expect 2 "$SL" pvs build city:tiny --method adjustable:eps=1 --options bins=4 -o "$tmp/m3.slpvs"
+has "not both" "$tmp/err"
+expect 2 "$SL" pvs build city:tiny --method adjustable:epz=1 -o "$tmp/m3.slpvs"
+has "unknown option 'epz' (did you mean eps?" "$tmp/err"
+
 # city:PRESET[:SEED] wherever a scene is taken
 expect 0 "$SL" info city:tiny --json
 has '"objects":335' "$tmp/out"
