@@ -497,6 +497,8 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
     }
     if (g->path_file) {
         st = sl_path_load(g->path_file, NULL, out, err);
+        if (st != SL_OK)
+            tool_error_prefix(err, "--path");
         if (st == SL_OK && g->frames) {
             parse_frames(g->frames, first, count);
             if (*first >= sl_path_count(*out)) {

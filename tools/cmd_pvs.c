@@ -419,6 +419,8 @@ static int run_build(int argc, char **argv)
         sl_path path = NULL;
         sl_viewcells near = NULL;
         st = sl_path_load(along, NULL, &path, &err);
+        if (st != SL_OK)
+            tool_error_prefix(&err, "--along");
         if (st == SL_OK)
             st = cli_viewcells_along(cells, path, radius, &near, &err);
         sl_path_destroy(path);

@@ -63,6 +63,14 @@ expect 0 "$SL" export city:tiny "$tmp/t.obj"
 expect 1 "$SL" info city:huge
 has "unknown city preset 'huge'" "$tmp/err"
 
+# a missing file says which argument it was
+expect 1 "$SL" bench city:tiny --path "$tmp/nope.txt" --methods vfc
+has "^sightline bench: --path: $tmp/nope.txt: cannot open" "$tmp/err"
+expect 1 "$SL" pvs build city:tiny --along "$tmp/nope.txt" -o "$tmp/x.slpvs" --quiet
+has "^sightline pvs build: --along: $tmp/nope.txt: cannot open" "$tmp/err"
+expect 1 "$SL" info "$tmp/nope.slscene"
+has "^sightline info: scene: $tmp/nope.slscene: cannot open" "$tmp/err"
+
 # a .pk3 without --map lists its maps; a wrong name lists the close ones
 PK3=/usr/share/games/openarena/baseoa/pak1-maps.pk3
 if [ -f "$PK3" ]; then
