@@ -337,7 +337,10 @@ static void test_query_stalls_reported(void **state)
     snprintf(want, sizeof want, "Occlusion queries per frame (mean): hoq %.1f queries (%.1f stalls).", queries / 2.0,
              stalls / 2.0);
     assert_non_null(strstr(text, want));
-    assert_null(strstr(text, ": vfc ")); /* no queries, no entry */
+    const char *ql = strstr(text, "Occlusion queries per frame"), *qe = ql ? strchr(ql, '\n') : NULL;
+    assert_non_null(qe);
+    const char *v = strstr(ql, "vfc");
+    assert_true(!v || v > qe); /* no queries, no entry */
     free(text);
     remove_dir(dir);
     sl_bench_destroy(b);
@@ -585,6 +588,35 @@ static void test_city_walk(void **state)
         assert_int_equal(sum.frames, po.frames);
         assert_true(sum.visible_mean > 0);
         assert_true(sum.objects_drawn_mean > 0);
+        /* the over-estimation is the ratio of the sums */
+        assert_true(fabs(sum.overestimation - sum.objects_drawn_mean / sum.visible_mean) < 1e-9 * sum.overestimation);
+    }
+    /* the recommendation: the fastest eligible method within the tightness bound and the tightest
+     * within the time bound, checked against every summary */
+    for (int pass = 0; pass < 2; pass++) {
+        sl_bench_recommendation rec;
+        assert_int_equal(sl_bench_recommend(b, &rec, &err), SL_OK);
+        assert_true(rec.max_overestimation == 2 && rec.max_ms == 2);
+        assert_true(rec.fastest >= 0 && rec.tightest >= 0);
+        sl_bench_summary fs, ts;
+        assert_int_equal(sl_bench_summarize(b, (uint32_t)rec.fastest, &fs, &err), SL_OK);
+        assert_int_equal(sl_bench_summarize(b, (uint32_t)rec.tightest, &ts, &err), SL_OK);
+        assert_true(fs.overestimation <= 2 && ts.cull_ms.median <= 2);
+        for (uint32_t m = 0; m < nm; m++) {
+            sl_bench_summary sum;
+            sl_bench_method_info mi;
+            assert_int_equal(sl_bench_summarize(b, m, &sum, &err), SL_OK);
+            assert_int_equal(sl_bench_method(b, m, &mi, &err), SL_OK);
+            if (!sl_cull_guarantee_keeps_visible(mi.guarantee, true) || sum.missed_objects_total)
+                continue;
+            if (sum.overestimation <= 2)
+                assert_true(sum.cull_ms.median >= fs.cull_ms.median);
+            if (sum.cull_ms.median <= 2)
+                assert_true(sum.overestimation >= ts.overestimation);
+        }
+        sl_bench_method_info fi;
+        assert_int_equal(sl_bench_method(b, (uint32_t)rec.fastest, &fi, &err), SL_OK);
+        assert_non_null(strstr(rec.text, fi.name));
     }
     /* the first frame range and the end are honoured; progress may cancel */
     sl_bench b2;

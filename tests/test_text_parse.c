@@ -97,9 +97,42 @@ static void test_range(void **state)
     assert_false(sl_parse_range(NULL, &f, &e));
 }
 
+
+static void test_suggest(void **state)
+{
+    (void)state;
+    assert_int_equal(sl_text_distance("method", "methods"), 1);
+    assert_int_equal(sl_text_distance("hbz", "hzb"), 1); /* a swap of neighbours */
+    assert_int_equal(sl_text_distance("HZB", "hzb"), 0);
+    assert_int_equal(sl_text_distance("", "abc"), 3);
+    assert_int_equal(sl_text_distance("kitten", "sitting"), 3);
+    assert_int_equal(sl_text_distance(NULL, "ab"), 2);
+    const char *opts[] = {"methods", "method-options", "walk", "views", NULL, "frames", "fps"};
+    char out[128];
+    assert_int_equal(sl_text_suggest("method", opts, 7, out, sizeof out), 2);
+    assert_string_equal(out, "methods or method-options"); /* nearer first, the prefix after */
+    assert_int_equal(sl_text_suggest("wlak", opts, 7, out, sizeof out), 1);
+    assert_string_equal(out, "walk");
+    assert_int_equal(sl_text_suggest("zzzzzz", opts, 7, out, sizeof out), 0);
+    assert_string_equal(out, "");
+    assert_int_equal(sl_text_suggest("walk", opts, 7, out, sizeof out), 0); /* itself: nothing to suggest */
+    const char *maps[] = {"oasago1", "oasago2", "oa_dm1", "oa_dm2", "oa_dm3", "oa_dm4"};
+    assert_int_equal(sl_text_suggest("oasag", maps, 6, out, sizeof out), 2);
+    assert_string_equal(out, "oasago1 or oasago2");
+    assert_int_equal(sl_text_suggest("oa_dm", maps, 6, out, sizeof out), 3); /* at most three */
+    assert_string_equal(out, "oa_dm1, oa_dm2 or oa_dm3");
+    char small[8];
+    sl_text_suggest("method", opts, 7, small, sizeof small); /* truncated, still terminated */
+    assert_true(strlen(small) < sizeof small);
+    char long_word[200];
+    memset(long_word, 'a', sizeof long_word - 1);
+    long_word[sizeof long_word - 1] = 0;
+    assert_int_equal(sl_text_distance(long_word, "a"), 198);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {cmocka_unit_test(test_floats), cmocka_unit_test(test_camera),
-                                       cmocka_unit_test(test_range)};
+                                       cmocka_unit_test(test_range), cmocka_unit_test(test_suggest)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

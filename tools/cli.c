@@ -4,6 +4,7 @@
 #include "tool.h"
 #include "sightline/import.h"
 
+#include <ctype.h>
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -39,6 +40,7 @@ void cli_args_init(cli_args *a, int argc, char **argv)
     a->i = 1;
     a->cmd = argv[0];
     a->error = false;
+    a->unknown[0] = 0;
 }
 
 bool cli_common_option(cli_args *a, const char *name, const char *value, unsigned which, cli_common *c)
@@ -81,7 +83,55 @@ int cli_parse_done(const cli_args *a, const cli_common *c, void (*usage)(FILE *)
         usage(stdout);
         return 0;
     }
+    if (a->error && a->unknown[0])
+        cli_suggest_option(a->cmd, a->unknown, usage);
     return a->error ? 2 : -1;
+}
+
+#define CLI_SUGGEST_MAX 256
+#define CLI_SUGGEST_WORD 48
+
+void cli_suggest_option(const char *cmd, const char *name, void (*usage)(FILE *))
+{
+    if (!usage || !name || !name[0])
+        return;
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    if (!f)
+        return;
+    usage(f);
+    if (fclose(f) != 0 || !text) {
+        free(text);
+        return;
+    }
+    /* the "--word" tokens of the text, each once */
+    char(*words)[CLI_SUGGEST_WORD] = malloc(CLI_SUGGEST_MAX * CLI_SUGGEST_WORD);
+    const char *list[CLI_SUGGEST_MAX];
+    size_t n = 0;
+    for (const char *p = text; words && (p = strstr(p, "--")) != NULL && n < CLI_SUGGEST_MAX;) {
+        const char *q = p + 2;
+        size_t k = 0;
+        while ((isalnum((unsigned char)q[k]) || q[k] == '-') && k + 3 < CLI_SUGGEST_WORD)
+            k++;
+        if (k > 0 && (p == text || !isalnum((unsigned char)p[-1]))) {
+            snprintf(words[n], CLI_SUGGEST_WORD, "--%.*s", (int)k, q);
+            bool dup = false;
+            for (size_t i = 0; i < n && !dup; i++)
+                dup = !strcmp(words[i], words[n]);
+            if (!dup) {
+                list[n] = words[n];
+                n++;
+            }
+        }
+        p = q + k;
+    }
+    char word[80], out[200];
+    snprintf(word, sizeof word, "--%s", name);
+    if (words && sl_text_suggest(word, list, n, out, sizeof out) > 0)
+        cli_error(cmd, "did you mean %s?", out);
+    free(words);
+    free(text);
 }
 
 int cli_action(int argc, char **argv, const char *cmd, void (*usage)(FILE *), const char *const *names, int count,
@@ -217,8 +267,11 @@ bool cli_parse_float(cli_args *a, const char *name, const char *text, float *out
 
 void cli_unknown(cli_args *a, const char *name)
 {
-    if (name)
+    if (name) {
         cli_error(a->cmd, "unknown option --%s (see sightline %s --help)", name, a->cmd);
+        if (!a->unknown[0])
+            snprintf(a->unknown, sizeof a->unknown, "%s", name);
+    }
     else
         cli_error(a->cmd, "unexpected argument (see sightline %s --help)", a->cmd);
     a->error = true;
@@ -277,6 +330,20 @@ static double now_s(void)
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
+static void json_str(FILE *out, const char *s);
+
+/* "1:02:03", "2:03" */
+static void put_hms(char *out, size_t size, double s)
+{
+    if (!(s >= 0) || s > 359999)
+        s = 359999;
+    unsigned t = (unsigned)(s + 0.5), h = t / 3600, m = t / 60 % 60, sec = t % 60;
+    if (h)
+        snprintf(out, size, "%u:%02u:%02u", h, m, sec);
+    else
+        snprintf(out, size, "%u:%02u", m, sec);
+}
+
 static bool progress_cb(void *user, const char *stage, uint64_t done, uint64_t total)
 {
     cli_progress_state *st = user;
@@ -284,19 +351,45 @@ static bool progress_cb(void *user, const char *stage, uint64_t done, uint64_t t
         return true;
     double t = now_s();
     bool new_stage = strncmp(st->stage, stage, sizeof st->stage - 1) != 0;
-    if (!new_stage && t - st->last_draw < 0.1 && done != total)
+    bool last = total && done >= total;
+    if (!new_stage && t - st->last_draw < (st->json ? 1.0 : 0.1) && !last)
         return true;
-    if (new_stage)
+    if (new_stage) {
         snprintf(st->stage, sizeof st->stage, "%s", stage);
+        st->stage_start = t;
+    }
     st->last_draw = t;
+    double el = t - st->stage_start, rate = el > 0 ? (double)done / el : 0;
+    bool eta_known = total && done > 0 && el > 0;
+    double eta = eta_known ? (double)(total > done ? total - done : 0) / rate : 0;
+    if (st->json) {
+        fputs("{\"progress\":", stderr);
+        json_str(stderr, stage);
+        fprintf(stderr, ",\"done\":%llu,\"total\":%llu,\"elapsed_s\":%.3f,\"eta_s\":", (unsigned long long)done,
+                (unsigned long long)total, el);
+        if (eta_known)
+            fprintf(stderr, "%.3f", eta);
+        else
+            fputs("null", stderr);
+        fprintf(stderr, ",\"rate\":%.3f}\n", rate);
+        fflush(stderr);
+        return true;
+    }
+    char els[24], etas[24];
+    put_hms(els, sizeof els, el);
+    if (eta_known)
+        put_hms(etas, sizeof etas, eta);
+    else
+        snprintf(etas, sizeof etas, "?");
     if (total) {
-        int width = 30, fill = (int)((double)done / (double)total * width);
+        int width = 24, fill = (int)((double)done / (double)total * width);
         if (fill > width)
             fill = width;
-        fprintf(stderr, "\r\033[K%-24.24s [%.*s%*s] %5.1f%%", stage, fill, "##############################", width - fill,
-                "", 100.0 * (double)done / (double)total);
+        fprintf(stderr, "\r\033[K%-20.20s [%.*s%*s] %5.1f%% %llu/%llu %.1f/s elapsed %s ETA %s", stage, fill,
+                "########################", width - fill, "", 100.0 * (double)done / (double)total,
+                (unsigned long long)done, (unsigned long long)total, rate, els, etas);
     } else {
-        fprintf(stderr, "\r\033[K%-24.24s %llu", stage, (unsigned long long)done);
+        fprintf(stderr, "\r\033[K%-20.20s %llu %.1f/s elapsed %s", stage, (unsigned long long)done, rate, els);
     }
     fflush(stderr);
     return true;
@@ -311,9 +404,17 @@ sl_progress cli_progress(cli_progress_state *st, bool quiet)
     return p;
 }
 
+sl_progress cli_progress_json(cli_progress_state *st)
+{
+    memset(st, 0, sizeof *st);
+    st->enabled = st->json = true;
+    sl_progress p = {progress_cb, st};
+    return p;
+}
+
 void cli_progress_done(cli_progress_state *st)
 {
-    if (st->enabled && st->stage[0]) {
+    if (st->enabled && !st->json && st->stage[0]) {
         fprintf(stderr, "\r\033[K");
         fflush(stderr);
     }

@@ -50,6 +50,7 @@ typedef struct cli_args {
     const char *cmd;   /* subcommand, for messages */
     bool error;        /* a parse error was reported */
     char namebuf[128]; /* option name split off "--name=value" */
+    char unknown[64];  /* the first unknown option's name (cli_unknown), for cli_parse_done's "did you mean" */
 } cli_args;
 
 void cli_args_init(cli_args *a, int argc, char **argv);
@@ -91,8 +92,12 @@ typedef struct cli_common {
 bool cli_common_option(cli_args *a, const char *name, const char *value, unsigned which, cli_common *c);
 
 /* The end of a command's parse: -1 to go on, else the exit status to return at once: 0 after
- * printing usage(stdout) for --help, 2 after a parse error (already reported). */
+ * printing usage(stdout) for --help, 2 after a parse error (already reported; after an unknown
+ * option it adds "did you mean --X?" with the nearest options of usage's text). */
 int cli_parse_done(const cli_args *a, const cli_common *c, void (*usage)(FILE *));
+/* "did you mean" for an unknown option `name` (without dashes) of command cmd, from the options
+ * ("--word") that usage's text names: prints "sightline CMD: did you mean --X?" when one is close. */
+void cli_suggest_option(const char *cmd, const char *name, void (*usage)(FILE *));
 
 /* The action of a command that has actions (`sightline pvs build ...`, argv[1]): its index in
  * names[0..count), or -1 with *status set after printing the usage (to stdout for --help, -h or
@@ -126,13 +131,18 @@ void cli_import_apply(const cli_import *imp, struct sl_import_options *opt);
 
 /* ---- progress ----
  * A progress bar on stderr when stderr is a terminal, CI is unset and --quiet/--json were not
- * given; silent otherwise. Pass &cli_progress(...) as the library's sl_progress. */
+ * given; silent otherwise. Pass &cli_progress(...) as the library's sl_progress. The bar shows the
+ * stage, done/total, the percentage, the rate per second, the elapsed time and the ETA.
+ * cli_progress_json instead writes one JSON object per line to stderr, at most one a second per
+ * stage plus the last ({"progress":"STAGE","done":D,"total":T,"elapsed_s":E,"eta_s":S,"rate":R};
+ * eta_s null while unknown), for tools reading a --json command (whatever stderr is). */
 typedef struct cli_progress_state {
-    bool enabled;
-    double last_draw;
+    bool enabled, json;
+    double last_draw, stage_start;
     char stage[64];
 } cli_progress_state;
 sl_progress cli_progress(cli_progress_state *st, bool quiet);
+sl_progress cli_progress_json(cli_progress_state *st);
 /* End a progress line (clears the bar). */
 void cli_progress_done(cli_progress_state *st);
 

@@ -36,6 +36,8 @@ static void usage(FILE *out)
             "  --random KIND        random street or flyover viewpoints (--count N, --seed S)\n"
             "  --count N            random viewpoints (default 100)\n"
             "  --seed S             seed of the walk or the random views (default 1)\n"
+            "  --altitude A         flyover views: height above the scene's lowest point in metres\n"
+            "                       (default from the scene's size, as path gen)\n"
             "  --fps F              walk frames per second (default 30; 1.4 m/s, so 30 fps = 4.7 cm a frame)\n"
             "  --frames A:B         with --path: frames A to B-1 (A:, :B and A also work)\n"
             "  --view-matrix M --proj-matrix M [--clip-depth gl|zero-one|reversed]\n"
@@ -43,7 +45,9 @@ static void usage(FILE *out)
             "                       matrices (16 comma-separated numbers each; as `sightline render`):\n"
             "                       off-axis, left-handed, x/y-flipped, reversed-z, infinite far\n\n"
             "methods:\n"
-            "  --methods LIST       comma-separated registry names (default: every registered method that\n"
+            "  --methods LIST       comma-separated NAME[:key=value[:key=value...]] (options of a method\n"
+            "                       separated by colons: hzb:res=culling,vfc; the same grammar in\n"
+            "                       render, view and pvs build --method; default: every registered method that\n"
             "                       runs with its default options, and pvs; one that needs an option is\n"
             "                       reported as not run unless given --method-options; `sightline\n"
             "                       methods` lists them all)\n"
@@ -57,7 +61,11 @@ static void usage(FILE *out)
             "                       cell (--random flyover) or an OUT holding a comma or space: pvs is\n"
             "                       reported as not run (an error when --methods names it)\n"
             "  --method-options NAME:key=value,...   options for one method (repeatable)\n"
-            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n\n",
+            "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n"
+            "  --max-overestimation X  the recommendation's tightness bound: the fastest conservative\n"
+            "                       method passing at most X times the exact visible set (default 2)\n"
+            "  --max-ms T           its time bound: the tightest method culling in at most T ms median\n"
+            "                       (default 2)\n\n",
             (double)CLI_PVS_ALONG_RADIUS, (double)CLI_PVS_ALONG_RADIUS, CLI_PVS_ALONG_METHOD);
     /* two calls: one string literal would pass the 4095 characters C11 compilers must support */
     fputs("rendering:\n"
@@ -79,6 +87,8 @@ static void usage(FILE *out)
           "  --json               print the summary as JSON instead of the table\n"
           "  --strict             exit 1 when a conservative method misses a visible object (default)\n"
           "  --no-strict          report such misses loudly but exit 0\n"
+          "  --allow-empty        accept a run where the oracle sees nothing in most frames (else a\n"
+          "                       warning and exit status 1: such views measure nothing)\n"
           "  --quiet              no progress bar (nor the lines about the PVS bake)\n"
           "  --help               this text\n\n"
           "A conservative method that drops a visible object prints a CONSERVATIVENESS VIOLATION line\n"
@@ -106,8 +116,8 @@ typedef struct bench_args {
     uint32_t mopt_count;
     uint32_t walk, count, width, height, threads, repeat, map_size;
     uint64_t seed;
-    float fps;
-    bool has_walk, has_eye, no_plots, json, quiet, strict;
+    float fps, altitude, max_over, max_ms;
+    bool has_walk, has_eye, no_plots, json, quiet, strict, allow_empty;
     sl_vec3 eye;
     cli_import import;          /* --allow-external */
 } bench_args;
@@ -193,6 +203,14 @@ static int parse(int argc, char **argv, bench_args *g)
                 g->mopt_name[g->mopt_count] = v;
                 g->mopt_value[g->mopt_count++] = colon + 1;
             }
+        } else if (!strcmp(name, "altitude")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->altitude);
+        } else if (!strcmp(name, "max-overestimation")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->max_over);
+        } else if (!strcmp(name, "max-ms")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &g->max_ms);
+        } else if (!strcmp(name, "allow-empty")) {
+            g->allow_empty = true;
         } else if (!strcmp(name, "repeat")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &g->repeat);
         } else if (!strcmp(name, "width")) {
@@ -226,8 +244,11 @@ static int parse(int argc, char **argv, bench_args *g)
         usage(stdout);
         return -1;
     }
-    if (a.error)
+    if (a.error) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, usage);
         return 2;
+    }
     g->map = com.map;
     g->json = com.json;
     g->quiet = com.quiet;
@@ -261,6 +282,14 @@ static int parse(int argc, char **argv, bench_args *g)
     }
     if (!g->width || !g->height || g->width > 16384 || g->height > 16384) {
         cli_error(cmd, "--width/--height must be 1..16384");
+        return 2;
+    }
+    if (g->altitude < 0 || g->altitude > 1e6f) {
+        cli_error(cmd, "--altitude must be 0..1e6 m (0: the default, from the scene's size)");
+        return 2;
+    }
+    if (g->max_over < 0 || g->max_ms < 0 || (g->max_over > 0 && g->max_over < 1)) {
+        cli_error(cmd, "--max-overestimation must be at least 1 and --max-ms positive");
         return 2;
     }
     if (g->repeat < 1 || g->repeat > 1000) {
@@ -353,6 +382,19 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             return -1;
         }
         for (char *save = NULL, *tok = strtok_r(names, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+            /* NAME[:key=value[:key=value...]]: the options of one method, colon-separated here
+             * since the list itself is comma-separated */
+            char *inline_opts = strchr(tok, ':');
+            if (inline_opts) {
+                *inline_opts++ = 0;
+                for (char *c = inline_opts; *c; c++)
+                    if (*c == ':')
+                        *c = ',';
+                if (!*inline_opts) {
+                    cli_error(cmd, "--methods: '%s:' has no options after the colon", tok);
+                    return -1;
+                }
+            }
             uint32_t index;
             if (sl_cull_method_find(tok, &index, &err) != SL_OK) {
                 cli_error(cmd, "--methods: %s", err.message);
@@ -367,7 +409,12 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
                 cli_error(cmd, "--methods: at most %u methods", SL_BENCH_MAX_METHODS);
                 return -1;
             }
-            specs[n++] = (sl_bench_method_spec){tok, options_for(g, tok)};
+            if (inline_opts && options_for(g, tok)) {
+                cli_error(cmd, "--methods: options for '%s' are given twice (in --methods and in --method-options)",
+                          tok);
+                return -1;
+            }
+            specs[n++] = (sl_bench_method_spec){tok, inline_opts ? inline_opts : options_for(g, tok)};
         }
         if (!n) {
             cli_error(cmd, "--methods: empty list");
@@ -416,7 +463,10 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             opts = with_file;
         }
         if (sl_cull_method_check_options(specs[k].name, opts, &err) != SL_OK) {
-            cli_error(cmd, "%s%s", specs[k].options ? "--method-options: " : "", err.message);
+            uintptr_t o = (uintptr_t)specs[k].options, b = (uintptr_t)names; /* options inside --methods' copy */
+            bool inline_opts = o && o >= b && o < b + names_size;
+            cli_error(cmd, "%s%s", inline_opts ? "--methods: " : specs[k].options ? "--method-options: " : "",
+                      err.message);
             return -1;
         }
     }
@@ -447,6 +497,8 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
     }
     if (g->path_file) {
         st = sl_path_load(g->path_file, NULL, out, err);
+        if (st != SL_OK)
+            tool_error_prefix(err, "--path");
         if (st == SL_OK && g->frames) {
             parse_frames(g->frames, first, count);
             if (*first >= sl_path_count(*out)) {
@@ -463,6 +515,7 @@ static sl_status make_views(const bench_args *g, sl_scene scene, sl_path *out, u
     po.intrinsics.width = g->width;
     po.intrinsics.height = g->height;
     po.seed = g->seed;
+    po.altitude = g->altitude;
     if (g->has_walk) {
         po.frames = g->walk;
         po.fps = g->fps;
@@ -539,7 +592,9 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
             cli_json_double(j, "triangles_drawn_mean", s.triangles_drawn_mean);
             cli_json_double(j, "visible_mean", s.visible_mean);
             cli_json_double(j, "triangles_visible_mean", s.triangles_visible_mean);
+            cli_json_double(j, "overestimation", s.overestimation);
             cli_json_double(j, "overestimation_mean", s.overestimation_mean);
+            cli_json_uint(j, "frames_empty", s.frames_empty);
             cli_json_double(j, "extra_mean", s.extra_mean);
             cli_json_uint(j, "missed_objects", s.missed_objects_total);
             cli_json_uint(j, "missed_pixels", s.missed_pixels_total);
@@ -554,6 +609,23 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
             cli_json_object_end(j);
         }
         cli_json_array_end(j);
+        sl_bench_recommendation rec;
+        if (sl_bench_recommend(b, &rec, NULL) == SL_OK) {
+            cli_json_object_begin(j, "recommendation");
+            cli_json_double(j, "max_overestimation", rec.max_overestimation);
+            cli_json_double(j, "max_ms", rec.max_ms);
+            sl_bench_method_info fi, ti;
+            if (rec.fastest >= 0 && sl_bench_method(b, (uint32_t)rec.fastest, &fi, NULL) == SL_OK)
+                cli_json_string(j, "fastest", fi.name);
+            else
+                cli_json_key(j, "fastest"), fputs("null", j->out);
+            if (rec.tightest >= 0 && sl_bench_method(b, (uint32_t)rec.tightest, &ti, NULL) == SL_OK)
+                cli_json_string(j, "tightest", ti.name);
+            else
+                cli_json_key(j, "tightest"), fputs("null", j->out);
+            cli_json_string(j, "text", rec.text);
+            cli_json_object_end(j);
+        }
         cli_json_object_end(j);
     }
     cli_json_array_end(j);
@@ -711,6 +783,8 @@ int sl_cmd_bench(int argc, char **argv)
         bo.height = g.height;
         bo.threads = g.threads;
         bo.repeat = g.repeat;
+        bo.max_overestimation = g.max_over;
+        bo.max_ms = g.max_ms;
         bo.label = label;
         bo.progress = prog;
         sl_bench b = NULL;
@@ -791,6 +865,27 @@ int sl_cmd_bench(int argc, char **argv)
                 printf("not run: %s (%s)\n", skipped[i].name, skipped[i].reason);
             printf("results in %s/ (frames.csv, frames.json, summary.md, summary.json%s)\n", g.out_dir,
                    g.no_plots ? "" : ", plots (.svg), maps (-map-METHOD.png)");
+        }
+        /* views that see nothing measure nothing: say so loudly */
+        for (uint32_t i = 0; i < nb; i++) {
+            uint32_t nf = sl_bench_frame_count(benches[i]), empty = 0, judged = 0;
+            for (uint32_t f = 0; f < nf; f++) {
+                sl_bench_frame fr;
+                if (sl_bench_get_frame(benches[i], f, &fr, NULL) != SL_OK || fr.out_of_domain)
+                    continue;
+                judged++;
+                empty += fr.visible_count == 0;
+            }
+            if (judged && 2 * empty > judged) {
+                fprintf(stderr,
+                        "sightline bench: WARNING: in %u of the %u frames of %s the oracle sees no object: those "
+                        "views miss the scene and measure nothing (a flyover too high or too far for the scene? "
+                        "--altitude sets its height; cameras facing away?)%s\n",
+                        empty, judged, sl_bench_label(benches[i]),
+                        g.allow_empty ? "; --allow-empty: exit status 0" : "; exit status 1 (--allow-empty to accept)");
+                if (!g.allow_empty)
+                    status = 1;
+            }
         }
         if (violations) {
             fprintf(stderr,

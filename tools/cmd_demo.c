@@ -229,7 +229,7 @@ static void html_summary(report *r, sl_bench b)
             "<td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
             sl_cull_guarantee_name(info.guarantee), s.frames, grouped(g1, sizeof g1, s.objects_drawn_mean),
             grouped(g2, sizeof g2, s.triangles_drawn_mean), grouped(g3, sizeof g3, s.visible_mean),
-            s.overestimation_mean, bad ? " class=\"bad\"" : "", (unsigned long long)s.missed_objects_total,
+            s.overestimation, bad ? " class=\"bad\"" : "", (unsigned long long)s.missed_objects_total,
             (unsigned long long)s.missed_pixels_total, s.cull_ms.median, s.cull_ms.p95, s.cull_ms.max);
     }
     put(&r->html, "</table>\n");
@@ -323,9 +323,19 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     put(&r->md, "`sightline methods` lists every method with its options.\n\n");
     put(&r->html, "<p><code>sightline methods</code> lists every method with its options.</p>\n");
 
+    /* the recommendation first: what a reader came for */
+    put_heading(r, 2, "Recommendation");
+    for (uint32_t bi = 0; bi < nb; bi++) {
+        sl_bench_recommendation rec;
+        if (sl_bench_recommend(benches[bi], &rec, NULL) != SL_OK)
+            continue;
+        snprintf(text, sizeof text, "%s: %s", sl_bench_label(benches[bi]), rec.text);
+        put_para(r, text);
+    }
+
     put_heading(r, 2, "Results");
     put_para(r, "Means are per frame; missed objects and pixels are totals over the frames; over-estimation is "
-                "objects drawn / exactly visible objects; cull time is the wall time of one cull call in "
+                "the objects drawn over the exactly visible objects, each summed over the frames; cull time is the wall time of one cull call in "
                 "milliseconds (median, 95th percentile and maximum over the frames). frames.csv and frames.json "
                 "hold every frame; docs/bench.md describes the columns.");
     for (uint32_t bi = 0; bi < nb; bi++) {
@@ -694,6 +704,7 @@ int sl_cmd_demo(int argc, char **argv)
                     cli_json_double(&j, "objects_drawn_mean", s.objects_drawn_mean);
                     cli_json_double(&j, "triangles_drawn_mean", s.triangles_drawn_mean);
                     cli_json_double(&j, "visible_mean", s.visible_mean);
+                    cli_json_double(&j, "overestimation", s.overestimation);
                     cli_json_uint(&j, "missed_objects", s.missed_objects_total);
                     cli_json_uint(&j, "missed_pixels", s.missed_pixels_total);
                     cli_json_double(&j, "cull_ms_median", s.cull_ms.median);

@@ -38,8 +38,8 @@ static void usage(FILE *out)
             ".bin) are written next to OUT; nothing is left behind when the export fails. The same\n"
             "scene gives the same bytes: COLLADA and FBX carry the fixed date 1970-01-01 instead of\n"
             "the time of writing.\n\n"
-            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), or any file\n"
-            "assimp reads.\n\n"
+            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), any file assimp\n"
+            "reads, or city:tiny|small|vienna[:SEED] (the generated city, made on the fly).\n\n"
             "options:\n"
             "  --format ID      assimp export id (see --list-formats), e.g. obj, gltf2, glb2, plyb, stlb\n"
             "  --up y|z         up axis written (default y, what most tools expect; glTF is always y)\n"
@@ -166,7 +166,7 @@ int sl_cmd_export(int argc, char **argv)
     double t0 = tool_now();
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&imp, &io);
-    if (sl_scene_open_with(input, map, &io, NULL, &scene, &err) != SL_OK)
+    if (cli_open_scene(input, map, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     double t1 = tool_now();
     if (sl_export_assimp(scene, output, format, axis, &err) != SL_OK) {

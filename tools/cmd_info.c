@@ -15,8 +15,8 @@ static void usage(FILE *out)
             "Print what a scene holds: objects, meshes and triangles (stored and instanced), per-kind\n"
             "counts, bounds, memory, footprints, occluders, street network, terrain, Quake III BSP\n"
             "leaves and clusters with statistics of the map's own cluster PVS, and metadata.\n\n"
-            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), or any file\n"
-            "assimp reads.\n\n"
+            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), any file assimp\n"
+            "reads, or city:tiny|small|vienna[:SEED] (the generated city, made on the fly).\n\n"
             "options:\n"
             "  --map NAME   map inside a .pk3 (\"oa_dm1\" or \"maps/oa_dm1.bsp\")\n"
             CLI_ALLOW_EXTERNAL_HELP
@@ -82,7 +82,7 @@ int sl_cmd_info(int argc, char **argv)
     sl_scene scene;
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&imp, &io);
-    if (sl_scene_open_with(input, map, &io, NULL, &scene, &err) != SL_OK)
+    if (cli_open_scene(input, map, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     sl_scene_stats st;
     sl_scene_get_stats(scene, &st);

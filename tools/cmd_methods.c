@@ -9,17 +9,21 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline methods [NAME...] [--json]\n\n"
-            "List the registered culling methods: name, guarantee (conservative: never drops a visible\n"
-            "object, held to the oracle with zero tolerance; aggressive: may drop some, its missed pixels\n"
-            "are measured), what the method does, and its options (key=TYPE (default D): meaning).\n"
-            "Options are given to bench/demo as --method-options NAME:key=value,key=value.\n\n"
+            "usage: sightline methods [NAME...] [--long] [--json]\n\n"
+            "List the registered culling methods. By default a short table: name, guarantee\n"
+            "(conservative: never drops a visible object, held to the oracle with zero tolerance;\n"
+            "conservative-at-resolution: the same at the resolution it culls at; aggressive: may drop\n"
+            "some, its missed pixels are measured) and the scenes it suits. With NAME or --long: what\n"
+            "each method does and its options (key=TYPE (default D): meaning). Options are given to\n"
+            "bench, render and view as --methods NAME:key=value:key=value.\n\n"
             "options:\n"
-            "  NAME...   only these methods (an unknown name is a usage error, exit status 2)\n"
-            "  --json    machine-readable output on stdout\n"
+            "  NAME...   only these methods, in full (an unknown name is a usage error, exit status 2)\n"
+            "  --long    every method in full\n"
+            "  --json    machine-readable output on stdout (always in full)\n"
             "  --help    this text\n\n"
             "examples:\n"
             "  sightline methods\n"
+            "  sightline methods hzb\n"
             "  sightline methods vfc --json\n");
 }
 
@@ -41,12 +45,14 @@ int sl_cmd_methods(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     const char *name, *val;
-    bool json = false;
+    bool json = false, full = false;
     const char *only[64];
     uint32_t only_count = 0;
     cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
         if (cli_common_option(&a, name, val, CLI_JSON, &com)) {
+        } else if (name && !strcmp(name, "long")) {
+            full = true;
         } else if (!name) {
             if (only_count == 64) {
                 cli_error(argv[0], "too many method names");
@@ -75,6 +81,21 @@ int sl_cmd_methods(int argc, char **argv)
         for (uint32_t i = 0; i < n && count < 64; i++)
             idx[count++] = i;
     }
+    if (!json && !full && !only_count) {
+        /* the short table */
+        printf("%-12s %-33s %s\n", "method", "guarantee", "suits");
+        for (uint32_t i = 0; i < count; i++) {
+            sl_cull_method_desc d;
+            if (sl_cull_method_info(idx[i], &d, &err) != SL_OK)
+                return cli_fail(argv[0], &err);
+            char g[64];
+            snprintf(g, sizeof g, "%s%s", sl_cull_guarantee_name(d.guarantee), d.res_culling ? " (res=culling: @res)" : "");
+            printf("%-12s %-33s %s\n", d.name, g, d.suits[0] ? d.suits : "-");
+        }
+        printf("\n@res: conservative at the resolution it culls at. What each does and its options: sightline "
+               "methods NAME, or --long; choosing one: README, \"Choosing a method\".\n");
+        return 0;
+    }
     cli_json j;
     if (json) {
         cli_json_begin(&j, stdout);
@@ -91,6 +112,7 @@ int sl_cmd_methods(int argc, char **argv)
             if (d.res_culling)
                 cli_json_string(&j, "res_culling_guarantee", sl_cull_guarantee_name(SL_CONSERVATIVE_AT_RESOLUTION));
             cli_json_string(&j, "summary", d.summary);
+            cli_json_string(&j, "suits", d.suits);
             cli_json_array_begin(&j, "options");
             const char *p = d.options_help;
             while (p && *p) {
@@ -109,6 +131,8 @@ int sl_cmd_methods(int argc, char **argv)
             printf("%s%s (%s%s%s)\n  %s\n", i ? "\n" : "", d.name, sl_cull_guarantee_name(d.guarantee),
                    d.res_culling ? "; res=culling: " : "",
                    d.res_culling ? sl_cull_guarantee_name(SL_CONSERVATIVE_AT_RESOLUTION) : "", d.summary);
+            if (d.suits[0])
+                printf("  suits: %s\n", d.suits);
             if (d.options_help && d.options_help[0]) {
                 printf("  options:\n");
                 print_indented(d.options_help, "    ");

@@ -118,8 +118,11 @@ static int cmd_replay(int argc, char **argv)
         usage(stdout);
         return 0;
     }
-    if (a.error || !isa_name)
+    if (a.error || !isa_name) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, usage);
         return 2;
+    }
     bool json = com.json;
     if (!file) {
         cli_error(a.cmd, "missing FILE (see sightline occlusion --help)");

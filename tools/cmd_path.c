@@ -55,8 +55,8 @@ static void usage_gen(FILE *out)
             "           centre and tilted 30 degrees down; works for any scene, with or without streets\n"
             "Walk and drive need a street network: on a scene without one they fail with \"scene has\n"
             "no street network: use flyover, or a path file\".\n\n"
-            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), or any file assimp\n"
-            "reads.\n\n"
+            "SCENE is a .slscene file, a Quake III .bsp, a .pk3 archive (with --map), any file assimp\n"
+            "reads, or city:tiny|small|vienna[:SEED] (the generated city, made on the fly).\n\n"
             "options:\n"
             "  --kind K          walk, drive or flyover (default walk)\n"
             "  -o, --output F    path file to write (required; written atomically)\n"
@@ -70,7 +70,8 @@ static void usage_gen(FILE *out)
             "                    width, 0..0.5 (0.4 / 0.25)\n"
             "  --head-bob        walk: 2.5 cm vertical bob and 0.4 degree nod per 0.7 m step\n"
             "  --altitude A      flyover: flight height in metres above the scene's lowest point\n"
-            "                    (default max(150, 1.5 x scene height + 50))\n"
+            "                    (default from the scene's size w across and height h:\n"
+            "                    max(min(150, w/2), 1.5 h + min(50, w/2)); 150 m over a city)\n"
             "  --look-down DEG   flyover: angle below the horizon (default 30)\n"
             "  --fov DEG         vertical field of view (default 60)\n"
             "  --width W         viewport width in pixels (default 1024)\n"
@@ -335,8 +336,11 @@ static int run_gen(int argc, char **argv, bool random_views)
         random_views ? usage_random(stdout) : usage_gen(stdout);
         return 0;
     }
-    if (a.error)
+    if (a.error) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, random_views ? usage_random : usage_gen);
         return 2;
+    }
     g.scene = com.input;
     g.map = com.map;
     g.json = com.json;
@@ -385,7 +389,7 @@ static int run_gen(int argc, char **argv, bool random_views)
     sl_scene scene;
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&imp, &io);
-    if (sl_scene_open_with(g.scene, g.map, &io, NULL, &scene, &err) != SL_OK)
+    if (cli_open_scene(g.scene, g.map, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
     sl_path path;
     sl_status st = random_views ? sl_path_random_views(scene, vk, g.count, g.seed, &g.opt, NULL, &path, &err)
@@ -417,8 +421,11 @@ static int run_info(int argc, char **argv, bool check)
         usage_info(stdout, check ? "check" : "info");
         return 0;
     }
-    if (a.error)
+    if (a.error) {
+        if (a.unknown[0])
+            cli_suggest_option(a.cmd, a.unknown, usage_main);
         return 2;
+    }
     const char *file = com.input;
     bool json = com.json;
     if (!file) {

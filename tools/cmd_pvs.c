@@ -46,8 +46,8 @@ static void usage_build(FILE *out)
             "Make view cells for SCENE and bake the set of objects visible from each cell. The file is\n"
             "byte-identical whatever the thread or process count. A checkpoint journal (OUT.slpvs.ckpt)\n"
             "records every finished cell: an interrupted bake continues with --resume.\n\n"
-            "SCENE is a .slscene, a Quake III .bsp or .pk3 (with --map), or any file assimp reads;\n"
-            "--city PRESET generates the procedural city (tiny, small, vienna) in memory instead.\n\n"
+            "SCENE is a .slscene, a Quake III .bsp or .pk3 (with --map), any file assimp reads, or\n"
+            "city:tiny|small|vienna[:SEED]; --city PRESET (with --seed) is the same as city:PRESET:SEED.\n\n"
             "view cells:\n"
             "  --cells KIND      streets: constrained triangulation of the street space (default with\n"
             "                    streets); grid: squares over the streets; bsp: the map's own clusters\n"
@@ -62,7 +62,11 @@ static void usage_build(FILE *out)
             "                    no cell and falls back to frustum culling\n"
             "  --radius M        with --along: distance from the cameras (default 2 m)\n\n"
             "method:\n"
-            "  --method NAME     baking method (default sample); available:\n");
+            "  --method NAME[:key=value...]  baking method (with its options, as --options takes them);\n"
+            "                    default: the one that suits the scene, named on stderr\n"
+            "                    (portal for Quake III cluster cells, adjustable for scenes with building\n"
+            "                    footprints; for other scenes none is conservative: give --method gvs for\n"
+            "                    an aggressive PVS); available:\n");
     for (uint32_t i = 0; i < sl_pvs_method_count(); i++) {
         sl_pvs_method_desc d;
         if (sl_pvs_method_info(i, &d, NULL) != SL_OK)
@@ -130,7 +134,6 @@ static void usage_query(FILE *out)
                  "  --map NAME     map inside a .pk3\n"
                  "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
                  "  --import-timeout S  stop reading an assimp model after S seconds\n"
-            "  --import-timeout S  stop reading an assimp model after S seconds\n"
                  "  --ids          print the object ids too\n"
                  "  --json         machine-readable output\n"
                  "  --help         this text\n\n"
@@ -188,7 +191,7 @@ static sl_status load_scene(const char *path, const char *map, const char *city,
     }
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&pvs_import, &io);
-    return sl_scene_open_with(path, map, &io, NULL, out, err);
+    return cli_open_scene(path, map, &io, NULL, out, NULL, 0, err);
 }
 
 static bool parse_floats(cli_args *a, const char *name, const char *text, float *out, int n)
@@ -334,7 +337,26 @@ static int run_build(int argc, char **argv)
         return 2;
     }
     sl_error err;
-    if (sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
+    /* --method NAME:key=value[:key=value...]: the grammar of --methods elsewhere */
+    char method_buf[512];
+    if (bo.method && strchr(bo.method, ':')) {
+        if (bo.method_options) {
+            cli_error(a.cmd, "--method %s carries options: give them there or in --options, not both", bo.method);
+            return 2;
+        }
+        if (snprintf(method_buf, sizeof method_buf, "%s", bo.method) >= (int)sizeof method_buf) {
+            cli_error(a.cmd, "--method: too long");
+            return 2;
+        }
+        char *colon = strchr(method_buf, ':');
+        *colon++ = 0;
+        for (char *c = colon; *c; c++)
+            if (*c == ':')
+                *c = ',';
+        bo.method = method_buf;
+        bo.method_options = colon;
+    }
+    if (bo.method && sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
         cli_error(a.cmd, "%s", err.message);
         return 2;
     }
@@ -357,6 +379,32 @@ static int run_build(int argc, char **argv)
             return 2;
         }
     }
+    /* no --method: the one that suits the scene, said on stderr */
+    if (!bo.method) {
+        const char *why;
+        if (!strcmp(cells_kind, "bsp")) {
+            bo.method = "portal";
+            why = "the conservative method for Quake III cluster cells";
+        } else if (sl_scene_footprint_count(scene) > 0) {
+            bo.method = "adjustable";
+            why = "the conservative method for scenes with building footprints: sample culls about 0.6% more "
+                  "objects in about 6 times the time, BENCHMARKS.md";
+        } else {
+            sl_scene_destroy(scene);
+            cli_error(a.cmd, "no conservative from-region method applies to this scene: it has no building "
+                             "footprints (adjustable, sample) and no BSP clusters (portal); bake an aggressive PVS "
+                             "with --method gvs, or give --method to choose");
+            return 2;
+        }
+        if (sl_pvs_method_check_options(bo.method, bo.method_options, &err) != SL_OK) {
+            sl_scene_destroy(scene);
+            cli_error(a.cmd, "%s", err.message);
+            return 2;
+        }
+        const char *pmi_rank = getenv("PMI_RANK");
+        if (!quiet && !json && (!pmi_rank || atoi(pmi_rank) == 0))
+            fprintf(stderr, "sightline pvs build: method %s (%s; --method NAME to choose)\n", bo.method, why);
+    }
     if (!strcmp(cells_kind, "streets"))
         st = sl_viewcells_from_streets(scene, &vo, &cells, &err);
     else if (!strcmp(cells_kind, "grid"))
@@ -371,6 +419,8 @@ static int run_build(int argc, char **argv)
         sl_path path = NULL;
         sl_viewcells near = NULL;
         st = sl_path_load(along, NULL, &path, &err);
+        if (st != SL_OK)
+            tool_error_prefix(&err, "--along");
         if (st == SL_OK)
             st = cli_viewcells_along(cells, path, radius, &near, &err);
         sl_path_destroy(path);
@@ -389,7 +439,7 @@ static int run_build(int argc, char **argv)
         bo.progress = cli_progress(&ps, true); /* the MPI driver reports nothing per cell */
         st = cli_pvs_build_mpi(scene, cells, output, &bo, (double)lease, &stats, &rank, &err);
     } else {
-        bo.progress = cli_progress(&ps, quiet || json);
+        bo.progress = json && !quiet ? cli_progress_json(&ps) : cli_progress(&ps, quiet || json);
         st = sl_pvs_build(scene, cells, output, &bo, &stats, &err);
         cli_progress_done(&ps);
     }
@@ -606,7 +656,7 @@ static int run_query(int argc, char **argv)
     sl_scene scene = NULL;
     sl_import_options io = sl_import_defaults();
     cli_import_apply(&pvs_import, &io);
-    if (scene_path && sl_scene_open_with(scene_path, map, &io, NULL, &scene, &err) != SL_OK) {
+    if (scene_path && cli_open_scene(scene_path, map, &io, NULL, &scene, NULL, 0, &err) != SL_OK) {
         sl_pvs_destroy(p);
         return cli_fail(a.cmd, &err);
     }
@@ -624,6 +674,13 @@ static int run_query(int argc, char **argv)
     if (has_point)
         cell = sl_viewcells_locate(cells, scene, (sl_vec3){point[0], point[1], point[2]});
     int rc = 0;
+    /* a point in no cell: the nearest one, and a non-zero exit */
+    uint32_t nearest = SL_NONE;
+    double nearest_dist = INFINITY;
+    if (has_point && cell == SL_NONE) {
+        nearest = sl_viewcells_nearest(cells, (sl_vec3){point[0], point[1], point[2]}, &nearest_dist);
+        rc = 1;
+    }
     uint32_t *set = malloc(((size_t)in.object_count + 1) * sizeof *set), n = 0;
     if (!set) {
         cli_error(a.cmd, "out of memory");
@@ -637,9 +694,13 @@ static int run_query(int argc, char **argv)
         cli_json j;
         cli_json_begin(&j, stdout);
         cli_json_string(&j, "file", file);
-        if (cell == SL_NONE)
+        if (cell == SL_NONE) {
             cli_json_key(&j, "cell"), fputs("null", stdout);
-        else
+            if (nearest != SL_NONE) {
+                cli_json_uint(&j, "nearest_cell", nearest);
+                cli_json_double(&j, "nearest_distance", nearest_dist);
+            }
+        } else
             cli_json_uint(&j, "cell", cell);
         cli_json_uint(&j, "visible", n);
         cli_json_uint(&j, "objects", in.object_count);
@@ -652,9 +713,18 @@ static int run_query(int argc, char **argv)
         cli_json_end(&j);
     } else if (cell == SL_NONE) {
         bool outside = scene && !sl_oracle_in_domain(scene, (sl_vec3){point[0], point[1], point[2]}, NULL);
-        printf("no view cell holds (%g, %g, %g)%s: a renderer falls back to view-frustum culling\n", (double)point[0],
-               (double)point[1], (double)point[2],
-               outside ? " (it lies in solid or void space of the map: outside the domain, docs/oracle.md)" : "");
+        char near[200] = "";
+        if (nearest != SL_NONE) {
+            const sl_viewcell *c = &sl_viewcells_data(cells)[nearest];
+            snprintf(near, sizeof near, "; the nearest is cell %u, %.2f m away (box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f)",
+                     nearest, nearest_dist, (double)c->bounds.min.x, (double)c->bounds.min.y,
+                     (double)c->bounds.min.z, (double)c->bounds.max.x, (double)c->bounds.max.y,
+                     (double)c->bounds.max.z);
+        }
+        cli_error(a.cmd, "no view cell holds (%g, %g, %g)%s%s: a renderer falls back to view-frustum culling",
+                  (double)point[0], (double)point[1], (double)point[2],
+                  outside ? " (it lies in solid or void space of the map: outside the domain, docs/oracle.md)" : "",
+                  near);
     } else {
         const sl_viewcell *c = &sl_viewcells_data(cells)[cell];
         printf("cell %u (%s, box %.2f,%.2f,%.2f .. %.2f,%.2f,%.2f): %u of %u objects visible\n", cell,

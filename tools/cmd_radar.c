@@ -228,7 +228,7 @@ int sl_cmd_radar(int argc, char **argv)
     if (input) {
         sl_import_options io = sl_import_defaults();
         cli_import_apply(&imp, &io);
-        if (sl_scene_open_with(input, NULL, &io, NULL, &scene, &err) != SL_OK)
+        if (cli_open_scene(input, NULL, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
             return cli_fail(a.cmd, &err);
         if (!sl_scene_terrain(scene, &terrain)) {
             cli_error(a.cmd, "%s: the scene has no terrain height field", input);

@@ -45,7 +45,14 @@ int main(int argc, char **argv)
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         if (!strcmp(argv[1], commands[i].name))
             return commands[i].run(argc - 1, argv + 1);
-    fprintf(stderr, "sightline: unknown command '%s'\n", argv[1]);
+    const char *names[sizeof commands / sizeof commands[0]];
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        names[i] = commands[i].name;
+    char near[160];
+    if (sl_text_suggest(argv[1], names, sizeof names / sizeof names[0], near, sizeof near))
+        fprintf(stderr, "sightline: unknown command '%s' (did you mean %s?)\n", argv[1], near);
+    else
+        fprintf(stderr, "sightline: unknown command '%s'\n", argv[1]);
     usage(stderr);
     return 2;
 }

@@ -75,8 +75,10 @@ sl_status cli_open_scene(const char *spec, const char *map, const struct sl_impo
     if (!strncmp(spec, "city:", 5))
         return open_city(spec, map, progress, out, label, label_size, err);
     sl_status st = sl_scene_open_with(spec, map, opt, NULL, out, err);
-    if (st != SL_OK)
+    if (st != SL_OK) {
+        tool_error_prefix(err, "scene"); /* which argument: "scene: FILE: reason" */
         return st;
+    }
     const char *base = strrchr(spec, '/');
     base = base ? base + 1 : spec;
     const char *dot = strrchr(base, '.');

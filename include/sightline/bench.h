@@ -49,6 +49,9 @@ typedef struct sl_bench_options {
                                  (default 1) */
     const char *label;        /* name of the scene in reports ("city-small-1"); copied (default "scene") */
     sl_progress progress;     /* sl_bench_run_path reports frames done; returning false cancels */
+    /* the bounds of the recommendation (sl_bench_recommend, the summaries): over-estimation at
+     * most this (ratio of sums; 0: 2) and median cull time at most this many ms (0: 2). Appended */
+    double max_overestimation, max_ms;
 } sl_bench_options;
 
 /* The defaults above. */
@@ -136,6 +139,10 @@ typedef struct sl_bench_summary {
     sl_series_summary cull_ms;     /* median, p95, max ... of the per-frame cull times */
     uint32_t frames_out_of_domain; /* frames of the bench skipped because the eye was outside the
                                       domain (not in `frames`) */
+    double overestimation;         /* ratio of sums: objects drawn over objects the oracle sees,
+                                      summed over the frames (the latter at least 1; 1 without
+                                      frames): the reports' over-estimation. Appended */
+    uint32_t frames_empty;         /* counted frames where the oracle sees no object. Appended */
 } sl_bench_summary;
 
 /* ---- lifetime ---- */
@@ -199,6 +206,19 @@ SL_API sl_status sl_bench_last_result(sl_bench bench, uint32_t method, const uin
                                       sl_error *err);
 /* The oracle's answer for the last frame (valid until the next frame or map). */
 SL_API sl_status sl_bench_last_truth(sl_bench bench, sl_oracle_frame *out, sl_error *err);
+/* A recommendation for the bench's scene and views (the summaries end with its text): among the
+ * methods whose guarantee keeps every visible object (conservative, or conservative at the
+ * resolution) and that missed nothing, `fastest` is the one of least median cull time whose
+ * over-estimation (ratio of sums) is at most max_overestimation, `tightest` the one of least
+ * over-estimation whose median cull time is at most max_ms (indices of sl_bench_method, -1 when
+ * none qualifies); text says which and why in one paragraph. Bounds from the bench's options. */
+typedef struct sl_bench_recommendation {
+    int32_t fastest, tightest;
+    double max_overestimation, max_ms; /* the bounds used */
+    char text[1024];
+} sl_bench_recommendation;
+SL_API sl_status sl_bench_recommend(sl_bench bench, sl_bench_recommendation *out, sl_error *err);
+
 /* Summary of one method over all frames. */
 SL_API sl_status sl_bench_summarize(sl_bench bench, uint32_t method, sl_bench_summary *out, sl_error *err);
 /* Total over every conservative method of the bench of missed objects (0 = the guarantee held). */

@@ -146,6 +146,20 @@ SL_API bool sl_parse_floats(const char *text, float *out, int n);
  * `render` commands' --frames. *first and *end are untouched on failure. */
 SL_API bool sl_parse_range(const char *text, uint32_t *first, uint32_t *end);
 
+/* ---- "did you mean": the nearest names to a mistyped one ----
+ * Pure, allocation-free, thread-safe; for messages (unknown options, methods, maps, commands). */
+
+/* Edit distance between a and b, ASCII case folded: insertions, deletions, substitutions and
+ * swaps of two neighbours count 1 each (optimal string alignment). Only the first 63 bytes of each
+ * count; a longer tail adds its length. */
+SL_API uint32_t sl_text_distance(const char *a, const char *b);
+
+/* The candidates close to `word` (distance at most 1 for words of up to 4 characters, 2 up to 8,
+ * 3 beyond; or one is a prefix of the other, at least 3 characters long), nearest first (ties in
+ * the candidates' order), at most 3, written to out as "a, b or c" (size bytes, always
+ * terminated; "" when none). NULL candidates are skipped. Returns how many were written. */
+SL_API uint32_t sl_text_suggest(const char *word, const char *const *candidates, size_t count, char *out, size_t size);
+
 /* ---- text made safe for a terminal or a log ---- */
 
 /* Copy text (names, paths, importers' messages) into buf (size bytes, always terminated) C-style:

@@ -93,6 +93,9 @@ typedef struct sl_cull_method_desc {
     bool res_culling;           /* the method takes res=culling: a tighter mode whose guarantee is
                                    SL_CONSERVATIVE_AT_RESOLUTION (its default, res=any, is
                                    resolution-independent) */
+    const char *suits;          /* the scenes and views it suits, one short line ("cities with building
+                                   footprints, eyes near the ground"); "" when the method says nothing.
+                                   Appended (docs/versions.md) */
 } sl_cull_method_desc;
 
 /* Number of registered methods. */

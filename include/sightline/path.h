@@ -55,7 +55,8 @@ typedef struct sl_path_options {
     float speed;                /* m/s, in [0.001, 10000]; flyover: 0 = one loop over the duration */
     float eye_height;           /* walk/drive/street views: eye above sl_scene_ground_height, >= 0 */
     float altitude;             /* flyover/flyover views: flight height above the scene's lowest
-                                 * point, > 0; 0 = auto: max(150, 1.5 * scene height + 50) */
+                                 * point, > 0; 0 = auto, from the scene's size w (across) and
+                                 * height h: max(min(150, w/2), 1.5 h + min(50, w/2)) */
     float look_down;            /* flyover/flyover views: angle below the horizon, radians, [0, pi/2] */
     float lane_offset;          /* walk/drive/street views: distance right of the centre line as a
                                  * fraction of the street width, [0, 0.5] (0.4 sidewalk, 0.25 lane) */

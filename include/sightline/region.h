@@ -112,6 +112,12 @@ SL_API uint32_t sl_viewcells_locate(sl_viewcells cells, sl_scene scene, sl_vec3 
  * threads at once. The pvs culler calls it with the box of its camera's near-plane region. */
 SL_API uint32_t sl_viewcells_overlap(sl_viewcells cells, sl_scene scene, const sl_aabb *box, uint32_t *out,
                                      uint32_t capacity, bool *covered);
+/* The cell nearest to point p and its distance in metres (0 inside): PRISM cells by the exact
+ * distance to the prism (triangle x [z_min, z_max]), BOX and CLUSTER cells by the distance to
+ * their box (a cluster's box may hold space outside the cluster). SL_NONE (and *distance
+ * INFINITY) for no cells or a point that is not finite. Ties go to the lower cell number.
+ * distance may be NULL. Allocation-free, O(cells); safe from any number of threads at once. */
+SL_API uint32_t sl_viewcells_nearest(sl_viewcells cells, sl_vec3 p, double *distance);
 /* True when point p lies in cell `cell` (closed; CLUSTER cells need the scene). */
 SL_API bool sl_viewcell_contains(sl_viewcells cells, sl_scene scene, uint32_t cell, sl_vec3 p);
 /* Fingerprint (XXH3-64) of the cell records: equal cells, equal key. */

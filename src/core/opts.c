@@ -208,6 +208,10 @@ sl_status sl_opts_check_unused(const sl_opts *o, sl_error *err)
             size_t n = strlen(list);
             snprintf(list + n, sizeof list - n, "%s%s", k ? ", " : "", o->known[k]);
         }
+        char near[160];
+        if (sl_text_suggest(o->keys[i], (const char *const *)o->known, o->known_count, near, sizeof near))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: unknown option '%s' (did you mean %s? valid options: %s)",
+                           o->method, o->keys[i], near, list);
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: unknown option '%s' (valid options: %s)", o->method,
                        o->keys[i], list);
     }

@@ -99,6 +99,7 @@ sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error
     out->options_help = m->options_help;
     out->guarantee = m->guarantee;
     out->res_culling = m->res_culling;
+    out->suits = m->suits ? m->suits : "";
     return SL_OK;
 }
 
@@ -116,6 +117,14 @@ sl_status sl_cull_method_find(const char *name, uint32_t *index, sl_error *err)
         size_t k = strlen(list);
         snprintf(list + k, sizeof list - k, "%s%s", i ? ", " : "", sl_cull_registry_get(i)->name);
     }
+    const char *names[64];
+    uint32_t nn = n < 64 ? n : 64;
+    for (uint32_t i = 0; i < nn; i++)
+        names[i] = sl_cull_registry_get(i)->name;
+    char near[160];
+    if (name && sl_text_suggest(name, names, nn, near, sizeof near))
+        return sl_fail(err, SL_ERROR_NOT_FOUND, "unknown culling method '%s' (did you mean %s? methods: %s)", name, near,
+                       list);
     return sl_fail(err, SL_ERROR_NOT_FOUND, "unknown culling method '%s' (methods: %s)", name ? name : "(null)", list);
 }
 

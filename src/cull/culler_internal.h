@@ -42,6 +42,7 @@ typedef struct sl_cull_method {
     const char *name;
     const char *summary;
     const char *options_help;
+    const char *suits;            /* the scenes and views it suits, one short line (sl_cull_method_desc) */
     sl_cull_guarantee guarantee;  /* with the default options */
     size_t config_size;           /* bytes of the method's parsed-options struct (may be 0) */
     /* the depth it stores or projects with (SL_DEPTH_NONE: frustum planes only); sl_culler_cull

@@ -674,6 +674,7 @@ static sl_status cullmap_cull(void *state, const sl_view *view, uint32_t *out, u
 
 const sl_cull_method sl_cull_method_cullmap = {
     .name = "cullmap",
+    .suits = "cities with building footprints (2.5D), eyes near the ground",
     .summary = "2.5D occluder shadows rasterized top-down into a cull map, then a scan of the frustum's grid cells "
                "(Wonka 2001 ch. 4, occluder shadows)",
     .options_help = g_help,

@@ -164,6 +164,7 @@ static sl_status dhorizon_cull(void *state, const sl_view *view, uint32_t *out, 
 
 const sl_cull_method sl_cull_method_dhorizon = {
     .name = "dhorizon",
+    .suits = "cities with building footprints (2.5D), a walk or drive (frame-to-frame coherence)",
     .summary = "incremental occlusion horizon (the Delta-H method): reuses the last frame's horizon, retests only "
                "the openings, exact under any motion (Koldas 2008 ch. 3)",
     .options_help = g_help,

@@ -426,6 +426,7 @@ static sl_status frusta_cull(void *state, const sl_view *view, uint32_t *out, ui
 
 const sl_cull_method sl_cull_method_frusta = {
     .name = "frusta",
+    .suits = "scenes with a few large convex occluders close to the eye",
     .summary = "object-space shadow frusta of the best convex occluder faces each frame, a box culled when "
                "inside one frustum (Hudson et al. 1997)",
     .options_help = g_help,

@@ -463,6 +463,7 @@ static sl_status hom_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_hom = {
     .name = "hom",
+    .suits = "any scene with occluders: building footprints, occluder meshes (Quake III maps, the city) or all_objects=true",
     .summary = "hierarchical occlusion maps: opacity pyramid of quality-selected occluder proxies plus a depth "
                "estimation buffer; threshold 1 conservative, below 1 aggressive (Zhang et al. 1997)",
     .options_help = g_help,

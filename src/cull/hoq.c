@@ -376,6 +376,7 @@ static sl_status hoq_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_hoq = {
     .name = "hoq",
+    .suits = "any scene, through a draw backend (a GPU's occlusion queries; here the CPU reference)",
     .summary = "hierarchical occlusion queries over the object BVH, front to back, stop and wait, through a draw "
                "backend (its own CPU reference backend when given none; Bittner et al. 2004, section 3)",
     .options_help = g_help,

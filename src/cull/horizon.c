@@ -411,6 +411,7 @@ static void horizon_destroy(void *state) { sl_urban_sweep_destroy(state); }
 
 const sl_cull_method sl_cull_method_horizon = {
     .name = "horizon",
+    .suits = "cities with building footprints (2.5D), eyes near the ground",
     .summary = "2.5D occlusion horizon (elevation over azimuth) swept front to back over the scene grid "
                "(Downs et al. I3D 2001; Koldas 2008 ch. 3)",
     .options_help = g_help,

@@ -360,6 +360,7 @@ static sl_status hzb_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_hzb = {
     .name = "hzb",
+    .suits = "any scene with occluders: building footprints, occluder meshes (Quake III maps, the city) or all_objects=true",
     .summary = "hierarchical z-buffer: quality-selected occluder proxies plus the visible objects' proxies "
                "rendered front to back into the conservative rasterizer, boxes tested through a max-depth "
                "pyramid (Greene, Kass & Miller 1993)",

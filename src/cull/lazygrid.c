@@ -593,6 +593,7 @@ static sl_status lg_cull(void *state, const sl_view *view, uint32_t *out, uint32
 #define LG_METHOD(NAME, STR, CONF, SUMMARY)                                                                            \
     const sl_cull_method sl_cull_method_##NAME = {                                                                     \
         .name = STR,                                                                                                   \
+        .suits = "any scene with occluders: building footprints, occluder meshes (Quake III maps, the city) or all_objects=true",                                                                                                 \
         .summary = SUMMARY,                                                                                            \
         .options_help = g_help,                                                                                        \
         .guarantee = SL_CONSERVATIVE,                                                                                  \

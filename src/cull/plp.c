@@ -1111,6 +1111,7 @@ static sl_status plp_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_plp = {
     .name = "plp",
+    .suits = "dense scenes where a time budget matters more than exactness (aggressive)",
     .summary = "prioritized-layered projection: octree cells projected by solidity from the eye until a "
                "triangle budget (aggressive; Klosowski & Silva 2000)",
     .options_help = g_help_plp,
@@ -1126,6 +1127,7 @@ const sl_cull_method sl_cull_method_plp = {
 
 const sl_cull_method sl_cull_method_cplp = {
     .name = "cplp",
+    .suits = "dense scenes of many small occluders (octree cells by solidity)",
     .summary = "conservative PLP: after the budget, the front of octree cells is tested against the "
                "rasterizer until empty (Klosowski & Silva 2001)",
     .options_help = g_help_cplp,

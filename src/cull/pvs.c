@@ -311,6 +311,7 @@ static sl_status pvs_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_pvs = {
     .name = "pvs",
+    .suits = "any scene with a PVS baked for where the eye goes (sightline pvs build)",
     .summary = "precomputed visibility: the baked set of the eye's view cell, frustum-culled (Wonka 2001, ch. 5)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE,

@@ -357,6 +357,7 @@ static sl_status vfc_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_vfc = {
     .name = "vfc",
+    .suits = "any scene: the baseline, and the fallback where no occluder helps",
     .summary = "hierarchical view-frustum culling over the object BVH with plane masks, plane coherence and "
                "closed-object back-face rejection (Assarsson & Moeller 2000)",
     .options_help = g_help,

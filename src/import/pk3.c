@@ -183,6 +183,59 @@ static uint32_t pk3_each_map(zip_t *z, void (*fn)(void *user, const char *entry)
     return count;
 }
 
+/* The archive's map names (NAME of maps/NAME.bsp, escaped) for a message, into out: with
+ * wanted == NULL the first dozen ("a, b, c ... and N more"), else those close to the entry name
+ * `wanted` ("a, b or c"; "" when none is). */
+typedef struct pk3_names {
+    char names[64][48];
+    const char *list[64];
+    uint32_t count, total;
+} pk3_names;
+
+static void pk3_collect_name(void *user, const char *entry)
+{
+    pk3_names *n = user;
+    n->total++;
+    if (n->count == 64)
+        return;
+    const char *base = strrchr(entry, '/');
+    base = base ? base + 1 : entry;
+    size_t len = strlen(base);
+    if (len >= 4)
+        len -= 4; /* ".bsp" */
+    char raw[48];
+    snprintf(raw, sizeof raw, "%.*s", (int)(len < 40 ? len : 40), base);
+    sl_escape_text(raw, 40, n->names[n->count], sizeof n->names[n->count]);
+    n->list[n->count] = n->names[n->count];
+    n->count++;
+}
+
+static void pk3_map_names(zip_t *z, const char *wanted, char *out, size_t size)
+{
+    out[0] = 0;
+    pk3_names names = {.count = 0, .total = 0}, *n = &names; /* 3.5 KB on the stack: no allocation for a message */
+    pk3_each_map(z, pk3_collect_name, n, NULL);
+    if (wanted) {
+        const char *base = strrchr(wanted, '/');
+        base = base ? base + 1 : wanted;
+        char want[64];
+        size_t len = strlen(base);
+        snprintf(want, sizeof want, "%.*s", (int)(len >= 4 ? (len - 4 < 60 ? len - 4 : 60) : len), base);
+        sl_text_suggest(want, n->list, n->count, out, size);
+    } else {
+        size_t used = 0;
+        uint32_t shown = n->count < 12 ? n->count : 12;
+        for (uint32_t i = 0; i < shown && used < size; i++) {
+            int w = snprintf(out + used, size - used, "%s%s", i ? ", " : "", n->list[i]);
+            if (w < 0)
+                break;
+            used += (size_t)w;
+        }
+        if (n->total > shown && used < size)
+            snprintf(out + used, size - used, " ... and %u more", n->total - shown);
+    }
+}
+
 sl_status sl_pk3_list_maps_memory(const void *data, size_t size, const char *archive_name,
                                   void (*fn)(void *user, const char *entry), void *user, sl_error *err)
 {
@@ -278,9 +331,15 @@ sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archiv
     if (!map || !map[0]) {
         uint32_t count = pk3_each_map(z, NULL, NULL, &idx);
         if (count != 1) {
+            char names[400];
+            pk3_map_names(z, NULL, names, sizeof names);
             zip_discard(z);
-            return sl_fail(err, count ? SL_ERROR_INVALID_ARGUMENT : SL_ERROR_NOT_FOUND,
-                           "%s: the archive holds %u maps; name the one to import", archive, count);
+            if (!count)
+                return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: the archive holds no maps (no maps/NAME.bsp entry)", archive);
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                           "%s: the archive holds %u maps (%s); name the one to import (sightline: --map NAME; "
+                           "all of them: sightline import %s --list-maps)",
+                           archive, count, names, archive);
         }
     } else {
         if (!sl_pk3_entry_name(map, wanted, sizeof wanted)) {
@@ -291,10 +350,15 @@ sl_status sl_pk3_import_memory(const void *data, size_t size, const char *archiv
         }
         idx = zip_name_locate(z, wanted, ZIP_FL_NOCASE);
         if (idx < 0) {
+            char near[400];
+            pk3_map_names(z, wanted, near, sizeof near);
             zip_discard(z);
             char shown[300];
-            return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: entry %s not found", archive,
-                           sl_escape_text(wanted, 200, shown, sizeof shown));
+            sl_escape_text(wanted, 200, shown, sizeof shown);
+            if (near[0])
+                return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: entry %s not found (did you mean %s?)", archive, shown, near);
+            return sl_fail(err, SL_ERROR_NOT_FOUND, "%s: entry %s not found (no map of that name or close to it)",
+                           archive, shown);
         }
     }
     const char *entry = zip_get_name(z, (zip_uint64_t)idx, 0);

@@ -283,6 +283,65 @@ static bool contains_geom(const sl_viewcell *c, sl_vec3 p)
            sl_orient2d(t[2].x, t[2].y, t[0].x, t[0].y, p.x, p.y) >= 0;
 }
 
+/* squared distance from (px, py) to segment a-b */
+static double seg_dist2(double px, double py, sl_vec2 a, sl_vec2 b)
+{
+    double dx = (double)b.x - a.x, dy = (double)b.y - a.y, l2 = dx * dx + dy * dy;
+    double t = l2 > 0 ? ((px - a.x) * dx + (py - a.y) * dy) / l2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double ex = px - (a.x + t * dx), ey = py - (a.y + t * dy);
+    return ex * ex + ey * ey;
+}
+
+static double box_dist2(const sl_aabb *b, sl_vec3 p)
+{
+    double d = 0, q[3] = {p.x, p.y, p.z}, lo[3] = {b->min.x, b->min.y, b->min.z}, hi[3] = {b->max.x, b->max.y, b->max.z};
+    for (int k = 0; k < 3; k++) {
+        double e = q[k] < lo[k] ? lo[k] - q[k] : q[k] > hi[k] ? q[k] - hi[k] : 0;
+        d += e * e;
+    }
+    return d;
+}
+
+uint32_t sl_viewcells_nearest(sl_viewcells v, sl_vec3 p, double *distance)
+{
+    if (distance)
+        *distance = INFINITY;
+    if (!v || !v->count || !sl_finite3(&p.x))
+        return SL_NONE;
+    uint32_t best = SL_NONE;
+    double best2 = INFINITY;
+    for (uint32_t i = 0; i < v->count; i++) {
+        const sl_viewcell *c = &v->cells[i];
+        double d2;
+        if (c->shape == SL_CELL_PRISM) {
+            const sl_vec2 *t = c->tri;
+            bool inside = sl_orient2d(t[0].x, t[0].y, t[1].x, t[1].y, p.x, p.y) >= 0 &&
+                          sl_orient2d(t[1].x, t[1].y, t[2].x, t[2].y, p.x, p.y) >= 0 &&
+                          sl_orient2d(t[2].x, t[2].y, t[0].x, t[0].y, p.x, p.y) >= 0;
+            double h2 = 0;
+            if (!inside) {
+                h2 = seg_dist2(p.x, p.y, t[0], t[1]);
+                double e = seg_dist2(p.x, p.y, t[1], t[2]);
+                h2 = e < h2 ? e : h2;
+                e = seg_dist2(p.x, p.y, t[2], t[0]);
+                h2 = e < h2 ? e : h2;
+            }
+            double vz = p.z < c->z_min ? (double)c->z_min - p.z : p.z > c->z_max ? p.z - (double)c->z_max : 0;
+            d2 = h2 + vz * vz;
+        } else {
+            d2 = box_dist2(&c->bounds, p);
+        }
+        if (d2 < best2) {
+            best2 = d2;
+            best = i;
+        }
+    }
+    if (distance)
+        *distance = sqrt(best2);
+    return best;
+}
+
 bool sl_viewcell_contains(sl_viewcells v, sl_scene scene, uint32_t cell, sl_vec3 p)
 {
     if (!v || cell >= v->count || !sl_finite3(&p.x))

@@ -682,11 +682,14 @@ static sl_aabb scene_extent(sl_scene scene)
     return b;
 }
 
-/* Flight height for a scene extent: above its lowest point by `altitude` (0: auto). */
+/* Flight height for a scene extent: above its lowest point by `altitude` (0: auto, following the
+ * scene's size: max(min(150, w/2), 1.5 h + min(50, w/2)) for a horizontal size w and height h —
+ * max(150, 1.5 h + 50) for any scene 300 m across or more, 14 m over a 10 m house 6 m high). */
 static double flight_z(const sl_aabb *b, float altitude)
 {
     double base = b->min.z, top = b->max.z;
-    double alt = altitude > 0 ? altitude : fmax(150.0, 1.5 * (top - base) + 50.0);
+    double w = fmax(b->max.x - b->min.x, b->max.y - b->min.y), half = 0.5 * fmax(w, 0.0);
+    double alt = altitude > 0 ? altitude : fmax(fmin(150.0, half), 1.5 * (top - base) + fmin(50.0, half));
     return base + alt;
 }
 

@@ -498,6 +498,7 @@ sl_status sl_bench_summarize(sl_bench b, uint32_t method, sl_bench_summary *out,
         out->visible_mean += m->visible_count;
         out->triangles_visible_mean += (double)m->triangles_visible;
         out->overestimation_mean += m->overestimation;
+        out->frames_empty += m->visible_count == 0;
         out->extra_mean += m->extra_count;
         out->missed_objects_total += m->missed_count;
         out->missed_pixels_total += m->missed_pixels;
@@ -520,6 +521,9 @@ sl_status sl_bench_summarize(sl_bench b, uint32_t method, sl_bench_summary *out,
         out->overestimation_mean /= k;
         out->extra_mean /= k;
     }
+    /* sum of |R| over sum of |V| (at least 1, as the per-frame ratio's max(|V|, 1)) */
+    double sum_r = out->objects_drawn_mean * (double)n, sum_v = out->visible_mean * (double)n;
+    out->overestimation = n ? sum_r / (sum_v > 1 ? sum_v : 1) : 1.0;
     sl_status st = sl_series_summarize(ms, n, &b->alloc, &out->cull_ms, err);
     sl_free(&b->alloc, ms, SL_MAX(nf, 1) * sizeof(double));
     return st;

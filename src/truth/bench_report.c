@@ -453,13 +453,16 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
             fprintf(fp, "| %s | %s | %u | %s | %s | %s | %.2f | %s%llu%s | %llu | %s | %s | %s |\n", m->name,
                     sl_cull_guarantee_name(m->guarantee), s.frames, grouped(g1, sizeof g1, s.objects_drawn_mean),
                     grouped(g2, sizeof g2, s.triangles_drawn_mean), grouped(g3, sizeof g3, s.visible_mean),
-                    s.overestimation_mean, violated ? "**" : "", (unsigned long long)s.missed_objects_total,
+                    s.overestimation, violated ? "**" : "", (unsigned long long)s.missed_objects_total,
                     violated ? " VIOLATION**" : "", (unsigned long long)s.missed_pixels_total,
                     ms_text(t1, sizeof t1, s.cull_ms.median), ms_text(t2, sizeof t2, s.cull_ms.p95),
                     ms_text(t3, sizeof t3, s.cull_ms.max));
         }
         fprintf(fp, "\n");
         query_line(b, fp);
+        sl_bench_recommendation rec;
+        if (sl_bench_recommend(b, &rec, NULL) == SL_OK)
+            fprintf(fp, "**Recommendation.** %s\n\n", rec.text);
     }
 }
 
@@ -481,8 +484,10 @@ sl_status sl_bench_write_summary(const sl_bench *benches, uint32_t count, const 
         return st;
     out(&f, "# Sightline benchmark summary\n\n"
             "Means are per frame; missed objects and pixels are totals over the frames (a conservative method must "
-            "show 0); over-estimation is objects drawn / exact visible objects; cull times are the per-frame "
-            "medians of the repeats, summarised over the frames. Columns: docs/bench.md.\n\n");
+            "show 0); over-estimation is the objects drawn over the exact visible objects, each summed over the frames "
+            "(a ratio of sums); cull times are the per-frame medians of the repeats, summarised over the frames. "
+            "Each scene ends with a recommendation: the fastest conservative method within a tightness bound and the "
+            "tightest within a time bound. Columns: docs/bench.md.\n\n");
     if (!f.failed) {
         summary_md(benches, count, f.fp);
         if (ferror(f.fp))

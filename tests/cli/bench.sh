@@ -18,14 +18,28 @@ if [ -n "${SL_SANITIZED:-}" ]; then N=4; else N=12; fi
 expect 0 "$SL" methods --help
 has "usage: sightline methods" "$tmp/out"
 has "example" "$tmp/out"
+# the short table by default: name, guarantee, what it suits; in full with NAME or --long
 expect 0 "$SL" methods
+has "^method  *guarantee  *suits" "$tmp/out"
+has "^vfc  *conservative  *any scene" "$tmp/out"
+has "^cullmap  *conservative  *cities with building footprints" "$tmp/out"
+hasnt "leaf_size=" "$tmp/out"
+n=$("$SL" methods --json | grep -o '"name":' | wc -l)
+[ "$(grep -c '^[a-z]' "$tmp/out")" -eq $((n + 1)) ] || fail "the short table has not one row per method (+ the header)"
+expect 0 "$SL" methods --long
 has "vfc (conservative)" "$tmp/out"
 has "leaf_size=" "$tmp/out"
+has "  suits: any scene" "$tmp/out"
+expect 0 "$SL" methods hzb
+has "^hzb (conservative; res=culling" "$tmp/out"
+has "all_objects=" "$tmp/out"
+hasnt "^vfc" "$tmp/out"
 expect 0 "$SL" methods --json
 has '"name":"vfc"' "$tmp/out"
 has '"guarantee":"conservative"' "$tmp/out"
 expect 0 "$SL" methods vfc --json
 has '"name":"vfc"' "$tmp/out"
+has '"suits":"any scene' "$tmp/out"
 expect 2 "$SL" methods nosuch
 has "unknown culling method 'nosuch'" "$tmp/err"
 expect 2 "$SL" methods --bogus
@@ -222,4 +236,32 @@ expect 2 "$SL" bench city:tiny --walk 5 --clip-depth reversed
 has "applies to --view-matrix" "$tmp/err"
 expect 2 "$SL" bench city:tiny --view-matrix $VM --proj-matrix 1,0,0,0,0,1,0,0,0,0,0,-1,0,0,0,0 --clip-depth reversed
 has "near plane" "$tmp/err"
+# the recommendation (issue 17 §1): the fastest conservative method within --max-overestimation,
+# the tightest within --max-ms, in the summary, on stdout and in the JSON; the bounds change it
+expect 0 "$SL" bench city:tiny --walk 8 --methods vfc,hzb,cullmap --no-plots --out "$tmp/rec"
+has "^\*\*Recommendation.\*\* Fastest within 2× the exact visible set: " "$tmp/out"
+has "Recommendation" "$tmp/rec/summary.md"
+grep -q '"recommendation":{"max_overestimation":2,"max_ms":2,"fastest":"[a-z]*","tightest":"[a-z]*"' "$tmp/rec/summary.json" ||
+    fail "summary.json: no recommendation"
+expect 0 "$SL" bench city:tiny --walk 8 --methods vfc,hzb,cullmap --no-plots --max-overestimation 1000 --max-ms 1e-9 \
+    --out "$tmp/rec2" --json
+has '"fastest":"vfc"' "$tmp/out"
+has '"tightest":null' "$tmp/out"
+expect 2 "$SL" bench city:tiny --walk 8 --max-overestimation 0.5
+has "at least 1" "$tmp/err"
+# views that see nothing (a flyover far above the scene) warn and exit 1 unless --allow-empty
+expect 1 "$SL" bench city:tiny --random flyover --count 6 --altitude 100000 --methods vfc --no-plots --out "$tmp/e1"
+has "WARNING: in 6 of the 6 frames of city-tiny-1 the oracle sees no object" "$tmp/err"
+expect 0 "$SL" bench city:tiny --random flyover --count 6 --altitude 100000 --methods vfc --no-plots --allow-empty \
+    --out "$tmp/e2"
+has "allow-empty: exit status 0" "$tmp/err"
+# the default flyover height follows the scene's size: the IFC house (18 x 16 m) is seen
+HOUSE=/usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc
+if [ -f "$HOUSE" ]; then
+    expect 0 "$SL" bench "$HOUSE" --random flyover --count 10 --methods vfc --no-plots --out "$tmp/h" --json
+    hasnt "WARNING" "$tmp/err"
+    expect 0 "$SL" path gen "$HOUSE" --kind flyover --frames 3 -o "$tmp/hf.txt"
+    z=$(awk '!/^#/ && !/^camera/ && NF == 7 { print $4; exit }' "$tmp/hf.txt")
+    awk -v z="$z" 'BEGIN { exit !(z > 10 && z < 20) }' || fail "flyover over the house at z=$z (expected 1.5 h + 9 above -1 m)"
+fi
 echo "PASS"

@@ -41,6 +41,14 @@ C
 export PKG_CONFIG_PATH="$libdir/pkgconfig"
 cc -std=gnu11 -Wall -Werror "$tmp/consumer.c" -o "$tmp/consumer_pc" $(pkg-config --cflags --libs sightline)
 LD_LIBRARY_PATH="$libdir" "$tmp/consumer_pc" | grep -q "1 mesh"
+# without LD_LIBRARY_PATH, as README says: the library's folder as the program's run path
+cc -std=gnu11 -Wall -Werror "$tmp/consumer.c" -o "$tmp/consumer_rp" $(pkg-config --cflags --libs sightline) \
+    -Wl,-rpath,"$(pkg-config --variable=libdir sightline)"
+env -u LD_LIBRARY_PATH "$tmp/consumer_rp" | grep -q "1 mesh" || fail "a program linked with -Wl,-rpath does not run"
+# pkg-config --static gives a link line that builds against the static library
+cc -std=gnu11 -Wall -Werror "$tmp/consumer.c" -o "$tmp/consumer_st" $(pkg-config --cflags sightline) \
+    "$libdir/libsightline.a" $(pkg-config --static --libs-only-other --libs-only-l sightline | sed 's/-lsightline//')
+env -u LD_LIBRARY_PATH "$tmp/consumer_st" | grep -q "1 mesh" || fail "pkg-config --static does not link"
 
 # CMake package, shared and static
 mkdir -p "$tmp/cm"
@@ -55,7 +63,8 @@ target_link_libraries(consumer_static PRIVATE sightline::sightline_static)
 CM
 cmake -S "$tmp/cm" -B "$tmp/cm/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" >/dev/null
 cmake --build "$tmp/cm/build" >/dev/null
-LD_LIBRARY_PATH="$libdir" "$tmp/cm/build/consumer_shared" | grep -q "1 mesh"
+# CMake gives the program the imported library's folder as its build run path: no LD_LIBRARY_PATH
+env -u LD_LIBRARY_PATH "$tmp/cm/build/consumer_shared" | grep -q "1 mesh" || fail "the CMake consumer needs LD_LIBRARY_PATH"
 "$tmp/cm/build/consumer_static" | grep -q "1 mesh"
 # the run-time library (libsightline_runtime, sightline-runtime.pc, CMake package
 # sightline_runtime): none of the bake-time dependencies in its link line or the consumer's

@@ -38,9 +38,13 @@ expect 0 "$SL" pvs query "$tmp/q.slpvs" --point "$P" --scene "$PK3" --map q3dm6i
 has "^cell 3 (cluster" "$tmp/out"
 expect 0 "$SL" pvs query "$tmp/q.slpvs" --point "$P" --scene "$PK3" --map q3dm6ish --json
 has '"cell":3' "$tmp/out"
-expect 0 "$SL" pvs query "$tmp/q.slpvs" --point 0,0,-1000 --scene "$PK3" --map q3dm6ish
-has "no view cell holds (0, 0, -1000)" "$tmp/out"
-has "outside the domain" "$tmp/out"
+# a point in no cell: the nearest cell and its distance, a non-zero exit (also --json)
+expect 1 "$SL" pvs query "$tmp/q.slpvs" --point 0,0,-1000 --scene "$PK3" --map q3dm6ish
+has "no view cell holds (0, 0, -1000)" "$tmp/err"
+has "outside the domain" "$tmp/err"
+has "the nearest is cell [0-9]*, [0-9.]* m away" "$tmp/err"
+expect 1 "$SL" pvs query "$tmp/q.slpvs" --point 0,0,-1000 --scene "$PK3" --map q3dm6ish --json
+has '"cell":null,"nearest_cell":[0-9]*,"nearest_distance":' "$tmp/out"
 # --cell needs no scene
 expect 0 "$SL" pvs query "$tmp/q.slpvs" --cell 3
 has "^cell 3 (cluster" "$tmp/out"
@@ -65,4 +69,10 @@ for c in "$cells" 4294967295; do
 done
 expect 0 "$SL" pvs query "$tmp/q.slpvs" --cell "$last" --json
 has "\"cell\":$last" "$tmp/out"
+# street cells: a point 100 m beside the city names the nearest cell; its distance is exact
+expect 0 "$SL" pvs build city:tiny -o "$tmp/t.slpvs" --method adjustable --cell-size 40 --threads 1 --quiet
+expect 1 "$SL" pvs query "$tmp/t.slpvs" --point 0,0,500 --json
+has '"nearest_cell":' "$tmp/out"
+d=$(sed -n 's/.*"nearest_distance":\([0-9.e+]*\).*/\1/p' "$tmp/out")
+awk -v d="$d" 'BEGIN { exit !(d > 490 && d < 500) }' || fail "nearest distance $d for a point 500 m up (cells reach about 2 m)"
 echo "ok"
