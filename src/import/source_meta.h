@@ -20,8 +20,4 @@ sl_status sl_scene_set_source_file(sl_scene scene, const char *path, sl_error *e
  * of the entry's bytes, set by sl_scene_set_source). */
 sl_status sl_scene_set_source_entry(sl_scene scene, const char *archive, const char *entry, sl_error *err);
 
-/* Set the scene's base folder (sl_scene_set_base_dir) to the folder holding file `path`: the part
- * before its last '/', "/" for a file in the root, "." for a bare name. */
-sl_status sl_scene_set_base_dir_of(sl_scene scene, const char *path, sl_error *err);
-
 #endif
