@@ -42,6 +42,17 @@ static void touch(sl_scene s)
     sl_scene_get_stats(s, &st);
     for (uint32_t i = 0; i < st.object_count; i++)
         (void)sl_scene_object(s, i);
+    /* format 1.1: materials (their texture strings are read), object materials, UVs */
+    for (uint32_t i = 0; i <= st.material_count; i++) {
+        sl_material m;
+        if (sl_scene_material(s, i, &m) && m.base_color_texture && !sl_texture_path_check(m.base_color_texture, NULL))
+            abort(); /* the reader let an invalid texture path through */
+    }
+    for (uint32_t i = 0; i < st.mesh_count; i++) {
+        sl_mesh_view mv = sl_scene_mesh(s, i);
+        if (mv.uvs && mv.vertex_count)
+            (void)(mv.uvs[0] + mv.uvs[2 * (size_t)mv.vertex_count - 1]);
+    }
     for (uint32_t i = 0; i < st.footprint_count; i++)
         (void)sl_scene_footprint(s, i);
     (void)sl_scene_bsp_find_leaf(s, (sl_vec3){0, 0, 0});

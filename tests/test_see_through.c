@@ -23,12 +23,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "core/sl_core.h"
 #include "embree/embree_scene.h"
 #include "sightline/backend.h"
 #include "sightline/bake.h"
 #include "sightline/cull.h"
+#include "sightline/import.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
 #include "support/box_mesh.h"
@@ -389,6 +391,33 @@ static void test_embree_rays(void **state)
     sl_scene_destroy(w.s);
 }
 
+/* Quake III maps: faces with translucent, water or fog shaders (and nodraw or alpha-shadow
+ * surfaces) become see-through objects, never occluders (OpenArena's oa_dm5: glass and water). */
+static void test_q3_map(void **state)
+{
+    (void)state;
+    const char *pk3 = "/usr/share/games/openarena/baseoa/pak1-maps.pk3";
+    if (access(pk3, R_OK) != 0)
+        skip();
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_import_q3bsp(pk3, "oa_dm5", NULL, NULL, &s, &err), SL_OK);
+    uint32_t see = 0;
+    for (uint32_t i = 0; i < sl_scene_object_count(s); i++) {
+        sl_object_view ov = sl_scene_object(s, i);
+        if (ov.flags & SL_OBJECT_SEE_THROUGH) {
+            see++;
+            assert_int_equal(ov.flags & SL_OBJECT_OCCLUDER, 0);
+        }
+    }
+    print_message("oa_dm5: %u objects, %u see-through\n", sl_scene_object_count(s), see);
+    assert_true(see > 0);
+    char want[16];
+    snprintf(want, sizeof want, "%u", see);
+    assert_string_equal(sl_scene_meta(s, "q3.see_through_objects"), want);
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -396,6 +425,7 @@ int main(void)
         cmocka_unit_test(test_cpu_backend),
         cmocka_unit_test(test_embree_rays),
         cmocka_unit_test(test_methods_and_bakers),
+        cmocka_unit_test(test_q3_map),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

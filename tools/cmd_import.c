@@ -208,6 +208,13 @@ int sl_cmd_import(int argc, char **argv)
 
     sl_scene_stats s;
     sl_scene_get_stats(scene, &s);
+    /* textures the importer could not keep (docs/import-export.md, "Materials") */
+    const char *dropped = sl_scene_meta(scene, "assimp.textures_dropped"),
+               *embedded = sl_scene_meta(scene, "assimp.textures_embedded");
+    if (dropped || embedded)
+        fprintf(stderr, "%s: warning: textures not kept: %s outside the model's folder or invalid, %s embedded (not supported); first: %s\n",
+                a.cmd, dropped ? dropped : "0", embedded ? embedded : "0",
+                sl_scene_meta(scene, "assimp.textures_dropped.first") ? sl_scene_meta(scene, "assimp.textures_dropped.first") : "?");
     struct stat fs;
     uint64_t bytes = stat(output, &fs) == 0 ? (uint64_t)fs.st_size : 0;
     const char *format = sl_scene_meta(scene, q3 ? "importer" : "assimp.format");
@@ -223,6 +230,9 @@ int sl_cmd_import(int argc, char **argv)
         cli_json_uint(&j, "vertices", s.vertex_count);
         cli_json_uint(&j, "triangles_stored", s.triangle_count);
         cli_json_uint(&j, "triangles_instanced", s.instanced_triangle_count);
+        cli_json_uint(&j, "materials", s.material_count);
+        cli_json_uint(&j, "see_through_objects", s.see_through_count);
+        cli_json_uint(&j, "meshes_with_uvs", s.uv_mesh_count);
         cli_json_array_begin(&j, "bounds_min");
         cli_json_double(&j, NULL, s.bounds.min.x), cli_json_double(&j, NULL, s.bounds.min.y), cli_json_double(&j, NULL, s.bounds.min.z);
         cli_json_array_end(&j);
@@ -248,6 +258,9 @@ int sl_cmd_import(int argc, char **argv)
                (unsigned long long)s.instanced_triangle_count, (unsigned long long)s.vertex_count);
         printf("  bounds         (%.2f, %.2f, %.2f) .. (%.2f, %.2f, %.2f) m\n", s.bounds.min.x, s.bounds.min.y, s.bounds.min.z,
                s.bounds.max.x, s.bounds.max.y, s.bounds.max.z);
+        if (s.material_count || s.see_through_count || s.uv_mesh_count)
+            printf("  materials      %u (%u see-through objects, %u meshes with UVs)\n", s.material_count, s.see_through_count,
+                   s.uv_mesh_count);
         if (s.has_bsp)
             printf("  bsp            %u leaves, %u clusters\n", s.bsp_leaf_count, s.bsp_cluster_count);
         printf("  time           %.3f s import, %.3f s save\n", t1 - t0, t2 - t1);

@@ -125,6 +125,9 @@ int sl_cmd_info(int argc, char **argv)
         cli_json_uint(&j, "memory_bytes", st.memory_bytes);
         cli_json_uint(&j, "peak_rss_bytes", cli_peak_rss());
         cli_json_uint(&j, "footprints", st.footprint_count);
+        cli_json_uint(&j, "materials", st.material_count);
+        cli_json_uint(&j, "see_through_objects", st.see_through_count);
+        cli_json_uint(&j, "meshes_with_uvs", st.uv_mesh_count);
         cli_json_uint(&j, "facades", footprint_edges);
         cli_json_uint(&j, "occluder_meshes", st.occluder_count);
         cli_json_uint(&j, "street_polygons", st.street_polygon_count);
@@ -176,6 +179,9 @@ int sl_cmd_info(int argc, char **argv)
                        (unsigned long long)st.triangles_per_kind[k]);
         printf("  occluders      %u footprints (%llu façades), %u 3D occluder meshes\n", st.footprint_count,
                (unsigned long long)footprint_edges, st.occluder_count);
+        if (st.material_count || st.see_through_count || st.uv_mesh_count)
+            printf("  materials      %u (%u see-through objects, %u meshes with UVs)\n", st.material_count,
+                   st.see_through_count, st.uv_mesh_count);
         printf("  streets        %u polygons, graph %u nodes / %u edges\n", st.street_polygon_count, st.street_node_count,
                st.street_edge_count);
         if (has_terrain)

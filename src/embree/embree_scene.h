@@ -10,8 +10,9 @@
  * seen from its mesh-space front side.
  *
  * Hits follow the point oracle's rules (truth.h): both sides of a triangle are hit, except the back
- * faces of SL_OBJECT_CLOSED_CONVEX objects (skipped by an Embree intersection filter that exists
- * only when the scene has such objects). The scene is built with RTC_SCENE_FLAG_ROBUST, so rays do
+ * faces of SL_OBJECT_CLOSED_CONVEX objects, and SL_OBJECT_SEE_THROUGH triangles never stop a ray
+ * (docs/oracle.md, rule 5): both by an Embree intersection filter that exists only when the scene
+ * has such objects. The scene is built with RTC_SCENE_FLAG_ROBUST, so rays do
  * not slip through the shared edges of a closed mesh.
  *
  * Each sl_es owns its RTCDevice (no global state). The scene is a snapshot: later changes to the

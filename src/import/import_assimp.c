@@ -68,8 +68,13 @@ typedef struct import_ctx {
     sl_array groups;            /* mesh_group */
     uint32_t *table;            /* open-addressing hash of groups, SL_NONE = empty */
     size_t table_cap;
+    /* materials: Sightline material id per aiMaterial (SL_NONE: not converted yet, 0: none) */
+    uint32_t *mat_map;
+    uint32_t mat_count;
+    uint32_t textures_dropped, textures_embedded;
+    char first_dropped[200];    /* the first dropped texture and why */
     /* scratch for merging a node's meshes */
-    sl_array pos, nrm;          /* float */
+    sl_array pos, nrm, uv;      /* float */
     sl_array idx;               /* uint32 */
     uint64_t triangles;         /* objects' triangles added so far */
 } import_ctx;
@@ -224,6 +229,130 @@ static uint32_t node_color(const import_ctx *c, const node_rec *nr)
     return hash_color(n->mName.data, n->mName.length ? 0 : nr->index + 1);
 }
 
+/* ---- materials (docs/import-export.md, "Materials") ---- */
+
+static float clamp01(float v) { return v > 0 ? (v < 1 ? v : 1) : 0; } /* NaN -> 0 */
+
+/* The base-colour texture of a material as a path inside the model's folder (in *tex), or false:
+ * none, embedded ("*N": not supported) or leaving the folder (counted, the first one noted). */
+static bool material_texture(import_ctx *c, const struct aiMaterial *mat, unsigned int index, char *tex, size_t size)
+{
+    struct aiString path;
+    if (aiGetMaterialTexture(mat, aiTextureType_BASE_COLOR, 0, &path, NULL, NULL, NULL, NULL, NULL, NULL) != aiReturn_SUCCESS &&
+        aiGetMaterialTexture(mat, aiTextureType_DIFFUSE, 0, &path, NULL, NULL, NULL, NULL, NULL, NULL) != aiReturn_SUCCESS)
+        return false;
+    char p[MAXLEN + 1];
+    size_t n = SL_MIN((size_t)path.length, (size_t)MAXLEN);
+    memcpy(p, path.data, n);
+    p[n] = 0;
+    for (size_t i = 0; i < n; i++)
+        if (p[i] == '\\')
+            p[i] = '/'; /* files written on Windows */
+    const char *q = p;
+    while (q[0] == '.' && q[1] == '/')
+        q += 2;
+    const char *why = NULL;
+    if (q[0] == '*') {
+        c->textures_embedded++;
+        why = "is embedded in the model (not supported)";
+    } else if (!sl_texture_path_check(q, &why)) {
+        c->textures_dropped++;
+    } else if (strlen(q) + 1 <= size) {
+        memcpy(tex, q, strlen(q) + 1);
+        return true;
+    } else {
+        c->textures_dropped++;
+        why = "is too long";
+    }
+    if (!c->first_dropped[0]) {
+        char shown[120];
+        snprintf(c->first_dropped, sizeof c->first_dropped, "material %u: texture \"%s\" %s", index,
+                 sl_escape_text(q, 80, shown, sizeof shown), why);
+    }
+    return false;
+}
+
+/* The Sightline material of aiMaterial `index` (converted once), or 0 for none (assimp's
+ * placeholder material). Base colour: the glTF base colour factor, else the diffuse colour, times
+ * the opacity in alpha; alpha mode: glTF's alphaMode and alphaCutoff, else blend when the opacity
+ * or the colour's alpha is below 1; double-sided from $mat.twosided. */
+static sl_status material_of(import_ctx *c, unsigned int index, uint32_t *out, sl_error *err)
+{
+    *out = SL_MATERIAL_NONE;
+    if (index >= c->ai->mNumMaterials || !c->ai->mMaterials[index] || !c->mat_map)
+        return SL_OK;
+    if (c->mat_map[index] != SL_NONE) {
+        *out = c->mat_map[index];
+        return SL_OK;
+    }
+    const struct aiMaterial *mat = c->ai->mMaterials[index];
+    c->mat_map[index] = SL_MATERIAL_NONE;
+    struct aiString name;
+    if (aiGetMaterialString(mat, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS && !strcmp(name.data, AI_DEFAULT_MATERIAL_NAME))
+        return SL_OK;
+    struct aiColor4D col = {1, 1, 1, 1};
+    if (aiGetMaterialColor(mat, AI_MATKEY_BASE_COLOR, &col) != aiReturn_SUCCESS &&
+        aiGetMaterialColor(mat, AI_MATKEY_COLOR_DIFFUSE, &col) != aiReturn_SUCCESS)
+        col = (struct aiColor4D){1, 1, 1, 1};
+    float alpha = clamp01(col.a);
+    ai_real opacity;
+    if (aiGetMaterialFloatArray(mat, AI_MATKEY_OPACITY, &opacity, NULL) == aiReturn_SUCCESS && clamp01(opacity) < alpha)
+        alpha = clamp01(opacity);
+    char tex[SL_TEXTURE_PATH_MAX + 1];
+    sl_material m = {{clamp01(col.r), clamp01(col.g), clamp01(col.b), alpha}, NULL, SL_ALPHA_OPAQUE, 0.5f, 0};
+    if (material_texture(c, mat, index, tex, sizeof tex))
+        m.base_color_texture = tex;
+    struct aiString mode;
+    if (aiGetMaterialString(mat, "$mat.gltf.alphaMode", 0, 0, &mode) == aiReturn_SUCCESS) {
+        if (!strcmp(mode.data, "MASK")) {
+            m.alpha_mode = SL_ALPHA_MASK;
+            ai_real cut;
+            if (aiGetMaterialFloatArray(mat, "$mat.gltf.alphaCutoff", 0, 0, &cut, NULL) == aiReturn_SUCCESS)
+                m.alpha_cutoff = clamp01(cut);
+        } else if (!strcmp(mode.data, "BLEND")) {
+            m.alpha_mode = SL_ALPHA_BLEND;
+        }
+    } else if (alpha < 1) {
+        m.alpha_mode = SL_ALPHA_BLEND; /* OBJ "d", FBX/COLLADA transparency */
+    }
+    int two = 0;
+    if (aiGetMaterialIntegerArray(mat, AI_MATKEY_TWOSIDED, &two, NULL) == aiReturn_SUCCESS && two)
+        m.flags |= SL_MATERIAL_DOUBLE_SIDED;
+    sl_status st = sl_scene_add_material(c->scene, &m, &c->mat_map[index], err);
+    if (st != SL_OK) {
+        c->mat_map[index] = SL_MATERIAL_NONE;
+        sl_error_prefix(err, "%s: material %u", c->path, index);
+        return st;
+    }
+    *out = c->mat_map[index];
+    return SL_OK;
+}
+
+/* The material of a node's object: that of its largest triangle mesh (as the colour); *see_through
+ * when any of its triangle meshes has a mask or blend material (the merged object never occludes). */
+static sl_status node_material(import_ctx *c, const node_rec *nr, uint32_t *out, bool *see_through, sl_error *err)
+{
+    const struct aiNode *n = nr->node;
+    unsigned int best = UINT32_MAX, best_faces = 0;
+    *out = SL_MATERIAL_NONE;
+    *see_through = false;
+    for (unsigned int i = 0; i < n->mNumMeshes; i++) {
+        const struct aiMesh *m = c->ai->mMeshes[n->mMeshes[i]];
+        if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE) || !m->mNumFaces)
+            continue;
+        if (best == UINT32_MAX || m->mNumFaces > best_faces)
+            best = n->mMeshes[i], best_faces = m->mNumFaces;
+        uint32_t id;
+        sl_status st = material_of(c, m->mMaterialIndex, &id, err);
+        if (st != SL_OK)
+            return st;
+        sl_material mv;
+        if (sl_scene_material(c->scene, id, &mv) && mv.alpha_mode != SL_ALPHA_OPAQUE)
+            *see_through = true;
+    }
+    return best == UINT32_MAX ? SL_OK : material_of(c, c->ai->mMeshes[best]->mMaterialIndex, out, err);
+}
+
 /* ---- the node walk ---- */
 
 static uint64_t group_hash(const unsigned int *meshes, uint32_t count)
@@ -334,17 +463,21 @@ out:
 static sl_status merge_meshes(import_ctx *c, const node_rec *nr, const dmat *m, bool *has_normals, sl_error *err)
 {
     const struct aiNode *n = nr->node;
-    c->pos.count = c->nrm.count = c->idx.count = 0;
+    c->pos.count = c->nrm.count = c->idx.count = c->uv.count = 0;
     double cof[9];
     dmat_cofactor3(m, cof);
     double det = dmat_det3(m);
     if (det < 0)
         for (int i = 0; i < 9; i++)
             cof[i] = -cof[i];
-    bool normals = true;
-    for (unsigned int k = 0; k < n->mNumMeshes; k++)
-        if (!c->ai->mMeshes[n->mMeshes[k]]->mNormals)
+    bool normals = true, uvs = false;
+    for (unsigned int k = 0; k < n->mNumMeshes; k++) {
+        const struct aiMesh *am = c->ai->mMeshes[n->mMeshes[k]];
+        if (!am->mNormals)
             normals = false;
+        if ((am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE) && am->mNumFaces && am->mTextureCoords[0])
+            uvs = true; /* channel 0; meshes of the node without it get zeros */
+    }
     uint64_t nv = 0;
     for (unsigned int k = 0; k < n->mNumMeshes; k++) {
         unsigned int mi = n->mMeshes[k];
@@ -363,6 +496,16 @@ static sl_status merge_meshes(import_ctx *c, const node_rec *nr, const dmat *m, 
         uint32_t base = (uint32_t)nv;
         float *dp = sl_array_push(c->a, &c->pos, sizeof(float), NULL, 3 * (size_t)am->mNumVertices);
         float *dn = normals ? sl_array_push(c->a, &c->nrm, sizeof(float), NULL, 3 * (size_t)am->mNumVertices) : NULL;
+        float *du = uvs ? sl_array_push(c->a, &c->uv, sizeof(float), NULL, 2 * (size_t)am->mNumVertices) : NULL;
+        if ((normals && !dn) || (uvs && !du))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory (%u vertices)", c->path, am->mNumVertices);
+        if (du && am->mTextureCoords[0])
+            for (unsigned int v = 0; v < am->mNumVertices; v++) {
+                const struct aiVector3D *t = &am->mTextureCoords[0][v];
+                /* a non-finite coordinate would fail the whole mesh: it becomes 0 */
+                du[2 * (size_t)v] = isfinite(t->x) ? (float)t->x : 0.0f;
+                du[2 * (size_t)v + 1] = isfinite(t->y) ? (float)t->y : 0.0f;
+            }
         if (!dp || (normals && !dn))
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory (%u vertices)", c->path, am->mNumVertices);
         for (unsigned int v = 0; v < am->mNumVertices; v++) {
@@ -428,6 +571,8 @@ static sl_status merge_meshes(import_ctx *c, const node_rec *nr, const dmat *m, 
     if (c->idx.count / 3 > UINT32_MAX)
         return sl_fail(err, SL_ERROR_LIMIT, "%s: node '%s': more than 2^32-1 triangles", c->path, node_name(n));
     *has_normals = normals;
+    if (!uvs)
+        c->uv.count = 0;
     return SL_OK;
 }
 
@@ -442,7 +587,7 @@ static sl_status add_meshes(import_ctx *c, const node_rec *nr, bool has_normals,
     *count = 0;
     uint32_t target = c->opt->split_triangles;
     if (target == 0 || nt <= target) {
-        sl_mesh_desc d = {c->pos.data, nrm, nv, c->idx.data, nt, NULL};
+        sl_mesh_desc d = {c->pos.data, nrm, nv, c->idx.data, nt, c->uv.count ? c->uv.data : NULL};
         if ((st = sl_scene_add_mesh(c->scene, &d, NULL, err)) != SL_OK) {
             sl_error_prefix(err, "%s: node '%s'", c->path, node_name(nr->node));
             return st;
@@ -455,17 +600,41 @@ static sl_status add_meshes(import_ctx *c, const node_rec *nr, bool has_normals,
         sl_error_prefix(err, "%s: node '%s'", c->path, node_name(nr->node));
         return st;
     }
+    /* the pieces' UVs: corner k of output triangle t is corner k of its source triangle */
+    float *puv = NULL;
+    if (c->uv.count) {
+        puv = sl_alloc(c->a, 2 * (size_t)(r.vertex_count ? r.vertex_count : 1) * sizeof(float));
+        if (!puv) {
+            sl_split_free(c->a, &r);
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory (%u uvs)", c->path, r.vertex_count);
+        }
+        const float *uv = c->uv.data;
+        const uint32_t *src = c->idx.data;
+        for (uint32_t p = 0; p < r.piece_count; p++) {
+            const sl_split_piece *pc = &r.pieces[p];
+            for (uint32_t t = pc->first_triangle; t < pc->first_triangle + pc->triangle_count; t++)
+                for (int k = 0; k < 3; k++) {
+                    size_t out_v = (size_t)pc->first_vertex + r.indices[3 * (size_t)t + k];
+                    size_t in_v = src[3 * (size_t)r.source_triangle[t] + k];
+                    puv[2 * out_v] = uv[2 * in_v];
+                    puv[2 * out_v + 1] = uv[2 * in_v + 1];
+                }
+        }
+    }
     for (uint32_t p = 0; p < r.piece_count; p++) {
         const sl_split_piece *pc = &r.pieces[p];
         sl_mesh_desc d = {r.positions + 3 * (size_t)pc->first_vertex, r.normals ? r.normals + 3 * (size_t)pc->first_vertex : NULL,
-                          pc->vertex_count, r.indices + 3 * (size_t)pc->first_triangle, pc->triangle_count, NULL};
+                          pc->vertex_count, r.indices + 3 * (size_t)pc->first_triangle, pc->triangle_count,
+                          puv ? puv + 2 * (size_t)pc->first_vertex : NULL};
         if ((st = sl_scene_add_mesh(c->scene, &d, NULL, err)) != SL_OK) {
             sl_error_prefix(err, "%s: node '%s': piece %u", c->path, node_name(nr->node), p);
+            sl_free(c->a, puv, 2 * (size_t)(r.vertex_count ? r.vertex_count : 1) * sizeof(float));
             sl_split_free(c->a, &r);
             return st;
         }
     }
     *count = r.piece_count;
+    sl_free(c->a, puv, 2 * (size_t)(r.vertex_count ? r.vertex_count : 1) * sizeof(float));
     sl_split_free(c->a, &r);
     return SL_OK;
 }
@@ -476,9 +645,13 @@ static sl_status add_objects(import_ctx *c, const node_rec *nr, uint32_t first, 
     sl_affine t;
     for (int i = 0; i < 12; i++)
         t.m[i] = (float)transform->m[i];
-    uint32_t color = node_color(c, nr);
+    uint32_t color = node_color(c, nr), material;
+    bool see_through;
+    sl_status mst = node_material(c, nr, &material, &see_through, err);
+    if (mst != SL_OK)
+        return mst;
     for (uint32_t k = 0; k < count; k++) {
-        sl_object_desc d = {first + k, &t, color, SL_KIND_IMPORTED, 0, 0};
+        sl_object_desc d = {first + k, &t, color, SL_KIND_IMPORTED, see_through ? SL_OBJECT_SEE_THROUGH : 0, material};
         sl_status st = sl_scene_add_object(c->scene, &d, NULL, err);
         if (st != SL_OK) {
             sl_error_prefix(err, "%s: node '%s'", c->path, node_name(nr->node));
@@ -846,6 +1019,15 @@ static sl_status set_metadata(import_ctx *c, sl_error *err)
         return st;
     if (generator && generator[0] && (st = sl_scene_set_meta(c->scene, "assimp.generator", generator, err)) != SL_OK)
         return st;
+    if (c->textures_dropped || c->textures_embedded) {
+        snprintf(buf, sizeof buf, "%u", c->textures_dropped);
+        if ((c->textures_dropped && (st = sl_scene_set_meta(c->scene, "assimp.textures_dropped", buf, err)) != SL_OK))
+            return st;
+        snprintf(buf, sizeof buf, "%u", c->textures_embedded);
+        if ((c->textures_embedded && (st = sl_scene_set_meta(c->scene, "assimp.textures_embedded", buf, err)) != SL_OK) ||
+            (st = sl_scene_set_meta(c->scene, "assimp.textures_dropped.first", c->first_dropped, err)) != SL_OK)
+            return st;
+    }
     if (c->opt->split_triangles) {
         snprintf(buf, sizeof buf, "%u", c->opt->split_triangles);
         if ((st = sl_scene_set_meta(c->scene, "assimp.split_triangles", buf, err)) != SL_OK)
@@ -921,8 +1103,9 @@ sl_status sl_import_assimp_checked(const char *path, const sl_import_options *op
         return sl_fail(err, SL_ERROR_CANCELLED, "%s: import cancelled", path);
 
     /* Triangulate polygons, share identical vertices, drop point and line primitives, drop what
-     * culling never reads (texture coordinates, colours, tangents, bones, animations, textures,
-     * lights, cameras) so that more vertices join, and validate what the importer produced.
+     * neither culling nor the renderer reads (colours, tangents, bones, animations, embedded
+     * textures, lights, cameras) so that more vertices join, and validate what the importer
+     * produced. Texture coordinates stay (channel 0 becomes the meshes' UVs).
      * Normals: the file's own where it has them; otherwise sl_scene_add_mesh computes
      * area-weighted vertex normals after the join. assimp's GenSmoothNormals would do the same
      * with an angle limit, but costs ~5 s per million triangles (SpatialSort over unjoined
@@ -944,7 +1127,7 @@ sl_status sl_import_assimp_checked(const char *path, const sl_import_options *op
     }
     aiSetImportPropertyInteger(props, AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
     aiSetImportPropertyInteger(props, AI_CONFIG_PP_RVC_FLAGS,
-                               aiComponent_TEXCOORDS | aiComponent_COLORS | aiComponent_TANGENTS_AND_BITANGENTS |
+                               aiComponent_COLORS | aiComponent_TANGENTS_AND_BITANGENTS |
                                    aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS | aiComponent_TEXTURES | aiComponent_LIGHTS |
                                    aiComponent_CAMERAS);
     /* read and validate first, without post-processing: JoinIdenticalVertices would merge a NaN
@@ -1003,6 +1186,16 @@ sl_status sl_import_assimp_checked(const char *path, const sl_import_options *op
     }
     if ((st = sl_scene_create(a, &c.scene, err)) != SL_OK)
         goto fail;
+    if (ai->mNumMaterials) {
+        c.mat_map = sl_alloc(a, (size_t)ai->mNumMaterials * sizeof(uint32_t));
+        if (!c.mat_map) {
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory (%u materials)", path, ai->mNumMaterials);
+            goto fail;
+        }
+        c.mat_count = ai->mNumMaterials;
+        for (unsigned int i = 0; i < ai->mNumMaterials; i++)
+            c.mat_map[i] = SL_NONE;
+    }
     if ((st = walk_nodes(&c, err)) != SL_OK || (st = build_objects(&c, err)) != SL_OK)
         goto fail;
     if (c.triangles == 0) {
@@ -1022,6 +1215,8 @@ fail:
     sl_free(a, c.table, c.table_cap * sizeof(uint32_t));
     sl_array_free(a, &c.pos, sizeof(float));
     sl_array_free(a, &c.nrm, sizeof(float));
+    sl_array_free(a, &c.uv, sizeof(float));
     sl_array_free(a, &c.idx, sizeof(uint32_t));
+    sl_free(a, c.mat_map, (size_t)c.mat_count * sizeof(uint32_t));
     return st;
 }

@@ -24,6 +24,7 @@
  * returns into the caller's code: it leaves with _exit(), running no atexit handler and flushing
  * no stdio buffer it inherited. */
 #include "import_isolate.h"
+#include "source_meta.h"
 #include "scene/scene_internal.h"
 #include "sightline/slscene.h"
 
@@ -328,10 +329,18 @@ sl_status sl_import_assimp(const char *path, const sl_import_options *opt, const
     memset(&defaults, 0, sizeof defaults);
     if (!opt)
         opt = &defaults;
-    if (opt->in_process)
-        return sl_import_assimp_in_process(path, opt, alloc, out, err);
-    sl_status st = sl_import_assimp_check(path, opt, alloc, err);
-    if (st != SL_OK)
-        return st;
-    return import_isolated(path, opt, alloc, out, err);
+    sl_status st;
+    if (opt->in_process) {
+        st = sl_import_assimp_in_process(path, opt, alloc, out, err);
+    } else {
+        st = sl_import_assimp_check(path, opt, alloc, err);
+        if (st == SL_OK)
+            st = import_isolated(path, opt, alloc, out, err);
+    }
+    /* texture paths are relative to the model's folder (not carried by the child's .slscene) */
+    if (st == SL_OK && (st = sl_scene_set_base_dir_of(*out, path, err)) != SL_OK) {
+        sl_scene_destroy(*out);
+        *out = NULL;
+    }
+    return st;
 }

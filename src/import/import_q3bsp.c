@@ -130,7 +130,7 @@ typedef struct q3_ctx {
     int32_t vis_clusters, vis_bytes; /* -1: no visdata */
 
     sl_scene scene;
-    uint32_t solid_objects, sky_objects;
+    uint32_t solid_objects, sky_objects, see_through_objects;
     sl_array sky_list;  /* char: comma-separated sky object ids */
 
     /* scratch reused for every object */
@@ -286,6 +286,15 @@ static sl_status q3_check_drawverts(q3_ctx *c)
 }
 
 static bool q3_is_sky(const q3_shader *s) { return (s->flags & Q3_SURF_SKY) || strcasestr(s->name, "sky"); }
+
+/* See-through (docs/import-export.md, "Quake III maps"): a shader marked translucent (surfaceparm
+ * trans: alpha-tested grates and foliage, blended glass), water or fog, an alpha-shadow surface or
+ * one that is never drawn (nodraw): it can be seen through, so it never hides anything. */
+static bool q3_see_through(const q3_shader *s)
+{
+    return (s->contents & (Q3_CONTENTS_TRANSLUCENT | Q3_CONTENTS_WATER | Q3_CONTENTS_FOG)) ||
+           (s->flags & (Q3_SURF_NODRAW | Q3_SURF_ALPHASHADOW));
+}
 
 /* Opaque solid: may hide what is behind it. Meshes (misc_model) never count: they are detail,
  * often alpha-tested foliage, and not sealed. */
@@ -832,8 +841,12 @@ static sl_status q3_emit_object(q3_ctx *c, const uint32_t *faces, uint32_t n, ui
     }
     /* brush entities (doors, platforms) move in the game: never trusted as occluders */
     bool world = source <= c->count[Q3_LEAVES];
+    /* one see-through face makes the whole object see-through (it never hides anything) */
+    bool see_through = false;
+    for (uint32_t i = 0; i < n && !see_through && cls == Q3_CLASS_OTHER; i++)
+        see_through = q3_see_through(&c->shaders[c->faces[faces[i]].shader]);
     sl_object_desc od = {mesh, NULL, q3_shader_color(&c->shaders[shader]), SL_KIND_BSP_FACES,
-                         cls == Q3_CLASS_SOLID && world ? SL_OBJECT_OCCLUDER : 0, 0};
+                         see_through ? SL_OBJECT_SEE_THROUGH : cls == Q3_CLASS_SOLID && world ? SL_OBJECT_OCCLUDER : 0, 0};
     st = sl_scene_add_object(c->scene, &od, &object, c->err);
     if (st != SL_OK) {
         sl_error_prefix(c->err, "%s", c->name);
@@ -843,6 +856,7 @@ static sl_status q3_emit_object(q3_ctx *c, const uint32_t *faces, uint32_t n, ui
         c->faces[faces[i]].object = object;
     if (od.flags & SL_OBJECT_OCCLUDER)
         c->solid_objects++;
+    c->see_through_objects += see_through;
     if (cls == Q3_CLASS_SKY) {
         char buf[16];
         int len = snprintf(buf, sizeof buf, "%s%u", c->sky_objects ? "," : "", object);
@@ -1258,6 +1272,7 @@ static sl_status q3_set_metadata(q3_ctx *c, uint32_t cluster_count)
         (st = q3_meta(c, "q3.has_vis", "%s", c->vis_clusters > 0 ? "yes" : "no")) != SL_OK ||
         (st = q3_meta(c, "q3.triangles", "%llu", (unsigned long long)stats.triangle_count)) != SL_OK ||
         (st = q3_meta(c, "q3.occluder_objects", "%u", c->solid_objects)) != SL_OK ||
+        (st = q3_meta(c, "q3.see_through_objects", "%u", c->see_through_objects)) != SL_OK ||
         (st = q3_meta(c, "q3.spawn_count", "%u", spawn_count)) != SL_OK ||
         (st = sl_scene_set_meta(c->scene, "q3.spawns", spawns.data, c->err)) != SL_OK ||
         (st = sl_scene_set_meta(c->scene, "q3.sky_objects", c->sky_list.data, c->err)) != SL_OK)

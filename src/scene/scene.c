@@ -482,6 +482,24 @@ sl_status sl_scene_set_base_dir(sl_scene s, const char *dir, sl_error *err)
     return SL_OK;
 }
 
+sl_status sl_scene_set_base_dir_of(sl_scene scene, const char *path, sl_error *err)
+{
+    const char *slash = strrchr(path, '/');
+    if (!slash)
+        return sl_scene_set_base_dir(scene, ".", err);
+    if (slash == path)
+        return sl_scene_set_base_dir(scene, "/", err);
+    size_t n = (size_t)(slash - path);
+    char *dir = sl_alloc(&scene->alloc, n + 1);
+    if (!dir)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    memcpy(dir, path, n);
+    dir[n] = 0;
+    sl_status st = sl_scene_set_base_dir(scene, dir, err);
+    sl_free(&scene->alloc, dir, n + 1);
+    return st;
+}
+
 uint32_t sl_scene_material_count(sl_scene s) { return (uint32_t)s->materials.count; }
 
 bool sl_scene_material(sl_scene s, uint32_t id, sl_material *out)

@@ -132,6 +132,11 @@ const char *sl_texture_path_problem(const char *p, size_t len);
 /* Reason a material record is invalid, or NULL (finite colour in [0,1], known alpha mode, cutoff). */
 const char *sl_material_rec_problem(const sl_material_rec *m);
 
+/* Set the scene's base folder (sl_scene_set_base_dir) to the folder holding file `path`: the part
+ * before its last '/', "/" for a file in the root, "." for a bare name (the .slscene loader, the
+ * assimp importer). */
+sl_status sl_scene_set_base_dir_of(sl_scene scene, const char *path, sl_error *err);
+
 /* Recompute the world bounds of one object from its mesh bounds and transform. */
 void sl_scene_update_object_bounds(struct sl_scene_t *s, uint32_t object);
 

@@ -837,22 +837,7 @@ static sl_status load(reader *r, sl_mapping *map, sl_scene *out)
 /* Texture paths of a loaded file are relative to the file's folder (docs/slscene-format.md). */
 static sl_status set_base_dir_of(const char *path, sl_scene *out, sl_error *err)
 {
-    const char *slash = strrchr(path, '/');
-    size_t n = slash ? (size_t)(slash - path) : 0;
-    char *dir = sl_alloc(&(*out)->alloc, n + 2);
-    sl_status st = SL_OK;
-    if (!dir) {
-        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
-    } else {
-        if (!slash)
-            memcpy(dir, ".", 2);
-        else if (n == 0)
-            memcpy(dir, "/", 2);
-        else
-            memcpy(dir, path, n), dir[n] = 0;
-        st = sl_scene_set_base_dir(*out, dir, err);
-        sl_free(&(*out)->alloc, dir, n + 2);
-    }
+    sl_status st = sl_scene_set_base_dir_of(*out, path, err);
     if (st != SL_OK) {
         sl_scene_destroy(*out);
         *out = NULL;
