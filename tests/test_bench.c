@@ -279,7 +279,7 @@ static void test_query_stalls_reported(void **state)
 {
     (void)state;
     known k = make_known();
-    sl_bench_method_spec specs[] = {{"vfc", NULL}, {"hoq", "latency=1,leaf_size=1"}};
+    sl_bench_method_spec specs[] = {{"vfc", NULL}, {"gl-stopwait", "latency=1,leaf_size=1"}};
     sl_bench_options opt = sl_bench_default_options();
     opt.label = "known";
     sl_bench b;
@@ -309,7 +309,7 @@ static void test_query_stalls_reported(void **state)
         const char *end = strchr(line, '\n'), *last = end;
         while (last > line && last[-1] != ',')
             last--;
-        if (strstr(line, ",hoq,") && strstr(line, ",hoq,") < end) {
+        if (strstr(line, ",gl-stopwait,") && strstr(line, ",gl-stopwait,") < end) {
             hoq_rows++;
             csv_stalls += strtoull(last, NULL, 10);
         } else {
@@ -334,7 +334,7 @@ static void test_query_stalls_reported(void **state)
     snprintf(path, sizeof path, "%s/summary.md", dir);
     assert_int_equal(sl_bench_write_summary(&b, 1, path, &err), SL_OK);
     text = read_text(path, NULL);
-    snprintf(want, sizeof want, "Occlusion queries per frame (mean): hoq %.1f queries (%.1f stalls).", queries / 2.0,
+    snprintf(want, sizeof want, "Occlusion queries per frame (mean): gl-stopwait %.1f queries (%.1f stalls).", queries / 2.0,
              stalls / 2.0);
     assert_non_null(strstr(text, want));
     assert_null(strstr(text, ": vfc ")); /* no queries, no entry */
@@ -632,6 +632,10 @@ static void test_run_view(void **state)
         assert_int_equal(sl_bench_run_frame(a, &cam, &err), SL_OK);
         assert_int_equal(sl_bench_run_view(b, &v, &err), SL_OK);
         for (uint32_t m = 0; m < nm; m++) {
+            /* chc and chc++ start from the last frame's classification, and b culls other views in
+             * between: their sets depend on that history (never a miss: the violations below) */
+            if (!strcmp(specs[m].name, "chc") || !strcmp(specs[m].name, "chc++"))
+                continue;
             sl_bench_record ra, rb;
             assert_int_equal(sl_bench_get_record(a, f, m, &ra, &err), SL_OK);
             assert_int_equal(sl_bench_get_record(b, 2 * f, m, &rb, &err), SL_OK); /* b: camera, engine, ... */
