@@ -8,7 +8,8 @@
  *   bench_query_clock [--preset tiny|small|vienna] [--seed S] [--frames N] [--fps F]
  *                     [--width W --height H] [--methods SPEC,...] [--no-exact]
  *
- * SPEC is name[:key=value...] (the bench's method grammar, e.g. chc:assume_visible=3). */
+ * SPEC is name[:key=value[:key=value...]] (options separated by colons, as in the other bench
+ * programs: chc:assume_visible=3:zpass=true). */
 #include "bench_common.h"
 
 #include "sightline/backend.h"
@@ -114,8 +115,12 @@ int main(int argc, char **argv)
     uint32_t nm = 0;
     for (char *save = NULL, *tok = strtok_r(names, ",", &save); tok && nm < MAXM; tok = strtok_r(NULL, ",", &save)) {
         char *opts = strchr(tok, ':');
-        if (opts)
+        if (opts) {
             *opts++ = 0;
+            for (char *c = opts; *c; c++)
+                if (*c == ':')
+                    *c = ','; /* name:key=value:key=value (the list itself is comma-separated) */
+        }
         if (sl_draw_backend_cpu_create(s, &clock, NULL, &cpus[nm], &err) != SL_OK)
             bench_die(prog, "backend", &err);
         sl_draw_backend t = sl_draw_backend_cpu_table(cpus[nm]);
