@@ -13,6 +13,7 @@
  *  - a view held still: fewer queries after the first frame (the pull-up);
  *  - threshold > 0 is aggressive, drops visible objects, and each owns at most threshold pixels;
  *  - a backend answering 0 samples makes chc and chc++ miss (the check can fail);
+ *  - with a shared acceleration handle's tree, the same ids and queries as with their own;
  *  - options parse and bad values are refused. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -376,6 +377,56 @@ static void test_given_backend(void **state)
     sl_scene_destroy(s);
 }
 
+/* With a shared per-scene acceleration handle (its tree instead of their own), chc and chc++ give
+ * the same ids and queries as with their own tree, frame for frame over a walk. */
+static void test_shared_tree(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_error err;
+    sl_scene_accel accel;
+    assert_int_equal(sl_scene_accel_create(s, NULL, &accel, &err), SL_OK);
+    sl_culler_params pa = {NULL, accel};
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 160;
+    po.intrinsics.height = 120;
+    po.frames = sanitized() ? 8 : 30;
+    po.fps = 10;
+    sl_path walk;
+    assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b);
+    const char *methods[] = {"chc", "chc++"};
+    for (int m = 0; m < 2; m++) {
+        sl_culler own, shared;
+        assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &own, &err), SL_OK);
+        assert_int_equal(sl_culler_create_with(methods[m], s, NULL, &pa, NULL, &shared, &err), SL_OK);
+        for (uint32_t f = 0; f < sl_path_count(walk); f++) {
+            sl_camera cam = sl_path_camera(walk, f);
+            uint32_t ka, kb;
+            assert_int_equal(sl_culler_cull(own, &cam, a, n, &ka, &err), SL_OK);
+            sl_cull_stats sa, sb;
+            sl_culler_stats(own, &sa);
+            assert_int_equal(sl_culler_cull(shared, &cam, b, n, &kb, &err), SL_OK);
+            sl_culler_stats(shared, &sb);
+            assert_int_equal(ka, kb);
+            assert_memory_equal(a, b, ka * sizeof *a);
+            assert_int_equal(sa.queries, sb.queries);
+        }
+        /* another leaf size than the handle's is refused, naming both */
+        sl_culler bad = NULL;
+        assert_int_equal(sl_culler_create_with(methods[m], s, "leaf_size=2", &pa, NULL, &bad, &err),
+                         SL_ERROR_INVALID_ARGUMENT);
+        assert_non_null(strstr(err.message, "leaf_size"));
+        sl_culler_destroy(own);
+        sl_culler_destroy(shared);
+    }
+    free(a);
+    free(b);
+    sl_path_destroy(walk);
+    sl_scene_accel_destroy(accel);
+    sl_scene_destroy(s);
+}
+
 static void test_oracle_map(void **state)
 {
     (void)state;
@@ -544,9 +595,9 @@ static void test_options(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_clock),         cmocka_unit_test(test_options),    cmocka_unit_test(test_oracle_city),
-        cmocka_unit_test(test_static_view),
-        cmocka_unit_test(test_given_backend), cmocka_unit_test(test_threshold),  cmocka_unit_test(test_oracle_map),
+        cmocka_unit_test(test_clock),         cmocka_unit_test(test_options),     cmocka_unit_test(test_oracle_city),
+        cmocka_unit_test(test_static_view),   cmocka_unit_test(test_given_backend), cmocka_unit_test(test_shared_tree),
+        cmocka_unit_test(test_threshold),     cmocka_unit_test(test_oracle_map),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
