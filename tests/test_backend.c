@@ -1,4 +1,4 @@
-/* Draw backends (include/sightline/backend.h) and the hoq method that culls through one:
+/* Draw backends (include/sightline/backend.h) and gl-stopwait (hoq before issue 15), which culls through one:
  *  - the CPU reference backend's buffer after drawing every object is the oracle's, bit for bit;
  *  - its query counts equal a brute-force count (each query triangle drawn alone into a fresh
  *    buffer with the reference rasterizer, its fragments at least as near as the backend's depth
@@ -33,6 +33,7 @@
 #include "sightline/truth.h"
 #include "support/city_views.h"
 #include "support/pk3_names.h"
+#include "support/zero_backend.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -236,7 +237,7 @@ static void test_cpu_latency(void **state)
     sl_scene s = sl_test_tiny_city();
     sl_error err;
     const uint32_t L = 2;
-    sl_draw_backend_cpu_options co = {L};
+    sl_draw_backend_cpu_options co = {.latency_frames = L};
     sl_draw_backend_cpu cpu;
     assert_int_equal(sl_draw_backend_cpu_create(s, &co, NULL, &cpu, &err), SL_OK);
     sl_draw_backend be = sl_draw_backend_cpu_table(cpu);
@@ -308,79 +309,6 @@ static void test_cpu_latency(void **state)
 
 /* ---- hoq against the oracle ---- */
 
-/* A backend that forwards to the CPU backend but answers every query with 0 samples (broken on
- * purpose: the oracle check below must catch it). */
-typedef struct zero_backend {
-    sl_draw_backend inner;
-} zero_backend;
-
-static sl_status zb_begin_frame(void *u, const float m[16], uint32_t w, uint32_t h, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_frame(z->inner.user, m, w, h, e);
-}
-static sl_status zb_draw(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.draw_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_create(void *u, uint32_t n, sl_draw_query *q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.create_queries(z->inner.user, n, q, e);
-}
-static void zb_destroy(void *u, const sl_draw_query *q, uint32_t n)
-{
-    zero_backend *z = u;
-    z->inner.destroy_queries(z->inner.user, q, n);
-}
-static sl_status zb_begin_query(void *u, sl_draw_query q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_query(z->inner.user, q, e);
-}
-static sl_status zb_boxes(void *u, const sl_aabb *b, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_boxes(z->inner.user, b, n, e);
-}
-static sl_status zb_objects(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_end_query(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_query(z->inner.user, e);
-}
-static sl_status zb_poll(void *u, sl_draw_query q, bool *ready, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.poll_query(z->inner.user, q, ready, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_wait(void *u, sl_draw_query q, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.wait_query(z->inner.user, q, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_end_frame(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_frame(z->inner.user, e);
-}
-
-static sl_draw_backend zero_table(zero_backend *z)
-{
-    sl_draw_backend t = {SL_DRAW_BACKEND_VERSION, z, zb_begin_frame, zb_draw, zb_create, zb_destroy, zb_begin_query,
-                         zb_boxes, zb_objects, zb_end_query, zb_poll, zb_wait, zb_end_frame};
-    return t;
-}
-
 /* hoq's kept objects over vfc's on the street views: measured 0.394 (0.453 with objects queried
  * by their boxes), plus a quarter of the way to 1. */
 #define HOQ_FLOOR 0.55
@@ -439,17 +367,18 @@ static void test_hoq_oracle_city(void **state)
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu2, &err), SL_OK);
     sl_draw_backend given = sl_draw_backend_cpu_table(cpu);
-    zero_backend zb = {sl_draw_backend_cpu_table(cpu2)};
-    sl_draw_backend broken = zero_table(&zb);
+    /* answers every query with 0 samples (broken on purpose: the oracle check below must catch it) */
+    sl_test_zero_backend zb;
+    sl_draw_backend broken = sl_test_zero_table(&zb, sl_draw_backend_cpu_table(cpu2));
     hoq_run runs[6];
     memset(runs, 0, sizeof runs);
     sl_culler_params with_given = {&given, NULL}, with_broken = {&broken, NULL};
-    assert_int_equal(sl_culler_create("hoq", s, NULL, NULL, &runs[0].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &with_given, NULL, &runs[1].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create("hoq", s, "latency=1", NULL, &runs[2].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create("hoq", s, "object_queries=false", NULL, &runs[3].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &with_broken, NULL, &runs[4].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create("hoq", s, "node_queries=false", NULL, &runs[5].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, NULL, NULL, &runs[0].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &with_given, NULL, &runs[1].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "latency=1", NULL, &runs[2].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "object_queries=false", NULL, &runs[3].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &with_broken, NULL, &runs[4].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "node_queries=false", NULL, &runs[5].c, &err), SL_OK);
     assert_int_equal(sl_culler_guarantee(runs[0].c), SL_CONSERVATIVE_AT_RESOLUTION);
     sl_path street = views_of(s, SL_VIEWS_STREET, sanitized() ? 8 : 100, 61, 320, 240);
     sl_path fly = views_of(s, SL_VIEWS_FLYOVER, sanitized() ? 3 : 30, 62, 320, 240);
@@ -485,7 +414,8 @@ static void test_hoq_oracle_city(void **state)
             fail_msg("hoq run %d missed %llu visible objects at the culling resolution", r,
                      (unsigned long long)runs[r].missed);
     assert_true(runs[0].queries > 0);
-    assert_int_equal(runs[0].stalls, 0);                 /* latency 0: every result ready at once */
+    assert_int_equal(runs[1].stalls, 0);                 /* a backend without clock, latency 0: ready at once */
+    assert_int_equal(runs[0].stalls, runs[0].queries);   /* its own clocked backend: every wait stalls */
     assert_int_equal(runs[2].stalls, runs[2].queries);   /* latency 1, stop and wait: every wait stalls */
     assert_true(runs[4].missed > 0);                     /* the check catches a backend that answers 0 */
     sl_draw_backend_cpu_stats cs;
@@ -527,8 +457,8 @@ static void test_hoq_oracle_map(void **state)
     sl_culler_params params = {&given, NULL};
     hoq_run runs[2];
     memset(runs, 0, sizeof runs);
-    assert_int_equal(sl_culler_create("hoq", s, NULL, NULL, &runs[0].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &params, NULL, &runs[1].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, NULL, NULL, &runs[0].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &params, NULL, &runs[1].c, &err), SL_OK);
     run_hoq(s, p, runs, 2, 2, list->names[0]);
     print_message("%s: hoq kept %llu, missed %llu, %llu queries\n", list->names[0], (unsigned long long)runs[0].kept,
                   (unsigned long long)runs[0].missed, (unsigned long long)runs[0].queries);
@@ -680,7 +610,7 @@ static void test_hoq_eye_in_box(void **state)
     assert_int_equal(sl_oracle_render(or, &cam, &fr, &err), SL_OK);
     assert_int_equal(fr.visible_count, 2); /* O in front of W, W around it */
     sl_culler c;
-    assert_int_equal(sl_culler_create("hoq", s, "leaf_size=1,object_queries=false", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "leaf_size=1,object_queries=false", NULL, &c, &err), SL_OK);
     uint32_t out[2], k;
     assert_int_equal(sl_culler_cull(c, &cam, out, 2, &k, &err), SL_OK);
     sl_cull_metrics mt;
@@ -725,22 +655,26 @@ static void test_params_refused(void **state)
     assert_int_equal(sl_culler_create_with("vfc", s, NULL, &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "no draw backend"));
     assert_false(sl_cull_method_draws("vfc"));
-    assert_true(sl_cull_method_draws("hoq"));
+    assert_true(sl_cull_method_draws("gl-stopwait"));
     /* latency belongs to the backend hoq makes itself */
-    assert_int_equal(sl_culler_create_with("hoq", s, "latency=2", &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, "latency=2", &params, NULL, &c, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "latency"));
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, "clock=false", &params, NULL, &c, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "clock"));
     /* an incomplete table */
     sl_draw_backend bad = be;
     bad.wait_query = NULL;
     params.backend = &bad;
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "wait_query"));
     bad = be;
     bad.version = 99;
     assert_int_equal(sl_draw_backend_check(&bad, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_null(c);
     /* a bad option */
-    assert_int_equal(sl_culler_create("hoq", s, "margin=0", NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "margin=0", NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
     sl_draw_backend_cpu_destroy(cpu);
     sl_scene_destroy(s);
 }
