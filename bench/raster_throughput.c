@@ -1,7 +1,8 @@
 /* Occlusion rasterizer throughput at 1920x1080 on one thread, per instruction-set path:
  *   - random equal-size triangles whose bounding squares are 10..500 pixels, submitted back to
  *     front so that every one passes the depth test, none clipped: million triangles per second;
- *   - clearing the buffer: milliseconds;
+ *   - clearing the buffer: milliseconds (microseconds side by side; Sightline's clear is lazy: it
+ *     marks the tile rows empty, and a row gets its zeros when the first occluder reaches it);
  *   - rectangle queries of 9x5 .. 480x270 pixels behind a full-screen occluder (every answer is
  *     OCCLUDED, so every pixel is read: the worst case): nanoseconds per query.
  * Each figure is the median of several runs. Prints the machine and a Markdown table per path.
@@ -16,7 +17,9 @@
  * does). Without a peer nothing but Sightline's figures is printed: no peer figure is typed in.
  *
  * usage: bench_raster_throughput [--runs N] [--quick] [--smoke] [--threads N] [--isa NAME]... [--size N]
+ *                                [--coverage center|inner]
  *                                [--peer moc [--pairs N] [--list] [--peer-clip all|none]
+ *                                            [--part triangles|clear|queries]
  *                                            [--city tiny|small|vienna [--views N]]]
  *   --runs N     runs per figure (default 7); --quick: 3 runs, fewer triangles; --smoke: one run of
  *                tiny streams on the best path (a test that the program works, no figures to keep)
@@ -24,6 +27,9 @@
  *   --isa NAME   only this path (scalar, sse41, avx2, avx512); may repeat
  *   --size N     only the triangle figure for bounding squares of N pixels (one of the sizes
  *                above), no clear or query figures: for profiling one size
+ *   --coverage inner  Sightline with SL_RASTER_COVERAGE_INNER (the resolution-independent rule of
+ *                res=any; MOC has no such mode and keeps its own): its own rows, no target
+ *   --part P     with --peer: only the triangle, clear or query rows
  *   --peer moc   side by side with MOC (sse41, avx2, avx512 paths); --pairs N: Sightline/MOC pairs
  *                per figure (default 15); --list: print every pair's ratio; --peer-clip none: MOC
  *                renders the triangle streams with CLIP_PLANE_NONE (as its FillrateTest does: the
@@ -152,10 +158,16 @@ static void make_stream(const float P[16], int shape, int S, uint32_t n, uint64_
     }
 }
 
+/* --coverage inner: Sightline's resolution-independent rule (SL_RASTER_COVERAGE_INNER) */
+static sl_raster_coverage coverage = SL_RASTER_COVERAGE_CENTER;
+/* --part: the peer table's rows (bit 1 triangles, 2 clear, 4 queries) */
+static unsigned parts = 7;
+
 static sl_raster *make(sl_raster_isa isa, uint32_t threads)
 {
     sl_raster_options o = sl_raster_default_options(W, H);
     o.isa = isa;
+    o.coverage = coverage;
     o.threads = threads;
     sl_raster *r = NULL;
     sl_error err;
@@ -420,11 +432,13 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
         exit(1);
     }
     check_winding(r, m, P);
-    printf("## %s (Sightline %s, MOC %s), %d pairs per row\n\n", sl_raster_isa_name(isa),
-           sl_raster_isa_name(sl_raster_get_isa(r)), slmoc_isa_name(slmoc_isa(m)), pairs);
+    printf("## %s (Sightline %s%s, MOC %s), %d pairs per row\n\n", sl_raster_isa_name(isa),
+           sl_raster_isa_name(sl_raster_get_isa(r)),
+           coverage == SL_RASTER_COVERAGE_INNER ? ", INNER coverage (resolution-independent)" : "",
+           slmoc_isa_name(slmoc_isa(m)), pairs);
     printf("| figure | Sightline | MOC | MOC time / Sightline time |\n|---|---:|---:|---:|\n");
     char label[128];
-    for (int shape = 0; shape < 2; shape++)
+    for (int shape = 0; shape < 2 && (parts & 1); shape++)
         for (size_t s = 0; s < SL_COUNTOF(sizes); s++) {
             int S = sizes[s];
             if (only_size && S != only_size)
@@ -458,7 +472,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
         return;
     }
     /* clear */
-    {
+    if (parts & 2) {
         const int reps = smoke ? 10 : 2000;
         pair_sample ps = {0};
         for (int i = 0; i < pairs; i++) {
@@ -471,7 +485,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
                 slmoc_clear(m);
             pair_add(&ps, ours, (now() - t0) / reps);
         }
-        print_row("clear (ms)", &ps, 1e3, false, "%.4f");
+        print_row("clear (us)", &ps, 1e6, false, "%.3f");
     }
     /* rect queries behind a full-screen occluder */
     float wall[4 * VFLOATS];
@@ -480,7 +494,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
     sl_raster_render_triangles(r, wall, 4, wall_ix, 2, VSTRIDE, P, SL_RASTER_CULL_NONE, NULL);
     slmoc_clear(m);
     slmoc_render(m, wall, wall_ix, 2, P, 0, VSTRIDE, 4, 12, 1);
-    for (size_t q = 0; q < SL_COUNTOF(qsizes); q++) {
+    for (size_t q = 0; q < SL_COUNTOF(qsizes) && (parts & 4); q++) {
         int qw = qsizes[q][0], qh = qsizes[q][1], reps = query_reps(qw, qh);
         int32_t qx[NQ], qy[NQ];
         query_positions(qw, qh, qx, qy);
@@ -819,6 +833,20 @@ int main(int argc, char **argv)
                 fprintf(stderr, "bench_raster_throughput: --size must be 10, 25, 50, 100, 250 or 500\n");
                 return 2;
             }
+        } else if (!strcmp(argv[i], "--coverage") && i + 1 < argc) {
+            const char *c = argv[++i];
+            if (strcmp(c, "center") && strcmp(c, "inner")) {
+                fprintf(stderr, "bench_raster_throughput: --coverage must be center or inner\n");
+                return 2;
+            }
+            coverage = strcmp(c, "inner") ? SL_RASTER_COVERAGE_CENTER : SL_RASTER_COVERAGE_INNER;
+        } else if (!strcmp(argv[i], "--part") && i + 1 < argc) {
+            const char *c = argv[++i];
+            parts = !strcmp(c, "triangles") ? 1u : !strcmp(c, "clear") ? 2u : !strcmp(c, "queries") ? 4u : 0u;
+            if (!parts) {
+                fprintf(stderr, "bench_raster_throughput: --part must be triangles, clear or queries\n");
+                return 2;
+            }
         } else if (!strcmp(argv[i], "--isa") && i + 1 < argc && nonly < 8) {
             const char *n = argv[++i];
             sl_raster_isa isa = !strcmp(n, "scalar") ? SL_RASTER_ISA_SCALAR
@@ -834,7 +862,8 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "usage: %s [--runs N] [--quick] [--smoke] [--threads N] [--isa scalar|sse41|avx2|avx512]... "
-                    "[--size N] [--peer moc [--pairs N] [--list] [--peer-clip all|none] [--city PRESET [--views N]]]\n",
+                    "[--size N] [--coverage center|inner] [--peer moc [--pairs N] [--list] [--peer-clip all|none] "
+                    "[--part triangles|clear|queries] [--city PRESET [--views N]]]\n",
                     argv[0]);
             return 2;
         }

@@ -356,7 +356,7 @@ SL_RT_T static bool SL_RT_NAME(query)(const sl_rt_target *tg, const sl_rt_tri *t
             __m256i c = _mm256_shuffle_epi8(row_masks(xl, xr, x), ctl);
             float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
             __m256 z = _mm256_min_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
-            if (hides_mask(c, z, tg->mask + ti * SL_RT_SUBTILES, &tg->depth[ti]) != 0xFF)
+            if (hides_mask(c, z, sl_rt_tile_mask(tg, ty, ti), sl_rt_tile_depths(tg, ty, ti)) != 0xFF)
                 return true;
         }
     }
@@ -369,7 +369,28 @@ SL_RT_T static bool SL_RT_NAME(rect)(const sl_rt_target *tg, int32_t x0, int32_t
     const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     const __m256 z = _mm256_set1_ps(dz);
     int32_t txa = x0 / SL_RT_TILE_W, txb = (x1 - 1) / SL_RT_TILE_W;
-    for (int32_t ty = y0 / SL_RT_TILE_H; ty <= (y1 - 1) / SL_RT_TILE_H; ty++) {
+    int32_t tya = y0 / SL_RT_TILE_H, tyb = (y1 - 1) / SL_RT_TILE_H;
+    /* The common case first, without a branch per tile: every tile's whole-subtile depths hide z
+     * (then so does every subtile, whatever the rectangle covers of it). Tile pairs per step, one
+     * test per tile row; any other answer is left to the exact loop below. */
+    {
+        bool all = true;
+        const size_t tx = (size_t)tg->tiles_x, nt = (size_t)(txb - txa + 1);
+        for (int32_t ty = tya; ty <= tyb && all; ty++) {
+            const sl_rt_tile_depth *dp = &tg->depth[(size_t)ty * tx + (size_t)txa];
+            __m256 acc = _mm256_cmp_ps(_mm256_load_ps(dp[0].za), z, _CMP_GT_OQ);
+            size_t i = 1;
+            for (; i + 1 < nt; i += 2)
+                acc = _mm256_and_ps(acc, _mm256_and_ps(_mm256_cmp_ps(_mm256_load_ps(dp[i].za), z, _CMP_GT_OQ),
+                                                       _mm256_cmp_ps(_mm256_load_ps(dp[i + 1].za), z, _CMP_GT_OQ)));
+            if (i < nt)
+                acc = _mm256_and_ps(acc, _mm256_cmp_ps(_mm256_load_ps(dp[i].za), z, _CMP_GT_OQ));
+            all = _mm256_movemask_ps(acc) == 0xFF;
+        }
+        if (all)
+            return true;
+    }
+    for (int32_t ty = tya; ty <= tyb; ty++) {
         __m256i j = _mm256_add_epi32(_mm256_set1_epi32(ty * SL_RT_TILE_H), lanes);
         __m256i valid = _mm256_and_si256(_mm256_cmpgt_epi32(j, _mm256_set1_epi32(y0 - 1)),
                                          _mm256_cmpgt_epi32(_mm256_set1_epi32(y1), j));

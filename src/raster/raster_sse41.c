@@ -243,8 +243,8 @@ SSE41 static bool query_sse41(const sl_rt_target *tg, const sl_rt_tri *t)
             __m128i c1 = _mm_shuffle_epi8(row_masks(xl[1], xr[1], xo), ctl);
             float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
             __m128 zt4 = _mm_set1_ps(zt);
-            const uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
-            const sl_rt_tile_depth *dp = &tg->depth[ti];
+            const uint32_t *mp = sl_rt_tile_mask(tg, ty, ti);
+            const sl_rt_tile_depth *dp = sl_rt_tile_depths(tg, ty, ti);
             if (hides4(c0, _mm_min_ps(_mm_add_ps(zt4, off0), zclamp), mp, dp->za, dp->zm) != 0xF ||
                 hides4(c1, _mm_min_ps(_mm_add_ps(zt4, off1), zclamp), mp + 4, dp->za + 4, dp->zm + 4) != 0xF)
                 return true;
