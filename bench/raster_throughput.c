@@ -614,6 +614,11 @@ static double city_ours(sl_raster *r, const float *bv, const sl_aabb *boxes, con
     return t;
 }
 
+/* min and max as a C++ caller writes them (std::min/std::max): libm's fminf/fmaxf are calls here,
+ * which would count against MOC */
+static inline float mn(float a, float b) { return b < a ? b : a; }
+static inline float mx(float a, float b) { return a < b ? b : a; }
+
 static double city_moc(slmoc *m, const float *bv, const city_box *order, uint32_t n, const float VP[16], float near_w,
                        uint32_t *drawn)
 {
@@ -629,15 +634,15 @@ static double city_moc(slmoc *m, const float *bv, const city_box *order, uint32_
             float x = VP[0] * v[0] + VP[4] * v[1] + VP[8] * v[2] + VP[12];
             float y = VP[1] * v[0] + VP[5] * v[1] + VP[9] * v[2] + VP[13];
             float w = VP[3] * v[0] + VP[7] * v[1] + VP[11] * v[2] + VP[15];
-            wmin = fminf(wmin, w);
+            wmin = mn(wmin, w);
             float iw = 1.0f / w;
-            x0 = fminf(x0, x * iw);
-            x1 = fmaxf(x1, x * iw);
-            y0 = fminf(y0, y * iw);
-            y1 = fmaxf(y1, y * iw);
+            x0 = mn(x0, x * iw);
+            x1 = mx(x1, x * iw);
+            y0 = mn(y0, y * iw);
+            y1 = mx(y1, y * iw);
         }
         if (wmin > near_w) {
-            int res = slmoc_test_rect(m, fmaxf(x0, -1.0f), fmaxf(y0, -1.0f), fminf(x1, 1.0f), fminf(y1, 1.0f), wmin);
+            int res = slmoc_test_rect(m, mx(x0, -1.0f), mx(y0, -1.0f), mn(x1, 1.0f), mn(y1, 1.0f), wmin);
             if (res != SLMOC_VISIBLE)
                 continue;
         }

@@ -1509,6 +1509,53 @@ static void test_lazy_clear(void **state)
     free(bix);
 }
 
+/* The box query on SIMD registers answers as the corner-by-corner reference: random boxes (inside,
+ * outside, crossing the near plane, huge, degenerate) under perspective, orthographic and random
+ * matrices, over a buffer holding a scene, in both depth modes. */
+static void test_aabb_simd(void **state)
+{
+    (void)state;
+    const int W = 160, H = 96;
+    sl_rng rng;
+    sl_rng_seed(&rng, 21, 4);
+    float *v;
+    uint32_t *ix, nv;
+    int count = 600;
+    random_scene(&rng, count, &v, &ix, &nv);
+    unsigned seen[3] = {0, 0, 0};
+    for (int mode = 0; mode < 2; mode++) {
+        sl_raster_depth dm = mode ? SL_RASTER_DEPTH_LINEAR_Z : SL_RASTER_DEPTH_INV_W;
+        sl_raster *r = make(W, H, SL_RASTER_ISA_AUTO, dm, 1);
+        float P[16];
+        if (mode)
+            orthographic(P, 30, 20, 0.5, 120);
+        else
+            perspective(P, 1.1, (double)W / H, 0.3, 500);
+        render(r, v, nv, ix, (uint32_t)count, P, SL_RASTER_CULL_NONE);
+        for (int n = 0; n < 4000; n++) {
+            float M[16];
+            memcpy(M, P, sizeof M);
+            if (n % 7 == 6)
+                for (int k = 0; k < 16; k++)
+                    M[k] = sl_rng_range(&rng, -2, 2) * (n % 21 == 20 ? 1e19f : 1.0f);
+            float scale = n % 5 == 4 ? 1e6f : 1.0f;
+            float bmin[3] = {sl_rng_range(&rng, -40, 40) * scale, sl_rng_range(&rng, -30, 30) * scale,
+                             sl_rng_range(&rng, -150, 5) * scale};
+            float bmax[3];
+            for (int k = 0; k < 3; k++)
+                bmax[k] = bmin[k] + (n % 11 == 3 ? 0.0f : sl_rng_range(&rng, 0, 12));
+            sl_raster_result got = sl_raster_test_aabb(r, bmin, bmax, M);
+            assert_int_equal(got, sl_rt_test_aabb_scalar(r, bmin, bmax, M));
+            seen[got]++;
+        }
+        sl_raster_destroy(r);
+    }
+    /* every answer occurs */
+    assert_true(seen[SL_RASTER_VISIBLE] > 100 && seen[SL_RASTER_OCCLUDED] > 100 && seen[SL_RASTER_OUTSIDE] > 100);
+    free(v);
+    free(ix);
+}
+
 int main(void)
 {
     collect_isas();
@@ -1524,7 +1571,7 @@ int main(void)
         cmocka_unit_test(test_extreme_inputs),        cmocka_unit_test(test_front_end_paths),
         cmocka_unit_test(test_batched_render_paths),  cmocka_unit_test(test_fill_rule_sizes),
         cmocka_unit_test(test_merge_covering_layer),  cmocka_unit_test(test_widest_screen),
-        cmocka_unit_test(test_lazy_clear),
+        cmocka_unit_test(test_lazy_clear),            cmocka_unit_test(test_aabb_simd),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

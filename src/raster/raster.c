@@ -564,17 +564,11 @@ static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
     *hi = (int32_t)fb;
 }
 
-sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3], const float box_max[3],
-                                     const float world_to_clip[16])
+/* The box query, corner by corner: the reference of the SIMD version below (and the code where
+ * there is none). The box is finite and not empty. */
+sl_raster_result sl_rt_test_aabb_scalar(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                        const float world_to_clip[16])
 {
-    if (!ctx || !box_min || !box_max || !world_to_clip)
-        return SL_RASTER_VISIBLE;
-    for (int i = 0; i < 3; i++) {
-        if (!isfinite(box_min[i]) || !isfinite(box_max[i]))
-            return SL_RASTER_VISIBLE;
-        if (box_min[i] > box_max[i])
-            return SL_RASTER_OUTSIDE; /* an empty box */
-    }
     const sl_rt_view *v = &ctx->view;
     unsigned all = 63, near_cross = 0;
     float c[8][4];
@@ -610,6 +604,105 @@ sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3
     touched(minx, maxx, v->width, &x0, &x1);
     touched(miny, maxy, v->height, &y0, &y1);
     return sl_raster_test_rect(ctx, x0, y0, x1, y1, dn);
+}
+
+#if defined(SL_RT_X86)
+static inline __m128 sse_finite(__m128 a) /* all-ones where a is finite */
+{
+    return _mm_cmplt_ps(_mm_andnot_ps(_mm_set1_ps(-0.0f), a), _mm_set1_ps(INFINITY));
+}
+static inline float sse_hmin(__m128 a)
+{
+    a = _mm_min_ps(a, _mm_shuffle_ps(a, a, 0x4E));
+    return _mm_cvtss_f32(_mm_min_ps(a, _mm_shuffle_ps(a, a, 0xB1)));
+}
+static inline float sse_hmax(__m128 a)
+{
+    a = _mm_max_ps(a, _mm_shuffle_ps(a, a, 0x4E));
+    return _mm_cvtss_f32(_mm_max_ps(a, _mm_shuffle_ps(a, a, 0xB1)));
+}
+
+/* sl_rt_test_aabb_scalar with the 8 corners in two SSE2 registers (corners 0-3: z = min, 4-7:
+ * z = max; lane i: x = min/max by bit 0, y by bit 1): the same float operations on every corner
+ * in the same order, so the same clip coordinates, outcodes and projected values. The minima and
+ * maxima are taken in another order, which cannot change them (finite values, never -0: sx and sy
+ * are sums with a positive term, d > 0 or a difference). */
+static sl_raster_result test_aabb_sse2(const sl_raster *ctx, const float bmin[3], const float bmax[3],
+                                       const float *m)
+{
+    const sl_rt_view *v = &ctx->view;
+    const __m128 X = _mm_setr_ps(bmin[0], bmax[0], bmin[0], bmax[0]);
+    const __m128 Y = _mm_setr_ps(bmin[1], bmin[1], bmax[1], bmax[1]);
+    const __m128 Z[2] = {_mm_set1_ps(bmin[2]), _mm_set1_ps(bmax[2])};
+    __m128 c[2][4]; /* [corner group][clip row] */
+    for (int r = 0; r < 4; r++) {
+        __m128 xy = _mm_add_ps(_mm_mul_ps(_mm_set1_ps(m[r]), X), _mm_mul_ps(_mm_set1_ps(m[4 + r]), Y));
+        for (int g = 0; g < 2; g++)
+            c[g][r] = _mm_add_ps(_mm_add_ps(xy, _mm_mul_ps(_mm_set1_ps(m[8 + r]), Z[g])), _mm_set1_ps(m[12 + r]));
+    }
+    __m128 fin = _mm_and_ps(_mm_and_ps(sse_finite(c[0][0]), sse_finite(c[0][1])),
+                            _mm_and_ps(sse_finite(c[0][2]), sse_finite(c[0][3])));
+    fin = _mm_and_ps(fin, _mm_and_ps(_mm_and_ps(sse_finite(c[1][0]), sse_finite(c[1][1])),
+                                     _mm_and_ps(sse_finite(c[1][2]), sse_finite(c[1][3]))));
+    if (_mm_movemask_ps(fin) != 0xF)
+        return SL_RASTER_VISIBLE;
+    /* a plane every corner lies beyond: outside; a corner in front of the near plane: visible */
+    const __m128 sign = _mm_set1_ps(-0.0f), nearw = _mm_set1_ps(v->near_w);
+    int all = 0xF, near_cross = 0, out = 0;
+    for (int p = 0; p < 6; p++) {
+        all = 0xF;
+        for (int g = 0; g < 2; g++) {
+            __m128 w = c[g][3], nw = _mm_xor_ps(w, sign), a = c[g][p >> 1];
+            all &= _mm_movemask_ps(p & 1 ? _mm_cmpgt_ps(a, w) : _mm_cmplt_ps(a, nw));
+        }
+        out |= all == 0xF;
+    }
+    if (out)
+        return SL_RASTER_OUTSIDE;
+    for (int g = 0; g < 2; g++) {
+        __m128 w = c[g][3];
+        near_cross |= _mm_movemask_ps(_mm_or_ps(_mm_cmplt_ps(c[g][2], _mm_xor_ps(w, sign)), _mm_cmplt_ps(w, nearw)));
+    }
+    if (near_cross)
+        return SL_RASTER_VISIBLE;
+    const __m128 hw = _mm_set1_ps(v->half_w), hh = _mm_set1_ps(v->half_h);
+    __m128 sx[2], sy[2], d[2];
+    for (int g = 0; g < 2; g++) {
+        __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), c[g][3]);
+        sx[g] = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(c[g][0], inv), hw), hw);
+        sy[g] = _mm_sub_ps(hh, _mm_mul_ps(_mm_mul_ps(c[g][1], inv), hh));
+        d[g] = v->depth == SL_RASTER_DEPTH_INV_W
+                   ? inv
+                   : _mm_sub_ps(_mm_set1_ps(0.5f), _mm_mul_ps(_mm_set1_ps(0.5f), _mm_mul_ps(c[g][2], inv)));
+    }
+    fin = _mm_and_ps(_mm_and_ps(_mm_and_ps(sse_finite(sx[0]), sse_finite(sx[1])),
+                                _mm_and_ps(sse_finite(sy[0]), sse_finite(sy[1]))),
+                     _mm_and_ps(sse_finite(d[0]), sse_finite(d[1])));
+    if (_mm_movemask_ps(fin) != 0xF)
+        return SL_RASTER_VISIBLE;
+    int32_t x0, x1, y0, y1;
+    touched(sse_hmin(_mm_min_ps(sx[0], sx[1])), sse_hmax(_mm_max_ps(sx[0], sx[1])), v->width, &x0, &x1);
+    touched(sse_hmin(_mm_min_ps(sy[0], sy[1])), sse_hmax(_mm_max_ps(sy[0], sy[1])), v->height, &y0, &y1);
+    return sl_raster_test_rect(ctx, x0, y0, x1, y1, sse_hmax(_mm_max_ps(d[0], d[1])));
+}
+#endif
+
+sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                     const float world_to_clip[16])
+{
+    if (!ctx || !box_min || !box_max || !world_to_clip)
+        return SL_RASTER_VISIBLE;
+    for (int i = 0; i < 3; i++) {
+        if (!isfinite(box_min[i]) || !isfinite(box_max[i]))
+            return SL_RASTER_VISIBLE;
+        if (box_min[i] > box_max[i])
+            return SL_RASTER_OUTSIDE; /* an empty box */
+    }
+#if defined(SL_RT_X86)
+    return test_aabb_sse2(ctx, box_min, box_max, world_to_clip);
+#else
+    return sl_rt_test_aabb_scalar(ctx, box_min, box_max, world_to_clip);
+#endif
 }
 
 sl_raster_result sl_raster_test_triangles(const sl_raster *ctx, const float *vertices, uint32_t vertex_count,

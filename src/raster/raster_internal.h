@@ -250,6 +250,10 @@ const sl_rt_view *sl_rt_view_of(const sl_raster *ctx);
 /* Write the zeros of every row the lazy clear left empty, so that the raw buffer is what an eager
  * clear would hold (tests compare raw buffers after it; exclusive use). */
 void sl_rt_settle(sl_raster *ctx);
+/* sl_raster_test_aabb corner by corner, for a finite, non-empty box: the reference of the SIMD
+ * version (same answers, tested). */
+sl_raster_result sl_rt_test_aabb_scalar(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                        const float world_to_clip[16]);
 
 /* ---- scalar helpers shared by every path ---- */
 
