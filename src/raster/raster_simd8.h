@@ -164,6 +164,21 @@ SL_RT_T static inline int32_t hmax(__m256i v)
     return _mm_cvtsi128_si32(m);
 }
 
+/* Minimum and maximum of 8 lanes in [0, 65535] (spans of the padded screen): packed to 16 bits,
+ * one phminposuw (a maximum is 65535 minus the minimum of the complements). */
+SL_RT_T static inline uint32_t hmin_u16(__m256i v)
+{
+    __m128i p = _mm_packus_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+    return (uint32_t)_mm_cvtsi128_si32(_mm_minpos_epu16(p)) & 0xFFFFu;
+}
+
+SL_RT_T static inline uint32_t hmax_u16(__m256i v)
+{
+    __m128i p = _mm_packus_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+    p = _mm_xor_si128(p, _mm_set1_epi32(-1));
+    return 0xFFFFu - ((uint32_t)_mm_cvtsi128_si32(_mm_minpos_epu16(p)) & 0xFFFFu);
+}
+
 /* Tile columns [*ta, *tb) of the non-empty spans within [tx0, tx1), and [*ia, *ib) of the tiles
  * every row covers completely (empty when a row is empty); false if no span. */
 SL_RT_T static inline bool span_tiles(__m256i xl, __m256i xr, int32_t tx0, int32_t tx1, int32_t *ta, int32_t *tb,
@@ -180,12 +195,14 @@ SL_RT_T static inline bool span_tiles(__m256i xl, __m256i xr, int32_t tx0, int32
         return true;
     }
     /* spans lie in [col0, col1], so the columns are >= 0: unsigned division is a shift */
-    uint32_t lo = (uint32_t)hmin(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MAX), xl, ne));
-    uint32_t hi = (uint32_t)hmax(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MIN), xr, ne));
+    /* spans lie in [col0, col1] within the padded screen: 16-bit reductions (empty lanes take
+     * 65535 for the minimum, 0 for the maximum) */
+    uint32_t lo = hmin_u16(_mm256_blendv_epi8(_mm256_set1_epi32(0xFFFF), xl, ne));
+    uint32_t hi = hmax_u16(_mm256_and_si256(xr, ne));
     *ta = sl_rt_maxi(tx0, (int32_t)(lo / SL_RT_TILE_W));
     *tb = sl_rt_mini(tx1, (int32_t)((hi - 1) / SL_RT_TILE_W + 1));
     if (nm == 0xFF) {
-        uint32_t l = (uint32_t)hmax(xl), r = (uint32_t)hmin(xr);
+        uint32_t l = hmax_u16(xl), r = hmin_u16(xr);
         *ia = sl_rt_maxi(*ta, (int32_t)((l + SL_RT_TILE_W - 1) / SL_RT_TILE_W));
         *ib = sl_rt_mini(*tb, (int32_t)(r / SL_RT_TILE_W));
     }
