@@ -110,12 +110,14 @@ AVX512 static inline __attribute__((always_inline)) void raster_small(const sl_r
     uint32_t *const mask = tg->mask;
     sl_rt_tile_depth *const depth = tg->depth;
     const size_t tiles_x = (size_t)tg->tiles_x;
+    small_dda dda;
+    small_dda_init(t, &dda);
     small_row cur;
-    small_row_at(t, t->ty0, &cur);
+    small_row_at(t, &dda, t->ty0, &cur);
     for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
         small_row nxt = cur;
         if (ty + 1 < t->ty1)
-            small_row_at(t, ty + 1, &nxt);
+            small_row_at(t, &dda, ty + 1, &nxt);
         if (cur.any) {
             float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
             size_t row = (size_t)ty * tiles_x;
