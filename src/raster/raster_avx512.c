@@ -20,6 +20,7 @@
 #define SL_RT_T AVX512
 #define SL_RT_NAME(n) n##_avx512
 #define SL_RT_W 8
+#define SL_RT_MASKED_FULL 1 /* raster_simd8.h's merge_full_tile with masked stores */
 #include "raster/raster_simd8.h"
 #define SL_RT_D8_512 1 /* raster_lanes.h's doubles on 512-bit registers */
 #include "raster/raster_lanes.h"

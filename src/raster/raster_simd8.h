@@ -265,6 +265,16 @@ SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_t
 
 /* merge_tile with c = ~0 in every lane: the old mask lies inside c, so a nearer subtile simply
  * takes z over its whole area. */
+#if defined(SL_RT_MASKED_FULL)
+/* AVX-512: the same result with masked stores, without reading m or zm */
+SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    __mmask8 act = _mm256_cmp_ps_mask(z, _mm256_load_ps(dp->za), _CMP_GT_OQ);
+    _mm256_mask_store_epi32(mp, act, _mm256_setzero_si256());
+    _mm256_mask_store_ps(dp->za, act, z);
+    _mm256_mask_store_ps(dp->zm, act, z);
+}
+#else
 SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
     __m256 za = _mm256_load_ps(dp->za);
@@ -274,6 +284,7 @@ SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_de
     _mm256_store_ps(dp->za, _mm256_blendv_ps(za, z, act));
     _mm256_store_ps(dp->zm, _mm256_blendv_ps(_mm256_load_ps(dp->zm), z, act));
 }
+#endif
 
 /* One tile with partial coverage: zc = the tile column's z0 + zdx*(float)(x - x_ref). */
 SL_RT_T static inline __attribute__((always_inline)) void partial_tile(uint32_t *mask, sl_rt_tile_depth *depth,
