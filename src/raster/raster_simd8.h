@@ -242,6 +242,26 @@ SL_RT_T static inline __m256i row_masks(__m256i xl, __m256i xr, int32_t x)
 
 /* sl_rt_merge of coverage c at depth z into one tile. No early exit: which tiles a triangle
  * changes is data-dependent, and a mispredicted branch costs more than the stores it saves. */
+#if defined(SL_RT_MASKED_FULL)
+/* AVX-512: the conditions in mask registers and the results written by masked stores (raster_avx512.c's
+ * merge_pair on 8 lanes) */
+SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    __m256 za = _mm256_load_ps(dp->za), zm = _mm256_load_ps(dp->zm);
+    __m256i m = _mm256_load_si256((const __m256i *)mp);
+    __mmask8 act = _mm256_test_epi32_mask(c, c) & _mm256_cmp_ps_mask(z, za, _CMP_GT_OQ);
+    __mmask8 nearer = _mm256_cmp_ps_mask(z, zm, _CMP_GT_OQ) &
+                      _mm256_cmp_ps_mask(_mm256_sub_ps(z, zm), _mm256_sub_ps(zm, za), _CMP_GT_OQ);
+    __m256i mc = _mm256_andnot_si256(c, m);
+    __mmask8 repl = _mm256_testn_epi32_mask(mc, mc) | nearer;
+    __m256i nm = _mm256_mask_mov_epi32(_mm256_or_si256(m, c), repl, c);
+    __m256 nz = _mm256_mask_mov_ps(_mm256_min_ps(zm, z), repl, z);
+    __mmask8 full = _mm256_cmpeq_epi32_mask(nm, _mm256_set1_epi32(-1));
+    _mm256_mask_store_epi32(mp, act, _mm256_maskz_mov_epi32((__mmask8)~full, nm));
+    _mm256_mask_store_ps(dp->za, act & full, nz);
+    _mm256_mask_store_ps(dp->zm, act, nz);
+}
+#else
 SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
     const __m256i zero = _mm256_setzero_si256(), ones = _mm256_set1_epi32(-1);
@@ -262,6 +282,7 @@ SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_t
     _mm256_store_ps(dp->za, za);
     _mm256_store_ps(dp->zm, zm);
 }
+#endif
 
 /* merge_tile with c = ~0 in every lane: the old mask lies inside c, so a nearer subtile simply
  * takes z over its whole area. */
