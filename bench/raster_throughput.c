@@ -23,7 +23,8 @@
  *                                            [--city tiny|small|vienna [--views N]]]
  *   --runs N     runs per figure (default 7); --quick: 3 runs, fewer triangles; --smoke: one run of
  *                tiny streams on the best path (a test that the program works, no figures to keep)
- *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best)
+ *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best),
+ *                and the pool against one thread on 100,000-triangle frames (wall clock, alternating)
  *   --isa NAME   only this path (scalar, sse41, avx2, avx512); may repeat
  *   --size N     only the triangle figure for bounding squares of N pixels (one of the sizes
  *                above), no clear or query figures: for profiling one size
@@ -977,6 +978,38 @@ int main(int argc, char **argv)
         which_clock = CLOCK_THREAD;
         printf("\n");
         sl_raster_destroy(r);
+        /* scaling: 100,000-triangle frames, the pool against one thread, run alternately */
+        printf("## %s, %u threads against one, 100,000-triangle frames, wall clock, alternating (%d pairs)\n\n",
+               sl_raster_isa_name(best), threads, runs);
+        printf("| figure | 1 thread (ms/frame) | %u threads (ms/frame) | 1-thread time / %u-thread time, per pair |\n"
+               "|---|---:|---:|---:|\n",
+               threads, threads);
+        sl_raster *r1 = make(best, 1), *rn = make(best, threads);
+        which_clock = CLOCK_WALL;
+        for (size_t s = 0; s < SL_COUNTOF(sizes); s++) {
+            if (only_size && sizes[s] != only_size)
+                continue;
+            uint32_t n = smoke ? 2000 : 100000;
+            float *v = xmalloc(sizeof(float) * 3 * VFLOATS * n);
+            uint32_t *ix = xmalloc(sizeof(uint32_t) * 3 * n);
+            make_stream(P, SHAPE_SL, sizes[s], n, 1234, v, ix);
+            double a1[64], an[64], rt[64];
+            for (int i = 0; i < runs; i++) {
+                a1[i] = render_once(r1, P, v, ix, n, sizes[s]);
+                an[i] = render_once(rn, P, v, ix, n, sizes[s]);
+                rt[i] = a1[i] / an[i];
+            }
+            double m1 = bench_median(a1, (size_t)runs) * 1e3, mn = bench_median(an, (size_t)runs) * 1e3;
+            double mr = bench_median(rt, (size_t)runs); /* sorts rt */
+            printf("| triangles %dx%d | %.2f | %.2f | %.2fx [%.2fx-%.2fx] |\n", sizes[s], sizes[s], m1, mn, mr, rt[0],
+                   rt[runs - 1]);
+            free(v);
+            free(ix);
+        }
+        which_clock = CLOCK_THREAD;
+        printf("\n");
+        sl_raster_destroy(r1);
+        sl_raster_destroy(rn);
     }
     if (only_size)
         return 0;
