@@ -222,8 +222,8 @@ size_t sl_raster_memory(const sl_raster *ctx)
     if (!ctx)
         return 0;
     size_t pool = ctx->pool ? (ctx->opt.threads - 1) * sizeof(void *) * 2 + 256 : 0;
-    return sizeof *ctx + ctx->mask_bytes + ctx->depth_bytes + (size_t)ctx->target.tiles_y + ctx->slots * sizeof(sl_rt_counters) +
-           sl_rt_bins_memory(ctx->bins) + pool;
+    return sizeof *ctx + ctx->mask_bytes + ctx->depth_bytes + (size_t)ctx->target.tiles_y +
+           ctx->slots * sizeof(sl_rt_counters) + sl_rt_bins_memory(ctx->bins) + pool;
 }
 
 void sl_raster_reset_stats(sl_raster *ctx)
