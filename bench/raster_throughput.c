@@ -1,7 +1,8 @@
 /* Occlusion rasterizer throughput at 1920x1080 on one thread, per instruction-set path:
  *   - random equal-size triangles whose bounding squares are 10..500 pixels, submitted back to
  *     front so that every one passes the depth test, none clipped: million triangles per second;
- *   - clearing the buffer: milliseconds;
+ *   - clearing the buffer: milliseconds (microseconds side by side; Sightline's clear is lazy: it
+ *     marks the tile rows empty, and a row gets its zeros when the first occluder reaches it);
  *   - rectangle queries of 9x5 .. 480x270 pixels behind a full-screen occluder (every answer is
  *     OCCLUDED, so every pixel is read: the worst case): nanoseconds per query.
  * Each figure is the median of several runs. Prints the machine and a Markdown table per path.
@@ -16,14 +17,20 @@
  * does). Without a peer nothing but Sightline's figures is printed: no peer figure is typed in.
  *
  * usage: bench_raster_throughput [--runs N] [--quick] [--smoke] [--threads N] [--isa NAME]... [--size N]
+ *                                [--coverage center|inner]
  *                                [--peer moc [--pairs N] [--list] [--peer-clip all|none]
+ *                                            [--part triangles|clear|queries]
  *                                            [--city tiny|small|vienna [--views N]]]
  *   --runs N     runs per figure (default 7); --quick: 3 runs, fewer triangles; --smoke: one run of
  *                tiny streams on the best path (a test that the program works, no figures to keep)
- *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best)
+ *   --threads N  also report triangle throughput with the built-in pool of N threads (AVX2/best),
+ *                and the pool against one thread on 100,000-triangle frames (wall clock, alternating)
  *   --isa NAME   only this path (scalar, sse41, avx2, avx512); may repeat
  *   --size N     only the triangle figure for bounding squares of N pixels (one of the sizes
  *                above), no clear or query figures: for profiling one size
+ *   --coverage inner  Sightline with SL_RASTER_COVERAGE_INNER (the resolution-independent rule of
+ *                res=any; MOC has no such mode and keeps its own): its own rows, no target
+ *   --part P     with --peer: only the triangle, clear or query rows
  *   --peer moc   side by side with MOC (sse41, avx2, avx512 paths); --pairs N: Sightline/MOC pairs
  *                per figure (default 15); --list: print every pair's ratio; --peer-clip none: MOC
  *                renders the triangle streams with CLIP_PLANE_NONE (as its FillrateTest does: the
@@ -152,10 +159,16 @@ static void make_stream(const float P[16], int shape, int S, uint32_t n, uint64_
     }
 }
 
+/* --coverage inner: Sightline's resolution-independent rule (SL_RASTER_COVERAGE_INNER) */
+static sl_raster_coverage coverage = SL_RASTER_COVERAGE_CENTER;
+/* --part: the peer table's rows (bit 1 triangles, 2 clear, 4 queries) */
+static unsigned parts = 7;
+
 static sl_raster *make(sl_raster_isa isa, uint32_t threads)
 {
     sl_raster_options o = sl_raster_default_options(W, H);
     o.isa = isa;
+    o.coverage = coverage;
     o.threads = threads;
     sl_raster *r = NULL;
     sl_error err;
@@ -420,11 +433,13 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
         exit(1);
     }
     check_winding(r, m, P);
-    printf("## %s (Sightline %s, MOC %s), %d pairs per row\n\n", sl_raster_isa_name(isa),
-           sl_raster_isa_name(sl_raster_get_isa(r)), slmoc_isa_name(slmoc_isa(m)), pairs);
+    printf("## %s (Sightline %s%s, MOC %s), %d pairs per row\n\n", sl_raster_isa_name(isa),
+           sl_raster_isa_name(sl_raster_get_isa(r)),
+           coverage == SL_RASTER_COVERAGE_INNER ? ", INNER coverage (resolution-independent)" : "",
+           slmoc_isa_name(slmoc_isa(m)), pairs);
     printf("| figure | Sightline | MOC | MOC time / Sightline time |\n|---|---:|---:|---:|\n");
     char label[128];
-    for (int shape = 0; shape < 2; shape++)
+    for (int shape = 0; shape < 2 && (parts & 1); shape++)
         for (size_t s = 0; s < SL_COUNTOF(sizes); s++) {
             int S = sizes[s];
             if (only_size && S != only_size)
@@ -458,7 +473,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
         return;
     }
     /* clear */
-    {
+    if (parts & 2) {
         const int reps = smoke ? 10 : 2000;
         pair_sample ps = {0};
         for (int i = 0; i < pairs; i++) {
@@ -471,7 +486,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
                 slmoc_clear(m);
             pair_add(&ps, ours, (now() - t0) / reps);
         }
-        print_row("clear (ms)", &ps, 1e3, false, "%.4f");
+        print_row("clear (us)", &ps, 1e6, false, "%.3f");
     }
     /* rect queries behind a full-screen occluder */
     float wall[4 * VFLOATS];
@@ -480,7 +495,7 @@ static void peer_path(sl_raster_isa isa, int moc_isa, const float P[16], int pai
     sl_raster_render_triangles(r, wall, 4, wall_ix, 2, VSTRIDE, P, SL_RASTER_CULL_NONE, NULL);
     slmoc_clear(m);
     slmoc_render(m, wall, wall_ix, 2, P, 0, VSTRIDE, 4, 12, 1);
-    for (size_t q = 0; q < SL_COUNTOF(qsizes); q++) {
+    for (size_t q = 0; q < SL_COUNTOF(qsizes) && (parts & 4); q++) {
         int qw = qsizes[q][0], qh = qsizes[q][1], reps = query_reps(qw, qh);
         int32_t qx[NQ], qy[NQ];
         query_positions(qw, qh, qx, qy);
@@ -600,6 +615,11 @@ static double city_ours(sl_raster *r, const float *bv, const sl_aabb *boxes, con
     return t;
 }
 
+/* min and max as a C++ caller writes them (std::min/std::max): libm's fminf/fmaxf are calls here,
+ * which would count against MOC */
+static inline float mn(float a, float b) { return b < a ? b : a; }
+static inline float mx(float a, float b) { return a < b ? b : a; }
+
 static double city_moc(slmoc *m, const float *bv, const city_box *order, uint32_t n, const float VP[16], float near_w,
                        uint32_t *drawn)
 {
@@ -615,15 +635,15 @@ static double city_moc(slmoc *m, const float *bv, const city_box *order, uint32_
             float x = VP[0] * v[0] + VP[4] * v[1] + VP[8] * v[2] + VP[12];
             float y = VP[1] * v[0] + VP[5] * v[1] + VP[9] * v[2] + VP[13];
             float w = VP[3] * v[0] + VP[7] * v[1] + VP[11] * v[2] + VP[15];
-            wmin = fminf(wmin, w);
+            wmin = mn(wmin, w);
             float iw = 1.0f / w;
-            x0 = fminf(x0, x * iw);
-            x1 = fmaxf(x1, x * iw);
-            y0 = fminf(y0, y * iw);
-            y1 = fmaxf(y1, y * iw);
+            x0 = mn(x0, x * iw);
+            x1 = mx(x1, x * iw);
+            y0 = mn(y0, y * iw);
+            y1 = mx(y1, y * iw);
         }
         if (wmin > near_w) {
-            int res = slmoc_test_rect(m, fmaxf(x0, -1.0f), fmaxf(y0, -1.0f), fminf(x1, 1.0f), fminf(y1, 1.0f), wmin);
+            int res = slmoc_test_rect(m, mx(x0, -1.0f), mx(y0, -1.0f), mn(x1, 1.0f), mn(y1, 1.0f), wmin);
             if (res != SLMOC_VISIBLE)
                 continue;
         }
@@ -819,6 +839,20 @@ int main(int argc, char **argv)
                 fprintf(stderr, "bench_raster_throughput: --size must be 10, 25, 50, 100, 250 or 500\n");
                 return 2;
             }
+        } else if (!strcmp(argv[i], "--coverage") && i + 1 < argc) {
+            const char *c = argv[++i];
+            if (strcmp(c, "center") && strcmp(c, "inner")) {
+                fprintf(stderr, "bench_raster_throughput: --coverage must be center or inner\n");
+                return 2;
+            }
+            coverage = strcmp(c, "inner") ? SL_RASTER_COVERAGE_CENTER : SL_RASTER_COVERAGE_INNER;
+        } else if (!strcmp(argv[i], "--part") && i + 1 < argc) {
+            const char *c = argv[++i];
+            parts = !strcmp(c, "triangles") ? 1u : !strcmp(c, "clear") ? 2u : !strcmp(c, "queries") ? 4u : 0u;
+            if (!parts) {
+                fprintf(stderr, "bench_raster_throughput: --part must be triangles, clear or queries\n");
+                return 2;
+            }
         } else if (!strcmp(argv[i], "--isa") && i + 1 < argc && nonly < 8) {
             const char *n = argv[++i];
             sl_raster_isa isa = !strcmp(n, "scalar") ? SL_RASTER_ISA_SCALAR
@@ -834,7 +868,8 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "usage: %s [--runs N] [--quick] [--smoke] [--threads N] [--isa scalar|sse41|avx2|avx512]... "
-                    "[--size N] [--peer moc [--pairs N] [--list] [--peer-clip all|none] [--city PRESET [--views N]]]\n",
+                    "[--size N] [--coverage center|inner] [--peer moc [--pairs N] [--list] [--peer-clip all|none] "
+                    "[--part triangles|clear|queries] [--city PRESET [--views N]]]\n",
                     argv[0]);
             return 2;
         }
@@ -943,6 +978,38 @@ int main(int argc, char **argv)
         which_clock = CLOCK_THREAD;
         printf("\n");
         sl_raster_destroy(r);
+        /* scaling: 100,000-triangle frames, the pool against one thread, run alternately */
+        printf("## %s, %u threads against one, 100,000-triangle frames, wall clock, alternating (%d pairs)\n\n",
+               sl_raster_isa_name(best), threads, runs);
+        printf("| figure | 1 thread (ms/frame) | %u threads (ms/frame) | 1-thread time / %u-thread time, per pair |\n"
+               "|---|---:|---:|---:|\n",
+               threads, threads);
+        sl_raster *r1 = make(best, 1), *rn = make(best, threads);
+        which_clock = CLOCK_WALL;
+        for (size_t s = 0; s < SL_COUNTOF(sizes); s++) {
+            if (only_size && sizes[s] != only_size)
+                continue;
+            uint32_t n = smoke ? 2000 : 100000;
+            float *v = xmalloc(sizeof(float) * 3 * VFLOATS * n);
+            uint32_t *ix = xmalloc(sizeof(uint32_t) * 3 * n);
+            make_stream(P, SHAPE_SL, sizes[s], n, 1234, v, ix);
+            double a1[64], an[64], rt[64];
+            for (int i = 0; i < runs; i++) {
+                a1[i] = render_once(r1, P, v, ix, n, sizes[s]);
+                an[i] = render_once(rn, P, v, ix, n, sizes[s]);
+                rt[i] = a1[i] / an[i];
+            }
+            double m1 = bench_median(a1, (size_t)runs) * 1e3, mn = bench_median(an, (size_t)runs) * 1e3;
+            double mr = bench_median(rt, (size_t)runs); /* sorts rt */
+            printf("| triangles %dx%d | %.2f | %.2f | %.2fx [%.2fx-%.2fx] |\n", sizes[s], sizes[s], m1, mn, mr, rt[0],
+                   rt[runs - 1]);
+            free(v);
+            free(ix);
+        }
+        which_clock = CLOCK_THREAD;
+        printf("\n");
+        sl_raster_destroy(r1);
+        sl_raster_destroy(rn);
     }
     if (only_size)
         return 0;

@@ -71,9 +71,12 @@ static float *depth_image(const sl_raster *r)
     return img;
 }
 
-/* Raw buffers of two contexts are identical (mask words and both depths, bit for bit). */
-static void assert_same_buffer(const sl_raster *a, const sl_raster *b)
+/* Raw buffers of two contexts are identical (mask words and both depths, bit for bit), once the
+ * rows the lazy clear left empty are written. */
+static void assert_same_buffer(sl_raster *a, sl_raster *b)
 {
+    sl_rt_settle(a);
+    sl_rt_settle(b);
     const sl_rt_target *ta = sl_rt_target_of(a), *tb = sl_rt_target_of(b);
     size_t tiles = (size_t)ta->tiles_x * (size_t)ta->tiles_y;
     assert_int_equal(tiles, (size_t)tb->tiles_x * (size_t)tb->tiles_y);
@@ -1128,6 +1131,7 @@ static void test_front_end_paths(void **state)
 typedef struct test_target {
     sl_rt_target t;
     size_t tiles;
+    uint8_t *empty; /* no row lazily cleared */
 } test_target;
 
 static void target_init(test_target *tt, int32_t w, int32_t h)
@@ -1136,6 +1140,10 @@ static void target_init(test_target *tt, int32_t w, int32_t h)
     tt->t.tiles_y = (h + SL_RT_TILE_H - 1) / SL_RT_TILE_H;
     tt->t.width = w, tt->t.height = h;
     tt->tiles = (size_t)tt->t.tiles_x * (size_t)tt->t.tiles_y;
+    tt->empty = calloc((size_t)tt->t.tiles_y, 1);
+    assert_non_null(tt->empty);
+    tt->t.row_empty = tt->empty;
+    tt->t.empty_rows = 0;
     /* aligned_alloc wants a multiple of the alignment: an even number of tiles */
     size_t even = (tt->tiles + 1) & ~(size_t)1;
     tt->t.mask = aligned_alloc(64, even * SL_RT_SUBTILES * sizeof(uint32_t));
@@ -1155,6 +1163,7 @@ static void target_free(test_target *tt)
 {
     free(tt->t.mask);
     free(tt->t.depth);
+    free(tt->empty);
 }
 
 /* Snapped prims (w = 1, given pixel corners) for the setup paths: sizes from one pixel to beyond
@@ -1385,6 +1394,168 @@ static void test_widest_screen(void **state)
     free(ix);
 }
 
+/* Triangles in the pixel rows [ya, yb] of a W x H screen (NDC, w = 1). */
+static void band_tris(sl_rng *rng, int W, int H, float ya, float yb, int count, float *v, uint32_t *ix)
+{
+    for (int n = 0; n < count; n++) {
+        for (int i = 0; i < 3; i++) {
+            float px = sl_rng_range(rng, -10.0f, (float)W + 10.0f), py = sl_rng_range(rng, ya, yb);
+            v[9 * n + 3 * i + 0] = px / (0.5f * (float)W) - 1.0f;
+            v[9 * n + 3 * i + 1] = 1.0f - py / (0.5f * (float)H);
+            v[9 * n + 3 * i + 2] = sl_rng_range(rng, -0.9f, 0.9f);
+        }
+        for (int k = 0; k < 3; k++)
+            ix[3 * n + k] = (uint32_t)(3 * n + k);
+    }
+}
+
+/* The lazy clear: after a full buffer is cleared and a band of rows redrawn (directly, binned or
+ * by the pool), every read (depth images, subtile depths, tile info, rect, box and mesh queries,
+ * the rect test at a negative depth) and then the raw buffer equal those of a context that only
+ * drew the band and had every row written. */
+static void test_lazy_clear(void **state)
+{
+    (void)state;
+    const int W = 200, H = 136; /* 7 x 17 tiles */
+    enum { FULL = 600, BAND = 700 };
+    float *fv = malloc(sizeof(float) * 9 * FULL), *bv = malloc(sizeof(float) * 9 * BAND);
+    uint32_t *fix = malloc(sizeof(uint32_t) * 3 * FULL), *bix = malloc(sizeof(uint32_t) * 3 * BAND);
+    assert_true(fv && bv && fix && bix);
+    sl_rng rng;
+    sl_rng_seed(&rng, 14, 2);
+    for (int n = 0; n < FULL; n++) {
+        random_tri(&rng, W, H, n % 3, fv + 9 * n);
+        for (int k = 0; k < 3; k++)
+            fix[3 * n + k] = (uint32_t)(3 * n + k);
+    }
+    band_tris(&rng, W, H, 20.0f, 61.0f, BAND, bv, bix);
+    float *ia = malloc(sizeof(float) * W * H), *ib = malloc(sizeof(float) * W * H);
+    float *sa = malloc(sizeof(float) * W * H), *sb = malloc(sizeof(float) * W * H);
+    assert_true(ia && ib && sa && sb);
+    for (int ii = 0; ii < isa_count; ii++)
+        for (int how = 0; how < 3; how++) { /* direct, bin_triangles + flush, the pool */
+            uint32_t threads = how == 2 ? 2 : 1;
+            sl_raster *a = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, threads);
+            sl_raster *b = make(W, H, isa_list[ii], SL_RASTER_DEPTH_LINEAR_Z, threads);
+            render(a, fv, 3 * FULL, fix, FULL, IDENTITY, SL_RASTER_CULL_NONE);
+            sl_rt_settle(a);
+            sl_raster_clear(a); /* a's memory holds the full soup; its rows are marked empty */
+            sl_rt_settle(b);
+            for (sl_raster *r = a; r; r = r == a ? b : NULL) {
+                if (how == 1) {
+                    assert_int_equal(sl_raster_bin_triangles(r, bv, 3 * BAND, bix, BAND, 12, IDENTITY,
+                                                             SL_RASTER_CULL_NONE, NULL),
+                                     SL_OK);
+                    sl_raster_flush(r);
+                } else {
+                    render(r, bv, 3 * BAND, bix, BAND, IDENTITY, SL_RASTER_CULL_NONE);
+                }
+            }
+            if (how == 0) /* direct rendering wrote only the rows the band reaches (2..7) */
+                assert_true(sl_rt_target_of(a)->row_empty[H / 8 - 1] && !sl_rt_target_of(a)->row_empty[4] &&
+                            sl_rt_target_of(a)->empty_rows == 17 - 6);
+            sl_rt_settle(b);
+            assert_int_equal(sl_raster_read_depth(a, ia, (size_t)W * H, NULL), SL_OK);
+            assert_int_equal(sl_raster_read_depth(b, ib, (size_t)W * H, NULL), SL_OK);
+            assert_memory_equal(ia, ib, sizeof(float) * W * H);
+            assert_int_equal(sl_raster_read_subtile_depth(a, sa, (size_t)W * H, NULL), SL_OK);
+            assert_int_equal(sl_raster_read_subtile_depth(b, sb, (size_t)W * H, NULL), SL_OK);
+            assert_memory_equal(sa, sb, sizeof(float) * 28 * 34);
+            for (uint32_t ty = 0; ty < 17; ty++)
+                for (uint32_t tx = 0; tx < 7; tx++) {
+                    sl_raster_tile_info ta, tb;
+                    assert_int_equal(sl_raster_get_tile_info(a, tx, ty, &ta, NULL), SL_OK);
+                    assert_int_equal(sl_raster_get_tile_info(b, tx, ty, &tb, NULL), SL_OK);
+                    assert_memory_equal(&ta, &tb, sizeof ta);
+                }
+            const sl_rt_kernels *k = kernels_of(isa_list[ii]);
+            sl_rng q;
+            sl_rng_seed(&q, 5, (uint64_t)ii);
+            unsigned occluded = 0;
+            for (int n = 0; n < 400; n++) {
+                /* up to 3 tiles wide (the small-rectangle shortcut) and up to the whole width */
+                int32_t x0 = (int32_t)sl_rng_below(&q, W), y0 = (int32_t)sl_rng_below(&q, 80);
+                int32_t x1 = x0 + 1 + (int32_t)sl_rng_below(&q, n % 2 ? 40 : W);
+                int32_t y1 = y0 + 1 + (int32_t)sl_rng_below(&q, 70);
+                float d = sl_rng_range(&q, 0.0f, 0.6f);
+                sl_raster_result r = sl_raster_test_rect(b, x0, y0, x1, y1, d);
+                occluded += r == SL_RASTER_OCCLUDED;
+                assert_int_equal(sl_raster_test_rect(a, x0, y0, x1, y1, d), r);
+                int32_t cx1 = sl_rt_mini(x1, W), cy1 = sl_rt_mini(y1, H);
+                /* b has no empty row: its answer (the small-rectangle shortcut, the path's kernel)
+                 * is the scalar kernel's */
+                assert_int_equal(r == SL_RASTER_OCCLUDED,
+                                 sl_rt_kernels_scalar.rect_occluded(sl_rt_target_of(b), x0, y0, cx1, cy1, d));
+                assert_int_equal(sl_rt_rect_occluded(k, sl_rt_target_of(a), x0, y0, cx1, cy1, -0.25f),
+                                 sl_rt_rect_occluded(k, sl_rt_target_of(b), x0, y0, cx1, cy1, -0.25f));
+                float tri[9];
+                band_tris(&q, W, H, (float)y0, (float)y1, 1, tri, (uint32_t[3]){0});
+                uint32_t i3[3] = {0, 1, 2};
+                assert_int_equal(sl_raster_test_triangles(a, tri, 3, i3, 1, 12, IDENTITY, SL_RASTER_CULL_NONE),
+                                 sl_raster_test_triangles(b, tri, 3, i3, 1, 12, IDENTITY, SL_RASTER_CULL_NONE));
+            }
+            assert_true(occluded > 10 && occluded < 390); /* both answers occur */
+            assert_same_buffer(a, b);
+            sl_raster_destroy(a);
+            sl_raster_destroy(b);
+        }
+    free(ia);
+    free(ib);
+    free(sa);
+    free(sb);
+    free(fv);
+    free(bv);
+    free(fix);
+    free(bix);
+}
+
+/* The box query on SIMD registers answers as the corner-by-corner reference: random boxes (inside,
+ * outside, crossing the near plane, huge, degenerate) under perspective, orthographic and random
+ * matrices, over a buffer holding a scene, in both depth modes. */
+static void test_aabb_simd(void **state)
+{
+    (void)state;
+    const int W = 160, H = 96;
+    sl_rng rng;
+    sl_rng_seed(&rng, 21, 4);
+    float *v;
+    uint32_t *ix, nv;
+    int count = 600;
+    random_scene(&rng, count, &v, &ix, &nv);
+    unsigned seen[3] = {0, 0, 0};
+    for (int mode = 0; mode < 2; mode++) {
+        sl_raster_depth dm = mode ? SL_RASTER_DEPTH_LINEAR_Z : SL_RASTER_DEPTH_INV_W;
+        sl_raster *r = make(W, H, SL_RASTER_ISA_AUTO, dm, 1);
+        float P[16];
+        if (mode)
+            orthographic(P, 30, 20, 0.5, 120);
+        else
+            perspective(P, 1.1, (double)W / H, 0.3, 500);
+        render(r, v, nv, ix, (uint32_t)count, P, SL_RASTER_CULL_NONE);
+        for (int n = 0; n < 4000; n++) {
+            float M[16];
+            memcpy(M, P, sizeof M);
+            if (n % 7 == 6)
+                for (int k = 0; k < 16; k++)
+                    M[k] = sl_rng_range(&rng, -2, 2) * (n % 21 == 20 ? 1e19f : 1.0f);
+            float scale = n % 5 == 4 ? 1e6f : 1.0f;
+            float bmin[3] = {sl_rng_range(&rng, -40, 40) * scale, sl_rng_range(&rng, -30, 30) * scale,
+                             sl_rng_range(&rng, -150, 5) * scale};
+            float bmax[3];
+            for (int k = 0; k < 3; k++)
+                bmax[k] = bmin[k] + (n % 11 == 3 ? 0.0f : sl_rng_range(&rng, 0, 12));
+            sl_raster_result got = sl_raster_test_aabb(r, bmin, bmax, M);
+            assert_int_equal(got, sl_rt_test_aabb_scalar(r, bmin, bmax, M));
+            seen[got]++;
+        }
+        sl_raster_destroy(r);
+    }
+    /* every answer occurs */
+    assert_true(seen[SL_RASTER_VISIBLE] > 100 && seen[SL_RASTER_OCCLUDED] > 100 && seen[SL_RASTER_OUTSIDE] > 100);
+    free(v);
+    free(ix);
+}
+
 int main(void)
 {
     collect_isas();
@@ -1400,6 +1571,7 @@ int main(void)
         cmocka_unit_test(test_extreme_inputs),        cmocka_unit_test(test_front_end_paths),
         cmocka_unit_test(test_batched_render_paths),  cmocka_unit_test(test_fill_rule_sizes),
         cmocka_unit_test(test_merge_covering_layer),  cmocka_unit_test(test_widest_screen),
+        cmocka_unit_test(test_lazy_clear),            cmocka_unit_test(test_aabb_simd),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

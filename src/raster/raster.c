@@ -10,6 +10,9 @@
 #include "raster/raster_internal.h"
 
 #include <math.h>
+#if defined(SL_RT_X86)
+#include <emmintrin.h> /* SSE2: the x86-64 baseline */
+#endif
 
 /* Batches smaller than this are rendered on the calling thread even with a pool: waking workers
  * costs more than it saves, and the result is the same either way. */
@@ -19,6 +22,8 @@
 #define POOL_CHUNK 16384
 #define MAX_THREADS SL_MAX_THREADS /* the one limit (core.h) */
 
+const sl_rt_zero_tile_t sl_rt_zero_tile; /* all zero: a cleared tile */
+
 struct sl_raster {
     const sl_allocator *alloc;
     sl_raster_options opt;
@@ -27,6 +32,7 @@ struct sl_raster {
     const sl_rt_kernels *k;
     int mode; /* SL_RT_CENTER or SL_RT_INNER */
     size_t mask_bytes, depth_bytes;
+    uint8_t *row_empty;        /* lazy clear: tile rows not yet written since the clear */
     uint32_t slots;            /* front-end slots = threads */
     sl_rt_counters cnt;        /* direct rendering */
     sl_rt_counters *slot_cnt;  /* binning, per slot */
@@ -153,6 +159,8 @@ sl_status sl_raster_create(const sl_raster_options *options, const sl_allocator 
     ctx->depth_bytes = tiles * sizeof(sl_rt_tile_depth);
     ctx->target.mask = sl_alloc_aligned(alloc, ctx->mask_bytes, 64);
     ctx->target.depth = sl_alloc_aligned(alloc, ctx->depth_bytes, 64);
+    ctx->row_empty = sl_calloc(alloc, tiles_y, 1);
+    ctx->target.row_empty = ctx->row_empty;
     ctx->target.tiles_x = (int32_t)tiles_x;
     ctx->target.tiles_y = (int32_t)tiles_y;
     ctx->target.width = (int32_t)o.width;
@@ -160,7 +168,7 @@ sl_status sl_raster_create(const sl_raster_options *options, const sl_allocator 
     ctx->slots = o.threads;
     ctx->slot_cnt = sl_calloc(alloc, ctx->slots, sizeof(sl_rt_counters));
     sl_status st = SL_OK;
-    if (!ctx->target.mask || !ctx->target.depth || !ctx->slot_cnt)
+    if (!ctx->target.mask || !ctx->target.depth || !ctx->row_empty || !ctx->slot_cnt)
         st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "raster: out of memory for a %ux%u buffer", o.width, o.height);
     if (st == SL_OK)
         st = sl_rt_bins_create(alloc, (int32_t)tiles_x, (int32_t)tiles_y, o.bins_x, o.bins_y, ctx->slots,
@@ -186,6 +194,7 @@ void sl_raster_destroy(sl_raster *ctx)
     sl_rt_bins_destroy(ctx->bins);
     sl_free(a, ctx->target.mask, ctx->mask_bytes);
     sl_free(a, ctx->target.depth, ctx->depth_bytes);
+    sl_free(a, ctx->row_empty, (size_t)ctx->target.tiles_y);
     sl_free(a, ctx->slot_cnt, ctx->slots * sizeof(sl_rt_counters));
     sl_free(a, ctx, sizeof *ctx);
 }
@@ -213,8 +222,8 @@ size_t sl_raster_memory(const sl_raster *ctx)
     if (!ctx)
         return 0;
     size_t pool = ctx->pool ? (ctx->opt.threads - 1) * sizeof(void *) * 2 + 256 : 0;
-    return sizeof *ctx + ctx->mask_bytes + ctx->depth_bytes + ctx->slots * sizeof(sl_rt_counters) +
-           sl_rt_bins_memory(ctx->bins) + pool;
+    return sizeof *ctx + ctx->mask_bytes + ctx->depth_bytes + (size_t)ctx->target.tiles_y +
+           ctx->slots * sizeof(sl_rt_counters) + sl_rt_bins_memory(ctx->bins) + pool;
 }
 
 void sl_raster_reset_stats(sl_raster *ctx)
@@ -223,13 +232,101 @@ void sl_raster_reset_stats(sl_raster *ctx)
     memset(ctx->slot_cnt, 0, ctx->slots * sizeof(sl_rt_counters));
 }
 
+/* The lazy clear: sl_raster_clear only marks every tile row empty; rows [ty0, ty1) get their zeros
+ * (depth 0.0f and an empty mask are all-zero bits) here, before anything is merged into them. */
+static void fill_rows(sl_raster *ctx, int32_t ty0, int32_t ty1)
+{
+    size_t tx = (size_t)ctx->target.tiles_x;
+    for (int32_t ty = ty0; ty < ty1; ty++) {
+        if (!ctx->row_empty[ty])
+            continue;
+        int32_t te = ty + 1; /* a run of empty rows in one memset */
+        while (te < ty1 && ctx->row_empty[te])
+            te++;
+        size_t t0 = (size_t)ty * tx, nt = (size_t)(te - ty) * tx;
+        memset(ctx->target.mask + t0 * SL_RT_SUBTILES, 0, nt * SL_RT_SUBTILES * sizeof(uint32_t));
+        memset(ctx->target.depth + t0, 0, nt * sizeof(sl_rt_tile_depth));
+        memset(ctx->row_empty + ty, 0, (size_t)(te - ty));
+        ctx->target.empty_rows -= te - ty;
+        ty = te - 1;
+    }
+}
+
+/* Every empty row written (before binning: bins are rendered concurrently and never fill rows). */
+static void fill_all(sl_raster *ctx)
+{
+    if (ctx->target.empty_rows)
+        fill_rows(ctx, 0, ctx->target.tiles_y);
+}
+
+void sl_rt_settle(sl_raster *ctx) { fill_all(ctx); }
+
+/* True when every subtile of the (at most 4) tiles [ta, tb] x [ua, ub] has za > d; then the
+ * rectangle is hidden whatever it covers of them. Otherwise the kernel decides (same answer). */
+static inline bool small_rect_hidden(const sl_rt_target *t, int32_t ta, int32_t tb, int32_t ua, int32_t ub, float d)
+{
+#if defined(SL_RT_X86)
+    __m128 z = _mm_set1_ps(d), acc = _mm_castsi128_ps(_mm_set1_epi32(-1));
+    for (int32_t u = ua; u <= ub; u++)
+        for (int32_t x = ta; x <= tb; x++) {
+            const float *za = t->depth[(size_t)u * (size_t)t->tiles_x + (size_t)x].za;
+            acc = _mm_and_ps(acc, _mm_and_ps(_mm_cmpgt_ps(_mm_load_ps(za), z), _mm_cmpgt_ps(_mm_load_ps(za + 4), z)));
+        }
+    return _mm_movemask_ps(acc) == 0xF;
+#else
+    bool all = true;
+    for (int32_t u = ua; u <= ub; u++)
+        for (int32_t x = ta; x <= tb; x++)
+            for (int s = 0; s < SL_RT_SUBTILES; s++)
+                all &= t->depth[(size_t)u * (size_t)t->tiles_x + (size_t)x].za[s] > d;
+    return all;
+#endif
+}
+
+bool sl_rt_rect_occluded(const sl_rt_kernels *k, const sl_rt_target *t, int32_t x0, int32_t y0, int32_t x1,
+                         int32_t y1, float d)
+{
+    if (!t->empty_rows) { /* the common case: every row holds data */
+        int32_t ta = x0 / SL_RT_TILE_W, tb = (x1 - 1) / SL_RT_TILE_W, ua = y0 / SL_RT_TILE_H,
+                ub = (y1 - 1) / SL_RT_TILE_H;
+        /* a small rectangle behind whole-subtile depths: answered here, without the call */
+        if ((tb - ta + 1) * (ub - ua + 1) <= 4 && small_rect_hidden(t, ta, tb, ua, ub, d))
+            return true;
+        return k->rect_occluded(t, x0, y0, x1, y1, d);
+    }
+    int32_t ta = y0 / SL_RT_TILE_H, tb = (y1 - 1) / SL_RT_TILE_H;
+    const uint8_t *e = t->row_empty;
+    int32_t ty = ta;
+    while (ty <= tb && !e[ty])
+        ty++;
+    if (ty > tb)
+        return k->rect_occluded(t, x0, y0, x1, y1, d);
+    if (!(d < 0.0f)) /* a cleared subtile (za = 0) hides no depth >= 0 */
+        return false;
+    /* d < 0: the cleared rows hide it; test the bands of rows with data */
+    for (ty = ta; ty <= tb;) {
+        if (e[ty]) {
+            ty++;
+            continue;
+        }
+        int32_t te = ty;
+        while (te + 1 <= tb && !e[te + 1])
+            te++;
+        int32_t ya = sl_rt_maxi(y0, ty * SL_RT_TILE_H), yb = sl_rt_mini(y1, (te + 1) * SL_RT_TILE_H);
+        if (!k->rect_occluded(t, x0, ya, x1, yb, d))
+            return false;
+        ty = te + 1;
+    }
+    return true;
+}
+
 void sl_raster_clear(sl_raster *ctx)
 {
     if (!ctx)
         return;
-    /* depth 0.0f and an empty mask are all-zero bits */
-    memset(ctx->target.mask, 0, ctx->mask_bytes);
-    memset(ctx->target.depth, 0, ctx->depth_bytes);
+    /* lazy: rows are written when first drawn into (fill_rows) */
+    memset(ctx->row_empty, 1, (size_t)ctx->target.tiles_y);
+    ctx->target.empty_rows = ctx->target.tiles_y;
     sl_rt_bins_reset(ctx->bins);
     ctx->pending = false;
     sl_raster_reset_stats(ctx);
@@ -279,6 +376,14 @@ static void render_direct(sl_raster *ctx, const sl_rt_batch *b, uint32_t first, 
     sl_rt_prim prims[PRIM_BUF];
     for (uint32_t t = first; t < last;) {
         uint32_t n = ctx->k->front(&ctx->view, ctx->mode, b, &t, last, &ctx->cnt, prims, PRIM_BUF);
+        if (ctx->target.empty_rows && n > 0) { /* the rows the prims reach get their zeros */
+            int32_t r0 = prims[0].row0, r1 = prims[0].row1;
+            for (uint32_t i = 1; i < n; i++) {
+                r0 = sl_rt_mini(r0, prims[i].row0);
+                r1 = sl_rt_maxi(r1, prims[i].row1);
+            }
+            fill_rows(ctx, r0 / SL_RT_TILE_H, (r1 - 1) / SL_RT_TILE_H + 1);
+        }
         ctx->k->render(&ctx->target, ctx->mode, prims, n, 0, ctx->target.tiles_x, 0, ctx->target.tiles_y);
     }
 }
@@ -360,6 +465,7 @@ sl_status sl_raster_render_triangles(sl_raster *ctx, const float *vertices, uint
         render_direct(ctx, &b, 0, triangle_count);
         return SL_OK;
     }
+    fill_all(ctx);
     pool_job j = {.ctx = ctx, .batch = &b};
     atomic_init(&j.failed, false);
     for (uint32_t first = 0; first < triangle_count; first += POOL_CHUNK) {
@@ -392,6 +498,7 @@ sl_status sl_raster_bin_triangles(sl_raster *ctx, const float *vertices, uint32_
     if (st != SL_OK)
         return st;
     sl_rt_batch b = {vertices, vertex_count, indices, triangle_count, vertex_stride_bytes, model_to_clip, backface};
+    fill_all(ctx); /* before anything is published to render_bin */
     ctx->pending = true;
     if (!bin_range(ctx, 0, &b, 0, triangle_count))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "raster: bin: out of memory for the bin queues");
@@ -420,8 +527,8 @@ sl_raster_result sl_raster_test_rect(const sl_raster *ctx, int32_t xmin, int32_t
         return SL_RASTER_VISIBLE;
     if (nearest_depth < 0.0f)
         return SL_RASTER_OUTSIDE;
-    return ctx->k->rect_occluded(&ctx->target, x0, y0, x1, y1, nearest_depth) ? SL_RASTER_OCCLUDED
-                                                                              : SL_RASTER_VISIBLE;
+    return sl_rt_rect_occluded(ctx->k, &ctx->target, x0, y0, x1, y1, nearest_depth) ? SL_RASTER_OCCLUDED
+                                                                                     : SL_RASTER_VISIBLE;
 }
 
 bool sl_raster_project(const sl_raster *ctx, const float clip[4], float *x, float *y, float *depth)
@@ -457,17 +564,11 @@ static void touched(float a, float b, int32_t n, int32_t *lo, int32_t *hi)
     *hi = (int32_t)fb;
 }
 
-sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3], const float box_max[3],
-                                     const float world_to_clip[16])
+/* The box query, corner by corner: the reference of the SIMD version below (and the code where
+ * there is none). The box is finite and not empty. */
+sl_raster_result sl_rt_test_aabb_scalar(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                        const float world_to_clip[16])
 {
-    if (!ctx || !box_min || !box_max || !world_to_clip)
-        return SL_RASTER_VISIBLE;
-    for (int i = 0; i < 3; i++) {
-        if (!isfinite(box_min[i]) || !isfinite(box_max[i]))
-            return SL_RASTER_VISIBLE;
-        if (box_min[i] > box_max[i])
-            return SL_RASTER_OUTSIDE; /* an empty box */
-    }
     const sl_rt_view *v = &ctx->view;
     unsigned all = 63, near_cross = 0;
     float c[8][4];
@@ -505,6 +606,105 @@ sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3
     return sl_raster_test_rect(ctx, x0, y0, x1, y1, dn);
 }
 
+#if defined(SL_RT_X86)
+static inline __m128 sse_finite(__m128 a) /* all-ones where a is finite */
+{
+    return _mm_cmplt_ps(_mm_andnot_ps(_mm_set1_ps(-0.0f), a), _mm_set1_ps(INFINITY));
+}
+static inline float sse_hmin(__m128 a)
+{
+    a = _mm_min_ps(a, _mm_shuffle_ps(a, a, 0x4E));
+    return _mm_cvtss_f32(_mm_min_ps(a, _mm_shuffle_ps(a, a, 0xB1)));
+}
+static inline float sse_hmax(__m128 a)
+{
+    a = _mm_max_ps(a, _mm_shuffle_ps(a, a, 0x4E));
+    return _mm_cvtss_f32(_mm_max_ps(a, _mm_shuffle_ps(a, a, 0xB1)));
+}
+
+/* sl_rt_test_aabb_scalar with the 8 corners in two SSE2 registers (corners 0-3: z = min, 4-7:
+ * z = max; lane i: x = min/max by bit 0, y by bit 1): the same float operations on every corner
+ * in the same order, so the same clip coordinates, outcodes and projected values. The minima and
+ * maxima are taken in another order, which cannot change them (finite values, never -0: sx and sy
+ * are sums with a positive term, d > 0 or a difference). */
+static sl_raster_result test_aabb_sse2(const sl_raster *ctx, const float bmin[3], const float bmax[3],
+                                       const float *m)
+{
+    const sl_rt_view *v = &ctx->view;
+    const __m128 X = _mm_setr_ps(bmin[0], bmax[0], bmin[0], bmax[0]);
+    const __m128 Y = _mm_setr_ps(bmin[1], bmin[1], bmax[1], bmax[1]);
+    const __m128 Z[2] = {_mm_set1_ps(bmin[2]), _mm_set1_ps(bmax[2])};
+    __m128 c[2][4]; /* [corner group][clip row] */
+    for (int r = 0; r < 4; r++) {
+        __m128 xy = _mm_add_ps(_mm_mul_ps(_mm_set1_ps(m[r]), X), _mm_mul_ps(_mm_set1_ps(m[4 + r]), Y));
+        for (int g = 0; g < 2; g++)
+            c[g][r] = _mm_add_ps(_mm_add_ps(xy, _mm_mul_ps(_mm_set1_ps(m[8 + r]), Z[g])), _mm_set1_ps(m[12 + r]));
+    }
+    __m128 fin = _mm_and_ps(_mm_and_ps(sse_finite(c[0][0]), sse_finite(c[0][1])),
+                            _mm_and_ps(sse_finite(c[0][2]), sse_finite(c[0][3])));
+    fin = _mm_and_ps(fin, _mm_and_ps(_mm_and_ps(sse_finite(c[1][0]), sse_finite(c[1][1])),
+                                     _mm_and_ps(sse_finite(c[1][2]), sse_finite(c[1][3]))));
+    if (_mm_movemask_ps(fin) != 0xF)
+        return SL_RASTER_VISIBLE;
+    /* a plane every corner lies beyond: outside; a corner in front of the near plane: visible */
+    const __m128 sign = _mm_set1_ps(-0.0f), nearw = _mm_set1_ps(v->near_w);
+    int all = 0xF, near_cross = 0, out = 0;
+    for (int p = 0; p < 6; p++) {
+        all = 0xF;
+        for (int g = 0; g < 2; g++) {
+            __m128 w = c[g][3], nw = _mm_xor_ps(w, sign), a = c[g][p >> 1];
+            all &= _mm_movemask_ps(p & 1 ? _mm_cmpgt_ps(a, w) : _mm_cmplt_ps(a, nw));
+        }
+        out |= all == 0xF;
+    }
+    if (out)
+        return SL_RASTER_OUTSIDE;
+    for (int g = 0; g < 2; g++) {
+        __m128 w = c[g][3];
+        near_cross |= _mm_movemask_ps(_mm_or_ps(_mm_cmplt_ps(c[g][2], _mm_xor_ps(w, sign)), _mm_cmplt_ps(w, nearw)));
+    }
+    if (near_cross)
+        return SL_RASTER_VISIBLE;
+    const __m128 hw = _mm_set1_ps(v->half_w), hh = _mm_set1_ps(v->half_h);
+    __m128 sx[2], sy[2], d[2];
+    for (int g = 0; g < 2; g++) {
+        __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), c[g][3]);
+        sx[g] = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(c[g][0], inv), hw), hw);
+        sy[g] = _mm_sub_ps(hh, _mm_mul_ps(_mm_mul_ps(c[g][1], inv), hh));
+        d[g] = v->depth == SL_RASTER_DEPTH_INV_W
+                   ? inv
+                   : _mm_sub_ps(_mm_set1_ps(0.5f), _mm_mul_ps(_mm_set1_ps(0.5f), _mm_mul_ps(c[g][2], inv)));
+    }
+    fin = _mm_and_ps(_mm_and_ps(_mm_and_ps(sse_finite(sx[0]), sse_finite(sx[1])),
+                                _mm_and_ps(sse_finite(sy[0]), sse_finite(sy[1]))),
+                     _mm_and_ps(sse_finite(d[0]), sse_finite(d[1])));
+    if (_mm_movemask_ps(fin) != 0xF)
+        return SL_RASTER_VISIBLE;
+    int32_t x0, x1, y0, y1;
+    touched(sse_hmin(_mm_min_ps(sx[0], sx[1])), sse_hmax(_mm_max_ps(sx[0], sx[1])), v->width, &x0, &x1);
+    touched(sse_hmin(_mm_min_ps(sy[0], sy[1])), sse_hmax(_mm_max_ps(sy[0], sy[1])), v->height, &y0, &y1);
+    return sl_raster_test_rect(ctx, x0, y0, x1, y1, sse_hmax(_mm_max_ps(d[0], d[1])));
+}
+#endif
+
+sl_raster_result sl_raster_test_aabb(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                     const float world_to_clip[16])
+{
+    if (!ctx || !box_min || !box_max || !world_to_clip)
+        return SL_RASTER_VISIBLE;
+    for (int i = 0; i < 3; i++) {
+        if (!isfinite(box_min[i]) || !isfinite(box_max[i]))
+            return SL_RASTER_VISIBLE;
+        if (box_min[i] > box_max[i])
+            return SL_RASTER_OUTSIDE; /* an empty box */
+    }
+#if defined(SL_RT_X86)
+    return test_aabb_sse2(ctx, box_min, box_max, world_to_clip);
+#else
+    return sl_rt_test_aabb_scalar(ctx, box_min, box_max, world_to_clip);
+#endif
+}
+
 sl_raster_result sl_raster_test_triangles(const sl_raster *ctx, const float *vertices, uint32_t vertex_count,
                                           const uint32_t *indices, uint32_t triangle_count,
                                           uint32_t vertex_stride_bytes, const float model_to_clip[16],
@@ -524,8 +724,10 @@ static inline float pixel_depth(const sl_rt_target *t, int32_t x, int32_t y)
     size_t tile = (size_t)(y / SL_RT_TILE_H) * (size_t)t->tiles_x + (size_t)(x / SL_RT_TILE_W);
     int k = ((y % SL_RT_TILE_H) / SL_RT_SUB_H) * 4 + (x % SL_RT_TILE_W) / SL_RT_SUB_W;
     int bit = (y % SL_RT_SUB_H) * 8 + x % SL_RT_SUB_W;
-    uint32_t m = t->mask[tile * SL_RT_SUBTILES + (size_t)k];
-    return (m >> bit) & 1u ? t->depth[tile].zm[k] : t->depth[tile].za[k];
+    int32_t ty = y / SL_RT_TILE_H;
+    uint32_t m = sl_rt_tile_mask(t, ty, tile)[k];
+    const sl_rt_tile_depth *d = sl_rt_tile_depths(t, ty, tile);
+    return (m >> bit) & 1u ? d->zm[k] : d->za[k];
 }
 
 sl_status sl_raster_read_depth(const sl_raster *ctx, float *out, size_t count, sl_error *err)
@@ -553,8 +755,8 @@ sl_status sl_raster_read_subtile_depth(const sl_raster *ctx, float *out, size_t 
         for (size_t sx = 0; sx < sw; sx++) {
             size_t tile = (sy / 2) * (size_t)ctx->target.tiles_x + sx / 4;
             size_t k = (sy % 2) * 4 + sx % 4;
-            uint32_t m = ctx->target.mask[tile * SL_RT_SUBTILES + k];
-            const sl_rt_tile_depth *d = &ctx->target.depth[tile];
+            uint32_t m = sl_rt_tile_mask(&ctx->target, (int32_t)(sy / 2), tile)[k];
+            const sl_rt_tile_depth *d = sl_rt_tile_depths(&ctx->target, (int32_t)(sy / 2), tile);
             /* the farthest pixel: za unless every pixel is in the mask (zm >= za) */
             out[sy * sw + sx] = m == ~0u ? d->zm[k] : d->za[k];
         }
@@ -571,8 +773,8 @@ sl_status sl_raster_get_tile_info(const sl_raster *ctx, uint32_t tile_x, uint32_
                        tile_y, ctx->target.tiles_x, ctx->target.tiles_y);
     memset(out, 0, sizeof *out);
     size_t tile = (size_t)tile_y * (size_t)ctx->target.tiles_x + tile_x;
-    const uint32_t *m = ctx->target.mask + tile * SL_RT_SUBTILES;
-    const sl_rt_tile_depth *d = &ctx->target.depth[tile];
+    const uint32_t *m = sl_rt_tile_mask(&ctx->target, (int32_t)tile_y, tile);
+    const sl_rt_tile_depth *d = sl_rt_tile_depths(&ctx->target, (int32_t)tile_y, tile);
     for (int k = 0; k < SL_RT_SUBTILES; k++) {
         out->full_subtiles += d->za[k] > 0.0f;
         out->partial_subtiles += m[k] != 0;

@@ -20,6 +20,7 @@
 #define SL_RT_T AVX512
 #define SL_RT_NAME(n) n##_avx512
 #define SL_RT_W 8
+#define SL_RT_MASKED_FULL 1 /* raster_simd8.h's merge_full_tile with masked stores */
 #include "raster/raster_simd8.h"
 #define SL_RT_D8_512 1 /* raster_lanes.h's doubles on 512-bit registers */
 #include "raster/raster_lanes.h"
@@ -110,12 +111,14 @@ AVX512 static inline __attribute__((always_inline)) void raster_small(const sl_r
     uint32_t *const mask = tg->mask;
     sl_rt_tile_depth *const depth = tg->depth;
     const size_t tiles_x = (size_t)tg->tiles_x;
+    small_dda dda;
+    small_dda_init(t, &dda);
     small_row cur;
-    small_row_at(t, t->ty0, &cur);
+    small_row_at(t, &dda, t->ty0, &cur);
     for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
         small_row nxt = cur;
         if (ty + 1 < t->ty1)
-            small_row_at(t, ty + 1, &nxt);
+            small_row_at(t, &dda, ty + 1, &nxt);
         if (cur.any) {
             float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
             size_t row = (size_t)ty * tiles_x;

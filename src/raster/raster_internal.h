@@ -52,13 +52,36 @@ typedef struct sl_rt_tile_depth {
     float zm[SL_RT_SUBTILES];
 } sl_rt_tile_depth;
 
-/* What the kernels write into or read. mask has 8 words per tile, tile-major, row-major tiles. */
+/* What the kernels write into or read. mask has 8 words per tile, tile-major, row-major tiles.
+ * Lazy clear: row_empty[ty] != 0 says tile row ty is cleared (every subtile m = 0, za = zm = 0)
+ * whatever its memory holds; the context writes the zeros into a row before an occluder reaches
+ * it (raster.c, sl_rt_fill_rows). Readers take such a row as zero: the query kernels read
+ * sl_rt_zero_tile in its place, the rectangle test goes through sl_rt_rect_occluded. */
 typedef struct sl_rt_target {
     uint32_t *mask;
     sl_rt_tile_depth *depth;
+    const uint8_t *row_empty; /* tiles_y flags */
+    int32_t empty_rows;       /* how many are set */
     int32_t tiles_x, tiles_y;
     int32_t width, height; /* real pixels (queries stop there) */
 } sl_rt_target;
+
+/* A cleared tile (all-zero bits), what the query kernels read for a tile of an empty row. */
+typedef struct sl_rt_zero_tile_t {
+    _Alignas(64) sl_rt_tile_depth depth;
+    _Alignas(32) uint32_t mask[SL_RT_SUBTILES];
+} sl_rt_zero_tile_t;
+extern const sl_rt_zero_tile_t sl_rt_zero_tile;
+
+/* The mask words and depths of tile ti in tile row ty, as the lazy clear defines them. */
+static inline const uint32_t *sl_rt_tile_mask(const sl_rt_target *t, int32_t ty, size_t ti)
+{
+    return t->row_empty[ty] ? sl_rt_zero_tile.mask : t->mask + ti * SL_RT_SUBTILES;
+}
+static inline const sl_rt_tile_depth *sl_rt_tile_depths(const sl_rt_target *t, int32_t ty, size_t ti)
+{
+    return t->row_empty[ty] ? &sl_rt_zero_tile.depth : &t->depth[ti];
+}
 
 /* A triangle set up for the kernels.
  * Coverage: for pixel row j, edge e gives the column threshold t_e(j) = ceil(num_e(j) / den_e) with
@@ -189,6 +212,11 @@ void sl_rt_render_each(void (*raster)(const sl_rt_target *, const sl_rt_tri *, i
 sl_raster_result sl_rt_query_batch(const sl_rt_view *v, const sl_rt_kernels *k, const sl_rt_target *t,
                                    const sl_rt_batch *b);
 
+/* k->rect_occluded over the rows of [x0,x1) x [y0,y1) that hold data; a cleared row hides d only
+ * when 0 > d. The answer is that of an eagerly cleared buffer (raster.c). */
+bool sl_rt_rect_occluded(const sl_rt_kernels *k, const sl_rt_target *t, int32_t x0, int32_t y0, int32_t x1,
+                         int32_t y1, float d);
+
 /* ---- bins and thread pool (raster_bins.c) ---- */
 
 typedef struct sl_rt_bins sl_rt_bins;
@@ -219,6 +247,13 @@ void sl_rt_pool_run(sl_rt_pool *p, sl_rt_job_fn fn, void *arg);
 /* The buffer and the projection of a context (read-only views). */
 const sl_rt_target *sl_rt_target_of(const sl_raster *ctx);
 const sl_rt_view *sl_rt_view_of(const sl_raster *ctx);
+/* Write the zeros of every row the lazy clear left empty, so that the raw buffer is what an eager
+ * clear would hold (tests compare raw buffers after it; exclusive use). */
+void sl_rt_settle(sl_raster *ctx);
+/* sl_raster_test_aabb corner by corner, for a finite, non-empty box: the reference of the SIMD
+ * version (same answers, tested). */
+sl_raster_result sl_rt_test_aabb_scalar(const sl_raster *ctx, const float box_min[3], const float box_max[3],
+                                        const float world_to_clip[16]);
 
 /* ---- scalar helpers shared by every path ---- */
 

@@ -100,8 +100,8 @@ static bool query_scalar(const sl_rt_target *tg, const sl_rt_tri *t)
             tile_masks(xl, xr, x, sub);
             float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
             size_t ti = (size_t)ty * (size_t)tg->tiles_x + (size_t)tx;
-            const uint32_t *m = tg->mask + ti * SL_RT_SUBTILES;
-            const sl_rt_tile_depth *d = &tg->depth[ti];
+            const uint32_t *m = sl_rt_tile_mask(tg, ty, ti);
+            const sl_rt_tile_depth *d = sl_rt_tile_depths(tg, ty, ti);
             for (int k = 0; k < SL_RT_SUBTILES; k++) {
                 float z = sl_rt_minf(zt + t->off[k], t->zclamp);
                 if (!sl_rt_subtile_hides(sub[k], z, m[k], d->za[k], d->zm[k]))

@@ -506,7 +506,7 @@ static bool degenerate_visible(const sl_rt_view *v, const sl_rt_kernels *k, cons
     if (x0 >= x1 || y0 >= y1)
         return false;
     float dn = sl_rt_maxf(sl_rt_maxf(d[0], d[1]), d[2]);
-    return !k->rect_occluded(t, x0, y0, x1, y1, dn);
+    return !sl_rt_rect_occluded(k, t, x0, y0, x1, y1, dn);
 }
 
 sl_raster_result sl_rt_query_batch(const sl_rt_view *v, const sl_rt_kernels *k, const sl_rt_target *t,

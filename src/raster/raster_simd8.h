@@ -164,6 +164,21 @@ SL_RT_T static inline int32_t hmax(__m256i v)
     return _mm_cvtsi128_si32(m);
 }
 
+/* Minimum and maximum of 8 lanes in [0, 65535] (spans of the padded screen): packed to 16 bits,
+ * one phminposuw (a maximum is 65535 minus the minimum of the complements). */
+SL_RT_T static inline uint32_t hmin_u16(__m256i v)
+{
+    __m128i p = _mm_packus_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+    return (uint32_t)_mm_cvtsi128_si32(_mm_minpos_epu16(p)) & 0xFFFFu;
+}
+
+SL_RT_T static inline uint32_t hmax_u16(__m256i v)
+{
+    __m128i p = _mm_packus_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+    p = _mm_xor_si128(p, _mm_set1_epi32(-1));
+    return 0xFFFFu - ((uint32_t)_mm_cvtsi128_si32(_mm_minpos_epu16(p)) & 0xFFFFu);
+}
+
 /* Tile columns [*ta, *tb) of the non-empty spans within [tx0, tx1), and [*ia, *ib) of the tiles
  * every row covers completely (empty when a row is empty); false if no span. */
 SL_RT_T static inline bool span_tiles(__m256i xl, __m256i xr, int32_t tx0, int32_t tx1, int32_t *ta, int32_t *tb,
@@ -180,12 +195,14 @@ SL_RT_T static inline bool span_tiles(__m256i xl, __m256i xr, int32_t tx0, int32
         return true;
     }
     /* spans lie in [col0, col1], so the columns are >= 0: unsigned division is a shift */
-    uint32_t lo = (uint32_t)hmin(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MAX), xl, ne));
-    uint32_t hi = (uint32_t)hmax(_mm256_blendv_epi8(_mm256_set1_epi32(INT32_MIN), xr, ne));
+    /* spans lie in [col0, col1] within the padded screen: 16-bit reductions (empty lanes take
+     * 65535 for the minimum, 0 for the maximum) */
+    uint32_t lo = hmin_u16(_mm256_blendv_epi8(_mm256_set1_epi32(0xFFFF), xl, ne));
+    uint32_t hi = hmax_u16(_mm256_and_si256(xr, ne));
     *ta = sl_rt_maxi(tx0, (int32_t)(lo / SL_RT_TILE_W));
     *tb = sl_rt_mini(tx1, (int32_t)((hi - 1) / SL_RT_TILE_W + 1));
     if (nm == 0xFF) {
-        uint32_t l = (uint32_t)hmax(xl), r = (uint32_t)hmin(xr);
+        uint32_t l = hmax_u16(xl), r = hmin_u16(xr);
         *ia = sl_rt_maxi(*ta, (int32_t)((l + SL_RT_TILE_W - 1) / SL_RT_TILE_W));
         *ib = sl_rt_mini(*tb, (int32_t)(r / SL_RT_TILE_W));
     }
@@ -225,6 +242,26 @@ SL_RT_T static inline __m256i row_masks(__m256i xl, __m256i xr, int32_t x)
 
 /* sl_rt_merge of coverage c at depth z into one tile. No early exit: which tiles a triangle
  * changes is data-dependent, and a mispredicted branch costs more than the stores it saves. */
+#if defined(SL_RT_MASKED_FULL)
+/* AVX-512: the conditions in mask registers and the results written by masked stores (raster_avx512.c's
+ * merge_pair on 8 lanes) */
+SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    __m256 za = _mm256_load_ps(dp->za), zm = _mm256_load_ps(dp->zm);
+    __m256i m = _mm256_load_si256((const __m256i *)mp);
+    __mmask8 act = _mm256_test_epi32_mask(c, c) & _mm256_cmp_ps_mask(z, za, _CMP_GT_OQ);
+    __mmask8 nearer = _mm256_cmp_ps_mask(z, zm, _CMP_GT_OQ) &
+                      _mm256_cmp_ps_mask(_mm256_sub_ps(z, zm), _mm256_sub_ps(zm, za), _CMP_GT_OQ);
+    __m256i mc = _mm256_andnot_si256(c, m);
+    __mmask8 repl = _mm256_testn_epi32_mask(mc, mc) | nearer;
+    __m256i nm = _mm256_mask_mov_epi32(_mm256_or_si256(m, c), repl, c);
+    __m256 nz = _mm256_mask_mov_ps(_mm256_min_ps(zm, z), repl, z);
+    __mmask8 full = _mm256_cmpeq_epi32_mask(nm, _mm256_set1_epi32(-1));
+    _mm256_mask_store_epi32(mp, act, _mm256_maskz_mov_epi32((__mmask8)~full, nm));
+    _mm256_mask_store_ps(dp->za, act & full, nz);
+    _mm256_mask_store_ps(dp->zm, act, nz);
+}
+#else
 SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
     const __m256i zero = _mm256_setzero_si256(), ones = _mm256_set1_epi32(-1);
@@ -245,9 +282,20 @@ SL_RT_T static inline void merge_tile(__m256i c, __m256 z, uint32_t *mp, sl_rt_t
     _mm256_store_ps(dp->za, za);
     _mm256_store_ps(dp->zm, zm);
 }
+#endif
 
 /* merge_tile with c = ~0 in every lane: the old mask lies inside c, so a nearer subtile simply
  * takes z over its whole area. */
+#if defined(SL_RT_MASKED_FULL)
+/* AVX-512: the same result with masked stores, without reading m or zm */
+SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
+{
+    __mmask8 act = _mm256_cmp_ps_mask(z, _mm256_load_ps(dp->za), _CMP_GT_OQ);
+    _mm256_mask_store_epi32(mp, act, _mm256_setzero_si256());
+    _mm256_mask_store_ps(dp->za, act, z);
+    _mm256_mask_store_ps(dp->zm, act, z);
+}
+#else
 SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_depth *dp)
 {
     __m256 za = _mm256_load_ps(dp->za);
@@ -257,6 +305,7 @@ SL_RT_T static inline void merge_full_tile(__m256 z, uint32_t *mp, sl_rt_tile_de
     _mm256_store_ps(dp->za, _mm256_blendv_ps(za, z, act));
     _mm256_store_ps(dp->zm, _mm256_blendv_ps(_mm256_load_ps(dp->zm), z, act));
 }
+#endif
 
 /* One tile with partial coverage: zc = the tile column's z0 + zdx*(float)(x - x_ref). */
 SL_RT_T static inline __attribute__((always_inline)) void partial_tile(uint32_t *mask, sl_rt_tile_depth *depth,
@@ -356,7 +405,7 @@ SL_RT_T static bool SL_RT_NAME(query)(const sl_rt_target *tg, const sl_rt_tri *t
             __m256i c = _mm256_shuffle_epi8(row_masks(xl, xr, x), ctl);
             float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
             __m256 z = _mm256_min_ps(_mm256_add_ps(_mm256_set1_ps(zt), off), zclamp);
-            if (hides_mask(c, z, tg->mask + ti * SL_RT_SUBTILES, &tg->depth[ti]) != 0xFF)
+            if (hides_mask(c, z, sl_rt_tile_mask(tg, ty, ti), sl_rt_tile_depths(tg, ty, ti)) != 0xFF)
                 return true;
         }
     }
@@ -369,7 +418,28 @@ SL_RT_T static bool SL_RT_NAME(rect)(const sl_rt_target *tg, int32_t x0, int32_t
     const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     const __m256 z = _mm256_set1_ps(dz);
     int32_t txa = x0 / SL_RT_TILE_W, txb = (x1 - 1) / SL_RT_TILE_W;
-    for (int32_t ty = y0 / SL_RT_TILE_H; ty <= (y1 - 1) / SL_RT_TILE_H; ty++) {
+    int32_t tya = y0 / SL_RT_TILE_H, tyb = (y1 - 1) / SL_RT_TILE_H;
+    /* The common case first, without a branch per tile: every tile's whole-subtile depths hide z
+     * (then so does every subtile, whatever the rectangle covers of it). Tile pairs per step, one
+     * test per tile row; any other answer is left to the exact loop below. */
+    {
+        bool all = true;
+        const size_t tx = (size_t)tg->tiles_x, nt = (size_t)(txb - txa + 1);
+        for (int32_t ty = tya; ty <= tyb && all; ty++) {
+            const sl_rt_tile_depth *dp = &tg->depth[(size_t)ty * tx + (size_t)txa];
+            __m256 acc = _mm256_cmp_ps(_mm256_load_ps(dp[0].za), z, _CMP_GT_OQ);
+            size_t i = 1;
+            for (; i + 1 < nt; i += 2)
+                acc = _mm256_and_ps(acc, _mm256_and_ps(_mm256_cmp_ps(_mm256_load_ps(dp[i].za), z, _CMP_GT_OQ),
+                                                       _mm256_cmp_ps(_mm256_load_ps(dp[i + 1].za), z, _CMP_GT_OQ)));
+            if (i < nt)
+                acc = _mm256_and_ps(acc, _mm256_cmp_ps(_mm256_load_ps(dp[i].za), z, _CMP_GT_OQ));
+            all = _mm256_movemask_ps(acc) == 0xFF;
+        }
+        if (all)
+            return true;
+    }
+    for (int32_t ty = tya; ty <= tyb; ty++) {
         __m256i j = _mm256_add_epi32(_mm256_set1_epi32(ty * SL_RT_TILE_H), lanes);
         __m256i valid = _mm256_and_si256(_mm256_cmpgt_epi32(j, _mm256_set1_epi32(y0 - 1)),
                                          _mm256_cmpgt_epi32(_mm256_set1_epi32(y1), j));

@@ -23,7 +23,36 @@ typedef struct small_tri {
     int32_t tx0, tx1, ty0, ty1; /* tile bounds, clipped to the caller's */
 } small_tri;
 
-SL_RT_T static inline __attribute__((always_inline)) void small_row_at(small_tri *t, int32_t ty, small_row *r);
+/* Exact stepping of a wide small triangle's thresholds (raster_small_ymm, raster_small): with
+ * n = q*dd - r (0 <= r < dd) and 8s = q8*dd + e8 (0 <= e8 < dd), the next tile row's threshold
+ * ceil((n + 8s)/dd) is q + q8, plus 1 when r - e8 < 0 (then r - e8 + dd is its remainder): integer
+ * operations instead of three divisions per tile row, the same values. */
+typedef struct small_dda {
+    __m256i q[3], r[3], q8[3], e8[3], dd[3];
+    __m256i cap, cl, cr;
+} small_dda;
+
+SL_RT_T static inline __attribute__((always_inline)) void small_dda_init(const small_tri *t, small_dda *d)
+{
+    SL_RT_UNROLL
+    for (int e = 0; e < 3; e++) {
+        /* the first tile row by division (|n| < 2^23: exact), q*dd - n an exact integer below
+         * 2^24; floor(8s/dd) of |8s| < 2^23 is exact like the ceiling, q8*dd and e8 exact too */
+        __m256 q = _mm256_ceil_ps(_mm256_div_ps(t->n[e], t->dd[e]));
+        __m256 q8 = _mm256_floor_ps(_mm256_div_ps(t->s8[e], t->dd[e]));
+        d->q[e] = _mm256_cvttps_epi32(q);
+        d->r[e] = _mm256_cvttps_epi32(_mm256_sub_ps(_mm256_mul_ps(q, t->dd[e]), t->n[e]));
+        d->q8[e] = _mm256_cvttps_epi32(q8);
+        d->e8[e] = _mm256_cvttps_epi32(_mm256_sub_ps(t->s8[e], _mm256_mul_ps(q8, t->dd[e])));
+        d->dd[e] = _mm256_cvttps_epi32(t->dd[e]);
+    }
+    d->cap = _mm256_cvttps_epi32(t->cap);
+    d->cl = _mm256_cvttps_epi32(t->cl);
+    d->cr = _mm256_cvttps_epi32(t->cr);
+}
+
+SL_RT_T static inline __attribute__((always_inline)) void small_row_at(const small_tri *t, small_dda *d, int32_t ty,
+                                                                       small_row *r);
 
 SL_RT_T static inline __attribute__((always_inline)) bool small_load(const small_lanes *s, int l, int32_t tx0, int32_t tx1,
                                                                      int32_t ty0, int32_t ty1, small_tri *o)
@@ -82,9 +111,35 @@ SL_RT_T static inline __attribute__((always_inline)) void small_spans(small_tri 
     *pxr = _mm256_cvttps_epi32(xr);
 }
 
-SL_RT_T static inline __attribute__((always_inline)) void small_row_at(small_tri *t, int32_t ty, small_row *r)
+/* small_spans with the exact stepping of small_dda (the same spans). */
+SL_RT_T static inline __attribute__((always_inline)) void small_spans_dda(const small_tri *t, small_dda *d, int32_t ty,
+                                                                          __m256i *pxl, __m256i *pxr)
 {
-    small_spans(t, ty, &r->xl, &r->xr);
+    const __m256i t0 = d->q[0], t1 = d->q[1], t2 = d->q[2];
+    SL_RT_UNROLL
+    for (int e = 0; e < 3; e++) {
+        __m256i r = _mm256_sub_epi32(d->r[e], d->e8[e]);
+        __m256i borrow = _mm256_srai_epi32(r, 31); /* -1 where r - e8 < 0 */
+        d->r[e] = _mm256_add_epi32(r, _mm256_and_si256(borrow, d->dd[e]));
+        d->q[e] = _mm256_sub_epi32(_mm256_add_epi32(d->q[e], d->q8[e]), borrow);
+    }
+    /* min/max of exact integers: the float version's values */
+    __m256i xl = _mm256_max_epi32(_mm256_max_epi32(d->cl, t0), _mm256_min_epi32(t2, d->cap));
+    __m256i xr = _mm256_min_epi32(_mm256_min_epi32(d->cr, t1), _mm256_max_epi32(t2, d->cap));
+    if (ty * SL_RT_TILE_H < t->row0 || ty * SL_RT_TILE_H + SL_RT_TILE_H > t->row1) {
+        __m256i j = _mm256_add_epi32(_mm256_set1_epi32(ty * SL_RT_TILE_H), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+        __m256i valid = _mm256_and_si256(_mm256_cmpgt_epi32(j, _mm256_set1_epi32(t->row0 - 1)),
+                                         _mm256_cmpgt_epi32(_mm256_set1_epi32(t->row1), j));
+        xr = _mm256_blendv_epi8(_mm256_set1_epi32(-SL_RT_BIG), xr, valid);
+    }
+    *pxl = xl;
+    *pxr = xr;
+}
+
+SL_RT_T static inline __attribute__((always_inline)) void small_row_at(const small_tri *t, small_dda *d, int32_t ty,
+                                                                       small_row *r)
+{
+    small_spans_dda(t, d, ty, &r->xl, &r->xr);
     r->ta = t->tx0, r->tb = t->tx1;
     r->any = true;
     if (r->tb - r->ta > 2) {
@@ -171,12 +226,14 @@ SL_RT_T static inline __attribute__((always_inline)) void raster_small_ymm(const
         }
     }
     const int32_t tx0 = t->tx0;
+    small_dda dda;
+    small_dda_init(t, &dda);
     small_row cur;
-    small_row_at(t, t->ty0, &cur);
+    small_row_at(t, &dda, t->ty0, &cur);
     for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
         small_row nxt = cur;
         if (ty + 1 < t->ty1)
-            small_row_at(t, ty + 1, &nxt);
+            small_row_at(t, &dda, ty + 1, &nxt);
         if (cur.any) {
             float zrow = zdy * (float)(ty * SL_RT_TILE_H - y_ref);
             size_t row = (size_t)ty * tiles_x;

@@ -243,8 +243,8 @@ SSE41 static bool query_sse41(const sl_rt_target *tg, const sl_rt_tri *t)
             __m128i c1 = _mm_shuffle_epi8(row_masks(xl[1], xr[1], xo), ctl);
             float zt = (t->z0 + t->zdx * (float)(x - t->x_ref)) + zrow;
             __m128 zt4 = _mm_set1_ps(zt);
-            const uint32_t *mp = tg->mask + ti * SL_RT_SUBTILES;
-            const sl_rt_tile_depth *dp = &tg->depth[ti];
+            const uint32_t *mp = sl_rt_tile_mask(tg, ty, ti);
+            const sl_rt_tile_depth *dp = sl_rt_tile_depths(tg, ty, ti);
             if (hides4(c0, _mm_min_ps(_mm_add_ps(zt4, off0), zclamp), mp, dp->za, dp->zm) != 0xF ||
                 hides4(c1, _mm_min_ps(_mm_add_ps(zt4, off1), zclamp), mp + 4, dp->za + 4, dp->zm + 4) != 0xF)
                 return true;
@@ -351,15 +351,68 @@ SSE41 static inline void small_spans4(small_tri4 *t, int32_t ty, __m128i xl[2], 
     }
 }
 
+/* raster_small8.h's small_dda on two 4-lane halves: the thresholds of a wide small triangle
+ * stepped exactly in integers instead of six divisions per tile row (the same values). */
+typedef struct small_dda4 {
+    __m128i q[3][2], r[3][2], q8[3], e8[3], dd[3];
+    __m128i cap, cl, cr;
+} small_dda4;
+
+SSE41 static inline void small_dda4_init(const small_tri4 *t, small_dda4 *d)
+{
+    for (int e = 0; e < 3; e++) {
+        /* exact as in small_dda_init: |n|, |8s| < 2^23, products and remainders below 2^24 */
+        for (int h = 0; h < 2; h++) {
+            __m128 q = _mm_ceil_ps(_mm_div_ps(t->n[e][h], t->dd[e]));
+            d->q[e][h] = _mm_cvttps_epi32(q);
+            d->r[e][h] = _mm_cvttps_epi32(_mm_sub_ps(_mm_mul_ps(q, t->dd[e]), t->n[e][h]));
+        }
+        __m128 q8 = _mm_floor_ps(_mm_div_ps(t->s8[e], t->dd[e]));
+        d->q8[e] = _mm_cvttps_epi32(q8);
+        d->e8[e] = _mm_cvttps_epi32(_mm_sub_ps(t->s8[e], _mm_mul_ps(q8, t->dd[e])));
+        d->dd[e] = _mm_cvttps_epi32(t->dd[e]);
+    }
+    d->cap = _mm_cvttps_epi32(t->cap);
+    d->cl = _mm_cvttps_epi32(t->cl);
+    d->cr = _mm_cvttps_epi32(t->cr);
+}
+
+/* small_spans4 with small_dda4's stepping. */
+SSE41 static inline void small_spans4_dda(const small_tri4 *t, small_dda4 *d, int32_t ty, __m128i xl[2], __m128i xr[2])
+{
+    bool partial = ty * SL_RT_TILE_H < t->row0 || ty * SL_RT_TILE_H + SL_RT_TILE_H > t->row1;
+    for (int h = 0; h < 2; h++) {
+        __m128i t0 = d->q[0][h], t1 = d->q[1][h], t2 = d->q[2][h];
+        for (int e = 0; e < 3; e++) {
+            __m128i r = _mm_sub_epi32(d->r[e][h], d->e8[e]);
+            __m128i borrow = _mm_srai_epi32(r, 31);
+            d->r[e][h] = _mm_add_epi32(r, _mm_and_si128(borrow, d->dd[e]));
+            d->q[e][h] = _mm_sub_epi32(_mm_add_epi32(d->q[e][h], d->q8[e]), borrow);
+        }
+        __m128i l = _mm_max_epi32(_mm_max_epi32(d->cl, t0), _mm_min_epi32(t2, d->cap));
+        __m128i r = _mm_min_epi32(_mm_min_epi32(d->cr, t1), _mm_max_epi32(t2, d->cap));
+        if (partial) {
+            __m128i j = _mm_add_epi32(_mm_set1_epi32(ty * SL_RT_TILE_H + 4 * h), _mm_setr_epi32(0, 1, 2, 3));
+            __m128i valid = _mm_and_si128(_mm_cmpgt_epi32(j, _mm_set1_epi32(t->row0 - 1)),
+                                          _mm_cmpgt_epi32(_mm_set1_epi32(t->row1), j));
+            r = _mm_blendv_epi8(_mm_set1_epi32(-SL_RT_BIG), r, valid);
+        }
+        xl[h] = l;
+        xr[h] = r;
+    }
+}
+
 /* Rasterize a small triangle: per tile row its spans, the tiles they touch, and per tile the
  * row masks and the merge of each half. */
 SSE41 static void raster_small4(const sl_rt_target *tg, small_tri4 *t)
 {
     const __m128i ctl = transpose_ctl();
     const size_t tiles_x = (size_t)tg->tiles_x;
+    small_dda4 dda;
+    small_dda4_init(t, &dda);
     for (int32_t ty = t->ty0; ty < t->ty1; ty++) {
         __m128i xl[2], xr[2];
-        small_spans4(t, ty, xl, xr);
+        small_spans4_dda(t, &dda, ty, xl, xr);
         int32_t ta = t->tx0, tb = t->tx1;
         if (tb - ta > 2) {
             /* the tiles this tile row's spans touch (spans relative to ox) */
