@@ -900,6 +900,7 @@ static sl_status chc_cull(void *state, const sl_view *view, uint32_t *out, uint3
 
 const sl_cull_method sl_cull_method_chc = {
     .name = "chc",
+    .suits = "a renderer with occlusion queries, walks and drives (frame-to-frame coherence hides the latency)",
     .summary = "coherent hierarchical culling: occlusion queries over the object BVH interleaved with drawing, "
                "classification kept from the last frame, through a draw backend (its own CPU reference backend "
                "with a simulated clock when given none; Bittner, Wimmer, Piringer, Purgathofer 2004)",
@@ -917,6 +918,7 @@ const sl_cull_method sl_cull_method_chc = {
 
 const sl_cull_method sl_cull_method_chcpp = {
     .name = "chc++",
+    .suits = "the same as chc, with fewer queries (multiqueries, batches, random re-query intervals)",
     .summary = "CHC++: coherent hierarchical culling with multiqueries of previously invisible nodes, batched "
                "queries of visible leaves, random re-query intervals and tighter volumes (after Mattausch, "
                "Bittner, Wimmer 2008; docs/query-culling.md)",
