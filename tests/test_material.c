@@ -407,6 +407,89 @@ static void test_version_1_0(void **state)
     sl_scene_destroy(s);
 }
 
+/* Object names (scene.h): set, renamed longer and shorter in the middle, cleared, refused when bad,
+ * found, kept by objects added later, saved and loaded as ONAM/NAMT, and a hostile file refused. */
+static void e_name_count(uint8_t *f) { put32(section(f, "ONAM", NULL), 900); }
+static void e_name_nul(uint8_t *f) { section(f, "NAMT", NULL)[4] = 'x'; /* "wall" + NUL -> no NUL */ }
+static void e_name_ctl(uint8_t *f) { section(f, "NAMT", NULL)[1] = 0x01; }
+static void test_object_names(void **state)
+{
+    (void)state;
+    sl_scene s;
+    OK(sl_scene_create(NULL, &s, E));
+    uint32_t m = add_quad(s, NULL);
+    uint32_t a = add_obj(s, m, 0, 0), b = add_obj(s, m, 0, 0), c = add_obj(s, m, 0, 0);
+    assert_string_equal(sl_scene_object_name(s, a), "");
+    OK(sl_scene_set_object_name(s, c, "lamp", E));
+    OK(sl_scene_set_object_name(s, a, "wall", E));
+    OK(sl_scene_set_object_name(s, b, "door", E));
+    assert_string_equal(sl_scene_object_name(s, a), "wall");
+    assert_string_equal(sl_scene_object_name(s, b), "door");
+    assert_string_equal(sl_scene_object_name(s, c), "lamp");
+    OK(sl_scene_set_object_name(s, b, "front door, oak", E)); /* longer, in the middle */
+    assert_string_equal(sl_scene_object_name(s, c), "lamp");
+    OK(sl_scene_set_object_name(s, b, "d", E)); /* shorter */
+    assert_string_equal(sl_scene_object_name(s, b), "d");
+    assert_string_equal(sl_scene_object_name(s, c), "lamp");
+    OK(sl_scene_set_object_name(s, b, "Tür \xe2\x9c\x93", E)); /* UTF-8 */
+    assert_int_equal(sl_scene_find_object(s, "lamp"), c);
+    assert_int_equal(sl_scene_find_object(s, "nothing"), SL_NONE);
+    uint32_t d = add_obj(s, m, 0, 0); /* added after names: unnamed */
+    assert_string_equal(sl_scene_object_name(s, d), "");
+    OK(sl_scene_set_object_name(s, d, "late", E));
+    OK(sl_scene_set_object_name(s, c, NULL, E)); /* cleared */
+    assert_string_equal(sl_scene_object_name(s, c), "");
+    assert_string_equal(sl_scene_object_name(s, d), "late");
+    assert_string_equal(sl_scene_object_name(s, 99), "");
+    /* refused: a control byte, bad UTF-8, too long, no such object */
+    assert_int_equal(sl_scene_set_object_name(s, a, "a\nb", E), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(g_err.message, "control"));
+    assert_int_equal(sl_scene_set_object_name(s, a, "a\xff", E), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(g_err.message, "UTF-8"));
+    char *big = malloc(SL_OBJECT_NAME_MAX + 2);
+    memset(big, 'x', SL_OBJECT_NAME_MAX + 1);
+    big[SL_OBJECT_NAME_MAX + 1] = 0;
+    assert_int_equal(sl_scene_set_object_name(s, a, big, E), SL_ERROR_INVALID_ARGUMENT);
+    big[SL_OBJECT_NAME_MAX] = 0;
+    OK(sl_scene_set_object_name(s, d, big, E)); /* exactly the limit */
+    OK(sl_scene_set_object_name(s, d, "late", E));
+    free(big);
+    assert_int_equal(sl_scene_set_object_name(s, 7, "x", E), SL_ERROR_INVALID_ARGUMENT);
+    assert_string_equal(sl_scene_object_name(s, a), "wall");
+    /* saved and loaded: the same names, the same bytes again */
+    char dir[] = "/tmp/sl_names_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char p1[64], p2[64];
+    snprintf(p1, sizeof p1, "%s/a.slscene", dir);
+    snprintf(p2, sizeof p2, "%s/b.slscene", dir);
+    OK(sl_scene_save(s, p1, E));
+    sl_scene t;
+    OK(sl_scene_load(p1, NULL, NULL, &t, E));
+    for (uint32_t i = 0; i < 4; i++)
+        assert_string_equal(sl_scene_object_name(t, i), sl_scene_object_name(s, i));
+    OK(sl_scene_save(t, p2, E));
+    size_t n1, n2;
+    uint8_t *f1 = read_all(p1, &n1), *f2 = read_all(p2, &n2);
+    assert_int_equal(n1, n2);
+    assert_memory_equal(f1, f2, n1);
+    /* a loaded scene (arrays borrowed from the file) renames and grows like a built one */
+    OK(sl_scene_set_object_name(t, a, "wall, north", E));
+    add_obj(t, m, 0, 0);
+    assert_string_equal(sl_scene_object_name(t, a), "wall, north");
+    assert_string_equal(sl_scene_object_name(t, d), "late");
+    sl_scene_destroy(t);
+    /* hostile bytes */
+    expect_bad(f1, n1, e_name_count, "names");
+    expect_bad(f1, n1, e_name_nul, "not followed by a NUL");
+    expect_bad(f1, n1, e_name_ctl, "control byte");
+    free(f1);
+    free(f2);
+    remove(p1);
+    remove(p2);
+    rmdir(dir);
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -414,6 +497,7 @@ int main(void)
         cmocka_unit_test(test_texture_path),
         cmocka_unit_test(test_files),
         cmocka_unit_test(test_version_1_0),
+        cmocka_unit_test(test_object_names),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

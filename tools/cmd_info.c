@@ -11,7 +11,7 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline info SCENE [--map NAME] [--allow-external PATH] [--json] [--quiet]\n\n"
+            "usage: sightline info SCENE [--map NAME] [--objects] [--allow-external PATH] [--json] [--quiet]\n\n"
             "Print what a scene holds: objects, meshes and triangles (stored and instanced), per-kind\n"
             "counts, bounds, memory, footprints, occluders, street network, terrain, Quake III BSP\n"
             "leaves and clusters with statistics of the map's own cluster PVS, and metadata.\n\n"
@@ -20,6 +20,9 @@ static void usage(FILE *out)
             "options:\n"
             "  --map NAME   map inside a .pk3 (\"oa_dm1\" or \"maps/oa_dm1.bsp\")\n"
             CLI_ALLOW_EXTERNAL_HELP
+            "  --objects    list every object: id, name (the importer's node name, or none), kind,\n"
+            "               triangles, flags and world bounds (ids are stable: the same input gives\n"
+            "               the same objects in the same order)\n"
             "  --json       machine-readable output on stdout\n"
             "  --quiet      no progress output\n"
             "  --help       this text\n\n"
@@ -64,9 +67,12 @@ int sl_cmd_info(int argc, char **argv)
     cli_import imp = {0};
     const char *name, *val;
     cli_common com = {0};
+    bool list_objects = false;
     while (cli_next(&a, &name, &val))
-        if (!cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com) &&
-            !cli_import_option(&a, name, val, &imp))
+        if (name && !strcmp(name, "objects"))
+            list_objects = true;
+        else if (!cli_common_option(&a, name, val, CLI_INPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com) &&
+                 !cli_import_option(&a, name, val, &imp))
             cli_unknown(&a, name);
     int parsed = cli_parse_done(&a, &com, usage);
     if (parsed >= 0)
@@ -97,6 +103,55 @@ int sl_cmd_info(int argc, char **argv)
         footprint_edges += sl_scene_footprint(scene, i).vertex_count;
     char b1[32], b2[32];
 
+    if (list_objects) {
+        uint32_t n = sl_scene_object_count(scene);
+        cli_json j;
+        if (json) {
+            cli_json_begin(&j, stdout);
+            cli_json_string(&j, "file", input);
+            cli_json_array_begin(&j, "objects");
+        } else {
+            printf("%-7s %-10s %9s %-22s %-52s %s\n", "id", "kind", "triangles", "flags", "bounds (m)", "name");
+        }
+        for (uint32_t i = 0; i < n; i++) {
+            sl_object_view o = sl_scene_object(scene, i);
+            const char *nm = sl_scene_object_name(scene, i);
+            char flags[64];
+            snprintf(flags, sizeof flags, "%s%s%s%s", o.flags & SL_OBJECT_OCCLUDER ? "occluder " : "",
+                     o.flags & SL_OBJECT_SEE_THROUGH ? "see-through " : "",
+                     o.flags & SL_OBJECT_CLOSED_CONVEX ? "convex " : "", o.flags & SL_OBJECT_DYNAMIC ? "dynamic" : "");
+            size_t fl = strlen(flags);
+            if (fl && flags[fl - 1] == ' ')
+                flags[fl - 1] = 0;
+            if (json) {
+                cli_json_object_begin(&j, NULL);
+                cli_json_uint(&j, "id", i);
+                cli_json_string(&j, "name", nm);
+                cli_json_string(&j, "kind", sl_object_kind_name(o.kind));
+                cli_json_uint(&j, "triangles", o.triangle_count);
+                cli_json_string(&j, "flags", flags);
+                cli_json_array_begin(&j, "bounds");
+                const float bb[6] = {o.bounds.min.x, o.bounds.min.y, o.bounds.min.z,
+                                     o.bounds.max.x, o.bounds.max.y, o.bounds.max.z};
+                for (int k = 0; k < 6; k++)
+                    cli_json_double(&j, NULL, bb[k]);
+                cli_json_array_end(&j);
+                cli_json_object_end(&j);
+            } else {
+                char box[128];
+                snprintf(box, sizeof box, "(%.2f, %.2f, %.2f) .. (%.2f, %.2f, %.2f)", o.bounds.min.x, o.bounds.min.y,
+                         o.bounds.min.z, o.bounds.max.x, o.bounds.max.y, o.bounds.max.z);
+                printf("%-7u %-10s %9u %-22s %-52s %s\n", i, sl_object_kind_name(o.kind), o.triangle_count,
+                       flags[0] ? flags : "-", box, nm[0] ? nm : "-");
+            }
+        }
+        if (json) {
+            cli_json_array_end(&j);
+            cli_json_end(&j);
+        }
+        sl_scene_destroy(scene);
+        return 0;
+    }
     if (json) {
         cli_json j;
         cli_json_begin(&j, stdout);

@@ -306,6 +306,21 @@ SL_API const char *sl_scene_meta(sl_scene scene, const char *key);
 SL_API uint32_t sl_scene_meta_count(sl_scene scene);
 SL_API void sl_scene_meta_at(sl_scene scene, uint32_t i, const char **key, const char **value);
 
+/* --- object names -----------------------------------------------------------------------------
+ * An object may carry a name: the node name an importer read (assimp nodes, Quake III models), or
+ * an engine's own. Names need not be unique; an object's id is what identifies it, and ids are
+ * stable: the same input gives the same objects in the same order. A name is at most
+ * SL_OBJECT_NAME_MAX bytes of well-formed UTF-8 without control bytes. Stored in .slscene 1.1
+ * (sections ONAM, NAMT). Not thread-safe against a concurrent reader of the same scene. */
+#define SL_OBJECT_NAME_MAX 1024u
+/* Name object `object` ("" or NULL: no name). SL_ERROR_INVALID_ARGUMENT for a bad object or name
+ * (the message says why). */
+SL_API sl_status sl_scene_set_object_name(sl_scene scene, uint32_t object, const char *name, sl_error *err);
+/* The object's name, "" when it has none (valid until the scene changes). Thread-safe for readers. */
+SL_API const char *sl_scene_object_name(sl_scene scene, uint32_t object);
+/* The first object named exactly `name`, or SL_NONE. O(objects). */
+SL_API uint32_t sl_scene_find_object(sl_scene scene, const char *name);
+
 /* Materials: ids 1..sl_scene_material_count(). sl_scene_material fills *out (its texture
  * pointer borrowed from the scene, NULL for none) and returns true; false (and a zeroed *out)
  * for SL_MATERIAL_NONE or an id beyond the count. */

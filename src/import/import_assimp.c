@@ -652,7 +652,18 @@ static sl_status add_objects(import_ctx *c, const node_rec *nr, uint32_t first, 
         return mst;
     for (uint32_t k = 0; k < count; k++) {
         sl_object_desc d = {first + k, &t, color, SL_KIND_IMPORTED, see_through ? SL_OBJECT_SEE_THROUGH : 0, material};
-        sl_status st = sl_scene_add_object(c->scene, &d, NULL, err);
+        uint32_t object;
+        sl_status st = sl_scene_add_object(c->scene, &d, &object, err);
+        /* the node's name (escaped: names in files are any bytes), "#k" for the pieces of a split node */
+        if (st == SL_OK && nr->node->mName.length) {
+            char shown[SL_OBJECT_NAME_MAX - 16], name[SL_OBJECT_NAME_MAX];
+            sl_escape_text(nr->node->mName.data, sizeof shown / 4, shown, sizeof shown);
+            if (count > 1)
+                snprintf(name, sizeof name, "%s#%u", shown, k);
+            else
+                snprintf(name, sizeof name, "%s", shown);
+            st = sl_scene_set_object_name(c->scene, object, name, err);
+        }
         if (st != SL_OK) {
             sl_error_prefix(err, "%s: node '%s'", c->path, node_name(nr->node));
             return st;

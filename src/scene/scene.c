@@ -68,6 +68,7 @@ void sl_scene_destroy(sl_scene s)
     sl_array_free(a, &s->object_materials, sizeof(uint32_t));
     sl_array_free(a, &s->uvs, sizeof(float));
     sl_array_free(a, &s->mesh_uvs, 1);
+    sl_scene_names_free(s);
     sl_strfree(a, s->base_dir);
     sl_file_unmap(&s->mapping);
     sl_free(a, s, sizeof *s);
@@ -195,7 +196,7 @@ sl_status sl_scene_add_object(sl_scene s, const sl_object_desc *d, uint32_t *out
     if (rec.flags & SL_OBJECT_SEE_THROUGH)
         rec.flags &= ~(uint32_t)SL_OBJECT_OCCLUDER; /* see-through never occludes (scene.h) */
     if (!sl_array_reserve(a, &s->objects, sizeof rec, 1) || !sl_array_reserve(a, &s->bounds, sizeof(sl_aabb), 1) ||
-        !sl_array_reserve(a, &s->transforms, sizeof(sl_affine), 1))
+        !sl_array_reserve(a, &s->transforms, sizeof(sl_affine), 1) || !sl_scene_names_reserve(s))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_object: out of memory");
     /* material ids: once one object has a material, object_materials covers every object */
     if (material || s->object_materials.count) {
@@ -213,6 +214,7 @@ sl_status sl_scene_add_object(sl_scene s, const sl_object_desc *d, uint32_t *out
     }
     sl_array_push(a, &s->objects, sizeof rec, &rec, 1);
     sl_array_push(a, &s->bounds, sizeof(sl_aabb), NULL, 1);
+    sl_scene_names_on_add(s);
     uint32_t id = (uint32_t)(s->objects.count - 1);
     sl_scene_update_object_bounds(s, id);
     if (out_object)

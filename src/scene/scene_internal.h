@@ -108,6 +108,9 @@ struct sl_scene_t {
     sl_array object_materials;  /* uint32 material id per object, or empty: every object has none */
     sl_array uvs;               /* float, 2 per vertex of positions, or empty: no mesh has UVs */
     sl_array mesh_uvs;          /* uint8 per mesh: 1 when its range of uvs is real, or empty */
+    sl_array object_name_len;   /* uint32 per object: its name's length in bytes (0: none), or empty */
+    sl_array object_name_text;  /* char: the names, each followed by a NUL, in object order (unnamed: nothing) */
+    sl_array object_name_off;   /* uint32 per object: where its name starts in the text (derived, not stored) */
     char *base_dir;             /* folder texture paths are relative to (owned), or NULL */
 
     /* backing file mapping of a loaded .slscene (NULL when built in memory) */
@@ -148,6 +151,13 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err);
 
 /* Recompute all mesh bounds and object bounds (after a load). */
 void sl_scene_recompute_bounds(struct sl_scene_t *s);
+/* Object names (scene_names.c): room for one more object's entry (before sl_array pushes that
+ * cannot fail), its entry after an object was added, release, and the check and index of the
+ * ONAM/NAMT arrays a reader filled. */
+bool sl_scene_names_reserve(struct sl_scene_t *s);
+void sl_scene_names_on_add(struct sl_scene_t *s);
+void sl_scene_names_free(struct sl_scene_t *s);
+sl_status sl_scene_names_load(struct sl_scene_t *s, sl_error *err);
 
 /* Write the scene as .slscene to an open file descriptor (left open; written from its current
  * offset, straight through); `name` is the destination's name in messages. */

@@ -176,6 +176,8 @@ static const sec_def k_defs[] = {
     {"OMAT", sizeof(uint32_t), ARR(object_materials), K_ARRAY, N_OPTIONAL, ID_MAX, "object materials", 1},
     {"VUV0", sizeof(float), ARR(uvs), K_ARRAY, N_OPTIONAL, NOLIMIT, "vertex uvs", 1},
     {"MUVS", 1, ARR(mesh_uvs), K_ARRAY, N_OPTIONAL, ID_MAX, "mesh uv flags", 1},
+    {"ONAM", sizeof(uint32_t), ARR(object_name_len), K_ARRAY, N_OPTIONAL, ID_MAX, "object name lengths", 1},
+    {"NAMT", 1, ARR(object_name_text), K_ARRAY, N_OPTIONAL, UINT32_MAX, "object names", 1},
 };
 #define SLS_NDEFS SL_COUNTOF(k_defs)
 
@@ -821,6 +823,8 @@ static sl_status load(reader *r, sl_mapping *map, sl_scene *out)
     sl_free(r->a, ents, (count ? count : 1) * sizeof *ents);
     if (st == SL_OK && !sl_progress_report(r->progress, "validating scene", 0, 1))
         st = sl_fail(r->err, SL_ERROR_CANCELLED, "%s: cancelled", r->name);
+    if (st == SL_OK && (st = sl_scene_names_load(s, r->err)) != SL_OK)
+        sl_error_prefix(r->err, "%s", r->name);
     if (st == SL_OK && (st = sl_scene_validate(s, r->err)) != SL_OK)
         sl_error_prefix(r->err, "%s", r->name);
     if (st == SL_OK)

@@ -27,6 +27,23 @@ expect 0 "$SL" info "$tmp/model/m.slscene"
 has "materials *4 (2 see-through objects, 4 meshes with UVs)" "$tmp/out"
 expect 0 "$SL" info "$tmp/model/m.slscene" --json
 has '"meshes_with_uvs":4' "$tmp/out"
+# the node names come through, listed with the ids (text and JSON), kept by the .slscene
+HOUSE=/usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc
+if [ -f "$HOUSE" ]; then
+    expect 0 "$SL" import "$HOUSE" -o "$tmp/haus.slscene" --quiet
+    expect 0 "$SL" info "$tmp/haus.slscene" --objects
+    has "^id  *kind  *triangles  *flags  *bounds (m)  *name" "$tmp/out"
+    has "^1  *imported .*IfcWallStandardCase_Wand-Ext-ERDG-1" "$tmp/out"
+    [ "$(grep -c '^[0-9]' "$tmp/out")" -eq "$("$SL" info "$tmp/haus.slscene" --json | sed 's/.*"objects":\([0-9]*\).*/\1/')" ] ||
+        fail "info --objects does not list every object"
+    expect 0 "$SL" info "$tmp/haus.slscene" --objects --json
+    has '"objects":\[{"id":0,"name":"IfcSite_' "$tmp/out"
+    expect 0 "$SL" info "$HOUSE" --objects --json
+    cp "$tmp/out" "$tmp/direct.json"
+    expect 0 "$SL" info "$tmp/haus.slscene" --objects --json
+    diff <(sed 's/"file":"[^"]*"//' "$tmp/direct.json") <(sed 's/"file":"[^"]*"//' "$tmp/out") >/dev/null ||
+        fail "the saved scene lists other objects than the model itself (ids not stable)"
+fi
 # a scene without materials says nothing about them
 expect 0 "$SL" info "$(dirname "$0")/../data/scene_v1_0.slscene"
 hasnt "materials" "$tmp/out"
