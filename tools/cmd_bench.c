@@ -62,6 +62,8 @@ static void usage(FILE *out)
             "                       reported as not run (an error when --methods names it)\n"
             "  --method-options NAME:key=value,...   options for one method (repeatable)\n"
             "  --repeat R           cull calls per frame and method; the median time is kept (default 1)\n"
+            "  --sets csv|json      also write every frame's sets (the oracle's and each method's, ids\n"
+            "                       with the objects' names) to OUT/sets.csv or OUT/sets.json\n"
             "  --max-overestimation X  the recommendation's tightness bound: the fastest conservative\n"
             "                       method passing at most X times the exact visible set (default 2)\n"
             "  --max-ms T           its time bound: the tightest method culling in at most T ms median\n"
@@ -109,7 +111,7 @@ static void usage(FILE *out)
 typedef struct bench_args {
     const char *scenes[MAX_SCENES];
     uint32_t scene_count;
-    const char *path_file, *random_kind, *methods, *out_dir, *map, *frames;
+    const char *path_file, *random_kind, *methods, *out_dir, *map, *frames, *sets;
     const char *view_text, *proj_text, *depth_text; /* --view-matrix, --proj-matrix, --clip-depth */
     sl_view view;               /* made of them (at --width x --height) */
     const char *mopt_name[MAX_OPTS], *mopt_value[MAX_OPTS];
@@ -209,6 +211,8 @@ static int parse(int argc, char **argv, bench_args *g)
             cli_parse_float(&a, name, cli_value(&a, name, val), &g->max_over);
         } else if (!strcmp(name, "max-ms")) {
             cli_parse_float(&a, name, cli_value(&a, name, val), &g->max_ms);
+        } else if (!strcmp(name, "sets")) {
+            g->sets = cli_value(&a, name, val);
         } else if (!strcmp(name, "allow-empty")) {
             g->allow_empty = true;
         } else if (!strcmp(name, "repeat")) {
@@ -282,6 +286,10 @@ static int parse(int argc, char **argv, bench_args *g)
     }
     if (!g->width || !g->height || g->width > 16384 || g->height > 16384) {
         cli_error(cmd, "--width/--height must be 1..16384");
+        return 2;
+    }
+    if (g->sets && strcmp(g->sets, "csv") && strcmp(g->sets, "json")) {
+        cli_error(cmd, "--sets '%s': expected csv or json", g->sets);
         return 2;
     }
     if (g->altitude < 0 || g->altitude > 1e6f) {
@@ -631,6 +639,69 @@ static void json_summary(cli_json *j, const sl_bench *benches, uint32_t count, u
     cli_json_array_end(j);
 }
 
+/* --sets: every frame's sets with names, written while the frame's results are there */
+typedef struct sets_writer {
+    FILE *fp;
+    bool json, first;
+} sets_writer;
+
+static void sets_put_name(FILE *fp, const char *s, bool json)
+{
+    fputc('"', fp);
+    for (; *s; s++) {
+        if (*s == '"')
+            fputs(json ? "\\\"" : "\"\"", fp);
+        else if (json && *s == '\\')
+            fputs("\\\\", fp);
+        else
+            fputc(*s, fp);
+    }
+    fputc('"', fp);
+}
+
+static void sets_put(sets_writer *w, sl_bench b, uint32_t frame, uint32_t source, const char *who, const uint32_t *ids,
+                     uint32_t n)
+{
+    sl_scene s = sl_bench_scene(b);
+    if (!w->json) {
+        for (uint32_t k = 0; k < n; k++) {
+            fprintf(w->fp, "%s,%u,%u,%s,%u,", sl_bench_label(b), frame, source, who, ids[k]);
+            sets_put_name(w->fp, sl_scene_object_name(s, ids[k]), false);
+            fputc('\n', w->fp);
+        }
+        return;
+    }
+    fprintf(w->fp, "%s{\"scene\":", w->first ? "" : ",\n");
+    w->first = false;
+    sets_put_name(w->fp, sl_bench_label(b), true);
+    fprintf(w->fp, ",\"frame\":%u,\"source\":%u,\"by\":\"%s\",\"objects\":[", frame, source, who);
+    for (uint32_t k = 0; k < n; k++) {
+        fprintf(w->fp, "%s{\"id\":%u,\"name\":", k ? "," : "", ids[k]);
+        sets_put_name(w->fp, sl_scene_object_name(s, ids[k]), true);
+        fputc('}', w->fp);
+    }
+    fputs("]}", w->fp);
+}
+
+static bool sets_frame(void *user, sl_bench b, uint32_t frame)
+{
+    sets_writer *w = user;
+    sl_bench_frame fr;
+    if (sl_bench_get_frame(b, frame, &fr, NULL) != SL_OK)
+        return false;
+    sl_oracle_frame of;
+    if (!fr.out_of_domain && sl_bench_last_truth(b, &of, NULL) == SL_OK)
+        sets_put(w, b, frame, fr.source, "oracle", of.visible, of.visible_count);
+    for (uint32_t m = 0; m < sl_bench_method_count(b); m++) {
+        sl_bench_method_info info;
+        const uint32_t *ids;
+        uint32_t n;
+        if (sl_bench_method(b, m, &info, NULL) == SL_OK && sl_bench_last_result(b, m, &ids, &n, NULL) == SL_OK)
+            sets_put(w, b, frame, fr.source, info.name, ids, n);
+    }
+    return !ferror(w->fp);
+}
+
 /* Make every label distinct by appending -2, -3 ... */
 static void unique_label(char *label, size_t size, char labels[][128], uint32_t count)
 {
@@ -744,6 +815,17 @@ int sl_cmd_bench(int argc, char **argv)
     sl_error err;
     int status = 0;
     char path[4600];
+    sets_writer sets = {NULL, g.sets && !strcmp(g.sets, "json"), true};
+    sl_output sets_out = NULL;
+    if (g.sets) {
+        snprintf(path, sizeof path, "%s/sets.%s", work, g.sets);
+        if (sl_output_open(path, NULL, &sets_out, &err) != SL_OK) {
+            cli_outdir_abort(&od);
+            return cli_fail(cmd, &err);
+        }
+        sets.fp = sl_output_stream(sets_out);
+        fputs(sets.json ? "{\"sets\":[\n" : "scene,frame,source,by,object,name\n", sets.fp);
+    }
     for (uint32_t si = 0; si < g.scene_count && !status; si++) {
         sl_scene s = NULL;
         char label[128];
@@ -785,6 +867,10 @@ int sl_cmd_bench(int argc, char **argv)
         bo.repeat = g.repeat;
         bo.max_overestimation = g.max_over;
         bo.max_ms = g.max_ms;
+        if (sets.fp) {
+            bo.frame_done = sets_frame;
+            bo.frame_user = &sets;
+        }
         bo.label = label;
         bo.progress = prog;
         sl_bench b = NULL;
@@ -818,6 +904,15 @@ int sl_cmd_bench(int argc, char **argv)
         sl_path_destroy(views);
         if (st != SL_OK)
             status = cli_fail(cmd, &err);
+    }
+    if (sets_out) {
+        if (!status) {
+            fputs(sets.json ? "\n]}\n" : "", sets.fp);
+            if (sl_output_commit(sets_out, &err) != SL_OK)
+                status = cli_fail(cmd, &err);
+        } else {
+            sl_output_abort(sets_out);
+        }
     }
     if (!status) {
         const char *files[] = {"frames.csv", "frames.json", "summary.md"};

@@ -52,6 +52,11 @@ typedef struct sl_bench_options {
     /* the bounds of the recommendation (sl_bench_recommend, the summaries): over-estimation at
      * most this (ratio of sums; 0: 2) and median cull time at most this many ms (0: 2). Appended */
     double max_overestimation, max_ms;
+    /* Called after each frame is judged (frame: its index in the bench), e.g. to write each
+     * method's set (sl_bench_last_result) or the oracle's (sl_bench_last_truth) while they are
+     * there; returning false stops the run (SL_ERROR_CANCELLED). NULL: none. Appended */
+    bool (*frame_done)(void *user, sl_bench bench, uint32_t frame);
+    void *frame_user;
 } sl_bench_options;
 
 /* The defaults above. */

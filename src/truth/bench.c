@@ -234,12 +234,11 @@ static sl_camera camera_of_view(const sl_view *v)
     return c;
 }
 
-static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *err);
+static sl_status run_view(struct sl_bench_t *b, const sl_view *view, int64_t source, float time, sl_error *err);
 
-sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
+/* A camera's frame: as its view at the bench's viewport; source < 0: the frame's own number. */
+static sl_status run_camera(sl_bench b, const sl_camera *cam_in, int64_t source, float time, sl_error *err)
 {
-    if (!b || !cam_in)
-        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_run_frame: bench and camera must not be NULL");
     sl_camera cam = *cam_in;
     if (b->opt.width) {
         cam.width = b->opt.width;
@@ -251,7 +250,14 @@ sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
         sl_error_prefix(err, "%s: frame %u: oracle", b->label, (uint32_t)b->frames.count);
         return st;
     }
-    return run_view(b, &view, err);
+    return run_view(b, &view, source, time, err);
+}
+
+sl_status sl_bench_run_frame(sl_bench b, const sl_camera *cam_in, sl_error *err)
+{
+    if (!b || !cam_in)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_run_frame: bench and camera must not be NULL");
+    return run_camera(b, cam_in, -1, 0, err);
 }
 
 sl_status sl_bench_run_view(sl_bench b, const sl_view *view_in, sl_error *err)
@@ -265,10 +271,10 @@ sl_status sl_bench_run_view(sl_bench b, const sl_view *view_in, sl_error *err)
         sl_error_prefix(err, "%s: frame %u", b->label, (uint32_t)b->frames.count);
         return st;
     }
-    return run_view(b, b->opt.width ? &view : view_in, err);
+    return run_view(b, b->opt.width ? &view : view_in, -1, 0, err);
 }
 
-static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *err)
+static sl_status run_view(struct sl_bench_t *b, const sl_view *view, int64_t source, float time, sl_error *err)
 {
     if (sl_scene_object_count(b->scene) != b->object_count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
@@ -285,8 +291,8 @@ static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *e
     sl_bench_frame fr;
     memset(&fr, 0, sizeof fr);
     fr.index = fi;
-    fr.source = fi;
-    fr.time = (float)fi;
+    fr.source = source < 0 ? fi : (uint32_t)source;
+    fr.time = source < 0 ? (float)fi : time;
     fr.camera = camera_of_view(view);
     fr.view = *view;
     fr.visible_count = b->truth.visible_count;
@@ -328,6 +334,8 @@ static sl_status run_view(struct sl_bench_t *b, const sl_view *view, sl_error *e
             return st;
         }
     }
+    if (b->opt.frame_done && !b->opt.frame_done(b->opt.frame_user, b, fi))
+        return sl_fail(err, SL_ERROR_CANCELLED, "%s: frame %u: stopped by the frame callback", b->label, fi);
     return SL_OK;
 }
 
@@ -346,12 +354,9 @@ sl_status sl_bench_run_path(sl_bench b, sl_path path, uint32_t first, uint32_t c
         if (!sl_progress_report(&b->opt.progress, b->stage, i, count))
             return sl_fail(err, SL_ERROR_CANCELLED, "%s: cancelled after %u frames", b->label, i);
         sl_camera cam = sl_path_camera(path, first + i);
-        sl_status st = sl_bench_run_frame(b, &cam, err);
+        sl_status st = run_camera(b, &cam, first + i, poses[first + i].time, err);
         if (st != SL_OK)
             return st;
-        sl_bench_frame *fr = &SL_AT(b->frames, sl_bench_frame, b->frames.count - 1);
-        fr->time = poses[first + i].time;
-        fr->source = first + i;
     }
     sl_progress_report(&b->opt.progress, b->stage, count, count);
     return SL_OK;

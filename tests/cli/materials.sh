@@ -43,6 +43,22 @@ if [ -f "$HOUSE" ]; then
     expect 0 "$SL" info "$tmp/haus.slscene" --objects --json
     diff <(sed 's/"file":"[^"]*"//' "$tmp/direct.json") <(sed 's/"file":"[^"]*"//' "$tmp/out") >/dev/null ||
         fail "the saved scene lists other objects than the model itself (ids not stable)"
+    # every frame's sets with the names (bench --sets csv|json)
+    expect 0 "$SL" bench "$tmp/haus.slscene" --random flyover --count 3 --methods vfc,hzb --sets csv --no-plots \
+        --quiet --out "$tmp/bs"
+    head -1 "$tmp/bs/sets.csv" | grep -qx 'scene,frame,source,by,object,name' || fail "sets.csv header"
+    has '^haus,0,0,oracle,[0-9]*,"Ifc' "$tmp/bs/sets.csv"
+    has '^haus,[0-9],[0-9],hzb,[0-9]*,"' "$tmp/bs/sets.csv"
+    # conservative: every object of a frame's oracle rows is in the same frame's hzb rows
+    awk -F, 'NR > 1 { k = $2 "," $5; if ($4 == "oracle") o[k] = 1; if ($4 == "hzb") h[k] = 1 }
+             END { for (k in o) if (!(k in h)) { print "missing " k; bad = 1 } exit bad }' "$tmp/bs/sets.csv" ||
+        fail "sets.csv: hzb misses an object of the oracle's set"
+    expect 0 "$SL" bench "$tmp/haus.slscene" --random flyover --count 2 --methods vfc --sets json --no-plots --quiet \
+        --out "$tmp/bj"
+    has '^{"scene":"haus","frame":0,"source":0,"by":"oracle","objects":\[{"id":[0-9]*,"name":"Ifc' "$tmp/bj/sets.json"
+    tail -1 "$tmp/bj/sets.json" | grep -qx ']}' || fail "sets.json is not closed"
+    expect 2 "$SL" bench "$tmp/haus.slscene" --random flyover --count 2 --sets xml
+    has "expected csv or json" "$tmp/err"
 fi
 # a scene without materials says nothing about them
 expect 0 "$SL" info "$(dirname "$0")/../data/scene_v1_0.slscene"
