@@ -94,12 +94,17 @@ sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error
     if (!m)
         return sl_fail(err, SL_ERROR_NOT_FOUND, "sl_cull_method_info: no method %u (there are %u)", index,
                        sl_cull_registry_count());
+    sl_cull_method_describe(m, out);
+    return SL_OK;
+}
+
+void sl_cull_method_describe(const sl_cull_method *m, sl_cull_method_desc *out)
+{
     out->name = m->name;
     out->summary = m->summary;
     out->options_help = m->options_help;
     out->guarantee = m->guarantee;
     out->res_culling = m->res_culling;
-    return SL_OK;
 }
 
 sl_status sl_cull_method_find(const char *name, uint32_t *index, sl_error *err)
@@ -253,7 +258,19 @@ sl_status sl_culler_create_with(const char *method, sl_scene scene, const char *
     sl_status st = sl_cull_method_find(method, &index, err);
     if (st != SL_OK)
         return st;
-    const sl_cull_method *m = sl_cull_registry_get(index);
+    return sl_culler_create_from_method(sl_cull_registry_get(index), scene, options, params, alloc, out, err);
+}
+
+sl_status sl_culler_create_from_method(const sl_cull_method *m, sl_scene scene, const char *options,
+                                       const sl_culler_params *params, const sl_allocator *alloc, sl_culler *out,
+                                       sl_error *err)
+{
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: out is NULL");
+    *out = NULL;
+    if (!scene || !m)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: scene or method is NULL");
+    sl_status st = SL_OK;
     if (params && params->backend) {
         if (!m->draws)
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
