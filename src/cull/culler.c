@@ -94,17 +94,12 @@ sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, sl_error
     if (!m)
         return sl_fail(err, SL_ERROR_NOT_FOUND, "sl_cull_method_info: no method %u (there are %u)", index,
                        sl_cull_registry_count());
-    sl_cull_method_describe(m, out);
-    return SL_OK;
-}
-
-void sl_cull_method_describe(const sl_cull_method *m, sl_cull_method_desc *out)
-{
     out->name = m->name;
     out->summary = m->summary;
     out->options_help = m->options_help;
     out->guarantee = m->guarantee;
     out->res_culling = m->res_culling;
+    return SL_OK;
 }
 
 sl_status sl_cull_method_find(const char *name, uint32_t *index, sl_error *err)

@@ -201,6 +201,10 @@ struct sl_renderer_t {
     bool depth_equal;             /* solid draws test GL_EQUAL, no depth writes (after a depth pre-pass) */
     sl_render_pass frame_pass;    /* the pass of the frame's kind */
     sl_render_frame_stats frame;  /* counts accumulate here; copied out at the end */
+
+    /* the GL draw backend's objects (backend_gl.c: box program and buffers, the open query), made
+     * at its first use; sl_render_queries_release frees them in sl_renderer_destroy */
+    struct sl_render_queries *queries;
 };
 
 /* Set err (when not NULL) and return status; printf format. */
@@ -230,6 +234,9 @@ sl_status sl_render_clear(sl_renderer r, sl_render_pass pass, sl_error *err);
  * framebuffer (see the header comment). */
 sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count, sl_render_pass pass,
                              sl_error *err);
+/* backend_gl.c: release the GL draw backend's objects (GL ones only when gl_current: the
+ * renderer's context is current). */
+void sl_render_queries_release(sl_renderer r, bool gl_current);
 /* Monotonic wall time in seconds. */
 double sl_render_now(void);
 

@@ -489,7 +489,9 @@ void sl_renderer_destroy(sl_renderer r)
     if (!r)
         return;
     bool current = !r->own_context || eglMakeCurrent(r->egl_display, EGL_NO_SURFACE, EGL_NO_SURFACE, r->egl_context);
-    if (current && (r->own_context || glGetString(GL_VERSION))) {
+    bool gl = current && (r->own_context || glGetString(GL_VERSION));
+    sl_render_queries_release(r, gl);
+    if (gl) {
         free_framebuffer(r);
         GLuint buffers[5] = {r->vbo, r->ibo, r->id_vbo, r->object_ssbo, r->indirect_buffer};
         glDeleteBuffers(5, buffers);
