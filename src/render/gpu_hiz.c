@@ -460,16 +460,18 @@ static void group_state(int g, sl_render_pass pass)
         glCullFace(GL_BACK);
         glFrontFace(facing == SL_RENDER_GROUP_CULL_CCW ? GL_CCW : GL_CW);
     }
-    glDepthFunc(GL_GREATER);
-    if (g >= SL_RENDER_GROUP_SEE_THROUGH) {
+    if (g >= SL_RENDER_GROUP_SEE_THROUGH) { /* shaded pass only: seen where at least as near, no depth, no id */
+        (void)pass;
+        glDepthFunc(GL_GEQUAL);
         glDepthMask(GL_FALSE);
-        if (pass == SL_RENDER_PASS_SHADED) {
-            glEnablei(GL_BLEND, 0);
-            glBlendFuncSeparatei(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
-        }
+        glEnablei(GL_BLEND, 0);
+        glBlendFuncSeparatei(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+        glColorMaski(1, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
     } else {
+        glDepthFunc(GL_GREATER);
         glDepthMask(GL_TRUE);
         glDisablei(GL_BLEND, 0);
+        glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     }
 }
 
@@ -484,6 +486,10 @@ static sl_status draw_list(hiz_state *s, int k, sl_render_pass pass, sl_error *e
     glUseProgram(r->passes[pass].program);
     glBindVertexArray(r->vao);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SL_RENDER_OBJECT_BINDING, r->object_ssbo);
+    if (pass == SL_RENDER_PASS_SHADED) { /* materials and textures, as sl_render_draw_ids binds them */
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SL_RENDER_MATERIAL_BINDING, r->material_ssbo);
+        glBindTextureUnit(0, r->texture_array);
+    }
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, s->cmds[k]);
     /* bound only for the count draws: Mesa 22.3's llvmpipe takes the draw count from a bound
      * parameter buffer in a plain glMultiDrawElementsIndirect too (drawing nothing here) */
@@ -493,8 +499,8 @@ static sl_status draw_list(hiz_state *s, int k, sl_render_pass pass, sl_error *e
     for (int g = 0; g < groups; g++) {
         if (!s->group_size[g])
             continue;
-        if (pass == SL_RENDER_PASS_DEPTH && g >= SL_RENDER_GROUP_SEE_THROUGH)
-            continue; /* see-through objects write no depth */
+        if (pass != SL_RENDER_PASS_SHADED && g >= SL_RENDER_GROUP_SEE_THROUGH)
+            continue; /* see-through objects write no depth and no id: only their colour shows */
         group_state(g, pass);
         const void *first = (const void *)(uintptr_t)(s->group_base[g] * sizeof(sl_render_indirect));
         if (s->draw_count)
@@ -506,6 +512,7 @@ static sl_status draw_list(hiz_state *s, int k, sl_render_pass pass, sl_error *e
         r->frame.draw_calls++;
     }
     glDisablei(GL_BLEND, 0);
+    glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     glDepthMask(GL_TRUE);
     glDepthFunc(GL_GREATER);
     glBindBuffer(GL_PARAMETER_BUFFER, 0);
@@ -600,15 +607,18 @@ static sl_status hiz_cull(void *state, const sl_view *view, uint32_t *out, uint3
     if ((st = sl_render_check(r, "gpu-hiz: reading the flags back", err)) != SL_OK)
         return st;
     double t4 = sl_render_now();
-    uint32_t k = 0;
+    uint32_t k = 0, drawn = 0;
     uint64_t triangles = 0;
     for (uint32_t i = 0; i < s->n; i++)
         if (s->host[i] & (FLAG_D1 | FLAG_D2)) {
             out[k++] = i;
-            triangles += r->records[i].index_count / 3;
+            if (pass == SL_RENDER_PASS_SHADED || r->records[i].group < SL_RENDER_GROUP_SEE_THROUGH) {
+                drawn++;
+                triangles += r->records[i].index_count / 3;
+            }
         }
     *count = k;
-    r->frame.objects_drawn += k;
+    r->frame.objects_drawn += drawn;
     r->frame.triangles_drawn += triangles;
     r->frame.wait_ms += (t4 - t3) * 1e3; /* the read-back waits for the GPU's frame */
     stats->objects_tested = s->n;
