@@ -269,7 +269,9 @@ sl_status sl_culler_create_from_method(const sl_cull_method *m, sl_scene scene, 
     if (params && params->backend) {
         if (!m->draws)
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                           "%s: this method draws nothing and takes no draw backend (methods that draw: hoq)", m->name);
+                           "%s: this method draws nothing and takes no draw backend (methods that draw: gl-stopwait, chc, "
+                           "chc++)",
+                           m->name);
         if ((st = sl_draw_backend_check(params->backend, err)) != SL_OK) {
             sl_error_prefix(err, "%s", m->name);
             return st;
