@@ -295,13 +295,13 @@ static void test_poll_wait(void **state)
 
     /* the renderer's frame stats: the culler's queries, the backend's stalls, its own draws */
     sl_culler c;
-    assert_int_equal(sl_renderer_create_culler(r, "hoq", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_renderer_create_culler(r, "gl-stopwait", NULL, &c, &err), SL_OK);
     sl_view v;
     assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
     uint32_t n = sl_scene_object_count(s), *ids = malloc(n * 4), k = 0;
     sl_render_frame_stats st;
     assert_int_equal(sl_renderer_frame(r, c, &v, SL_RENDER_SHADED, ids, &k, &st, &err), SL_OK);
-    print_message("hoq frame: %u objects, %llu queries, %llu stalls (culler %llu), wait %.3f ms, frame %.3f ms\n", k,
+    print_message("gl-stopwait frame: %u objects, %llu queries, %llu stalls (culler %llu), wait %.3f ms, frame %.3f ms\n", k,
                   (unsigned long long)st.queries, (unsigned long long)st.query_stalls,
                   (unsigned long long)st.cull.query_stalls, st.wait_ms, st.frame_ms);
     assert_true(st.queries > 0);
@@ -334,6 +334,7 @@ typedef struct gl_judge {
     sl_renderer r;
     sl_oracle o;
     uint32_t n, npx;
+    uint32_t draws_per_object; /* 1; 2 for chc's zpass (a depth pass, then the colour pass) */
     uint32_t *all, *ids, *missed, *missed_px, *full_ids, *frame_ids;
     float *full_depth, *frame_depth;
     uint8_t *shown;
@@ -350,6 +351,7 @@ static void judge_init(gl_judge *j, sl_scene s, uint32_t w, uint32_t h)
     assert_int_equal(sl_oracle_create(s, NULL, NULL, &j->o, &err), SL_OK);
     j->n = sl_scene_object_count(s);
     j->npx = w * h;
+    j->draws_per_object = 1;
     j->all = malloc(j->n * 4);
     j->ids = malloc(j->n * 4);
     j->missed = malloc(j->n * 4);
@@ -395,7 +397,7 @@ static void judge_frame(gl_judge *j, sl_culler c, const sl_camera *cam, sl_rende
     sl_render_frame_stats st;
     if (sl_renderer_frame(j->r, c, &v, kind, j->ids, &k, &st, &err) != SL_OK)
         fail_msg("%s frame %u: %s", label, f, err.message);
-    assert_int_equal(st.objects_drawn, k);
+    assert_int_equal(st.objects_drawn, (uint64_t)k * j->draws_per_object); /* the culler's draws only */
     if (kind == SL_RENDER_DEPTH) {
         assert_int_equal(sl_renderer_read_depth(j->r, j->frame_depth, &err), SL_OK);
     } else {
@@ -486,22 +488,22 @@ static void test_hoq_gl_city(void **state)
     judge_init(&j, s, W, H);
     sl_error err;
     sl_culler c;
-    assert_int_equal(sl_renderer_create_culler(j.r, "hoq", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_renderer_create_culler(j.r, "gl-stopwait", NULL, &c, &err), SL_OK);
     assert_int_equal(sl_culler_guarantee(c), SL_CONSERVATIVE_AT_RESOLUTION);
     sl_path street = views_of(s, SL_VIEWS_STREET, sanitized() ? 4 : 24, 61);
     sl_path fly = views_of(s, SL_VIEWS_FLYOVER, sanitized() ? 2 : 8, 62);
     for (uint32_t f = 0; f < sl_path_count(street); f++) {
         sl_camera cam = sl_path_camera(street, f);
-        judge_frame(&j, c, &cam, f % 4 == 0 ? SL_RENDER_SHADED : SL_RENDER_IDS, "hoq street", f);
+        judge_frame(&j, c, &cam, f % 4 == 0 ? SL_RENDER_SHADED : SL_RENDER_IDS, "gl-stopwait street", f);
     }
     uint64_t street_kept = j.kept;
     for (uint32_t f = 0; f < sl_path_count(fly); f++) {
         sl_camera cam = sl_path_camera(fly, f);
-        judge_frame(&j, c, &cam, SL_RENDER_IDS, "hoq flyover", f);
+        judge_frame(&j, c, &cam, SL_RENDER_IDS, "gl-stopwait flyover", f);
     }
-    assert_judged(&j, "hoq on GL, tiny city");
+    assert_judged(&j, "gl-stopwait on GL, tiny city");
     uint64_t vk = vfc_kept(s, street);
-    print_message("street views: hoq on GL keeps %llu, vfc %llu\n", (unsigned long long)street_kept,
+    print_message("street views: gl-stopwait on GL keeps %llu, vfc %llu\n", (unsigned long long)street_kept,
                   (unsigned long long)vk);
     assert_true(street_kept * 10 < vk * 8); /* it culls by its queries */
     sl_culler_destroy(c);
@@ -533,7 +535,7 @@ static void test_hoq_gl_map(void **state)
     gl_judge j;
     judge_init(&j, s, W, H);
     sl_culler c;
-    assert_int_equal(sl_renderer_create_culler(j.r, "hoq", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_renderer_create_culler(j.r, "gl-stopwait", NULL, &c, &err), SL_OK);
     for (uint32_t f = 0; f < sl_path_count(p); f++) {
         sl_camera cam = sl_path_camera(p, f);
         judge_frame(&j, c, &cam, SL_RENDER_IDS, list->names[0], f);
@@ -560,6 +562,48 @@ static sl_path walk_of(sl_scene s, uint32_t frames)
     if (sl_path_generate(s, &po, NULL, &p, &err) != SL_OK)
         fail_msg("%s", err.message);
     return p;
+}
+
+/* gl-stopwait, chc (threshold 0: its images are vfc's, which are the unculled ones, but for depth
+ * ties) and chc++ on GL over a walk: coherence is what CHC uses. */
+static void test_query_cullers_gl_walk(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_path p = walk_of(s, sanitized() ? 6 : 40);
+    static const char *const methods[5] = {"gl-stopwait", "chc", "chc", "chc++", "chc++"};
+    static const char *const opts[5] = {NULL, NULL, "assume_visible=3,zpass=true", NULL, "geometry_queries=false"};
+    uint64_t vk = vfc_kept(s, p), queries[5];
+    for (int m = 0; m < 5; m++) {
+        gl_judge j;
+        judge_init(&j, s, W, H);
+        if (opts[m] && strstr(opts[m], "zpass=true"))
+            j.draws_per_object = 2;
+        sl_error err;
+        sl_culler c;
+        if (sl_renderer_create_culler(j.r, methods[m], opts[m], &c, &err) != SL_OK)
+            fail_msg("%s %s: %s", methods[m], opts[m] ? opts[m] : "", err.message);
+        assert_int_equal(sl_culler_guarantee(c), SL_CONSERVATIVE_AT_RESOLUTION);
+        char label[80];
+        snprintf(label, sizeof label, "%s %s", methods[m], opts[m] ? opts[m] : "(defaults)");
+        queries[m] = 0;
+        for (uint32_t f = 0; f < sl_path_count(p); f++) {
+            sl_camera cam = sl_path_camera(p, f);
+            judge_frame(&j, c, &cam, f % 8 == 0 ? SL_RENDER_SHADED : SL_RENDER_IDS, label, f);
+            sl_cull_stats cs;
+            sl_culler_stats(c, &cs);
+            queries[m] += cs.queries;
+        }
+        assert_judged(&j, label);
+        print_message("%s: %llu queries over the walk, kept %llu (vfc %llu)\n", label, (unsigned long long)queries[m],
+                      (unsigned long long)j.kept, (unsigned long long)vk);
+        assert_true(queries[m] > 0);
+        assert_true(j.kept < vk); /* it culls */
+        sl_culler_destroy(c);
+        judge_free(&j);
+    }
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
 }
 
 static void test_gpu_hiz_walk(void **state)
@@ -613,6 +657,7 @@ int main(void)
         cmocka_unit_test(test_poll_wait),
         cmocka_unit_test(test_hoq_gl_city),
         cmocka_unit_test(test_hoq_gl_map),
+        cmocka_unit_test(test_query_cullers_gl_walk),
         cmocka_unit_test(test_gpu_hiz_walk),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
