@@ -548,6 +548,56 @@ static void test_hoq_gl_map(void **state)
     free(list);
 }
 
+/* ---- the edge of an occluder, by fractions of a pixel ---- */
+
+/* A wall x in [-20, 0] at 6.3 in front of the eye and a small box x in [-0.2, 0] (1.5 pixels) 10 behind it:
+ * with the eye at x_e > 0 the box peeks past the wall's edge by about 12 x_e pixels, with x_e < 0
+ * it is hidden. The eye sweeps x_e by 1/20 pixel steps through the edge, the camera rolled by
+ * multiples of 45 degrees so that the peeking edge is each side of the box's screen rectangle in
+ * turn, and diagonal across the pyramid's texels: gpu-hiz must keep the box in every frame GL's
+ * image shows it. */
+static void test_gpu_hiz_edges(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    sl_test_add_box(s, (sl_vec3){-20, 0, -20}, (sl_vec3){0, 0.3f, 20}, SL_KIND_BUILDING,
+                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    sl_test_add_box(s, (sl_vec3){-0.2f, 10, -0.1f}, (sl_vec3){0, 10.2f, 0.1f}, SL_KIND_BUILDING,
+                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    gl_judge j;
+    judge_init(&j, s, W, H);
+    sl_culler c;
+    assert_int_equal(sl_renderer_create_culler(j.r, "gpu-hiz", NULL, &c, &err), SL_OK);
+    uint32_t shown = 0, hidden = 0, n = sanitized() ? 10 : 40;
+    for (int roll = 0; roll < 8; roll++)
+        for (uint32_t f = 0; f < n; f++) {
+            sl_camera cam = sl_camera_default();
+            float xe = -0.02f + 0.004f * (float)f;
+            cam.position = (sl_vec3){xe, -6.3f, 0.0f};
+            cam.yaw = 1.57079633f;
+            cam.pitch = 0.0f;
+            cam.roll = 0.785398163f * (float)roll;
+            cam.fov_y = 0.9f;
+            cam.near_plane = 0.1f;
+            cam.far_plane = 100.0f;
+            cam.width = W;
+            cam.height = H;
+            judge_frame(&j, c, &cam, SL_RENDER_IDS, "gpu-hiz edges", f);
+            if (j.shown[1])
+                shown++;
+            else
+                hidden++;
+        }
+    print_message("edges: the box shows in %u frames, hidden in %u\n", shown, hidden);
+    assert_true(shown > 0 && hidden > 0);
+    assert_judged(&j, "gpu-hiz edges");
+    sl_culler_destroy(c);
+    judge_free(&j);
+    sl_scene_destroy(s);
+}
+
 /* ---- gpu-hiz over a walk ---- */
 
 static sl_path walk_of(sl_scene s, uint32_t frames)
@@ -659,6 +709,7 @@ int main(void)
         cmocka_unit_test(test_hoq_gl_map),
         cmocka_unit_test(test_query_cullers_gl_walk),
         cmocka_unit_test(test_gpu_hiz_walk),
+        cmocka_unit_test(test_gpu_hiz_edges),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
