@@ -574,7 +574,7 @@ static void test_gpu_hiz_edges(void **state)
     for (int roll = 0; roll < 8; roll++)
         for (uint32_t f = 0; f < n; f++) {
             sl_camera cam = sl_camera_default();
-            float xe = -0.02f + 0.004f * (float)f;
+            float xe = -0.02f + 0.16f / (float)n * (float)f; /* 1/20 pixel steps (n = 40) */
             cam.position = (sl_vec3){xe, -6.3f, 0.0f};
             cam.yaw = 1.57079633f;
             cam.pitch = 0.0f;
