@@ -681,6 +681,21 @@ static void test_gpu_hiz_walk(void **state)
         }
         assert_judged(&j, label);
         kept[m] = j.kept;
+        if (m == 0) {
+            /* outside sl_renderer_frame (sl_culler_cull): it clears and draws the frame itself */
+            for (uint32_t f = 0; f < 3; f++) {
+                sl_camera cam = sl_path_camera(p, f * 7);
+                uint32_t k;
+                assert_int_equal(sl_culler_cull(c, &cam, j.ids, j.n, &k, &err), SL_OK);
+                assert_int_equal(sl_renderer_read_ids(j.r, j.frame_ids, &err), SL_OK);
+                sl_view v;
+                assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+                assert_int_equal(sl_renderer_draw(j.r, &v, j.all, j.n, SL_RENDER_IDS, NULL, &err), SL_OK);
+                assert_int_equal(sl_renderer_read_ids(j.r, j.full_ids, &err), SL_OK);
+                assert_memory_equal(j.frame_ids, j.full_ids, (size_t)j.npx * 4);
+                assert_true(k > 0);
+            }
+        }
         sl_culler_destroy(c);
         judge_free(&j);
     }

@@ -452,14 +452,7 @@ static sl_status need_pyramid(hiz_state *s, sl_error *err)
 /* Set one facing group's state for a pass (the renderer's rules, render_internal.h). */
 static void group_state(int g, sl_render_pass pass)
 {
-    int facing = g % SL_RENDER_GROUP_SEE_THROUGH;
-    if (facing == SL_RENDER_GROUP_TWO_SIDED) {
-        glDisable(GL_CULL_FACE);
-    } else {
-        glEnable(GL_CULL_FACE);
-        glCullFace(GL_BACK);
-        glFrontFace(facing == SL_RENDER_GROUP_CULL_CCW ? GL_CCW : GL_CW);
-    }
+    sl_render_facing_state(g % SL_RENDER_GROUP_SEE_THROUGH);
     if (g >= SL_RENDER_GROUP_SEE_THROUGH) { /* shaded pass only: seen where at least as near, no depth, no id */
         (void)pass;
         glDepthFunc(GL_GEQUAL);
