@@ -133,6 +133,25 @@ static void test_box_pixels(void **state)
     for (uint32_t y = 0; y < 48; y++)
         rows += ids[y * 64 + 32] == 0;
     assert_true(rows >= 16 && rows <= 19);
+    /* colours of the caller's, then the scene's again */
+    {
+        sl_scene s = box_scene(0xC04020FFu);
+        sl_renderer r = make_renderer(s, 64, 48, toward);
+        sl_view v = box_view(64, 48);
+        sl_error err;
+        uint32_t id = 0, green = 0x00FF00FFu;
+        assert_int_equal(sl_renderer_set_colors(r, &green, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(r, dark, &err), SL_OK);
+        c = dark + 4 * (24 * 64 + 32);
+        assert_true(c[0] < 3 && abs(c[1] - (int)lrint(255 * 0.92)) <= 2 && c[2] < 3);
+        assert_int_equal(sl_renderer_set_colors(r, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(r, dark, &err), SL_OK);
+        assert_memory_equal(dark + 4 * (24 * 64 + 32), lit + 4 * (24 * 64 + 32), 3);
+        sl_renderer_destroy(r);
+        sl_scene_destroy(s);
+    }
     /* the sun away from the face: ambient only, base * (0.22 + 0.08) */
     render_box(away, dark, ids, depth);
     c = dark + 4 * (24 * 64 + 32);
@@ -434,6 +453,51 @@ static void test_two_renderers(void **state)
     sl_scene_destroy(s);
 }
 
+/* ---- the depth pre-pass draws the same image ---- */
+
+static void test_depth_prepass(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_path p;
+    sl_error err;
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 2, 13, 128, 96, &s, &p, &err), SL_OK);
+    sl_renderer plain = make_renderer(s, 128, 96, NULL);
+    sl_renderer_options o;
+    sl_renderer_options_default(&o);
+    o.width = 128;
+    o.height = 96;
+    o.depth_prepass = true;
+    sl_renderer pre;
+    assert_int_equal(sl_renderer_create(s, &o, NULL, &pre, &err), SL_OK);
+    uint8_t *a = malloc(128 * 96 * 4), *b = malloc(128 * 96 * 4);
+    uint32_t *ia = malloc(128 * 96 * 4), *ib = malloc(128 * 96 * 4);
+    for (uint32_t k = 0; k < sl_path_count(p); k++) {
+        sl_camera cam = sl_path_camera(p, k);
+        sl_view v;
+        assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+        sl_render_frame_stats sa, sb;
+        assert_int_equal(sl_renderer_frame(plain, NULL, &v, SL_RENDER_SHADED, NULL, NULL, &sa, &err), SL_OK);
+        assert_int_equal(sl_renderer_frame(pre, NULL, &v, SL_RENDER_SHADED, NULL, NULL, &sb, &err), SL_OK);
+        assert_int_equal(sa.objects_drawn, sb.objects_drawn);
+        assert_true(sb.draw_calls > sa.draw_calls); /* the depth pass's calls too */
+        assert_int_equal(sl_renderer_read_rgba(plain, a, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(pre, b, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_ids(plain, ia, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_ids(pre, ib, &err), SL_OK);
+        assert_memory_equal(a, b, 128 * 96 * 4);
+        assert_memory_equal(ia, ib, 128 * 96 * 4);
+    }
+    free(a);
+    free(b);
+    free(ia);
+    free(ib);
+    sl_renderer_destroy(plain);
+    sl_renderer_destroy(pre);
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+}
+
 /* ---- frames decided by a culler ---- */
 
 static void test_frame_with_culler(void **state)
@@ -494,6 +558,7 @@ int main(void)
         cmocka_unit_test(test_resize_and_png),
         cmocka_unit_test(test_facing_rule),
         cmocka_unit_test(test_two_renderers),
+        cmocka_unit_test(test_depth_prepass),
         cmocka_unit_test(test_frame_with_culler),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -187,7 +187,8 @@ struct sl_renderer_t {
     GLuint material_ssbo;         /* sl_render_material_gpu[material_count + 1] (0: none) */
     GLuint texture_array;         /* GL_TEXTURE_2D_ARRAY, one layer per distinct base-colour texture */
     uint32_t material_count, texture_layers, texture_size;
-    char texture_warning[288];    /* the first texture that could not be decoded (drawn untextured) */
+    char texture_warning[288];
+    uint32_t *color_override;     /* [object_count] from sl_renderer_set_colors, or NULL */    /* the first texture that could not be decoded (drawn untextured) */
     GLuint indirect_buffer;       /* sl_render_indirect[object_count], rewritten per draw */
     sl_render_record *records;    /* [object_count] */
     uint64_t vertex_bytes, index_bytes, texture_bytes;

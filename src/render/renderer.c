@@ -279,6 +279,10 @@ static sl_status upload_objects(sl_renderer r, bool create, sl_error *err)
     for (uint32_t i = 0; i < r->object_count; i++) {
         sl_object_view ov = sl_scene_object(r->scene, i);
         object_gpu(&ov, &objs[i], &r->records[i].group);
+        if (r->color_override) {
+            objs[i].color = r->color_override[i] | 0xFFu;
+            objs[i].material = 0;
+        }
     }
     if (create) {
         glCreateBuffers(1, &r->object_ssbo);
@@ -536,6 +540,7 @@ void sl_renderer_destroy(sl_renderer r)
     rfree(r, r->scratch_ids, n * 4);
     rfree(r, r->frame_ids, n * 4);
     rfree(r, r->cmds, n * sizeof *r->cmds);
+    rfree(r, r->color_override, n * 4);
     sl_allocator a = r->alloc;
     a.free(a.user, r, sizeof *r);
 }
@@ -586,6 +591,25 @@ sl_status sl_renderer_scene_changed(sl_renderer r, sl_error *err)
         return sl_render_fail(err, SL_ERROR_INVALID_ARGUMENT,
                               "sl_renderer_scene_changed: the scene has %u objects, the renderer was made with %u",
                               sl_scene_object_count(r->scene), r->object_count);
+    return upload_objects(r, false, err);
+}
+
+sl_status sl_renderer_set_colors(sl_renderer r, const uint32_t *rgba, sl_error *err)
+{
+    if (!r)
+        return sl_render_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_renderer_set_colors: renderer is NULL");
+    sl_status st = sl_render_enter(r, "sl_renderer_set_colors", err);
+    if (st != SL_OK)
+        return st;
+    size_t n = r->object_count ? r->object_count : 1;
+    if (!rgba) {
+        rfree(r, r->color_override, n * 4);
+        r->color_override = NULL;
+    } else {
+        if (!r->color_override && !(r->color_override = ralloc(r, n * 4)))
+            return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_renderer_set_colors: %zu bytes", n * 4);
+        memcpy(r->color_override, rgba, (size_t)r->object_count * 4);
+    }
     return upload_objects(r, false, err);
 }
 
