@@ -11,7 +11,7 @@
  *    gl-stopwait; chc++ issues fewer queries than chc; the pull-up of leaves assumed visible saves
  *    queries (pullup_fix=false issues more);
  *  - a view held still: fewer queries after the first frame (the pull-up);
- *  - threshold > 0 is aggressive and an object it drops owns at most threshold pixels;
+ *  - threshold > 0 is aggressive, drops visible objects, and each owns at most threshold pixels;
  *  - a backend answering 0 samples makes chc and chc++ miss (the check can fail);
  *  - options parse and bad values are refused. */
 #include <setjmp.h>
@@ -32,6 +32,7 @@
 #include "sightline/truth.h"
 #include "support/city_views.h"
 #include "support/pk3_names.h"
+#include "support/zero_backend.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -320,70 +321,6 @@ static void test_oracle_city(void **state)
 /* Through a given CPU backend, chc's and chc++'s depth buffer after each frame is the oracle's
  * (every visible object drawn: the image of vfc's set, whatever the depth ties); a backend answering
  * 0 samples makes them miss. */
-typedef struct zero_backend {
-    sl_draw_backend inner;
-} zero_backend;
-
-static sl_status zb_begin_frame(void *u, const float m[16], uint32_t w, uint32_t h, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_frame(z->inner.user, m, w, h, e);
-}
-static sl_status zb_draw(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.draw_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_create(void *u, uint32_t n, sl_draw_query *q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.create_queries(z->inner.user, n, q, e);
-}
-static void zb_destroy(void *u, const sl_draw_query *q, uint32_t n)
-{
-    zero_backend *z = u;
-    z->inner.destroy_queries(z->inner.user, q, n);
-}
-static sl_status zb_begin_query(void *u, sl_draw_query q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_query(z->inner.user, q, e);
-}
-static sl_status zb_boxes(void *u, const sl_aabb *b, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_boxes(z->inner.user, b, n, e);
-}
-static sl_status zb_objects(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_end_query(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_query(z->inner.user, e);
-}
-static sl_status zb_poll(void *u, sl_draw_query q, bool *ready, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.poll_query(z->inner.user, q, ready, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_wait(void *u, sl_draw_query q, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.wait_query(z->inner.user, q, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_end_frame(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_frame(z->inner.user, e);
-}
-
 static void test_given_backend(void **state)
 {
     (void)state;
@@ -394,7 +331,7 @@ static void test_given_backend(void **state)
     memset(runs, 0, sizeof runs);
     const char *methods[4] = {"chc", "chc++", "chc", "chc++"};
     sl_draw_backend_cpu inner[2];
-    zero_backend zb[2];
+    sl_test_zero_backend zb[2];
     for (int i = 0; i < 4; i++) {
         runs[i].method = methods[i];
         if (i < 2) {
@@ -402,10 +339,7 @@ static void test_given_backend(void **state)
             open_run(s, &runs[i]);
         } else {
             assert_int_equal(sl_draw_backend_cpu_create(s, &co, NULL, &inner[i - 2], &err), SL_OK);
-            zb[i - 2].inner = sl_draw_backend_cpu_table(inner[i - 2]);
-            sl_draw_backend t = {SL_DRAW_BACKEND_VERSION, &zb[i - 2], zb_begin_frame, zb_draw, zb_create,
-                                 zb_destroy, zb_begin_query, zb_boxes, zb_objects, zb_end_query, zb_poll, zb_wait,
-                                 zb_end_frame};
+            sl_draw_backend t = sl_test_zero_table(&zb[i - 2], sl_draw_backend_cpu_table(inner[i - 2]));
             sl_culler_params pa = {&t, NULL};
             assert_int_equal(sl_culler_create_with(methods[i], s, NULL, &pa, NULL, &runs[i].c, &err), SL_OK);
         }
@@ -525,14 +459,14 @@ static void test_static_view(void **state)
     sl_scene_destroy(s);
 }
 
-/* threshold > 0: aggressive, and an object it drops owns at most threshold pixels. */
+/* threshold > 0: aggressive; it drops visible objects, each owning at most threshold pixels. */
 static void test_threshold(void **state)
 {
     (void)state;
     sl_scene s = sl_test_tiny_city();
     sl_error err;
-    run runs[2] = {{"chc", "threshold=20", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
-                   {"chc++", "threshold=20", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
+    run runs[2] = {{"chc", "threshold=50", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
+                   {"chc++", "threshold=50", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
     for (int i = 0; i < 2; i++) {
         open_run(s, &runs[i]);
         assert_int_equal(sl_culler_guarantee(runs[i].c), SL_AGGRESSIVE);
@@ -540,14 +474,15 @@ static void test_threshold(void **state)
     sl_path_options po = sl_path_options_default(SL_PATH_WALK);
     po.intrinsics.width = 320;
     po.intrinsics.height = 240;
-    po.frames = sanitized() ? 8 : 60;
+    po.frames = sanitized() ? 30 : 60;
     po.fps = 10;
     sl_path walk;
     assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
     run_views(s, walk, runs, 2, false, "threshold");
     for (int i = 0; i < 2; i++) {
-        report(&runs[i], "threshold=20");
-        assert_true(runs[i].max_missed_px <= 20);
+        report(&runs[i], "threshold=50");
+        assert_true(runs[i].missed > 0); /* it does drop visible objects (measured: 60 in 60 frames) */
+        assert_true(runs[i].max_missed_px <= 50);
         sl_culler_destroy(runs[i].c);
     }
     sl_path_destroy(walk);
