@@ -179,6 +179,8 @@ struct sl_renderer_t {
     /* KHR_debug: the first error-type or high-severity message since the last check */
     bool debug_pending;
     char debug_message[400];
+    GLDEBUGPROC prev_debug_fn;    /* SL_GL_CONTEXT_CURRENT: the caller's callback, restored at destroy */
+    const void *prev_debug_user;
 
     /* scene */
     GLuint vao;
@@ -264,6 +266,9 @@ sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count,
 void sl_render_queries_release(sl_renderer r, bool gl_current);
 /* materials.c: upload the scene's materials and decode their base-colour textures. */
 sl_status sl_render_upload_materials(sl_renderer r, sl_error *err);
+/* The renderer's allocator (zeroed memory; free with the size allocated). */
+void *sl_render_alloc(sl_renderer r, size_t size);
+void sl_render_free(sl_renderer r, void *p, size_t size);
 /* Monotonic wall time in seconds. */
 double sl_render_now(void);
 
