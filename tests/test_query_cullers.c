@@ -13,6 +13,8 @@
  *  - a view held still: fewer queries after the first frame (the pull-up);
  *  - threshold > 0 is aggressive, drops visible objects, and each owns at most threshold pixels;
  *  - a backend answering 0 samples makes chc and chc++ miss (the check can fail);
+ *  - with a shared acceleration handle's tree, the same ids and queries as with their own;
+ *  - moving objects (sl_culler_scene_changed every frame): no misses;
  *  - options parse and bad values are refused. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -376,6 +378,133 @@ static void test_given_backend(void **state)
     sl_scene_destroy(s);
 }
 
+/* With a shared per-scene acceleration handle (its tree instead of their own), chc and chc++ give
+ * the same ids and queries as with their own tree, frame for frame over a walk. */
+static void test_shared_tree(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_error err;
+    sl_scene_accel accel;
+    assert_int_equal(sl_scene_accel_create(s, NULL, &accel, &err), SL_OK);
+    sl_culler_params pa = {NULL, accel};
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 160;
+    po.intrinsics.height = 120;
+    po.frames = sanitized() ? 8 : 30;
+    po.fps = 10;
+    sl_path walk;
+    assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b);
+    const char *methods[] = {"chc", "chc++"};
+    for (int m = 0; m < 2; m++) {
+        sl_culler own, shared;
+        assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &own, &err), SL_OK);
+        assert_int_equal(sl_culler_create_with(methods[m], s, NULL, &pa, NULL, &shared, &err), SL_OK);
+        for (uint32_t f = 0; f < sl_path_count(walk); f++) {
+            sl_camera cam = sl_path_camera(walk, f);
+            uint32_t ka, kb;
+            assert_int_equal(sl_culler_cull(own, &cam, a, n, &ka, &err), SL_OK);
+            sl_cull_stats sa, sb;
+            sl_culler_stats(own, &sa);
+            assert_int_equal(sl_culler_cull(shared, &cam, b, n, &kb, &err), SL_OK);
+            sl_culler_stats(shared, &sb);
+            assert_int_equal(ka, kb);
+            assert_memory_equal(a, b, ka * sizeof *a);
+            assert_int_equal(sa.queries, sb.queries);
+        }
+        /* another leaf size than the handle's is refused, naming both */
+        sl_culler bad = NULL;
+        assert_int_equal(sl_culler_create_with(methods[m], s, "leaf_size=2", &pa, NULL, &bad, &err),
+                         SL_ERROR_INVALID_ARGUMENT);
+        assert_non_null(strstr(err.message, "leaf_size"));
+        sl_culler_destroy(own);
+        sl_culler_destroy(shared);
+    }
+    free(a);
+    free(b);
+    sl_path_destroy(walk);
+    sl_scene_accel_destroy(accel);
+    sl_scene_destroy(s);
+}
+
+/* Moving objects with sl_culler_scene_changed every frame: the cars shuttle 1.5 m a frame, and one
+ * car jumps to 10 m in front of the eye on odd frames and back on even ones; the classification
+ * kept from the last frame may be wrong for them, never the drawn set. */
+static void test_moving_objects(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_error err;
+    run runs[3] = {{"gl-stopwait", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
+                   {"chc", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
+                   {"chc++", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
+    for (int i = 0; i < 3; i++)
+        open_run(s, &runs[i]);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 320;
+    po.intrinsics.height = 240;
+    po.frames = sanitized() ? 10 : 40;
+    po.fps = 10;
+    sl_path walk;
+    assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), moved = 0, cars_seen = 0, jumper = SL_NONE;
+    sl_affine home;
+    for (uint32_t i = 0; i < n && jumper == SL_NONE; i++)
+        if (sl_scene_object(s, i).flags & SL_OBJECT_DYNAMIC) {
+            jumper = i;
+            home = sl_scene_object(s, i).transform;
+        }
+    assert_int_not_equal(jumper, SL_NONE);
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    for (uint32_t f = 0; f < sl_path_count(walk); f++) {
+        for (uint32_t i = 0; i < n; i++) {
+            sl_object_view info = sl_scene_object(s, i);
+            if (!(info.flags & SL_OBJECT_DYNAMIC))
+                continue;
+            sl_affine t = info.transform;
+            t.m[3] += (f / 10) % 2 ? -1.5f : 1.5f;
+            if (i == jumper) {
+                t = home;
+                if (f % 2) {
+                    sl_camera c = sl_path_camera(walk, f);
+                    sl_view v;
+                    assert_int_equal(sl_view_from_camera(&c, &v, &err), SL_OK);
+                    t.m[3] = v.eye.x + 10 * v.forward.x;
+                    t.m[7] = v.eye.y + 10 * v.forward.y;
+                    t.m[11] = v.eye.z + 10 * v.forward.z - 1;
+                }
+            }
+            assert_int_equal(sl_scene_set_object_transform(s, i, &t, &err), SL_OK);
+            moved++;
+        }
+        sl_camera cam = sl_path_camera(walk, f);
+        sl_oracle_frame fr;
+        assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+        for (uint32_t k = 0; k < fr.visible_count; k++)
+            cars_seen += (sl_scene_object(s, fr.visible[k]).flags & SL_OBJECT_DYNAMIC) != 0;
+        for (int i = 0; i < 3; i++)
+            assert_int_equal(sl_culler_scene_changed(runs[i].c, &err), SL_OK);
+        sl_path one; /* this frame's view alone, judged against the scene as it is now */
+        sl_camera in = sl_path_intrinsics(walk);
+        assert_int_equal(sl_path_create(&in, NULL, &one, &err), SL_OK);
+        assert_int_equal(sl_path_append(one, &sl_path_poses(walk)[f], &err), SL_OK);
+        run_views(s, one, runs, 3, false, "moving");
+        sl_path_destroy(one);
+    }
+    sl_oracle_destroy(o);
+    print_message("moving cars: %u cars moved, %u seen (objects x frames)\n", moved, cars_seen);
+    assert_true(moved > 0 && cars_seen > 0);
+    for (int i = 0; i < 3; i++) {
+        report(&runs[i], "moving cars");
+        assert_int_equal(runs[i].missed, 0);
+        sl_culler_destroy(runs[i].c);
+    }
+    sl_path_destroy(walk);
+    sl_scene_destroy(s);
+}
+
 static void test_oracle_map(void **state)
 {
     (void)state;
@@ -544,9 +673,9 @@ static void test_options(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_clock),         cmocka_unit_test(test_options),    cmocka_unit_test(test_oracle_city),
-        cmocka_unit_test(test_static_view),
-        cmocka_unit_test(test_given_backend), cmocka_unit_test(test_threshold),  cmocka_unit_test(test_oracle_map),
+        cmocka_unit_test(test_clock),         cmocka_unit_test(test_options),     cmocka_unit_test(test_oracle_city),
+        cmocka_unit_test(test_static_view),   cmocka_unit_test(test_given_backend), cmocka_unit_test(test_shared_tree),
+        cmocka_unit_test(test_threshold),     cmocka_unit_test(test_oracle_map),  cmocka_unit_test(test_moving_objects),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
