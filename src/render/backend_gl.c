@@ -66,7 +66,7 @@ void sl_render_queries_release(sl_renderer r, bool gl_current)
         glDeleteBuffers(2, buffers);
         glDeleteVertexArrays(1, &q->box_vao);
     }
-    r->alloc.free(r->alloc.user, q, sizeof *q);
+    sl_render_free(r, q, sizeof *q);
     r->queries = NULL;
 }
 
@@ -92,10 +92,9 @@ static sl_status need_queries(sl_renderer r, sl_error *err)
 {
     if (r->queries)
         return SL_OK;
-    struct sl_render_queries *q = r->alloc.alloc(r->alloc.user, sizeof *q, 16);
+    struct sl_render_queries *q = sl_render_alloc(r, sizeof *q);
     if (!q)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "gl backend: out of memory");
-    memset(q, 0, sizeof *q);
     r->queries = q;
     GLuint vs = 0, fs = 0;
     sl_status st = shader(GL_VERTEX_SHADER, box_vertex_src, &vs, err);
