@@ -634,7 +634,7 @@ static void test_gpu_hiz_edges(void **state)
 
 /* See-through objects never hide (the oracle's rule): a see-through wall in front of a box, the eye
  * walking along it; gpu-hiz keeps them out of pass 1 and so out of its pyramid: the box is drawn in
- * every frame GL's image shows it. */
+ * every frame GL's image shows it. Then a wall moves into the view (scene_changed). */
 static void test_gpu_hiz_see_through(void **state)
 {
     (void)state;
@@ -645,7 +645,9 @@ static void test_gpu_hiz_see_through(void **state)
                                     SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_SEE_THROUGH);
     uint32_t box = sl_test_add_box(s, (sl_vec3){-1, 10, -1}, (sl_vec3){1, 12, 1}, SL_KIND_BUILDING,
                                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
-    assert_true(wall != SL_NONE && box != SL_NONE);
+    uint32_t mover = sl_test_add_box(s, (sl_vec3){50, 3, -3}, (sl_vec3){52, 3.5f, 3}, SL_KIND_BUILDING,
+                                     SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER | SL_OBJECT_DYNAMIC);
+    assert_true(wall != SL_NONE && box != SL_NONE && mover != SL_NONE);
     gl_judge j;
     judge_init(&j, s, W, H);
     sl_culler c;
@@ -665,6 +667,27 @@ static void test_gpu_hiz_see_through(void **state)
         shown += j.shown[box];
     }
     assert_int_equal(shown, 8);
+    /* a solid wall beside the view moves in front of the box: scene_changed gives gpu-hiz its new box
+     * (a stale one, outside the frustum, would cull it) */
+    sl_affine in_front = {{1, 0, 0, -51.0f, 0, 1, 0, 0, 0, 0, 1, 0}};
+    assert_int_equal(sl_scene_set_object_transform(s, mover, &in_front, &err), SL_OK);
+    assert_int_equal(sl_renderer_scene_changed(j.r, &err), SL_OK);
+    assert_int_equal(sl_culler_scene_changed(c, &err), SL_OK);
+    uint32_t mover_shown = 0;
+    for (uint32_t f = 0; f < 4; f++) {
+        sl_camera cam = sl_camera_default();
+        cam.position = (sl_vec3){-0.2f + 0.1f * (float)f, -6.3f, 0.2f};
+        cam.yaw = 1.57079633f;
+        cam.pitch = 0.0f;
+        cam.fov_y = 0.9f;
+        cam.near_plane = 0.1f;
+        cam.far_plane = 100.0f;
+        cam.width = W;
+        cam.height = H;
+        judge_frame(&j, c, &cam, SL_RENDER_IDS, "gpu-hiz moved", f);
+        mover_shown += j.shown[mover];
+    }
+    assert_int_equal(mover_shown, 4);
     assert_judged(&j, "gpu-hiz see-through");
     sl_culler_destroy(c);
     judge_free(&j);
