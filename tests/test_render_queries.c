@@ -584,7 +584,8 @@ static void test_hoq_gl_map(void **state)
 
 /* ---- the edge of an occluder, by fractions of a pixel ---- */
 
-/* A wall x in [-20, 0] at 6.3 in front of the eye and a small box x in [-0.2, 0] (1.5 pixels) 10 behind it:
+/* A wall x in [-20, 0] at 6.3 in front of the eye and two small boxes x in [-0.2, 0] and [-0.6, 0]
+ * (1.5 and 4.5 pixels: tested at the pyramid's levels 0 to 2) 10 behind it:
  * with the eye at x_e > 0 the box peeks past the wall's edge by about 12 x_e pixels, with x_e < 0
  * it is hidden. The eye sweeps x_e by 1/20 pixel steps through the edge, the camera rolled by
  * multiples of 45 degrees so that the peeking edge is each side of the box's screen rectangle in
@@ -599,6 +600,8 @@ static void test_gpu_hiz_edges(void **state)
     sl_test_add_box(s, (sl_vec3){-20, 0, -20}, (sl_vec3){0, 0.3f, 20}, SL_KIND_BUILDING,
                     SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
     sl_test_add_box(s, (sl_vec3){-0.2f, 10, -0.1f}, (sl_vec3){0, 10.2f, 0.1f}, SL_KIND_BUILDING,
+                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    sl_test_add_box(s, (sl_vec3){-0.6f, 10, 0.5f}, (sl_vec3){0, 10.2f, 1.1f}, SL_KIND_BUILDING,
                     SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
     gl_judge j;
     judge_init(&j, s, W, H);
@@ -619,12 +622,13 @@ static void test_gpu_hiz_edges(void **state)
             cam.width = W;
             cam.height = H;
             judge_frame(&j, c, &cam, SL_RENDER_IDS, "gpu-hiz edges", f);
-            if (j.shown[1])
-                shown++;
-            else
-                hidden++;
+            for (int b = 1; b <= 2; b++)
+                if (j.shown[b])
+                    shown++;
+                else
+                    hidden++;
         }
-    print_message("edges: the box shows in %u frames, hidden in %u\n", shown, hidden);
+    print_message("edges: a box shows %u times, is hidden %u times\n", shown, hidden);
     assert_true(shown > 0 && hidden > 0);
     assert_judged(&j, "gpu-hiz edges");
     sl_culler_destroy(c);
