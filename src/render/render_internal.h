@@ -226,6 +226,10 @@ struct sl_renderer_t {
     bool depth_equal;             /* solid draws test GL_EQUAL, no depth writes (after a depth pre-pass) */
     sl_render_pass frame_pass;    /* the pass of the frame's kind */
     sl_render_frame_stats frame;  /* counts accumulate here; copied out at the end */
+
+    /* the GL draw backend's objects (backend_gl.c: box program and buffers, the open query), made
+     * at its first use; sl_render_queries_release frees them in sl_renderer_destroy */
+    struct sl_render_queries *queries;
 };
 
 /* Set err (when not NULL) and return status; printf format. */
@@ -247,6 +251,8 @@ void sl_render_context_release(EGLDisplay display, EGLContext context);
 
 /* World -> clip of a view with the depth remap above (column-major). */
 void sl_render_view_matrix(const sl_view *view, float out[16]);
+/* Inverse of a column-major 4x4 matrix (Gauss-Jordan in double); false when singular. */
+bool sl_render_invert4(const double m[16], double out[16]);
 /* Set the frame's view: r->view_proj, eye, viewport to the framebuffer. */
 void sl_render_set_view(sl_renderer r, const sl_view *view);
 /* Clear the framebuffer for a pass (colour: sky drawn; ids SL_NONE; depth 0). Binds r->fbo. */
@@ -255,6 +261,9 @@ sl_status sl_render_clear(sl_renderer r, sl_render_pass pass, sl_error *err);
  * framebuffer (see the header comment). */
 sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count, sl_render_pass pass,
                              sl_error *err);
+/* backend_gl.c: release the GL draw backend's objects (GL ones only when gl_current: the
+ * renderer's context is current). */
+void sl_render_queries_release(sl_renderer r, bool gl_current);
 /* materials.c: upload the scene's materials and decode their base-colour textures. */
 sl_status sl_render_upload_materials(sl_renderer r, sl_error *err);
 /* The renderer's allocator (zeroed memory; free with the size allocated). */
