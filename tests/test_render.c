@@ -1,0 +1,416 @@
+/* The OpenGL renderer (include/sightline/render.h) on a headless EGL context (llvmpipe here): a
+ * known scene's pixels (colour, sky, the light's direction), the id buffer against the oracle's on
+ * the tiny city and a Quake III map (identical but for depth ties and silhouette pixels, both
+ * counted and bounded), KHR_debug errors reported with context, read-back, resize and PNG output,
+ * frames decided by a culler. Exits 77 (skipped) only when no GL context can be made. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+
+#include "sightline/cull.h"
+#include "sightline/gen.h"
+#include "sightline/image.h"
+#include "sightline/import.h"
+#include "sightline/path.h"
+#include "sightline/render.h"
+#include "sightline/truth.h"
+#include "support/box_mesh.h"
+#include "support/city_views.h"
+#include "support/pk3_names.h"
+
+#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+
+static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
+
+static sl_renderer make_renderer(sl_scene s, uint32_t w, uint32_t h, const float sun[3])
+{
+    sl_renderer_options o;
+    sl_renderer_options_default(&o);
+    o.width = w;
+    o.height = h;
+    if (sun)
+        memcpy(o.sun_direction, sun, sizeof o.sun_direction);
+    sl_renderer r = NULL;
+    sl_error err;
+    if (sl_renderer_create(s, &o, NULL, &r, &err) != SL_OK)
+        fail_msg("sl_renderer_create: %s", err.message);
+    return r;
+}
+
+/* One box [-1, 1]^3 of colour 0xC04020FF (closed convex) seen from (-6, 0, 0) looking along +x. */
+static sl_scene box_scene(uint32_t color)
+{
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    float p[24];
+    sl_test_box_vertices((sl_vec3){-1, -1, -1}, (sl_vec3){1, 1, 1}, p);
+    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12};
+    uint32_t mesh;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, color, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER};
+    assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
+    return s;
+}
+
+static sl_view box_view(uint32_t w, uint32_t h)
+{
+    sl_camera cam = sl_camera_default();
+    cam.position = (sl_vec3){-6, 0, 0};
+    cam.yaw = 0;
+    cam.pitch = 0;
+    cam.roll = 0;
+    cam.fov_y = 1.0f;
+    cam.near_plane = 0.1f;
+    cam.far_plane = 100.0f;
+    cam.width = w;
+    cam.height = h;
+    sl_view v;
+    sl_error err;
+    assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+    return v;
+}
+
+static void render_box(const float sun[3], uint8_t *rgba, uint32_t *ids, float *depth)
+{
+    sl_scene s = box_scene(0xC04020FFu);
+    sl_renderer r = make_renderer(s, 64, 48, sun);
+    sl_view v = box_view(64, 48);
+    sl_error err;
+    uint32_t id = 0;
+    sl_render_frame_stats st;
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, &st, &err), SL_OK);
+    assert_int_equal(st.objects_drawn, 1);
+    assert_int_equal(st.triangles_drawn, 12);
+    assert_true(st.draw_calls >= 1);
+    assert_true(st.frame_ms >= 0.0);
+    assert_int_equal(sl_renderer_read_rgba(r, rgba, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_depth(r, depth, &err), SL_OK);
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+}
+
+/* A box of known colour at the centre, sky elsewhere; the face toward the sun is lit. */
+static void test_box_pixels(void **state)
+{
+    (void)state;
+    uint8_t lit[64 * 48 * 4], dark[64 * 48 * 4];
+    uint32_t ids[64 * 48];
+    float depth[64 * 48];
+    const float toward[3] = {-1, 0, 0}, away[3] = {1, 0, 0.2f};
+    render_box(toward, lit, ids, depth);
+    const uint8_t *c = lit + 4 * (24 * 64 + 32);
+    print_message("lit face: %d %d %d\n", c[0], c[1], c[2]);
+    /* the -x face, normal (-1, 0, 0): base * (0.62 + 0.22 + 0.16 * 0.5) = base * 0.92 */
+    assert_true(abs(c[0] - (int)lrint(0xC0 * 0.92)) <= 2);
+    assert_true(abs(c[1] - (int)lrint(0x40 * 0.92)) <= 2);
+    assert_true(abs(c[2] - (int)lrint(0x20 * 0.92)) <= 2);
+    assert_int_equal(ids[24 * 64 + 32], 0);
+    /* depth: the oracle's (1 - z_ndc) / 2 of the face 5 m away */
+    double n = 0.1, f = 100.0, z = 5.0;
+    double zndc = (f + n) / (f - n) - 2.0 * f * n / ((f - n) * z);
+    assert_true(fabs(depth[24 * 64 + 32] - (1.0 - zndc) / 2.0) < 1e-6);
+    /* the corners: sky (blue above the horizon, brighter at the horizon), no id, depth 0 */
+    const uint8_t *top = lit, *mid = lit + 4 * (23 * 64 + 0);
+    assert_true(top[2] > top[0] + 40);
+    assert_true(mid[0] > top[0]);
+    assert_int_equal(ids[0], SL_NONE);
+    assert_true(depth[0] == 0.0f);
+    assert_int_equal(ids[47 * 64 + 63], SL_NONE);
+    /* the box's silhouette: a face 2 m wide 5 m away with fov_y 1 rad spans 2 / (2 * 5 * tan 0.5) of
+     * the height: about 17.5 of 48 rows */
+    uint32_t rows = 0;
+    for (uint32_t y = 0; y < 48; y++)
+        rows += ids[y * 64 + 32] == 0;
+    assert_true(rows >= 16 && rows <= 19);
+    /* the sun away from the face: ambient only, base * (0.22 + 0.08) */
+    render_box(away, dark, ids, depth);
+    c = dark + 4 * (24 * 64 + 32);
+    assert_true(abs(c[0] - (int)lrint(0xC0 * 0.30)) <= 2);
+    assert_true(lit[4 * (24 * 64 + 32)] > c[0] + 100);
+}
+
+/* ---- the id buffer against the oracle's ---- */
+
+typedef struct compare_counts {
+    uint64_t pixels, same, ties, edges, bad;
+} compare_counts;
+
+static bool neighbour_has(const uint32_t *img, uint32_t w, uint32_t h, uint32_t x, uint32_t y, uint32_t id)
+{
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++) {
+            int xx = (int)x + dx, yy = (int)y + dy;
+            if ((dx || dy) && xx >= 0 && yy >= 0 && xx < (int)w && yy < (int)h && img[yy * (int)w + xx] == id)
+                return true;
+        }
+    return false;
+}
+
+/* Every pixel: the same id, or a depth tie (both drawn, depths within a small relative tolerance),
+ * or a silhouette pixel (the other image has the id next to it: a pixel centre within rounding of
+ * an edge); anything else is counted bad. */
+static void compare_ids(const uint32_t *gl_ids, const float *gl_depth, const sl_oracle_view *ov, compare_counts *c)
+{
+    uint32_t w = ov->width, h = ov->height;
+    for (uint32_t y = 0; y < h; y++)
+        for (uint32_t x = 0; x < w; x++) {
+            size_t i = (size_t)y * w + x;
+            c->pixels++;
+            uint32_t a = gl_ids[i], b = ov->ids[i];
+            if (a == b) {
+                c->same++;
+                continue;
+            }
+            double da = gl_depth[i], db = ov->depth[i];
+            if (a != SL_NONE && b != SL_NONE && fabs(da - db) <= 1e-4 * fmax(da, db) + 1e-7)
+                c->ties++;
+            else if (neighbour_has(ov->ids, w, h, x, y, a) || neighbour_has(gl_ids, w, h, x, y, b))
+                c->edges++;
+            else {
+                if (c->bad < 5)
+                    print_message("pixel (%u, %u): GL id %u depth %.9g, oracle id %u depth %.9g\n", x, y, a, da, b, db);
+                c->bad++;
+            }
+        }
+}
+
+static void compare_on(sl_scene s, sl_path p, uint32_t w, uint32_t h, bool see_through_solid, const char *name)
+{
+    sl_error err;
+    sl_oracle_options oo = sl_oracle_default_options();
+    oo.see_through_solid = see_through_solid;
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, &oo, NULL, &o, &err), SL_OK);
+    sl_renderer r = make_renderer(s, w, h, NULL);
+    uint32_t n = sl_scene_object_count(s);
+    uint32_t *all = malloc((size_t)n * 4), *ids = malloc((size_t)w * h * 4);
+    float *depth = malloc((size_t)w * h * 4);
+    for (uint32_t i = 0; i < n; i++)
+        all[i] = i;
+    compare_counts c = {0};
+    for (uint32_t k = 0; k < sl_path_count(p); k++) {
+        sl_camera cam = sl_path_camera(p, k);
+        sl_view v;
+        assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+        sl_oracle_frame f;
+        assert_int_equal(sl_oracle_render_view(o, &v, &f, &err), SL_OK);
+        sl_oracle_view ov;
+        assert_int_equal(sl_oracle_get_view(o, 0, &ov, &err), SL_OK);
+        assert_int_equal(ov.width, w);
+        assert_int_equal(sl_renderer_draw(r, &v, all, n, SL_RENDER_IDS, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_depth(r, depth, &err), SL_OK);
+        compare_ids(ids, depth, &ov, &c);
+    }
+    print_message("%s: %u views %ux%u: %llu pixels, %llu identical, %llu depth ties, %llu silhouette, %llu other\n", name,
+                  sl_path_count(p), w, h, (unsigned long long)c.pixels, (unsigned long long)c.same,
+                  (unsigned long long)c.ties, (unsigned long long)c.edges, (unsigned long long)c.bad);
+    assert_int_equal(c.bad, 0);
+    assert_true(c.ties + c.edges <= c.pixels / 200); /* at most 0.5 % */
+    free(all);
+    free(ids);
+    free(depth);
+    sl_renderer_destroy(r);
+    sl_oracle_destroy(o);
+}
+
+static void test_ids_match_oracle_city(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_path p;
+    sl_error err;
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, sanitized() ? 3 : 8, 5, 160, 120, &s, &p, &err), SL_OK);
+    compare_on(s, p, 160, 120, false, "tiny city");
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+}
+
+static void test_ids_match_oracle_map(void **state)
+{
+    (void)state;
+    if (access(OA_PK3, R_OK) != 0) {
+        print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
+        skip();
+    }
+    sl_test_name_list *list = calloc(1, sizeof *list);
+    sl_error err;
+    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
+    assert_true(list->count >= 1);
+    sl_scene s;
+    if (sl_import_q3bsp(OA_PK3, list->names[0], NULL, NULL, &s, &err) != SL_OK)
+        fail_msg("%s", err.message);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 160;
+    po.intrinsics.height = 120;
+    sl_path p;
+    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, sanitized() ? 2 : 6, 31, &po, NULL, &p, &err), SL_OK);
+    /* every drawn pixel counts (the open-space rule is the oracle's judgement, not drawing) */
+    compare_on(s, p, 160, 120, true, list->names[0]);
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+    free(list);
+}
+
+/* ---- KHR_debug and GL errors ---- */
+
+static void test_gl_errors_reported(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0xFFFFFFFFu);
+    sl_renderer r = make_renderer(s, 32, 24, NULL);
+    sl_view v = box_view(32, 24);
+    sl_error err;
+    uint32_t id = 0;
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    /* a GL error made outside the renderer, on its (current) context: the next call names it */
+    glBindBuffer(GL_ARRAY_BUFFER, 987654u); /* not a buffer name: GL_INVALID_OPERATION in core */
+    assert_int_not_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    print_message("reported: %s\n", err.message);
+    assert_non_null(strstr(err.message, "before sl_renderer_draw"));
+    assert_non_null(strstr(err.message, "GL_INVALID_OPERATION"));
+    assert_true(strlen(err.message) > strlen("before sl_renderer_draw (a GL call outside the renderer): GL_INVALID_OPERATION: "));
+    /* once reported, the renderer works again */
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    /* a GL error inside a call: a size GL refuses, named with the call and the limit; the old
+     * framebuffer stays */
+    assert_int_not_equal(sl_renderer_resize(r, 1u << 20, 8, &err), SL_OK);
+    print_message("reported: %s\n", err.message);
+    assert_non_null(strstr(err.message, "sl_renderer_resize: glTextureStorage2D"));
+    assert_non_null(strstr(err.message, "GL_INVALID_VALUE"));
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    uint32_t ids[32 * 24];
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], 0);
+    /* bad arguments */
+    id = 1;
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "id 1"));
+    sl_view bad;
+    memset(&bad, 0, sizeof bad);
+    assert_int_equal(sl_renderer_draw(r, &bad, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+}
+
+/* ---- read-back, resize, PNG ---- */
+
+static void test_resize_and_png(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0x20C040FFu);
+    sl_renderer r = make_renderer(s, 32, 24, NULL);
+    sl_error err;
+    assert_int_equal(sl_renderer_resize(r, 80, 40, &err), SL_OK);
+    sl_view v = box_view(80, 40);
+    uint32_t id = 0;
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    uint8_t rgba[80 * 40 * 4];
+    uint32_t ids[80 * 40];
+    assert_int_equal(sl_renderer_read_rgba(r, rgba, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[20 * 80 + 40], 0);
+    assert_int_equal(ids[0], SL_NONE);
+    /* row 0 is the top: the box is symmetric, the sky is not (bluer above) */
+    assert_true(rgba[2] > rgba[4 * (39 * 80)] || rgba[0] < rgba[4 * (39 * 80)]);
+    char path[256];
+    snprintf(path, sizeof path, "%s/test_render_%d.png", SL_BINARY_DIR, (int)getpid());
+    assert_int_equal(sl_renderer_write_png(r, path, &err), SL_OK);
+    uint8_t *png = NULL;
+    uint32_t pw = 0, ph = 0;
+    assert_int_equal(sl_png_read_rgba(path, NULL, &png, &pw, &ph, &err), SL_OK);
+    assert_int_equal(pw, 80);
+    assert_int_equal(ph, 40);
+    for (size_t i = 0; i < sizeof rgba; i++)
+        assert_int_equal(png[i], (i % 4) == 3 ? 255 : rgba[i]);
+    sl_default_allocator()->free(NULL, png, (size_t)pw * ph * 4);
+    unlink(path);
+    /* the IDS kind writes ids and depth; the DEPTH kind only depth */
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_DEPTH, NULL, &err), SL_OK);
+    float depth[80 * 40];
+    assert_int_equal(sl_renderer_read_depth(r, depth, &err), SL_OK);
+    assert_true(depth[20 * 80 + 40] > 0.0f && depth[0] == 0.0f);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[20 * 80 + 40], SL_NONE);
+    sl_renderer_info info;
+    sl_renderer_get_info(r, &info);
+    assert_true(info.reversed_z);
+    assert_true(info.vertex_bytes > 0 && info.index_bytes == 36 * 4);
+    print_message("GL: %s / %s / %s\n", info.vendor, info.renderer, info.version);
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+}
+
+/* ---- frames decided by a culler ---- */
+
+static void test_frame_with_culler(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_path p;
+    sl_error err;
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 3, 9, 128, 96, &s, &p, &err), SL_OK);
+    sl_renderer r = make_renderer(s, 128, 96, NULL);
+    sl_culler c;
+    assert_int_equal(sl_culler_create("vfc", s, NULL, NULL, &c, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s);
+    uint32_t *set = malloc((size_t)n * 4), *want = malloc((size_t)n * 4);
+    uint32_t *ids_a = malloc(128 * 96 * 4), *ids_b = malloc(128 * 96 * 4);
+    for (uint32_t k = 0; k < sl_path_count(p); k++) {
+        sl_camera cam = sl_path_camera(p, k);
+        sl_view v;
+        assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+        uint32_t count = 0, wcount = 0;
+        sl_render_frame_stats st;
+        assert_int_equal(sl_renderer_frame(r, c, &v, SL_RENDER_IDS, set, &count, &st, &err), SL_OK);
+        assert_int_equal(sl_culler_cull_view(c, &v, want, n, &wcount, &err), SL_OK);
+        assert_int_equal(count, wcount);
+        assert_memory_equal(set, want, (size_t)count * 4);
+        assert_int_equal(st.objects_drawn, count);
+        assert_true(st.frame_ms >= st.cull_ms);
+        assert_int_equal(st.cull.objects_visible, count);
+        assert_int_equal(sl_renderer_read_ids(r, ids_a, &err), SL_OK);
+        /* vfc drops nothing that shows: the image of drawing everything */
+        assert_int_equal(sl_renderer_frame(r, NULL, &v, SL_RENDER_IDS, NULL, NULL, &st, &err), SL_OK);
+        assert_int_equal(st.objects_drawn, n);
+        assert_int_equal(sl_renderer_read_ids(r, ids_b, &err), SL_OK);
+        assert_memory_equal(ids_a, ids_b, 128 * 96 * 4);
+    }
+    free(set);
+    free(want);
+    free(ids_a);
+    free(ids_b);
+    sl_culler_destroy(c);
+    sl_renderer_destroy(r);
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+}
+
+int main(void)
+{
+    sl_error err;
+    if (sl_renderer_probe(SL_GL_CONTEXT_AUTO, &err) != SL_OK) {
+        printf("skipped: no headless GL context: %s\n", err.message);
+        return 77;
+    }
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_box_pixels),
+        cmocka_unit_test(test_ids_match_oracle_city),
+        cmocka_unit_test(test_ids_match_oracle_map),
+        cmocka_unit_test(test_gl_errors_reported),
+        cmocka_unit_test(test_resize_and_png),
+        cmocka_unit_test(test_frame_with_culler),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
