@@ -201,6 +201,9 @@ struct sl_renderer_t {
     bool depth_equal;             /* solid draws test GL_EQUAL, no depth writes (after a depth pre-pass) */
     sl_render_pass frame_pass;    /* the pass of the frame's kind */
     sl_render_frame_stats frame;  /* counts accumulate here; copied out at the end */
+
+    /* overlay.c (viewer): the overlays' programs and buffers, made on first use */
+    struct sl_render_overlay *overlay;
 };
 
 /* Set err (when not NULL) and return status; printf format. */
@@ -230,6 +233,8 @@ sl_status sl_render_clear(sl_renderer r, sl_render_pass pass, sl_error *err);
  * framebuffer (see the header comment). */
 sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count, sl_render_pass pass,
                              sl_error *err);
+/* overlay.c: release the overlays' state (sl_renderer_destroy; gl: its context is current). */
+void sl_render_overlay_release(sl_renderer r, bool gl);
 /* Monotonic wall time in seconds. */
 double sl_render_now(void);
 

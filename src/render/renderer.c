@@ -489,6 +489,7 @@ void sl_renderer_destroy(sl_renderer r)
     if (!r)
         return;
     bool current = !r->own_context || eglMakeCurrent(r->egl_display, EGL_NO_SURFACE, EGL_NO_SURFACE, r->egl_context);
+    sl_render_overlay_release(r, current && (r->own_context || glGetString(GL_VERSION)));
     if (current && (r->own_context || glGetString(GL_VERSION))) {
         free_framebuffer(r);
         GLuint buffers[5] = {r->vbo, r->ibo, r->id_vbo, r->object_ssbo, r->indirect_buffer};
