@@ -142,6 +142,36 @@ static void test_walk(void **state)
     sl_scene_destroy(s);
 }
 
+/* On a slope (terrain z = x / 10) walking climbs with the ground; flying does not. */
+static void test_terrain(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    float h[4] = {0, 10, 0, 10}; /* x = 0 and x = 100 at y = 0 and y = 100 */
+    sl_terrain_desc t = {2, 2, 0, 0, 100, h};
+    assert_int_equal(sl_scene_set_terrain(s, &t, &err), SL_OK);
+    assert_true(view_scene_walkable(s));
+    sl_camera start = at(10, 50, 1 + 2, 0, 0); /* 2 m above the ground at x = 10 */
+    view_control c;
+    view_control_init(&c, s, &start);
+    assert_true(c.walk);
+    assert_true(fabsf(c.eye_height - 2) < 1e-4f);
+    view_input in = {0};
+    in.forward = true;
+    for (int i = 0; i < 10; i++)
+        view_control_step(&c, s, &in, 0.25);
+    float x = c.position.x;
+    assert_true(x > 15);
+    assert_true(fabsf(c.position.z - (x / 10 + 2)) < 1e-3f);
+    assert_false(view_control_toggle_walk(&c, s));
+    float z = c.position.z;
+    view_control_step(&c, s, &in, 0.25);
+    assert_true(c.position.z == z); /* level flight */
+    sl_scene_destroy(s);
+}
+
 static void test_look(void **state)
 {
     (void)state;
@@ -240,6 +270,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_methods),
         cmocka_unit_test(test_walk),
+        cmocka_unit_test(test_terrain),
         cmocka_unit_test(test_look),
         cmocka_unit_test(test_hud),
         cmocka_unit_test(test_size),
