@@ -523,7 +523,7 @@ static sl_status draw_frame(viewer *v, const sl_view *view, sl_render_frame_stat
 
 static sl_status draw_hud(viewer *v, const sl_render_frame_stats *st, double fps, sl_error *err)
 {
-    float scale = v->fb_h >= 900 ? 2.0f : v->fb_h >= 500 ? 1.5f : 1.0f;
+    float scale = v->fb_h >= 700 ? 2.0f : 1.0f; /* whole pixels a font unit: even strokes */
     sl_status s = SL_OK;
     if (v->hud) {
         view_hud h;
