@@ -132,11 +132,11 @@ static sl_status build_scene(const bench_opts *o, sl_scene *out, sl_error *err)
         float x0 = (float)(b % grid) * 40.0f, y0 = (float)(b / grid) * 40.0f;
         for (uint32_t v = 0; v < verts; v++)
             pos[3 * v] += x0, pos[3 * v + 1] += y0;
-        sl_mesh_desc md = {pos, nrm, verts, idx, tris};
+        sl_mesh_desc md = {pos, nrm, verts, idx, tris, NULL};
         uint32_t mesh, obj;
         if ((st = sl_scene_add_mesh(s, &md, &mesh, err)) != SL_OK)
             break;
-        sl_object_desc od = {mesh, NULL, 0x999999ffu, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER | SL_OBJECT_CLOSED_CONVEX};
+        sl_object_desc od = {mesh, NULL, 0x999999ffu, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER | SL_OBJECT_CLOSED_CONVEX, 0};
         if ((st = sl_scene_add_object(s, &od, &obj, err)) != SL_OK)
             break;
         float fp[8] = {x0, y0, x0 + sx, y0, x0 + sx, y0 + sy, x0, y0 + sy};
@@ -146,7 +146,7 @@ static sl_status build_scene(const bench_opts *o, sl_scene *out, sl_error *err)
         if (b % 10 == 0) { /* an instanced, movable copy next to it */
             sl_affine t = sl_affine_identity();
             t.m[3] = 32, t.m[7] = 32;
-            sl_object_desc cd = {mesh, &t, 0x3030c0ffu, SL_KIND_CAR, SL_OBJECT_DYNAMIC};
+            sl_object_desc cd = {mesh, &t, 0x3030c0ffu, SL_KIND_CAR, SL_OBJECT_DYNAMIC, 0};
             st = sl_scene_add_object(s, &cd, NULL, err);
         }
     }

@@ -442,19 +442,19 @@ static sl_scene build_scene(const sl_allocator *a)
     sl_error err;
     assert_int_equal(sl_scene_create(a, &s, &err), SL_OK);
     uint32_t mb, mr;
-    sl_mesh_desc d = {box, NULL, 8, box_idx, 12};
+    sl_mesh_desc d = {box, NULL, 8, box_idx, 12, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &d, &mb, &err), SL_OK);
-    sl_mesh_desc d2 = {ramp, NULL, 4, ramp_idx, 2};
+    sl_mesh_desc d2 = {ramp, NULL, 4, ramp_idx, 2, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &d2, &mr, &err), SL_OK);
     const float c30 = 0.8660254f, s30 = 0.5f;
     sl_affine t[3] = {{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}},
                       {{c30, -s30, 0, 10, s30, c30, 0, -4, 0, 0, 1, 0.5f}},          /* 30° about z */
                       {{1, 0, 0, -6, 0, c30, -s30, 3, 0, s30, c30, 1}}};              /* 30° about x */
     for (int i = 0; i < 3; i++) {
-        sl_object_desc o = {mb, &t[i], 0x336699ffu, SL_KIND_BUILDING, 0};
+        sl_object_desc o = {mb, &t[i], 0x336699ffu, SL_KIND_BUILDING, 0, 0};
         assert_int_equal(sl_scene_add_object(s, &o, NULL, &err), SL_OK);
     }
-    sl_object_desc o = {mr, NULL, 0xff8000ffu, SL_KIND_GROUND, 0};
+    sl_object_desc o = {mr, NULL, 0xff8000ffu, SL_KIND_GROUND, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &o, NULL, &err), SL_OK);
     return s;
 }
@@ -730,9 +730,9 @@ static void test_export_deterministic(void **state)
     sl_scene one;
     assert_int_equal(sl_scene_create(NULL, &one, &err), SL_OK);
     uint32_t m;
-    sl_mesh_desc d = {tri, NULL, 3, tri_idx, 1};
+    sl_mesh_desc d = {tri, NULL, 3, tri_idx, 1, NULL};
     assert_int_equal(sl_scene_add_mesh(one, &d, &m, &err), SL_OK);
-    sl_object_desc o = {m, NULL, 0xff0000ffu, SL_KIND_IMPORTED, 0};
+    sl_object_desc o = {m, NULL, 0xff0000ffu, SL_KIND_IMPORTED, 0, 0};
     assert_int_equal(sl_scene_add_object(one, &o, NULL, &err), SL_OK);
     static const char *one_names[] = {"one.stl", "one.obj", "one.ply"};
     for (size_t i = 0; i < 3; i++) {

@@ -555,7 +555,7 @@ static sl_scene make_scene(uint32_t n, uint64_t seed)
     sl_scene s;
     sl_error err;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
-    sl_mesh_desc m = {cube_pos, NULL, 8, cube_idx, 12};
+    sl_mesh_desc m = {cube_pos, NULL, 8, cube_idx, 12, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &m, &mesh, &err), SL_OK);
     sl_rng r;
@@ -563,7 +563,7 @@ static sl_scene make_scene(uint32_t n, uint64_t seed)
     for (uint32_t i = 0; i < n; i++) {
         sl_affine t = box_transform(&r, 1000);
         sl_object_desc od = {mesh, &t, 0xffffffffu, i % 5 == 0 ? SL_KIND_CAR : SL_KIND_BUILDING,
-                             i % 5 == 0 ? SL_OBJECT_DYNAMIC : 0u};
+                             i % 5 == 0 ? SL_OBJECT_DYNAMIC : 0u, 0};
         assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     }
     return s;
@@ -631,7 +631,7 @@ static void test_scene_refit_rebuild(void **state)
 
     /* a new object: refit refuses (names both counts), rebuild_if_degraded rebuilds */
     sl_affine t = box_transform(&r, 1000);
-    sl_object_desc od = {0, &t, 0, SL_KIND_BUILDING, 0};
+    sl_object_desc od = {0, &t, 0, SL_KIND_BUILDING, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     assert_int_equal(sl_bvh_refit(bvh, s, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "3001"));

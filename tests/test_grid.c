@@ -220,10 +220,10 @@ static void test_terrain_ground(void **state)
     /* one object to give the scene bounds; the extent covers more than the terrain (clamping) */
     static const float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
     static const uint32_t idx[] = {0, 1, 2, 0, 1, 3, 0, 2, 3, 1, 2, 3};
-    sl_mesh_desc md = {pos, NULL, 4, idx, 4};
+    sl_mesh_desc md = {pos, NULL, 4, idx, 4, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0, SL_KIND_BUILDING, 0};
+    sl_object_desc od = {mesh, NULL, 0, SL_KIND_BUILDING, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     sl_aabb ext = {{-20, -5, 0}, {80, 70, 0}};
     const float cells[] = {0.7f, 2.5f, 6.0f, 30.0f};
@@ -551,7 +551,7 @@ static void test_scene_update(void **state)
     static const float pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
     static const uint32_t idx[] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
                                    1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
-    sl_mesh_desc md = {pos, NULL, 8, idx, 12};
+    sl_mesh_desc md = {pos, NULL, 8, idx, 12, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
     sl_rng r;
@@ -561,7 +561,7 @@ static void test_scene_update(void **state)
         bool car = i % 4 == 0;
         float sx = car ? 4.0f : sl_rng_range(&r, 5, 30), sz = car ? 1.5f : sl_rng_range(&r, 5, 60);
         sl_affine t = {{sx, 0, 0, sl_rng_range(&r, 0, 500), 0, sx, 0, sl_rng_range(&r, 0, 500), 0, 0, sz, 0}};
-        sl_object_desc od = {mesh, &t, 0, car ? SL_KIND_CAR : SL_KIND_BUILDING, car ? SL_OBJECT_DYNAMIC : 0u};
+        sl_object_desc od = {mesh, &t, 0, car ? SL_KIND_CAR : SL_KIND_BUILDING, car ? SL_OBJECT_DYNAMIC : 0u, 0};
         assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     }
     sl_aabb ext = {{0, 0, 0}, {540, 540, 0}};

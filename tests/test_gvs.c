@@ -28,10 +28,10 @@ static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const uint32_t *idx, uint32_t nt)
 {
     sl_error err;
-    sl_mesh_desc md = {pos, NULL, nv, idx, nt};
+    sl_mesh_desc md = {pos, NULL, nv, idx, nt, NULL};
     uint32_t mesh, obj;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
     return obj;
 }

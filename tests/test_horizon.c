@@ -168,10 +168,10 @@ static uint32_t add_box(sl_scene s, sl_vec3 lo, sl_vec3 hi, uint32_t kind, uint3
     static const uint32_t idx[36] = {0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5, 0, 1, 5, 0, 5, 4,
                                      2, 6, 7, 2, 7, 3, 0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6};
     sl_error err;
-    sl_mesh_desc md = {p, NULL, 8, idx, 12};
+    sl_mesh_desc md = {p, NULL, 8, idx, 12, NULL};
     uint32_t mesh, obj;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, kind, flags};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, kind, flags, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
     return obj;
 }

@@ -27,11 +27,11 @@ static sl_scene fan_scene(uint32_t objects)
         }
         for (uint32_t t = 0; t < nt; t++)
             idx[3 * t] = 0, idx[3 * t + 1] = t + 1, idx[3 * t + 2] = t + 2;
-        sl_mesh_desc md = {p, NULL, nv, idx, nt};
+        sl_mesh_desc md = {p, NULL, nv, idx, nt, NULL};
         uint32_t mesh;
         sl_error err;
         assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-        sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0};
+        sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0, 0};
         assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
         free(p);
         free(idx);

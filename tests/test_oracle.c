@@ -19,10 +19,10 @@ static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const
                                 const sl_affine *xf, uint32_t flags)
 {
     sl_error err;
-    sl_mesh_desc md = {pos, NULL, nv, idx, nt};
+    sl_mesh_desc md = {pos, NULL, nv, idx, nt, NULL};
     uint32_t mesh, obj;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, xf, 0xffffffffu, SL_KIND_OTHER, flags};
+    sl_object_desc od = {mesh, xf, 0xffffffffu, SL_KIND_OTHER, flags, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
     return obj;
 }

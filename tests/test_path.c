@@ -68,10 +68,10 @@ static void add_box(sl_scene s, float x0, float y0, float z0, float x1, float y1
 {
     const float p[24] = {x0, y0, z0, x1, y0, z0, x1, y1, z0, x0, y1, z0, x0, y0, z1, x1, y0, z1, x1, y1, z1, x0, y1, z1};
     const uint32_t idx[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
-    sl_mesh_desc md = {p, NULL, 8, idx, 12};
+    sl_mesh_desc md = {p, NULL, 8, idx, 12, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, NULL), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_BUILDING, 0};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_BUILDING, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, NULL), SL_OK);
 }
 

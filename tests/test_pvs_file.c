@@ -221,9 +221,9 @@ static void test_scene_key(void **state)
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
     uint32_t idx[3] = {0, 1, 2}, mesh, car;
-    sl_mesh_desc md = {pos, NULL, 3, idx, 1};
+    sl_mesh_desc md = {pos, NULL, 3, idx, 1, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0, SL_KIND_CAR, SL_OBJECT_DYNAMIC};
+    sl_object_desc od = {mesh, NULL, 0, SL_KIND_CAR, SL_OBJECT_DYNAMIC, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &car, &err), SL_OK);
     uint64_t k0 = sl_pvs_scene_key(s);
     sl_affine t = sl_affine_identity();

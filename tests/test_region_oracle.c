@@ -19,10 +19,10 @@
 static uint32_t add_mesh_object(sl_scene s, const float *pos, uint32_t nv, const uint32_t *idx, uint32_t nt)
 {
     sl_error err;
-    sl_mesh_desc md = {pos, NULL, nv, idx, nt};
+    sl_mesh_desc md = {pos, NULL, nv, idx, nt, NULL};
     uint32_t mesh, obj;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
     return obj;
 }
@@ -235,11 +235,11 @@ static void test_near_wall(void **state)
     /* a wall of an instanced mesh (a transform) between the room and a second box */
     float p[12] = {0, -5, 0, 0, 5, 0, 0, 5, 4, 0, -5, 4};
     uint32_t idx[6] = {0, 1, 2, 0, 2, 3}, mesh, wall2;
-    sl_mesh_desc md = {p, NULL, 4, idx, 2};
+    sl_mesh_desc md = {p, NULL, 4, idx, 2, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
     sl_affine xf = sl_affine_identity();
     xf.m[3] = -20; /* translated to x = -20 (row-major 3x4: translation in m[3], m[7], m[11]) */
-    sl_object_desc od = {mesh, &xf, 0xffffffffu, SL_KIND_OTHER, 0};
+    sl_object_desc od = {mesh, &xf, 0xffffffffu, SL_KIND_OTHER, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &wall2, &err), SL_OK);
     uint32_t beyond = add_box(s, (sl_vec3){-24, -1, 1}, (sl_vec3){-22, 1, 3});
     assert_true(sl_scene_object_bounds(s, wall2).max.x < -19.9f);

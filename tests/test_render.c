@@ -54,10 +54,10 @@ static sl_scene box_scene(uint32_t color)
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     float p[24];
     sl_test_box_vertices((sl_vec3){-1, -1, -1}, (sl_vec3){1, 1, 1}, p);
-    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12};
+    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, color, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER};
+    sl_object_desc od = {mesh, NULL, color, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     return s;
 }
@@ -352,6 +352,88 @@ static void test_resize_and_png(void **state)
     sl_scene_destroy(s);
 }
 
+/* ---- the facing rule: closed convex objects lose their back faces, a mirroring transform swaps
+ * the front winding ---- */
+
+static void test_facing_rule(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    float p[24];
+    uint32_t mesh_big, mesh_small;
+    sl_test_box_vertices((sl_vec3){-10, -10, -10}, (sl_vec3){10, 10, 10}, p);
+    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12, NULL};
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh_big, &err), SL_OK);
+    sl_test_box_vertices((sl_vec3){-6, -1, -1}, (sl_vec3){-4, 1, 1}, p);
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh_small, &err), SL_OK);
+    /* 0: a closed box around the eye (seen from inside: nothing of it is drawn) */
+    sl_object_desc od = {mesh_big, NULL, 0x808080FFu, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX, 0};
+    assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
+    /* 1: the small box mirrored in x (x -> -x): it sits in [4, 6] and its outward faces wind the
+     * other way */
+    sl_affine mirror = {{-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
+    sl_object_desc om = {mesh_small, &mirror, 0xC04020FFu, SL_KIND_BUILDING, SL_OBJECT_CLOSED_CONVEX, 0};
+    assert_int_equal(sl_scene_add_object(s, &om, NULL, &err), SL_OK);
+    sl_camera cam = sl_camera_default();
+    cam.position = (sl_vec3){0, 0, 0};
+    cam.yaw = cam.pitch = cam.roll = 0;
+    cam.fov_y = 1.0f;
+    cam.near_plane = 0.1f;
+    cam.far_plane = 100.0f;
+    cam.width = 64;
+    cam.height = 48;
+    sl_view v;
+    assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+    sl_renderer r = make_renderer(s, 64, 48, NULL);
+    uint32_t all[2] = {0, 1}, ids[64 * 48];
+    float depth[64 * 48];
+    assert_int_equal(sl_renderer_draw(r, &v, all, 2, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_depth(r, depth, &err), SL_OK);
+    assert_int_equal(ids[0], SL_NONE);            /* the enclosing box's back faces are not drawn */
+    assert_int_equal(ids[24 * 64 + 32], 1);
+    /* the mirrored box's near face (x = 4) is its front: drawn, the far one (x = 6) is not */
+    double n = 0.1, f = 100.0, z = 4.0;
+    double zndc = (f + n) / (f - n) - 2.0 * f * n / ((f - n) * z);
+    assert_true(fabs(depth[24 * 64 + 32] - (1.0 - zndc) / 2.0) < 1e-6);
+    /* and the oracle agrees on every pixel */
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    sl_oracle_frame fr;
+    assert_int_equal(sl_oracle_render_view(o, &v, &fr, &err), SL_OK);
+    sl_oracle_view ov;
+    assert_int_equal(sl_oracle_get_view(o, 0, &ov, &err), SL_OK);
+    compare_counts c = {0};
+    compare_ids(ids, depth, &ov, &c);
+    assert_int_equal(c.same, 64 * 48);
+    sl_oracle_destroy(o);
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+}
+
+/* ---- two renderers are independent: destroying one leaves the other working ---- */
+
+static void test_two_renderers(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0x3060C0FFu);
+    sl_renderer a = make_renderer(s, 32, 24, NULL), b = make_renderer(s, 32, 24, NULL);
+    sl_view v = box_view(32, 24);
+    sl_error err;
+    uint32_t id = 0, ids[32 * 24];
+    assert_int_equal(sl_renderer_draw(a, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_draw(b, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    sl_renderer_destroy(a);
+    if (sl_renderer_draw(b, &v, &id, 1, SL_RENDER_SHADED, NULL, &err) != SL_OK)
+        fail_msg("the second renderer after the first was destroyed: %s", err.message);
+    assert_int_equal(sl_renderer_read_ids(b, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], 0);
+    sl_renderer_destroy(b);
+    sl_scene_destroy(s);
+}
+
 /* ---- frames decided by a culler ---- */
 
 static void test_frame_with_culler(void **state)
@@ -410,6 +492,8 @@ int main(void)
         cmocka_unit_test(test_ids_match_oracle_map),
         cmocka_unit_test(test_gl_errors_reported),
         cmocka_unit_test(test_resize_and_png),
+        cmocka_unit_test(test_facing_rule),
+        cmocka_unit_test(test_two_renderers),
         cmocka_unit_test(test_frame_with_culler),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -413,11 +413,11 @@ static uint32_t add_prism_mesh(sl_scene s, const float *uv, uint32_t n, int alon
         memcpy(idx + k, t, sizeof t);
         k += 6;
     }
-    sl_mesh_desc md = {p, NULL, 2 * n, idx, k / 3};
+    sl_mesh_desc md = {p, NULL, 2 * n, idx, k / 3, NULL};
     sl_error err;
     uint32_t mesh, obj;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
     return obj;
 }
@@ -455,10 +455,10 @@ static void test_silhouette_rule(void **state)
         }
         uint32_t caps[12] = {4, 5, 6, 4, 6, 7, 0, 2, 1, 0, 3, 2};
         memcpy(idx + k, caps, sizeof caps);
-        sl_mesh_desc md = {p, NULL, 8, idx, 12};
+        sl_mesh_desc md = {p, NULL, 8, idx, 12, NULL};
         uint32_t mesh;
         assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-        sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER};
+        sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER, 0};
         assert_int_equal(sl_scene_add_object(s, &od, &bld, &err), SL_OK);
         sl_footprint_desc fd = {fxy, 4, 0, 60, bld};
         assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
@@ -492,10 +492,10 @@ static void test_silhouette_rule(void **state)
             p[3 * c + 1] = by + a * uy + b * ny;
             p[3 * c + 2] = c & 4 ? z + 4.0f : z;
         }
-        sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12};
+        sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12, NULL};
         uint32_t mesh, obj;
         assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-        sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_LAMP, 0};
+        sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_LAMP, 0, 0};
         assert_int_equal(sl_scene_add_object(s, &od, &obj, &err), SL_OK);
     }
     /* the L: 10 m arms 3 m thick in the y-z plane, 2 m deep along x, 60 m away at y = 1000; the
@@ -699,10 +699,10 @@ static void test_hole_facing_eye(void **state)
         uint32_t t[6] = {quads[q][0], quads[q][1], quads[q][2], quads[q][0], quads[q][2], quads[q][3]};
         memcpy(idx + 6 * q, t, sizeof t);
     }
-    sl_mesh_desc md = {p, NULL, 8, idx, 10};
+    sl_mesh_desc md = {p, NULL, 8, idx, 10, NULL};
     uint32_t mesh, cup;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &cup, &err), SL_OK);
     /* the pole: its top's far edge 0.3 pixel (1.7 mrad at focal 175) above the line of sight over
      * the rim (10, 0, 3) from the eye (0, 0, 6) */
@@ -790,10 +790,10 @@ static void test_hull_focal_per_axis(void **state)
         A, D, A2,   D, D2, A2,              /* top z = +Z */
         B, B2, C,   B2, C2, C,              /* bottom z = -Z */
     };
-    sl_mesh_desc md = {p, NULL, 9, idx, SL_COUNTOF(idx) / 3};
+    sl_mesh_desc md = {p, NULL, 9, idx, SL_COUNTOF(idx) / 3, NULL};
     uint32_t mesh, box;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_OTHER, SL_OBJECT_OCCLUDER, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &box, &err), SL_OK);
     /* screen x = 160 - 1750 y / x (+y is to the left): the hull's left edge at 55, u pixels inside
      * it at the angle y / x = (105 - u) / 1750 */

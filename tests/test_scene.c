@@ -19,7 +19,7 @@ static const uint32_t cube_idx[] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5,
 
 static uint32_t add_cube(sl_scene s)
 {
-    sl_mesh_desc m = {cube_pos, NULL, 8, cube_idx, 12};
+    sl_mesh_desc m = {cube_pos, NULL, 8, cube_idx, 12, NULL};
     uint32_t id;
     sl_error err;
     assert_int_equal(sl_scene_add_mesh(s, &m, &id, &err), SL_OK);
@@ -48,7 +48,7 @@ static void test_meshes_objects_instancing(void **state)
     /* three instances: identity, translated, scaled+translated */
     sl_affine t1 = {{1, 0, 0, 10, 0, 1, 0, 0, 0, 0, 1, 0}};
     sl_affine t2 = {{2, 0, 0, 0, 0, 2, 0, 5, 0, 0, 2, 1}};
-    sl_object_desc od = {mesh, NULL, 0xff0000ff, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER};
+    sl_object_desc od = {mesh, NULL, 0xff0000ff, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER, 0};
     uint32_t o0, o1, o2;
     assert_int_equal(sl_scene_add_object(s, &od, &o0, &err), SL_OK);
     od.transform = &t1;
@@ -99,15 +99,15 @@ static void test_bad_meshes_and_objects(void **state)
     sl_error err;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     uint32_t bad_idx[] = {0, 1, 8};
-    sl_mesh_desc m = {cube_pos, NULL, 8, bad_idx, 1};
+    sl_mesh_desc m = {cube_pos, NULL, 8, bad_idx, 1, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &m, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "index 8"));
     float nan_pos[9] = {0, 0, 0, 1, 0, 0, 0, NAN, 0};
     uint32_t idx[3] = {0, 1, 2};
-    sl_mesh_desc m2 = {nan_pos, NULL, 3, idx, 1};
+    sl_mesh_desc m2 = {nan_pos, NULL, 3, idx, 1, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &m2, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "vertex 2"));
-    sl_object_desc od = {5, NULL, 0, 0, 0};
+    sl_object_desc od = {5, NULL, 0, 0, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_ERROR_INVALID_ARGUMENT);
     uint32_t mesh = add_cube(s);
     sl_affine inf = sl_affine_identity();
@@ -229,7 +229,7 @@ static void test_bsp(void **state)
     sl_error err;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     uint32_t mesh = add_cube(s);
-    sl_object_desc od = {mesh, NULL, 0, SL_KIND_BSP_FACES, 0};
+    sl_object_desc od = {mesh, NULL, 0, SL_KIND_BSP_FACES, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     /* one node splitting at x = 0: front (x >= 0) is leaf 0, back is leaf 1 */
     sl_plane planes[1] = {{1, 0, 0, 0}};
@@ -273,7 +273,7 @@ static void test_validate_catches_corruption(void **state)
     sl_error err;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     uint32_t mesh = add_cube(s);
-    sl_object_desc od = {mesh, NULL, 0, 0, 0};
+    sl_object_desc od = {mesh, NULL, 0, 0, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     assert_int_equal(sl_scene_validate(s, &err), SL_OK);
     /* poke internals as a corrupted file would */

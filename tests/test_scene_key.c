@@ -39,15 +39,15 @@ static sl_scene make_scene(const scene_opts *o)
      * column moves with o->inner, the box stays */
     float pos[18] = {0.5f, 1, 0, o->inner, 1, 0, 4, 1, 0, 0.5f, 1, 2, o->inner, 1, 2, 4, 1, 2};
     uint32_t idx[12] = {0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4};
-    sl_mesh_desc md = {pos, NULL, 6, idx, 4};
+    sl_mesh_desc md = {pos, NULL, 6, idx, 4, NULL};
     uint32_t m0, m1;
     assert_int_equal(sl_scene_add_mesh(s, &md, &m0, &err), SL_OK);
     float pos1[9] = {-3, -1, 0, -1, -1, 0, -2, -1, 2};
     uint32_t idx1[3] = {0, 1, 2};
-    sl_mesh_desc md1 = {pos1, NULL, 3, idx1, 1};
+    sl_mesh_desc md1 = {pos1, NULL, 3, idx1, 1, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &md1, &m1, &err), SL_OK);
-    sl_object_desc od0 = {m0, NULL, 0, SL_KIND_BSP_FACES, 0};
-    sl_object_desc od1 = {m1, NULL, 0, SL_KIND_BSP_FACES, 0};
+    sl_object_desc od0 = {m0, NULL, 0, SL_KIND_BSP_FACES, 0, 0};
+    sl_object_desc od1 = {m1, NULL, 0, SL_KIND_BSP_FACES, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od0, NULL, &err), SL_OK);
     assert_int_equal(sl_scene_add_object(s, &od1, NULL, &err), SL_OK);
     sl_plane planes[1] = {{1, 0, 0, o->plane_d}};
@@ -113,9 +113,9 @@ static void test_dynamic_ignored(void **state)
     sl_scene s = make_scene(&k_base);
     float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
     uint32_t idx[3] = {0, 1, 2}, mesh, car;
-    sl_mesh_desc md = {pos, NULL, 3, idx, 1};
+    sl_mesh_desc md = {pos, NULL, 3, idx, 1, NULL};
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0, SL_KIND_CAR, SL_OBJECT_DYNAMIC};
+    sl_object_desc od = {mesh, NULL, 0, SL_KIND_CAR, SL_OBJECT_DYNAMIC, 0};
     assert_int_equal(sl_scene_add_object(s, &od, &car, &err), SL_OK);
     uint64_t k0 = sl_pvs_scene_key(s);
     sl_affine t = sl_affine_identity();

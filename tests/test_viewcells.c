@@ -205,10 +205,10 @@ static void test_adaptive(void **state)
         pos[3 * i + 2] = (i & 4) ? 5.0f : 4.0f;
     }
     uint32_t idx[3] = {0, 1, 2};
-    sl_mesh_desc md = {pos, NULL, 8, idx, 1};
+    sl_mesh_desc md = {pos, NULL, 8, idx, 1, NULL};
     uint32_t mesh;
     assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
-    sl_object_desc od = {mesh, NULL, 0, SL_KIND_OTHER, 0};
+    sl_object_desc od = {mesh, NULL, 0, SL_KIND_OTHER, 0, 0};
     assert_int_equal(sl_scene_add_object(s, &od, NULL, &err), SL_OK);
     assert_int_equal(sl_viewcells_adaptive(s, &vol, SL_NONE, &vo, &vc, &err), SL_OK);
     assert_true(sl_viewcells_count(vc) > 64);
@@ -222,10 +222,10 @@ static void test_adaptive(void **state)
     assert_int_equal(sl_scene_create(NULL, &m, &err), SL_OK);
     float cube[24];
     sl_test_box_vertices((sl_vec3){100, 0, 0}, (sl_vec3){108, 8, 8}, cube);
-    sl_mesh_desc cm = {cube, NULL, 8, sl_test_box_indices, 12};
+    sl_mesh_desc cm = {cube, NULL, 8, sl_test_box_indices, 12, NULL};
     uint32_t cmesh, cobj;
     assert_int_equal(sl_scene_add_mesh(m, &cm, &cmesh, &err), SL_OK);
-    sl_object_desc cod = {cmesh, NULL, 0, SL_KIND_OTHER, 0};
+    sl_object_desc cod = {cmesh, NULL, 0, SL_KIND_OTHER, 0, 0};
     assert_int_equal(sl_scene_add_object(m, &cod, &cobj, &err), SL_OK);
     vo.max_edge = 4;
     vo.min_edge = 1;

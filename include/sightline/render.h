@@ -77,7 +77,10 @@ typedef struct sl_renderer_info {
     bool reversed_z;               /* float depth with glClipControl(GL_ZERO_TO_ONE), cleared to 0, GL_GREATER */
     bool timer_queries;
     uint64_t vertex_bytes, index_bytes, texture_bytes; /* uploaded */
+    char texture_warning[288];     /* the first base-colour texture that could not be read or decoded
+                                      (its material is drawn in its base colour), or "" */
 } sl_renderer_info;
+/* What the renderer runs on and uploaded (zeroed for NULL). */
 SL_API void sl_renderer_get_info(sl_renderer r, sl_renderer_info *out);
 
 /* Change the framebuffer size. */

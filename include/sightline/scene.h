@@ -57,6 +57,51 @@ enum {
                                           anything (no depth writes in the oracle and the renderer,
                                           never an occluder; docs/oracle.md) */
 };
+/* See-through objects never occlude, and the scene keeps it so (every culler and baker may rely on
+ * it):
+ *  - sl_scene_add_object sets SL_OBJECT_SEE_THROUGH on an object whose material's alpha mode is
+ *    SL_ALPHA_MASK or SL_ALPHA_BLEND, and clears SL_OBJECT_OCCLUDER on every see-through object
+ *    (whatever the caller passed: an alpha-tested building stays a building, not an occluder);
+ *  - sl_scene_add_footprint and sl_scene_add_occluder refuse (SL_ERROR_INVALID_ARGUMENT) a
+ *    footprint or occluder mesh attached to a see-through object;
+ *  - the .slscene reader refuses a file that breaks any of these (SL_ERROR_FORMAT).
+ * Methods that use every object's render mesh as an occluder (an "all objects" option) skip
+ * see-through objects themselves. */
+
+/* --- materials ------------------------------------------------------------------------------ */
+
+/* Alpha modes (the glTF 2.0 ones). Values are stored in files: never renumber. */
+typedef enum sl_alpha_mode {
+    SL_ALPHA_OPAQUE = 0, /* alpha ignored: the surface is solid */
+    SL_ALPHA_MASK = 1,   /* alpha test: fragments with alpha < alpha_cutoff are discarded */
+    SL_ALPHA_BLEND = 2   /* transparent, blended */
+} sl_alpha_mode;
+
+/* Material flags. */
+enum {
+    SL_MATERIAL_DOUBLE_SIDED = 1u << 0 /* draw back faces too (the oracle's face rule: docs/oracle.md) */
+};
+
+/* Material id 0 means "no material: the object's own colour". Real materials are numbered
+ * 1..sl_scene_material_count() in the order they were added. SL_NONE is accepted as 0 by
+ * sl_scene_add_object. */
+#define SL_MATERIAL_NONE 0u
+/* Longest base-colour texture path, in bytes (without the terminator). */
+#define SL_TEXTURE_PATH_MAX 1024u
+
+/* A material, as added (sl_scene_add_material copies it) and as read back (sl_scene_material). */
+typedef struct sl_material {
+    float base_color[4];        /* RGBA factor, each finite and in [0, 1] (glTF baseColorFactor;
+                                   multiplied with the texture where there is one) */
+    const char *base_color_texture; /* NULL (or "" when adding): none. Otherwise a path relative to
+                                   the scene's base folder (sl_scene_base_dir): '/'-separated, no
+                                   leading '/', no empty, "." or ".." component, no '\\', bytes
+                                   0x20..0x7e or >= 0x80, at most SL_TEXTURE_PATH_MAX bytes.
+                                   Read back, it is borrowed from the scene. */
+    uint32_t alpha_mode;        /* sl_alpha_mode */
+    float alpha_cutoff;         /* SL_ALPHA_MASK: in [0, 1] (glTF default 0.5); stored as given otherwise */
+    uint32_t flags;             /* SL_MATERIAL_* */
+} sl_material;
 
 typedef struct sl_mesh_desc {
     const float *positions;    /* 3 floats per vertex */
@@ -64,6 +109,7 @@ typedef struct sl_mesh_desc {
     uint32_t vertex_count;
     const uint32_t *indices;   /* 3 per triangle, each < vertex_count */
     uint32_t triangle_count;
+    const float *uvs;          /* 2 floats per vertex (u, v: texture channel 0, finite), or NULL: none */
 } sl_mesh_desc;
 
 /* Read-only view of a mesh; pointers stay valid until the scene is changed or destroyed. */
@@ -74,6 +120,7 @@ typedef struct sl_mesh_view {
     const uint32_t *indices;
     uint32_t triangle_count;
     sl_aabb bounds;            /* in mesh (local) coordinates */
+    const float *uvs;          /* 2 floats per vertex, or NULL when the mesh has none */
 } sl_mesh_view;
 
 typedef struct sl_object_desc {
@@ -81,7 +128,8 @@ typedef struct sl_object_desc {
     const sl_affine *transform; /* NULL: identity */
     uint32_t color;             /* 0xRRGGBBAA */
     uint32_t kind;              /* sl_object_kind */
-    uint32_t flags;             /* SL_OBJECT_* */
+    uint32_t flags;             /* SL_OBJECT_* (see-through rules above) */
+    uint32_t material;          /* material id, or SL_MATERIAL_NONE (0) / SL_NONE: the colour above */
 } sl_object_desc;
 
 typedef struct sl_object_view {
@@ -93,6 +141,7 @@ typedef struct sl_object_view {
     bool identity;              /* transform is the identity */
     sl_aabb bounds;             /* world space */
     uint32_t triangle_count;
+    uint32_t material;          /* material id, or SL_MATERIAL_NONE (0) */
 } sl_object_view;
 
 typedef struct sl_footprint_desc {
@@ -168,6 +217,9 @@ typedef struct sl_scene_stats {
     uint32_t bsp_leaf_count, bsp_cluster_count;
     size_t memory_bytes;                       /* bytes held by the scene (mapped bytes included) */
     sl_aabb bounds;
+    uint32_t material_count;                   /* materials (ids 1..material_count) */
+    uint32_t see_through_count;                /* objects with SL_OBJECT_SEE_THROUGH */
+    uint32_t uv_mesh_count;                    /* meshes with UVs */
 } sl_scene_stats;
 
 /* --- lifetime ------------------------------------------------------------------------------ */
@@ -181,7 +233,11 @@ SL_API void sl_scene_destroy(sl_scene scene);
 
 /* Add a mesh (copied). Fails on out-of-range indices or non-finite coordinates. */
 SL_API sl_status sl_scene_add_mesh(sl_scene scene, const sl_mesh_desc *desc, uint32_t *out_mesh, sl_error *err);
-/* Add an object instancing a mesh. Its id is returned in out_object (may be NULL). */
+/* Add a material (copied, validated: finite colour and cutoff in [0, 1], a known alpha mode, a
+ * valid texture path). Its id (1, 2, ...) is returned in out_material (may be NULL). */
+SL_API sl_status sl_scene_add_material(sl_scene scene, const sl_material *material, uint32_t *out_material, sl_error *err);
+/* Add an object instancing a mesh. Its id is returned in out_object (may be NULL). A material id
+ * must exist; a mask or blend material makes the object see-through (rules above). */
 SL_API sl_status sl_scene_add_object(sl_scene scene, const sl_object_desc *desc, uint32_t *out_object, sl_error *err);
 /* Add a 2.5D footprint occluder. The polygon is validated (simple, finite, non-zero area) and
  * stored counter-clockwise. */
@@ -199,6 +255,10 @@ SL_API sl_status sl_scene_set_street_graph(sl_scene scene, const sl_street_node 
 SL_API sl_status sl_scene_set_bsp(sl_scene scene, const sl_bsp_desc *desc, sl_error *err);
 /* Set a metadata string (key and value copied; an existing key is replaced). */
 SL_API sl_status sl_scene_set_meta(sl_scene scene, const char *key, const char *value, sl_error *err);
+
+/* Set (replace) the folder that texture paths are relative to (copied; NULL or "" clears). The
+ * importers set the model file's folder, sl_scene_load the .slscene file's folder. */
+SL_API sl_status sl_scene_set_base_dir(sl_scene scene, const char *dir, sl_error *err);
 
 /* Move an object (dynamic objects): replaces its transform and recomputes its world bounds. */
 SL_API sl_status sl_scene_set_object_transform(sl_scene scene, uint32_t object, const sl_affine *transform, sl_error *err);
@@ -245,6 +305,27 @@ SL_API bool sl_oracle_in_domain(sl_scene scene, sl_vec3 eye, int32_t *leaf);
 SL_API const char *sl_scene_meta(sl_scene scene, const char *key);
 SL_API uint32_t sl_scene_meta_count(sl_scene scene);
 SL_API void sl_scene_meta_at(sl_scene scene, uint32_t i, const char **key, const char **value);
+
+/* Materials: ids 1..sl_scene_material_count(). sl_scene_material fills *out (its texture
+ * pointer borrowed from the scene, NULL for none) and returns true; false (and a zeroed *out)
+ * for SL_MATERIAL_NONE or an id beyond the count. */
+SL_API uint32_t sl_scene_material_count(sl_scene scene);
+SL_API bool sl_scene_material(sl_scene scene, uint32_t material, sl_material *out);
+/* The material id of an object (SL_MATERIAL_NONE for none or an id beyond the count). */
+SL_API uint32_t sl_scene_object_material(sl_scene scene, uint32_t object);
+/* The folder texture paths are relative to, or NULL when none is known (a scene built in memory). */
+SL_API const char *sl_scene_base_dir(sl_scene scene);
+/* Whether `path` is acceptable as a material's base-colour texture (the rules of sl_material);
+ * when not, *why (may be NULL) receives a static reason ("contains a '..' component"). */
+SL_API bool sl_texture_path_check(const char *path, const char **why);
+/* The file of a material's base-colour texture, for a renderer to decode: base folder + '/' + path,
+ * with symbolic links resolved (realpath) and checked to stay inside the base folder (itself
+ * resolved). Writes a NUL-terminated path of at most cap bytes to buf. SL_ERROR_NOT_FOUND when the
+ * material does not exist or has no texture, the scene has no base folder, or the file does not
+ * exist; SL_ERROR_INVALID_ARGUMENT when the resolved file lies outside the base folder (a symbolic
+ * link leading out) or is not a regular file; SL_ERROR_LIMIT when cap is too small. Reads the
+ * file system; safe to call concurrently. */
+SL_API sl_status sl_scene_texture_path(sl_scene scene, uint32_t material, char *buf, size_t cap, sl_error *err);
 
 /* World bounds of all objects. */
 SL_API sl_aabb sl_scene_bounds(sl_scene scene);

@@ -151,9 +151,10 @@ static uint64_t object_fragments(struct sl_draw_backend_cpu_t *b, uint32_t id, b
         cull = det < 0 ? SL_REFRAST_CULL_FRONT : SL_REFRAST_CULL_BACK;
     }
     sl_refrast_target t = target(b);
+    /* a see-through object writes no depth (docs/oracle.md): its draw counts like a query */
     return sl_refrast_mesh_count(&t, &b->scratch, m, sl_scene_positions(s) + 3 * mesh->first_vertex,
                                  mesh->vertex_count, sl_scene_indices(s) + mesh->first_index, mesh->triangle_count, id,
-                                 cull, test_only);
+                                 cull, test_only || (obj->flags & SL_OBJECT_SEE_THROUGH));
 }
 
 static sl_status check_ids(const struct sl_draw_backend_cpu_t *b, const uint32_t *ids, uint32_t count,

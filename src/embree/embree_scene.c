@@ -15,6 +15,16 @@
 /* rays handed to rtcIntersect1M at once */
 #define TRACE_CHUNK 64u
 
+enum { OBJ_CLOSED = 1u, OBJ_SEE_THROUGH = 2u };
+
+/* The intersect context of sl_es_trace: Embree's, then the nearest see-through hit per ray of the
+ * chunk (the filter records it and lets the ray go on). */
+typedef struct trace_ctx {
+    struct RTCIntersectContext base;
+    uint32_t st_tri[TRACE_CHUNK];
+    float st_t[TRACE_CHUNK];
+} trace_ctx;
+
 struct sl_es {
     sl_allocator alloc;
     RTCDevice device;
@@ -24,7 +34,7 @@ struct sl_es {
     uint32_t *indices;          /* 3 per triangle (+1 padding) */
     uint32_t *tri_object;       /* per triangle */
     uint32_t *obj_first;        /* per object + 1 */
-    uint8_t *obj_closed;        /* per object: back faces skipped */
+    uint8_t *obj_closed;        /* per object: OBJ_CLOSED (back faces skipped), OBJ_SEE_THROUGH */
     bool filter;
     sl_aabb bounds;
     double build_seconds;
@@ -38,20 +48,34 @@ static void on_embree_error(void *user, enum RTCError code, const char *str)
         snprintf(es->embree_error, sizeof es->embree_error, "Embree error %d: %s", (int)code, str ? str : "?");
 }
 
-/* Intersection filter of scenes with closed convex objects: reject a hit on the back face of such
- * an object (the point oracle skips those faces too). The front side is the counter-clockwise
- * one; windings were already fixed for mirroring transforms when the buffers were filled. */
+/* Intersection filter of scenes with closed convex or see-through objects: reject a hit on the
+ * back face of a closed convex object (the point oracle skips those faces too; the front side is
+ * the counter-clockwise one, windings were already fixed for mirroring transforms when the buffers
+ * were filled), and every hit on a see-through object, which is recorded (the nearest per ray)
+ * while the ray goes on: see-through surfaces are seen but stop no sight line (docs/oracle.md). */
 static void backface_filter(const struct RTCFilterFunctionNArguments *args)
 {
     const struct sl_es *es = args->geometryUserPtr;
     const unsigned N = args->N;
     float *ray = (float *)args->ray;
     const unsigned *hit = (const unsigned *)args->hit;
+    trace_ctx *tc = (trace_ctx *)args->context;
     for (unsigned i = 0; i < N; i++) {
         if (args->valid[i] == 0)
             continue;
         uint32_t prim = hit[5 * N + i];
-        if (prim >= es->triangle_count || !es->obj_closed[es->tri_object[prim]])
+        uint8_t kind = prim < es->triangle_count ? es->obj_closed[es->tri_object[prim]] : 0;
+        if (kind & OBJ_SEE_THROUGH) {
+            unsigned id = ((const unsigned *)ray)[10 * N + i]; /* ray id: the slot in the chunk */
+            float t = ray[8 * N + i];                         /* tfar holds the candidate's distance */
+            if (id < TRACE_CHUNK && t < tc->st_t[id]) {
+                tc->st_t[id] = t;
+                tc->st_tri[id] = prim;
+            }
+            args->valid[i] = 0;
+            continue;
+        }
+        if (!(kind & OBJ_CLOSED))
             continue;
         const uint32_t *ix = &es->indices[3 * (size_t)prim];
         const float *a = &es->vertices[3 * (size_t)ix[0]], *b = &es->vertices[3 * (size_t)ix[1]],
@@ -120,8 +144,10 @@ sl_status sl_es_create(sl_scene scene, const sl_es_options *opt, const sl_alloca
         const sl_mesh_rec *m = &meshes[objects[i].mesh];
         nt += m->triangle_count;
         nv += m->vertex_count;
-        if ((objects[i].flags & SL_OBJECT_CLOSED_CONVEX) && !o.draw_closed_backfaces && m->triangle_count)
-            any_closed = true;
+        if ((((objects[i].flags & SL_OBJECT_CLOSED_CONVEX) && !o.draw_closed_backfaces) ||
+             (objects[i].flags & SL_OBJECT_SEE_THROUGH)) &&
+            m->triangle_count)
+            any_closed = true; /* the filter is needed */
     }
     if (nt > SL_ES_MAX_TRIANGLES)
         return sl_fail(err, SL_ERROR_LIMIT, "embree scene: %llu triangles exceed the limit of %u",
@@ -158,7 +184,8 @@ sl_status sl_es_create(sl_scene scene, const sl_es_options *opt, const sl_alloca
         const sl_object_rec *ob = &objects[i];
         const sl_mesh_rec *m = &meshes[ob->mesh];
         es->obj_first[i] = tt;
-        es->obj_closed[i] = (ob->flags & SL_OBJECT_CLOSED_CONVEX) && !o.draw_closed_backfaces;
+        es->obj_closed[i] = (uint8_t)((((ob->flags & SL_OBJECT_CLOSED_CONVEX) && !o.draw_closed_backfaces) ? OBJ_CLOSED : 0) |
+                                      ((ob->flags & SL_OBJECT_SEE_THROUGH) ? OBJ_SEE_THROUGH : 0));
         const sl_affine *xf = ob->transform == SL_NONE ? NULL : &transforms[ob->transform];
         const float *p = positions + 3 * m->first_vertex;
         for (uint32_t k = 0; k < m->vertex_count; k++) {
@@ -262,12 +289,14 @@ void sl_es_triangle_vertices(const sl_es *es, uint32_t triangle, double v[3][3])
 
 void sl_es_trace(const sl_es *es, const sl_es_ray *rays, sl_es_hit *hits, uint32_t n)
 {
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
+    trace_ctx ctx;
+    rtcInitIntersectContext(&ctx.base);
     struct RTCRayHit rh[TRACE_CHUNK];
     for (uint32_t base = 0; base < n; base += TRACE_CHUNK) {
         uint32_t m = SL_MIN(TRACE_CHUNK, n - base);
         for (uint32_t i = 0; i < m; i++) {
+            ctx.st_tri[i] = SL_NONE;
+            ctx.st_t[i] = INFINITY;
             const sl_es_ray *r = &rays[base + i];
             struct RTCRayHit *h = &rh[i];
             h->ray.org_x = r->org[0];
@@ -286,17 +315,24 @@ void sl_es_trace(const sl_es *es, const sl_es_ray *rays, sl_es_hit *hits, uint32
             h->hit.primID = RTC_INVALID_GEOMETRY_ID;
             h->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         }
-        rtcIntersect1M(es->rscene, &ctx, rh, m, sizeof(struct RTCRayHit));
+        rtcIntersect1M(es->rscene, &ctx.base, rh, m, sizeof(struct RTCRayHit));
         for (uint32_t i = 0; i < m; i++) {
             sl_es_hit *o = &hits[base + i];
+            float limit = rays[base + i].tfar;
             if (rh[i].hit.geomID == RTC_INVALID_GEOMETRY_ID || rh[i].hit.primID >= es->triangle_count) {
                 o->triangle = o->object = SL_NONE;
                 o->t = INFINITY;
             } else {
                 o->triangle = rh[i].hit.primID;
                 o->object = es->tri_object[o->triangle];
-                o->t = rh[i].ray.tfar;
+                o->t = limit = rh[i].ray.tfar;
             }
+            /* a see-through hit counts when it lies in front of the solid one (the filter may have
+             * met it before the ray was shortened) */
+            bool st = ctx.st_tri[i] != SL_NONE && ctx.st_t[i] <= limit;
+            o->see_through_triangle = st ? ctx.st_tri[i] : SL_NONE;
+            o->see_through_object = st ? es->tri_object[ctx.st_tri[i]] : SL_NONE;
+            o->see_through_t = st ? ctx.st_t[i] : INFINITY;
         }
     }
 }

@@ -44,11 +44,16 @@ typedef struct sl_es_ray {
     float tfar;
 } sl_es_ray;
 
-/* The first hit: a global triangle id and its object, or SL_NONE for both on a miss. */
+/* The first hit: a global triangle id and its object, or SL_NONE for both on a miss. Triangles of
+ * SL_OBJECT_SEE_THROUGH objects never stop a ray (docs/oracle.md): the nearest one in front of the
+ * first solid hit (or anywhere along a missing ray) is reported apart. */
 typedef struct sl_es_hit {
     uint32_t triangle;
     uint32_t object;
     float t;                    /* ray parameter of the hit (INFINITY on a miss) */
+    uint32_t see_through_triangle; /* nearest see-through triangle before the hit, or SL_NONE */
+    uint32_t see_through_object;   /* its object, or SL_NONE */
+    float see_through_t;        /* its ray parameter (INFINITY when none) */
 } sl_es_hit;
 
 typedef struct sl_es_stats {

@@ -442,7 +442,7 @@ static sl_status add_meshes(import_ctx *c, const node_rec *nr, bool has_normals,
     *count = 0;
     uint32_t target = c->opt->split_triangles;
     if (target == 0 || nt <= target) {
-        sl_mesh_desc d = {c->pos.data, nrm, nv, c->idx.data, nt};
+        sl_mesh_desc d = {c->pos.data, nrm, nv, c->idx.data, nt, NULL};
         if ((st = sl_scene_add_mesh(c->scene, &d, NULL, err)) != SL_OK) {
             sl_error_prefix(err, "%s: node '%s'", c->path, node_name(nr->node));
             return st;
@@ -458,7 +458,7 @@ static sl_status add_meshes(import_ctx *c, const node_rec *nr, bool has_normals,
     for (uint32_t p = 0; p < r.piece_count; p++) {
         const sl_split_piece *pc = &r.pieces[p];
         sl_mesh_desc d = {r.positions + 3 * (size_t)pc->first_vertex, r.normals ? r.normals + 3 * (size_t)pc->first_vertex : NULL,
-                          pc->vertex_count, r.indices + 3 * (size_t)pc->first_triangle, pc->triangle_count};
+                          pc->vertex_count, r.indices + 3 * (size_t)pc->first_triangle, pc->triangle_count, NULL};
         if ((st = sl_scene_add_mesh(c->scene, &d, NULL, err)) != SL_OK) {
             sl_error_prefix(err, "%s: node '%s': piece %u", c->path, node_name(nr->node), p);
             sl_split_free(c->a, &r);
@@ -478,7 +478,7 @@ static sl_status add_objects(import_ctx *c, const node_rec *nr, uint32_t first, 
         t.m[i] = (float)transform->m[i];
     uint32_t color = node_color(c, nr);
     for (uint32_t k = 0; k < count; k++) {
-        sl_object_desc d = {first + k, &t, color, SL_KIND_IMPORTED, 0};
+        sl_object_desc d = {first + k, &t, color, SL_KIND_IMPORTED, 0, 0};
         sl_status st = sl_scene_add_object(c->scene, &d, NULL, err);
         if (st != SL_OK) {
             sl_error_prefix(err, "%s: node '%s'", c->path, node_name(nr->node));

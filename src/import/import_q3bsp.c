@@ -819,7 +819,7 @@ static sl_status q3_emit_object(q3_ctx *c, const uint32_t *faces, uint32_t n, ui
     sl_status st = q3_dominant_shader(c, faces, n, &shader);
     if (st != SL_OK)
         return st;
-    sl_mesh_desc md = {pos, nrm, (uint32_t)nv, idx, (uint32_t)nt};
+    sl_mesh_desc md = {pos, nrm, (uint32_t)nv, idx, (uint32_t)nt, NULL};
     uint32_t mesh, object;
     st = sl_scene_add_mesh(c->scene, &md, &mesh, c->err);
     if (st != SL_OK) {
@@ -833,7 +833,7 @@ static sl_status q3_emit_object(q3_ctx *c, const uint32_t *faces, uint32_t n, ui
     /* brush entities (doors, platforms) move in the game: never trusted as occluders */
     bool world = source <= c->count[Q3_LEAVES];
     sl_object_desc od = {mesh, NULL, q3_shader_color(&c->shaders[shader]), SL_KIND_BSP_FACES,
-                         cls == Q3_CLASS_SOLID && world ? SL_OBJECT_OCCLUDER : 0};
+                         cls == Q3_CLASS_SOLID && world ? SL_OBJECT_OCCLUDER : 0, 0};
     st = sl_scene_add_object(c->scene, &od, &object, c->err);
     if (st != SL_OK) {
         sl_error_prefix(c->err, "%s", c->name);

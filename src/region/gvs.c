@@ -542,6 +542,10 @@ static bool mark(struct sl_gvs_t *g, uint32_t tri)
 /* handle_ray of the paper: a new triangle joins the PVS and, for GVS, the ABS queue. */
 static void handle(struct sl_gvs_t *g, sl_dvec3 o, sl_dvec3 dir, const sl_es_hit *h)
 {
+    /* a see-through surface the ray passed through is seen (found), but sampling goes on from the
+     * solid hit behind it */
+    if (h->see_through_triangle != SL_NONE)
+        mark(g, h->see_through_triangle);
     if (h->triangle == SL_NONE || !mark(g, h->triangle))
         return;
     if (g->o.sampler != SL_GVS_GUIDED)

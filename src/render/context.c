@@ -96,7 +96,6 @@ static sl_status context_on(EGLDisplay d, bool debug, EGLContext *out, char *why
     }
     if (!eglBindAPI(EGL_OPENGL_API)) {
         snprintf(why, why_size, "eglBindAPI(EGL_OPENGL_API): %s", egl_error_name(eglGetError()));
-        eglTerminate(d);
         return SL_ERROR_UNSUPPORTED;
     }
     EGLConfig config = NULL;
@@ -106,13 +105,11 @@ static sl_status context_on(EGLDisplay d, bool debug, EGLContext *out, char *why
         EGLint got = 0;
         if (!eglChooseConfig(d, want, &config, 1, &got) || got < 1) {
             snprintf(why, why_size, "eglChooseConfig: no OpenGL config");
-            eglTerminate(d);
             return SL_ERROR_UNSUPPORTED;
         }
     }
     if (!has_word(ext, "EGL_KHR_surfaceless_context")) {
         snprintf(why, why_size, "the display has no EGL_KHR_surfaceless_context");
-        eglTerminate(d);
         return SL_ERROR_UNSUPPORTED;
     }
     const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
@@ -121,13 +118,11 @@ static sl_status context_on(EGLDisplay d, bool debug, EGLContext *out, char *why
     EGLContext c = eglCreateContext(d, config, EGL_NO_CONTEXT, attribs);
     if (c == EGL_NO_CONTEXT) {
         snprintf(why, why_size, "eglCreateContext(OpenGL 4.5 core): %s", egl_error_name(eglGetError()));
-        eglTerminate(d);
         return SL_ERROR_UNSUPPORTED;
     }
     if (!eglMakeCurrent(d, EGL_NO_SURFACE, EGL_NO_SURFACE, c)) {
         snprintf(why, why_size, "eglMakeCurrent(no surface): %s", egl_error_name(eglGetError()));
         eglDestroyContext(d, c);
-        eglTerminate(d);
         return SL_ERROR_UNSUPPORTED;
     }
     *out = c;
@@ -173,14 +168,17 @@ sl_status sl_render_context_make(sl_gl_context_kind kind, bool debug, EGLDisplay
     return sl_render_fail(err, SL_ERROR_INVALID_ARGUMENT, "context kind %d is not a headless kind", (int)kind);
 }
 
+/* The display stays initialised: EGL hands every caller of the same platform the same display,
+ * and eglTerminate would end the contexts of every other renderer on it (EGL counts no
+ * references); the driver stays loaded for the process, as in any GL program. */
 void sl_render_context_release(EGLDisplay display, EGLContext context)
 {
     if (display == EGL_NO_DISPLAY)
         return;
-    eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    if (eglGetCurrentContext() == context)
+        eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     if (context != EGL_NO_CONTEXT)
         eglDestroyContext(display, context);
-    eglTerminate(display);
 }
 
 sl_status sl_renderer_probe(sl_gl_context_kind kind, sl_error *err)

@@ -50,6 +50,15 @@
  * matrix rows, colour, flags, material) is what the shaders read; sl_renderer_scene_changed
  * rewrites it.
  *
+ * Materials (scene.h): r->material_ssbo (binding SL_RENDER_MATERIAL_BINDING, sl_render_material_gpu
+ * per material id, 0 = none) holds the base colour factor, alpha mode and cutoff and the texture's
+ * layer in r->texture_array (GL_TEXTURE_2D_ARRAY on unit 0, every distinct base-colour texture
+ * decoded with stb_image and resampled to texture_size^2, mipmapped). An object with a material
+ * is drawn in base colour x texture(uv) instead of its own colour; SL_ALPHA_MASK discards
+ * fragments below the cutoff (alpha test), SL_ALPHA_BLEND blends. Such objects are see-through
+ * (the scene sets SL_OBJECT_SEE_THROUGH): they write no depth and no id (the oracle's id image
+ * holds solid objects only), drawn after the solid ones, in the shaded pass only.
+ *
  * The object id in the shaders. Attribute SL_RENDER_ATTR_ID is an integer vertex attribute with
  * divisor 1 read from r->id_vbo, which holds 0, 1, 2 ... object_count-1; an indirect command's
  * baseInstance = object id makes that attribute the object's id in every vertex of the command
@@ -126,6 +135,15 @@ typedef struct sl_render_object_gpu {
     uint32_t pad2[4];
 } sl_render_object_gpu;
 
+/* One material in the SSBO (std430: 2 vec4). Index 0 is "no material". */
+typedef struct sl_render_material_gpu {
+    float base_color[4];  /* RGBA factor */
+    uint32_t alpha_mode;  /* sl_alpha_mode */
+    uint32_t layer;       /* texture layer + 1 in r->texture_array, 0: no texture */
+    float alpha_cutoff;
+    uint32_t flags;
+} sl_render_material_gpu;
+
 typedef struct sl_render_record {
     uint32_t first_index;    /* into r->ibo */
     uint32_t index_count;    /* 3 * triangles */
@@ -166,6 +184,10 @@ struct sl_renderer_t {
     GLuint vao;
     GLuint vbo, ibo, id_vbo;      /* vertices (sl_render_vertex), uint32 indices, ids 0..n-1 */
     GLuint object_ssbo;           /* sl_render_object_gpu[object_count] */
+    GLuint material_ssbo;         /* sl_render_material_gpu[material_count + 1] (0: none) */
+    GLuint texture_array;         /* GL_TEXTURE_2D_ARRAY, one layer per distinct base-colour texture */
+    uint32_t material_count, texture_layers, texture_size;
+    char texture_warning[288];    /* the first texture that could not be decoded (drawn untextured) */
     GLuint indirect_buffer;       /* sl_render_indirect[object_count], rewritten per draw */
     sl_render_record *records;    /* [object_count] */
     uint64_t vertex_bytes, index_bytes, texture_bytes;
@@ -233,6 +255,8 @@ sl_status sl_render_clear(sl_renderer r, sl_render_pass pass, sl_error *err);
  * framebuffer (see the header comment). */
 sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count, sl_render_pass pass,
                              sl_error *err);
+/* materials.c: upload the scene's materials and decode their base-colour textures. */
+sl_status sl_render_upload_materials(sl_renderer r, sl_error *err);
 /* overlay.c: release the overlays' state (sl_renderer_destroy; gl: its context is current). */
 void sl_render_overlay_release(sl_renderer r, bool gl);
 /* Monotonic wall time in seconds. */

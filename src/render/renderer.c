@@ -23,6 +23,8 @@ static const char *vertex_src =
     "invariant gl_Position;\n"
     "flat out uint v_id;\n"
     "flat out uint v_color;\n"
+    "flat out uint v_flags;\n"
+    "flat out uint v_material;\n"
     "out vec3 v_normal;\n"
     "out vec3 v_world;\n"
     "out vec2 v_uv;\n"
@@ -36,15 +38,21 @@ static const char *vertex_src =
     "    v_uv = a_uv;\n"
     "    v_id = a_id;\n"
     "    v_color = o.info.x;\n"
+    "    v_flags = o.info.y;\n"
+    "    v_material = o.info.z;\n"
     "}\n";
 
 static const char *shaded_fragment_src =
     "#version 450 core\n"
     "flat in uint v_id;\n"
     "flat in uint v_color;\n"
-    "in vec3 v_normal;\n"
+    "flat in uint v_flags;\n"
+    "flat in uint v_material;\n"
     "in vec3 v_world;\n"
     "in vec2 v_uv;\n"
+    "struct Mat { vec4 color; uvec4 info; };\n" /* info: alpha mode, layer + 1, cutoff bits, flags */
+    "layout(std430, binding = 1) readonly buffer Materials { Mat materials[]; };\n"
+    "layout(binding = 0) uniform sampler2DArray u_textures;\n"
     "uniform vec3 u_eye;\n"
     "uniform vec3 u_sun;\n"
     "layout(location = 0) out vec4 o_color;\n"
@@ -56,6 +64,15 @@ static const char *shaded_fragment_src =
     "    n = len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);\n"
     "    if (dot(n, u_eye - v_world) < 0.0) n = -n;\n" /* the side facing the eye */
     "    vec4 base = unpackUnorm4x8(v_color).wzyx;\n"  /* 0xRRGGBBAA */
+    "    uint mode = (v_flags & 8u) != 0u ? 2u : 0u;\n" /* see-through without a material: blended */
+    "    if (v_material != 0u) {\n"
+    "        Mat m = materials[v_material];\n"
+    "        base = m.color;\n"
+    "        if (m.info.y != 0u) base *= texture(u_textures, vec3(v_uv, float(m.info.y - 1u)));\n"
+    "        mode = m.info.x;\n"
+    "        if (mode == 1u && base.a < uintBitsToFloat(m.info.z)) discard;\n" /* alpha test */
+    "    }\n"
+    "    if (mode != 2u) base.a = 1.0;\n"
     "    float sun = max(dot(n, u_sun), 0.0);\n"
     "    float sky = 0.5 + 0.5 * n.z;\n"
     "    vec3 c = base.rgb * (0.62 * sun + 0.22 + 0.16 * sky);\n"
@@ -244,7 +261,7 @@ static void object_gpu(const sl_object_view *ov, sl_render_object_gpu *g, uint32
             g->normal[i * 4 + j] = (float)(cof[i][j] * s);
     g->color = ov->color;
     g->flags = ov->flags;
-    g->material = SL_NONE;
+    g->material = ov->material; /* 0: none */
     uint32_t gr = SL_RENDER_GROUP_TWO_SIDED;
     if (ov->flags & SL_OBJECT_CLOSED_CONVEX)
         gr = det < 0.0 ? SL_RENDER_GROUP_CULL_CW : SL_RENDER_GROUP_CULL_CCW;
@@ -317,6 +334,8 @@ static sl_status upload_scene(sl_renderer r, sl_error *err)
             memcpy(v[k].position, mv.positions + 3 * (size_t)k, 12);
             if (mv.normals)
                 memcpy(v[k].normal, mv.normals + 3 * (size_t)k, 12);
+            if (mv.uvs)
+                memcpy(v[k].uv, mv.uvs + 2 * (size_t)k, 8);
         }
         memcpy(ib + mesh_at[2 * m + 1], mv.indices, 12 * (size_t)mv.triangle_count);
     }
@@ -374,7 +393,7 @@ static sl_status upload_scene(sl_renderer r, sl_error *err)
     glVertexArrayAttribBinding(vao, SL_RENDER_ATTR_ID, 1);
     glCreateVertexArrays(1, &r->sky_vao);
     sl_status st = sl_render_check(r, "uploading the scene's vertex and index buffers", err);
-    if (st != SL_OK)
+    if (st != SL_OK || (st = sl_render_upload_materials(r, err)) != SL_OK)
         return st;
     return upload_objects(r, true, err);
 }
@@ -492,8 +511,10 @@ void sl_renderer_destroy(sl_renderer r)
     sl_render_overlay_release(r, current && (r->own_context || glGetString(GL_VERSION)));
     if (current && (r->own_context || glGetString(GL_VERSION))) {
         free_framebuffer(r);
-        GLuint buffers[5] = {r->vbo, r->ibo, r->id_vbo, r->object_ssbo, r->indirect_buffer};
-        glDeleteBuffers(5, buffers);
+        GLuint buffers[6] = {r->vbo, r->ibo, r->id_vbo, r->object_ssbo, r->indirect_buffer, r->material_ssbo};
+        glDeleteBuffers(6, buffers);
+        if (r->texture_array)
+            glDeleteTextures(1, &r->texture_array);
         GLuint vaos[2] = {r->vao, r->sky_vao};
         glDeleteVertexArrays(2, vaos);
         for (int i = 0; i < SL_RENDER_PASS_COUNT; i++)
@@ -532,6 +553,7 @@ void sl_renderer_get_info(sl_renderer r, sl_renderer_info *out)
     out->vertex_bytes = r->vertex_bytes;
     out->index_bytes = r->index_bytes;
     out->texture_bytes = r->texture_bytes;
+    snprintf(out->texture_warning, sizeof out->texture_warning, "%s", r->texture_warning);
 }
 
 sl_status sl_renderer_resize(sl_renderer r, uint32_t width, uint32_t height, sl_error *err)
@@ -717,8 +739,8 @@ sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count,
         const sl_render_record *rec = &r->records[id];
         if (!rec->index_count)
             continue;
-        if (pass == SL_RENDER_PASS_DEPTH && rec->group >= SL_RENDER_GROUP_SEE_THROUGH)
-            continue; /* see-through objects write no depth */
+        if (pass != SL_RENDER_PASS_SHADED && rec->group >= SL_RENDER_GROUP_SEE_THROUGH)
+            continue; /* see-through objects write no depth and no id: only their colour shows */
         sl_render_indirect *c = &r->cmds[fill[rec->group]++];
         c->count = rec->index_count;
         c->instance_count = 1;
@@ -738,6 +760,10 @@ sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count,
     glBindVertexArray(r->vao);
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, r->indirect_buffer);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SL_RENDER_OBJECT_BINDING, r->object_ssbo);
+    if (pass == SL_RENDER_PASS_SHADED) {
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SL_RENDER_MATERIAL_BINDING, r->material_ssbo);
+        glBindTextureUnit(0, r->texture_array);
+    }
     glEnable(GL_DEPTH_TEST);
     for (int g = 0; g < SL_RENDER_GROUPS; g++) {
         uint32_t k = fill[g] - at[g];
@@ -753,12 +779,11 @@ sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count,
             glFrontFace(facing == SL_RENDER_GROUP_CULL_CCW ? GL_CCW : GL_CW);
         }
         if (see) {
-            glDepthFunc(GL_GREATER);
+            glDepthFunc(GL_GEQUAL); /* the oracle's see-through rule: seen where at least as near */
             glDepthMask(GL_FALSE);
-            if (pass == SL_RENDER_PASS_SHADED) {
-                glEnablei(GL_BLEND, 0);
-                glBlendFuncSeparatei(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
-            }
+            glEnablei(GL_BLEND, 0);
+            glBlendFuncSeparatei(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+            glColorMaski(1, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE); /* no id */
         } else {
             glDepthFunc(r->depth_equal && pass != SL_RENDER_PASS_DEPTH ? GL_EQUAL : GL_GREATER);
             glDepthMask(r->depth_equal && pass != SL_RENDER_PASS_DEPTH ? GL_FALSE : GL_TRUE);
@@ -769,6 +794,7 @@ sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count,
         r->frame.draw_calls++;
     }
     glDisablei(GL_BLEND, 0);
+    glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     glDepthMask(GL_TRUE);
     glDepthFunc(GL_GREATER);
     if (pass != SL_RENDER_PASS_DEPTH || !r->depth_equal) {

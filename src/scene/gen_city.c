@@ -175,7 +175,7 @@ bool gc_commit_mesh(gc_city *c, uint32_t *mesh_id)
         sl_fail(c->err, SL_ERROR_OUT_OF_MEMORY, "city: out of memory building a mesh");
         return false;
     }
-    sl_mesh_desc d = {m->pos, m->nrm, m->nv, m->idx, m->nt};
+    sl_mesh_desc d = {m->pos, m->nrm, m->nv, m->idx, m->nt, NULL};
     return sl_scene_add_mesh(c->scene, &d, mesh_id, c->err) == SL_OK;
 }
 
@@ -184,7 +184,7 @@ bool gc_commit_object(gc_city *c, uint32_t kind, uint32_t flags, uint32_t color,
     uint32_t mesh;
     if (!gc_commit_mesh(c, &mesh))
         return false;
-    sl_object_desc d = {mesh, NULL, color, kind, flags};
+    sl_object_desc d = {mesh, NULL, color, kind, flags, 0};
     return sl_scene_add_object(c->scene, &d, object, c->err) == SL_OK;
 }
 

@@ -146,7 +146,7 @@ static sl_status place(gc_city *c, uint32_t mesh, uint32_t kind, uint32_t flags,
 {
     double cs = cos(yaw) * scale, sn = sin(yaw) * scale;
     sl_affine t = {{(float)cs, (float)-sn, 0, (float)at.x, (float)sn, (float)cs, 0, (float)at.y, 0, 0, (float)scale, (float)z}};
-    sl_object_desc d = {mesh, &t, color, kind, flags};
+    sl_object_desc d = {mesh, &t, color, kind, flags, 0};
     return sl_scene_add_object(c->scene, &d, NULL, c->err);
 }
 

@@ -2,7 +2,11 @@
  * See include/sightline/scene.h for the contract. */
 #include "scene_internal.h"
 
+#include <errno.h>
+#include <limits.h>
 #include <math.h>
+#include <stdlib.h>
+#include <sys/stat.h>
 
 #define ARR(s, name) (&(s)->name)
 #define A(s) (&(s)->alloc)
@@ -59,6 +63,12 @@ void sl_scene_destroy(sl_scene s)
         sl_strfree(a, m->value);
     }
     sl_array_free(a, &s->meta, sizeof(sl_meta_rec));
+    sl_array_free(a, &s->materials, sizeof(sl_material_rec));
+    sl_array_free(a, &s->material_text, 1);
+    sl_array_free(a, &s->object_materials, sizeof(uint32_t));
+    sl_array_free(a, &s->uvs, sizeof(float));
+    sl_array_free(a, &s->mesh_uvs, 1);
+    sl_strfree(a, s->base_dir);
     sl_file_unmap(&s->mapping);
     sl_free(a, s, sizeof *s);
 }
@@ -101,6 +111,8 @@ sl_status sl_scene_add_mesh(sl_scene s, const sl_mesh_desc *d, uint32_t *out_mes
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "mesh vertex %u: position is not finite", v);
         if (d->normals && !sl_finite3(d->normals + 3 * (size_t)v))
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "mesh vertex %u: normal is not finite", v);
+        if (d->uvs && (!isfinite(d->uvs[2 * (size_t)v]) || !isfinite(d->uvs[2 * (size_t)v + 1])))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "mesh vertex %u: uv is not finite", v);
         sl_aabb_grow(&box, (sl_vec3){p[0], p[1], p[2]});
     }
     for (uint64_t i = 0; i < 3ull * d->triangle_count; i++)
@@ -114,6 +126,21 @@ sl_status sl_scene_add_mesh(sl_scene s, const sl_mesh_desc *d, uint32_t *out_mes
         !sl_array_reserve(a, &s->indices, sizeof(uint32_t), 3 * (size_t)d->triangle_count) ||
         !sl_array_reserve(a, &s->meshes, sizeof rec, 1))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_mesh: out of memory (%u vertices)", d->vertex_count);
+    /* UVs: once one mesh has them, uvs covers every vertex (zeros where a mesh has none) and
+     * mesh_uvs every mesh; before that both stay empty */
+    if (d->uvs || s->mesh_uvs.count) {
+        size_t nv_before = s->positions.count / 3, nm = s->meshes.count;
+        size_t pad_v = nv_before > s->uvs.count / 2 ? nv_before - s->uvs.count / 2 : 0;
+        size_t pad_m = nm > s->mesh_uvs.count ? nm - s->mesh_uvs.count : 0;
+        if (!sl_array_reserve(a, &s->uvs, sizeof(float), 2 * (pad_v + d->vertex_count)) ||
+            !sl_array_reserve(a, &s->mesh_uvs, 1, pad_m + 1))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_mesh: out of memory (%u uvs)", d->vertex_count);
+        sl_array_push(a, &s->uvs, sizeof(float), NULL, 2 * pad_v);
+        sl_array_push(a, &s->uvs, sizeof(float), d->uvs, 2 * (size_t)d->vertex_count);
+        sl_array_push(a, &s->mesh_uvs, 1, NULL, pad_m);
+        uint8_t has = d->uvs ? 1 : 0;
+        sl_array_push(a, &s->mesh_uvs, 1, &has, 1);
+    }
     float *np = sl_array_push(a, &s->normals, sizeof(float), d->normals, nv3);
     sl_array_push(a, &s->positions, sizeof(float), d->positions, nv3);
     sl_array_push(a, &s->indices, sizeof(uint32_t), d->indices, 3 * (size_t)d->triangle_count);
@@ -157,11 +184,27 @@ sl_status sl_scene_add_object(sl_scene s, const sl_object_desc *d, uint32_t *out
         return sl_fail(err, SL_ERROR_LIMIT, "sl_scene_add_object: too many objects");
     if (d->transform && !affine_finite(d->transform))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_object: transform is not finite");
+    uint32_t material = d->material == SL_NONE ? SL_MATERIAL_NONE : d->material;
+    if (material > s->materials.count)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_object: material %u does not exist (%zu materials)",
+                       material, s->materials.count);
     const sl_allocator *a = A(s);
     sl_object_rec rec = {d->mesh, d->color, d->kind, d->flags, SL_NONE, 0};
+    if (material && SL_AT(s->materials, sl_material_rec, material - 1).alpha_mode != SL_ALPHA_OPAQUE)
+        rec.flags |= SL_OBJECT_SEE_THROUGH;
+    if (rec.flags & SL_OBJECT_SEE_THROUGH)
+        rec.flags &= ~(uint32_t)SL_OBJECT_OCCLUDER; /* see-through never occludes (scene.h) */
     if (!sl_array_reserve(a, &s->objects, sizeof rec, 1) || !sl_array_reserve(a, &s->bounds, sizeof(sl_aabb), 1) ||
         !sl_array_reserve(a, &s->transforms, sizeof(sl_affine), 1))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_object: out of memory");
+    /* material ids: once one object has a material, object_materials covers every object */
+    if (material || s->object_materials.count) {
+        size_t pad = s->objects.count - SL_MIN(s->objects.count, s->object_materials.count);
+        if (!sl_array_reserve(a, &s->object_materials, sizeof(uint32_t), pad + 1))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_object: out of memory");
+        sl_array_push(a, &s->object_materials, sizeof(uint32_t), NULL, pad);
+        sl_array_push(a, &s->object_materials, sizeof(uint32_t), &material, 1);
+    }
     /* dynamic objects always get a transform slot so that they can move later */
     if ((d->transform && !affine_is_identity(d->transform)) || (d->flags & SL_OBJECT_DYNAMIC)) {
         sl_affine t = d->transform ? *d->transform : sl_affine_identity();
@@ -296,6 +339,8 @@ sl_status sl_scene_add_footprint(sl_scene s, const sl_footprint_desc *d, uint32_
                        d->base_z);
     if (d->object != SL_NONE && d->object >= s->objects.count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: object %u does not exist", what, d->object);
+    if (d->object != SL_NONE && (sl_scene_objects(s)[d->object].flags & SL_OBJECT_SEE_THROUGH))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: object %u is see-through: it never occludes", what, d->object);
     if (!sl_array_reserve(A(s), &s->footprints, sizeof(sl_footprint_rec), 1))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", what);
     sl_footprint_rec rec = {0, 0, d->base_z, d->roof_z, d->object, 0};
@@ -316,6 +361,9 @@ sl_status sl_scene_add_occluder(sl_scene s, uint32_t mesh, const sl_affine *t, u
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: mesh %u does not exist", mesh);
     if (object != SL_NONE && object >= s->objects.count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: object %u does not exist", object);
+    if (object != SL_NONE && (sl_scene_objects(s)[object].flags & SL_OBJECT_SEE_THROUGH))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: object %u is see-through: it never occludes",
+                       object);
     if (t && !affine_finite(t))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder: transform is not finite");
     const sl_allocator *a = A(s);
@@ -328,6 +376,192 @@ sl_status sl_scene_add_occluder(sl_scene s, uint32_t mesh, const sl_affine *t, u
     }
     sl_array_push(a, &s->occluders, sizeof rec, &rec, 1);
     return SL_OK;
+}
+
+/* ---- materials ---- */
+
+const char *sl_texture_path_problem(const char *p, size_t len)
+{
+    if (len == 0)
+        return "is empty";
+    if (len > SL_TEXTURE_PATH_MAX)
+        return "is longer than 1024 bytes";
+    if (p[0] == '/')
+        return "is absolute";
+    size_t start = 0;
+    for (size_t i = 0; i <= len; i++) {
+        if (i < len) {
+            unsigned char c = (unsigned char)p[i];
+            if (c < 0x20 || c == 0x7f)
+                return "contains a control character or NUL";
+            if (c == '\\')
+                return "contains a backslash";
+            if (c != '/')
+                continue;
+        }
+        size_t n = i - start;
+        if (n == 0)
+            return "has an empty component";
+        if (n == 1 && p[start] == '.')
+            return "has a '.' component";
+        if (n == 2 && p[start] == '.' && p[start + 1] == '.')
+            return "contains a '..' component";
+        start = i + 1;
+    }
+    return NULL;
+}
+
+bool sl_texture_path_check(const char *path, const char **why)
+{
+    const char *w = path ? sl_texture_path_problem(path, strnlen(path, SL_TEXTURE_PATH_MAX + 1)) : "is NULL";
+    if (why)
+        *why = w;
+    return w == NULL;
+}
+
+const char *sl_material_rec_problem(const sl_material_rec *m)
+{
+    for (int k = 0; k < 4; k++)
+        if (!(m->base_color[k] >= 0.0f && m->base_color[k] <= 1.0f)) /* NaN fails too */
+            return "base colour outside [0, 1] or not finite";
+    if (m->alpha_mode > SL_ALPHA_BLEND)
+        return "unknown alpha mode";
+    if (!(m->alpha_cutoff >= 0.0f && m->alpha_cutoff <= 1.0f))
+        return "alpha cutoff outside [0, 1] or not finite";
+    if (m->flags & ~(uint32_t)SL_MATERIAL_DOUBLE_SIDED)
+        return "unknown flag bits";
+    return NULL;
+}
+
+sl_status sl_scene_add_material(sl_scene s, const sl_material *d, uint32_t *out_material, sl_error *err)
+{
+    if (!s || !d)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_material: NULL argument");
+    size_t id = s->materials.count + 1;
+    if (id >= SL_NONE)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_scene_add_material: too many materials");
+    sl_material_rec rec;
+    memset(&rec, 0, sizeof rec);
+    memcpy(rec.base_color, d->base_color, sizeof rec.base_color);
+    rec.alpha_mode = d->alpha_mode;
+    rec.alpha_cutoff = d->alpha_cutoff;
+    rec.flags = d->flags;
+    const char *why = sl_material_rec_problem(&rec);
+    if (why)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "material %zu: %s", id, why);
+    const char *tex = d->base_color_texture && d->base_color_texture[0] ? d->base_color_texture : NULL;
+    size_t len = tex ? strnlen(tex, SL_TEXTURE_PATH_MAX + 1) : 0;
+    if (tex && (why = sl_texture_path_problem(tex, len)) != NULL)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "material %zu: texture path \"%.64s\" %s", id, tex, why);
+    if (s->material_text.count + len + 1 > UINT32_MAX)
+        return sl_fail(err, SL_ERROR_LIMIT, "material %zu: too many texture path bytes", id);
+    const sl_allocator *a = A(s);
+    if (!sl_array_reserve(a, &s->materials, sizeof rec, 1) || (tex && !sl_array_reserve(a, &s->material_text, 1, len + 1)))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_add_material: out of memory");
+    if (tex) {
+        rec.texture_offset = (uint32_t)s->material_text.count;
+        rec.texture_length = (uint32_t)len;
+        sl_array_push(a, &s->material_text, 1, tex, len);
+        sl_array_push(a, &s->material_text, 1, NULL, 1);
+    }
+    sl_array_push(a, &s->materials, sizeof rec, &rec, 1);
+    if (out_material)
+        *out_material = (uint32_t)id;
+    return SL_OK;
+}
+
+sl_status sl_scene_set_base_dir(sl_scene s, const char *dir, sl_error *err)
+{
+    if (!s)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_set_base_dir: NULL scene");
+    char *copy = NULL;
+    if (dir && dir[0] && !(copy = sl_strdup(A(s), dir)))
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_set_base_dir: out of memory");
+    sl_strfree(A(s), s->base_dir);
+    s->base_dir = copy;
+    return SL_OK;
+}
+
+uint32_t sl_scene_material_count(sl_scene s) { return (uint32_t)s->materials.count; }
+
+bool sl_scene_material(sl_scene s, uint32_t id, sl_material *out)
+{
+    if (out)
+        memset(out, 0, sizeof *out);
+    if (id == SL_MATERIAL_NONE || id > s->materials.count)
+        return false;
+    const sl_material_rec *m = &SL_AT(s->materials, sl_material_rec, id - 1);
+    if (out) {
+        memcpy(out->base_color, m->base_color, sizeof out->base_color);
+        out->base_color_texture = m->texture_length ? (const char *)s->material_text.data + m->texture_offset : NULL;
+        out->alpha_mode = m->alpha_mode;
+        out->alpha_cutoff = m->alpha_cutoff;
+        out->flags = m->flags;
+    }
+    return true;
+}
+
+uint32_t sl_scene_object_material(sl_scene s, uint32_t object)
+{
+    if (object >= s->object_materials.count)
+        return SL_MATERIAL_NONE;
+    uint32_t m = SL_AT(s->object_materials, uint32_t, object);
+    return m <= s->materials.count ? m : SL_MATERIAL_NONE;
+}
+
+const char *sl_scene_base_dir(sl_scene s) { return s->base_dir; }
+
+sl_status sl_scene_texture_path(sl_scene s, uint32_t material, char *buf, size_t cap, sl_error *err)
+{
+    sl_material m;
+    if (!s || !buf)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_texture_path: NULL argument");
+    if (cap)
+        buf[0] = 0;
+    if (!sl_scene_material(s, material, &m))
+        return sl_fail(err, SL_ERROR_NOT_FOUND, "material %u does not exist (%u materials)", material,
+                       sl_scene_material_count(s));
+    if (!m.base_color_texture)
+        return sl_fail(err, SL_ERROR_NOT_FOUND, "material %u has no base-colour texture", material);
+    if (!s->base_dir)
+        return sl_fail(err, SL_ERROR_NOT_FOUND, "material %u: texture \"%s\": the scene has no base folder", material,
+                       m.base_color_texture);
+    char *root = realpath(s->base_dir, NULL);
+    if (!root)
+        return sl_fail(err, SL_ERROR_NOT_FOUND, "material %u: base folder %s: %s", material, s->base_dir, strerror(errno));
+    size_t rl = strlen(root), need = strlen(s->base_dir) + 1 + strlen(m.base_color_texture) + 1;
+    char *joined = malloc(need);
+    sl_status st = SL_OK;
+    char *file = NULL;
+    if (!joined) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_scene_texture_path: out of memory");
+        goto done;
+    }
+    snprintf(joined, need, "%s/%s", s->base_dir, m.base_color_texture);
+    file = realpath(joined, NULL);
+    if (!file) {
+        st = sl_fail(err, SL_ERROR_NOT_FOUND, "material %u: texture %s: %s", material, joined, strerror(errno));
+        goto done;
+    }
+    /* inside the base folder: the resolved root is a prefix followed by '/' (root "/" included) */
+    bool inside = strncmp(file, root, rl) == 0 && (file[rl] == '/' || (rl == 1 && root[0] == '/'));
+    struct stat sb;
+    if (!inside) {
+        st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "material %u: texture %s resolves to %s, outside the base folder %s",
+                     material, joined, file, root);
+    } else if (stat(file, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "material %u: texture %s is not a regular file", material, file);
+    } else if (strlen(file) + 1 > cap) {
+        st = sl_fail(err, SL_ERROR_LIMIT, "material %u: texture path %s needs %zu bytes, buffer has %zu", material, file,
+                     strlen(file) + 1, cap);
+    } else {
+        memcpy(buf, file, strlen(file) + 1);
+    }
+done:
+    free(file);
+    free(joined);
+    free(root);
+    return st;
 }
 
 sl_status sl_scene_set_terrain(sl_scene s, const sl_terrain_desc *d, sl_error *err)
@@ -521,6 +755,9 @@ sl_mesh_view sl_scene_mesh(sl_scene s, uint32_t mesh)
     v.indices = sl_scene_indices(s) + m->first_index;
     v.triangle_count = m->triangle_count;
     v.bounds = m->bounds;
+    if (mesh < s->mesh_uvs.count && ((const uint8_t *)s->mesh_uvs.data)[mesh] &&
+        2 * (m->first_vertex + m->vertex_count) <= s->uvs.count)
+        v.uvs = (const float *)s->uvs.data + 2 * m->first_vertex;
     return v;
 }
 
@@ -539,6 +776,7 @@ sl_object_view sl_scene_object(sl_scene s, uint32_t object)
     v.transform = v.identity ? sl_affine_identity() : sl_scene_transforms(s)[o->transform];
     v.bounds = SL_AT(s->bounds, sl_aabb, object);
     v.triangle_count = sl_scene_meshes(s)[o->mesh].triangle_count;
+    v.material = sl_scene_object_material(s, object);
     return v;
 }
 
@@ -739,7 +977,11 @@ void sl_scene_get_stats(sl_scene s, sl_scene_stats *st)
         uint32_t k = o[i].kind < SL_KIND_COUNT ? o[i].kind : SL_KIND_OTHER;
         st->objects_per_kind[k]++;
         st->triangles_per_kind[k] += t;
+        st->see_through_count += (o[i].flags & SL_OBJECT_SEE_THROUGH) != 0;
     }
+    st->material_count = (uint32_t)s->materials.count;
+    for (size_t i = 0; i < s->mesh_uvs.count; i++)
+        st->uv_mesh_count += ((const uint8_t *)s->mesh_uvs.data)[i] != 0;
     st->memory_bytes = sizeof *s + s->mapping.size + arr_bytes(&s->meshes, sizeof(sl_mesh_rec)) +
                        arr_bytes(&s->positions, 4) + arr_bytes(&s->normals, 4) + arr_bytes(&s->indices, 4) +
                        arr_bytes(&s->objects, sizeof(sl_object_rec)) + arr_bytes(&s->bounds, sizeof(sl_aabb)) +
@@ -749,11 +991,84 @@ void sl_scene_get_stats(sl_scene s, sl_scene_stats *st)
                        arr_bytes(&s->street_xy, 4) + arr_bytes(&s->street_nodes, sizeof(sl_street_node)) +
                        arr_bytes(&s->street_edges, sizeof(sl_street_edge)) + arr_bytes(&s->bsp_planes, sizeof(sl_plane)) +
                        arr_bytes(&s->bsp_nodes, sizeof(sl_bsp_node)) + arr_bytes(&s->bsp_leaves, sizeof(sl_bsp_leaf)) +
-                       arr_bytes(&s->bsp_leaf_objects, 4) + arr_bytes(&s->bsp_pvs, 1);
+                       arr_bytes(&s->bsp_leaf_objects, 4) + arr_bytes(&s->bsp_pvs, 1) +
+                       arr_bytes(&s->materials, sizeof(sl_material_rec)) + arr_bytes(&s->material_text, 1) +
+                       arr_bytes(&s->object_materials, 4) + arr_bytes(&s->uvs, 4) + arr_bytes(&s->mesh_uvs, 1);
     st->bounds = sl_scene_bounds(s);
 }
 
 /* ---- validation of directly filled scenes (.slscene loader) ---- */
+
+/* Materials, their texture bytes, object material ids, UV arrays and the see-through rules of
+ * scene.h, for a scene filled by the reader (objects already checked against the meshes). */
+static sl_status validate_materials(const struct sl_scene_t *s, sl_error *err)
+{
+    const sl_material_rec *mat = (const sl_material_rec *)s->materials.data;
+    const char *text = (const char *)s->material_text.data;
+    uint64_t at = 0; /* the texture bytes hold exactly the paths, in material order, each + NUL */
+    for (size_t i = 0; i < s->materials.count; i++) {
+        const char *why = sl_material_rec_problem(&mat[i]);
+        if (why)
+            return sl_fail(err, SL_ERROR_FORMAT, "material %zu: %s", i + 1, why);
+        if (mat[i].reserved)
+            return sl_fail(err, SL_ERROR_FORMAT, "material %zu: reserved field is not zero", i + 1);
+        if (mat[i].texture_length == 0) {
+            if (mat[i].texture_offset)
+                return sl_fail(err, SL_ERROR_FORMAT, "material %zu: no texture but a texture offset of %u", i + 1,
+                               mat[i].texture_offset);
+            continue;
+        }
+        if (mat[i].texture_offset != at)
+            return sl_fail(err, SL_ERROR_FORMAT, "material %zu: texture offset %u, expected %llu (paths in material order)",
+                           i + 1, mat[i].texture_offset, (unsigned long long)at);
+        if ((uint64_t)mat[i].texture_length + 1 > s->material_text.count - at)
+            return sl_fail(err, SL_ERROR_FORMAT, "material %zu: texture path of %u bytes at byte %llu runs past the %zu bytes of paths",
+                           i + 1, mat[i].texture_length, (unsigned long long)at, s->material_text.count);
+        const char *p = text + at;
+        if ((why = sl_texture_path_problem(p, mat[i].texture_length)) != NULL)
+            return sl_fail(err, SL_ERROR_FORMAT, "material %zu: texture path at byte %llu %s", i + 1, (unsigned long long)at, why);
+        if (p[mat[i].texture_length] != 0)
+            return sl_fail(err, SL_ERROR_FORMAT, "material %zu: texture path at byte %llu is not followed by a NUL", i + 1,
+                           (unsigned long long)at);
+        at += (uint64_t)mat[i].texture_length + 1;
+    }
+    if (at != s->material_text.count)
+        return sl_fail(err, SL_ERROR_FORMAT, "texture paths: %llu bytes used by the materials, section has %zu",
+                       (unsigned long long)at, s->material_text.count);
+    if (s->object_materials.count && s->object_materials.count != s->objects.count)
+        return sl_fail(err, SL_ERROR_FORMAT, "object materials: %zu entries for %zu objects", s->object_materials.count,
+                       s->objects.count);
+    const sl_object_rec *o = sl_scene_objects(s);
+    for (size_t i = 0; i < s->objects.count; i++) {
+        uint32_t m = i < s->object_materials.count ? SL_AT(s->object_materials, uint32_t, i) : 0;
+        if (m > s->materials.count)
+            return sl_fail(err, SL_ERROR_FORMAT, "object %zu: material %u out of range (%zu materials)", i, m,
+                           s->materials.count);
+        bool see = (o[i].flags & SL_OBJECT_SEE_THROUGH) != 0;
+        if (m && mat[m - 1].alpha_mode != SL_ALPHA_OPAQUE && !see)
+            return sl_fail(err, SL_ERROR_FORMAT, "object %zu: material %u is alpha-tested or blended but the object is not see-through",
+                           i, m);
+        if (see && (o[i].flags & SL_OBJECT_OCCLUDER))
+            return sl_fail(err, SL_ERROR_FORMAT, "object %zu: flagged both see-through and occluder", i);
+    }
+    if (s->uvs.count && s->uvs.count != 2 * (s->positions.count / 3))
+        return sl_fail(err, SL_ERROR_FORMAT, "uvs: %zu floats for %zu vertices (2 per vertex)", s->uvs.count,
+                       s->positions.count / 3);
+    if (s->mesh_uvs.count && (s->mesh_uvs.count != s->meshes.count || !s->uvs.count))
+        return sl_fail(err, SL_ERROR_FORMAT, "mesh uv flags: %zu entries for %zu meshes%s", s->mesh_uvs.count,
+                       s->meshes.count, s->uvs.count ? "" : " and no uvs");
+    if (s->uvs.count && !s->mesh_uvs.count)
+        return sl_fail(err, SL_ERROR_FORMAT, "uvs without mesh uv flags");
+    const uint8_t *mu = (const uint8_t *)s->mesh_uvs.data;
+    for (size_t i = 0; i < s->mesh_uvs.count; i++)
+        if (mu[i] > 1)
+            return sl_fail(err, SL_ERROR_FORMAT, "mesh %zu: uv flag %u is neither 0 nor 1", i, mu[i]);
+    const float *uv = (const float *)s->uvs.data;
+    for (size_t i = 0; i < s->uvs.count; i++)
+        if (!isfinite(uv[i]))
+            return sl_fail(err, SL_ERROR_FORMAT, "vertex %zu: uv.%c is not finite", i / 2, "uv"[i % 2]);
+    return SL_OK;
+}
 
 void sl_scene_recompute_bounds(struct sl_scene_t *s)
 {
@@ -816,6 +1131,9 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
         if (o[i].transform != SL_NONE && o[i].transform >= s->transforms.count)
             return sl_fail(err, SL_ERROR_FORMAT, "object %zu: transform %u out of range", i, o[i].transform);
     }
+    sl_status mst = validate_materials(s, err);
+    if (mst != SL_OK)
+        return mst;
     const float *fxy = (const float *)s->footprint_xy.data;
     for (size_t i = 0; i < s->footprints.count; i++) {
         const sl_footprint_rec *f = &SL_AT(s->footprints, sl_footprint_rec, i);
@@ -825,6 +1143,8 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
             return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: bad heights", i);
         if (f->object != SL_NONE && f->object >= s->objects.count)
             return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: object %u out of range", i, f->object);
+        if (f->object != SL_NONE && (o[f->object].flags & SL_OBJECT_SEE_THROUGH))
+            return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: object %u is see-through (it never occludes)", i, f->object);
         for (uint32_t k = 0; k < 2 * f->vertex_count; k++)
             if (!isfinite(fxy[2 * (size_t)f->first_vertex + k]))
                 return sl_fail(err, SL_ERROR_FORMAT, "footprint %zu: vertex not finite", i);
@@ -834,6 +1154,8 @@ sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err)
         if (r->mesh >= s->meshes.count || (r->transform != SL_NONE && r->transform >= s->transforms.count) ||
             (r->object != SL_NONE && r->object >= s->objects.count))
             return sl_fail(err, SL_ERROR_FORMAT, "occluder %zu: reference out of range", i);
+        if (r->object != SL_NONE && (o[r->object].flags & SL_OBJECT_SEE_THROUGH))
+            return sl_fail(err, SL_ERROR_FORMAT, "occluder %zu: object %u is see-through (it never occludes)", i, r->object);
     }
     if (s->has_terrain) {
         size_t n;

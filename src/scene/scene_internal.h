@@ -50,6 +50,18 @@ typedef struct sl_polygon_rec {
     uint32_t vertex_count;
 } sl_polygon_rec;
 
+/* One material (id = position + 1). The texture path is bytes [texture_offset, +texture_length)
+ * of material_text, followed there by a NUL; texture_length 0: none (and texture_offset 0). */
+typedef struct sl_material_rec {
+    float base_color[4];
+    uint32_t alpha_mode;
+    float alpha_cutoff;
+    uint32_t flags;
+    uint32_t texture_offset;
+    uint32_t texture_length;
+    uint32_t reserved;
+} sl_material_rec;
+
 typedef struct sl_meta_rec {
     char *key;
     char *value;
@@ -91,6 +103,13 @@ struct sl_scene_t {
 
     sl_array meta;              /* sl_meta_rec (strings always owned) */
 
+    sl_array materials;         /* sl_material_rec, material id i at index i-1 */
+    sl_array material_text;     /* char: the texture paths, each followed by a NUL, in material order */
+    sl_array object_materials;  /* uint32 material id per object, or empty: every object has none */
+    sl_array uvs;               /* float, 2 per vertex of positions, or empty: no mesh has UVs */
+    sl_array mesh_uvs;          /* uint8 per mesh: 1 when its range of uvs is real, or empty */
+    char *base_dir;             /* folder texture paths are relative to (owned), or NULL */
+
     /* backing file mapping of a loaded .slscene (NULL when built in memory) */
     sl_mapping mapping;
 };
@@ -106,6 +125,12 @@ static inline const sl_object_rec *sl_scene_objects(const struct sl_scene_t *s) 
 static inline const float *sl_scene_positions(const struct sl_scene_t *s) { return (const float *)s->positions.data; }
 static inline const uint32_t *sl_scene_indices(const struct sl_scene_t *s) { return (const uint32_t *)s->indices.data; }
 static inline const sl_affine *sl_scene_transforms(const struct sl_scene_t *s) { return (const sl_affine *)s->transforms.data; }
+
+/* Reason a texture path breaks the rules of sl_material, or NULL when it is fine (len bytes at p,
+ * no terminator needed; the .slscene reader checks its bytes with it). */
+const char *sl_texture_path_problem(const char *p, size_t len);
+/* Reason a material record is invalid, or NULL (finite colour in [0,1], known alpha mode, cutoff). */
+const char *sl_material_rec_problem(const sl_material_rec *m);
 
 /* Recompute the world bounds of one object from its mesh bounds and transform. */
 void sl_scene_update_object_bounds(struct sl_scene_t *s, uint32_t object);

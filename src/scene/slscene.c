@@ -34,7 +34,7 @@
 #endif
 
 #define SLS_MAJOR 1u
-#define SLS_MINOR 0u
+#define SLS_MINOR 1u /* 1.1: materials, object materials, UVs (1.0 files still load) */
 #define SLS_HEADER_SIZE 64u
 #define SLS_ENTRY_SIZE 48u
 #define SLS_ALIGN 64u
@@ -85,6 +85,13 @@ SLS_FIELD(sl_footprint_rec, reserved, 20);
 SLS_LAYOUT(sl_occluder_rec, 16);
 SLS_FIELD(sl_occluder_rec, object, 8);
 SLS_FIELD(sl_occluder_rec, reserved, 12);
+SLS_LAYOUT(sl_material_rec, 40);
+SLS_FIELD(sl_material_rec, alpha_mode, 16);
+SLS_FIELD(sl_material_rec, alpha_cutoff, 20);
+SLS_FIELD(sl_material_rec, flags, 24);
+SLS_FIELD(sl_material_rec, texture_offset, 28);
+SLS_FIELD(sl_material_rec, texture_length, 32);
+SLS_FIELD(sl_material_rec, reserved, 36);
 SLS_LAYOUT(sl_polygon_rec, 8);
 SLS_LAYOUT(sl_street_node, 8);
 SLS_LAYOUT(sl_street_edge, 16);
@@ -128,6 +135,7 @@ typedef struct sec_def {
     sec_need need;
     uint64_t max_count; /* ids are uint32: counts beyond this cannot be referenced */
     const char *what;
+    uint32_t since_minor; /* first minor version (of major 1) that has this section */
 } sec_def;
 
 #define ARR(f) offsetof(struct sl_scene_t, f)
@@ -138,30 +146,36 @@ typedef struct sec_def {
 /* Every section this version knows, in the order the writer emits them. Tags are stored in files:
  * never reuse one with a different meaning. */
 static const sec_def k_defs[] = {
-    {"MESH", sizeof(sl_mesh_rec), ARR(meshes), K_ARRAY, N_REQUIRED, ID_MAX, "meshes"},
-    {"VPOS", sizeof(float), ARR(positions), K_ARRAY, N_REQUIRED, NOLIMIT, "vertex positions"},
-    {"VNRM", sizeof(float), ARR(normals), K_ARRAY, N_REQUIRED, NOLIMIT, "vertex normals"},
-    {"VIDX", sizeof(uint32_t), ARR(indices), K_ARRAY, N_REQUIRED, NOLIMIT, "triangle indices"},
-    {"OBJS", sizeof(sl_object_rec), ARR(objects), K_WRITABLE, N_REQUIRED, ID_MAX, "objects"},
-    {"OBND", sizeof(sl_aabb), ARR(bounds), K_WRITABLE, N_REQUIRED, ID_MAX, "object bounds"},
-    {"XFRM", sizeof(sl_affine), ARR(transforms), K_WRITABLE, N_REQUIRED, ID_MAX, "transforms"},
-    {"FOOT", sizeof(sl_footprint_rec), ARR(footprints), K_ARRAY, N_OPTIONAL, ID_MAX, "footprints"},
-    {"FPXY", sizeof(float), ARR(footprint_xy), K_ARRAY, N_OPTIONAL, XY_MAX, "footprint vertices"},
-    {"OCCL", sizeof(sl_occluder_rec), ARR(occluders), K_ARRAY, N_OPTIONAL, ID_MAX, "occluders"},
-    {"TERH", SLS_TERRAIN_REC, 0, K_TERRAIN, N_TERRAIN, 1, "terrain header"},
-    {"TERZ", sizeof(float), ARR(terrain_heights), K_ARRAY, N_TERRAIN, SLS_TERRAIN_MAX_SAMPLES, "terrain heights"},
-    {"SPOL", sizeof(sl_polygon_rec), ARR(street_polys), K_ARRAY, N_OPTIONAL, ID_MAX, "street polygons"},
-    {"SPXY", sizeof(float), ARR(street_xy), K_ARRAY, N_OPTIONAL, XY_MAX, "street polygon vertices"},
-    {"SNOD", sizeof(sl_street_node), ARR(street_nodes), K_ARRAY, N_OPTIONAL, ID_MAX, "street nodes"},
-    {"SEDG", sizeof(sl_street_edge), ARR(street_edges), K_ARRAY, N_OPTIONAL, ID_MAX, "street edges"},
-    {"BSPH", SLS_BSP_REC, 0, K_BSP, N_BSP_HEAD, 1, "bsp header"},
-    {"BPLN", sizeof(sl_plane), ARR(bsp_planes), K_ARRAY, N_BSP, ID_MAX, "bsp planes"},
+    {"MESH", sizeof(sl_mesh_rec), ARR(meshes), K_ARRAY, N_REQUIRED, ID_MAX, "meshes", 0},
+    {"VPOS", sizeof(float), ARR(positions), K_ARRAY, N_REQUIRED, NOLIMIT, "vertex positions", 0},
+    {"VNRM", sizeof(float), ARR(normals), K_ARRAY, N_REQUIRED, NOLIMIT, "vertex normals", 0},
+    {"VIDX", sizeof(uint32_t), ARR(indices), K_ARRAY, N_REQUIRED, NOLIMIT, "triangle indices", 0},
+    {"OBJS", sizeof(sl_object_rec), ARR(objects), K_WRITABLE, N_REQUIRED, ID_MAX, "objects", 0},
+    {"OBND", sizeof(sl_aabb), ARR(bounds), K_WRITABLE, N_REQUIRED, ID_MAX, "object bounds", 0},
+    {"XFRM", sizeof(sl_affine), ARR(transforms), K_WRITABLE, N_REQUIRED, ID_MAX, "transforms", 0},
+    {"FOOT", sizeof(sl_footprint_rec), ARR(footprints), K_ARRAY, N_OPTIONAL, ID_MAX, "footprints", 0},
+    {"FPXY", sizeof(float), ARR(footprint_xy), K_ARRAY, N_OPTIONAL, XY_MAX, "footprint vertices", 0},
+    {"OCCL", sizeof(sl_occluder_rec), ARR(occluders), K_ARRAY, N_OPTIONAL, ID_MAX, "occluders", 0},
+    {"TERH", SLS_TERRAIN_REC, 0, K_TERRAIN, N_TERRAIN, 1, "terrain header", 0},
+    {"TERZ", sizeof(float), ARR(terrain_heights), K_ARRAY, N_TERRAIN, SLS_TERRAIN_MAX_SAMPLES, "terrain heights", 0},
+    {"SPOL", sizeof(sl_polygon_rec), ARR(street_polys), K_ARRAY, N_OPTIONAL, ID_MAX, "street polygons", 0},
+    {"SPXY", sizeof(float), ARR(street_xy), K_ARRAY, N_OPTIONAL, XY_MAX, "street polygon vertices", 0},
+    {"SNOD", sizeof(sl_street_node), ARR(street_nodes), K_ARRAY, N_OPTIONAL, ID_MAX, "street nodes", 0},
+    {"SEDG", sizeof(sl_street_edge), ARR(street_edges), K_ARRAY, N_OPTIONAL, ID_MAX, "street edges", 0},
+    {"BSPH", SLS_BSP_REC, 0, K_BSP, N_BSP_HEAD, 1, "bsp header", 0},
+    {"BPLN", sizeof(sl_plane), ARR(bsp_planes), K_ARRAY, N_BSP, ID_MAX, "bsp planes", 0},
     /* child indices are int32: nodes >= 0, leaves -(c+1) */
-    {"BNOD", sizeof(sl_bsp_node), ARR(bsp_nodes), K_ARRAY, N_BSP, INT32_MAX, "bsp nodes"},
-    {"BLEF", sizeof(sl_bsp_leaf), ARR(bsp_leaves), K_ARRAY, N_BSP, (uint64_t)INT32_MAX + 1, "bsp leaves"},
-    {"BLOB", sizeof(uint32_t), ARR(bsp_leaf_objects), K_ARRAY, N_BSP, ID_MAX, "bsp leaf objects"},
-    {"BPVS", 1, ARR(bsp_pvs), K_ARRAY, N_BSP, (uint64_t)UINT32_MAX * UINT32_MAX, "bsp cluster pvs"},
-    {"META", 1, 0, K_META, N_OPTIONAL, NOLIMIT, "metadata"},
+    {"BNOD", sizeof(sl_bsp_node), ARR(bsp_nodes), K_ARRAY, N_BSP, INT32_MAX, "bsp nodes", 0},
+    {"BLEF", sizeof(sl_bsp_leaf), ARR(bsp_leaves), K_ARRAY, N_BSP, (uint64_t)INT32_MAX + 1, "bsp leaves", 0},
+    {"BLOB", sizeof(uint32_t), ARR(bsp_leaf_objects), K_ARRAY, N_BSP, ID_MAX, "bsp leaf objects", 0},
+    {"BPVS", 1, ARR(bsp_pvs), K_ARRAY, N_BSP, (uint64_t)UINT32_MAX * UINT32_MAX, "bsp cluster pvs", 0},
+    {"META", 1, 0, K_META, N_OPTIONAL, NOLIMIT, "metadata", 0},
+    /* 1.1 */
+    {"MATL", sizeof(sl_material_rec), ARR(materials), K_ARRAY, N_OPTIONAL, ID_MAX - 1, "materials", 1},
+    {"MTEX", 1, ARR(material_text), K_ARRAY, N_OPTIONAL, UINT32_MAX, "material texture paths", 1},
+    {"OMAT", sizeof(uint32_t), ARR(object_materials), K_ARRAY, N_OPTIONAL, ID_MAX, "object materials", 1},
+    {"VUV0", sizeof(float), ARR(uvs), K_ARRAY, N_OPTIONAL, NOLIMIT, "vertex uvs", 1},
+    {"MUVS", 1, ARR(mesh_uvs), K_ARRAY, N_OPTIONAL, ID_MAX, "mesh uv flags", 1},
 };
 #define SLS_NDEFS SL_COUNTOF(k_defs)
 
@@ -694,8 +708,9 @@ static sl_status read_table(reader *r, sls_entry **out_ents, uint32_t *out_count
         e->offset = rd64(p + E_OFFSET);
         e->size = rd64(p + E_SIZE);
         e->hash = rd64(p + E_HASH);
+        /* a section newer than the file's minor version is as unknown as any other tag */
         for (size_t d = 0; d < SLS_NDEFS; d++)
-            if (memcmp(k_defs[d].tag, e->raw_tag, 4) == 0)
+            if (memcmp(k_defs[d].tag, e->raw_tag, 4) == 0 && k_defs[d].since_minor <= r->minor)
                 e->def = &k_defs[d];
         uint64_t bytes;
         if (e->offset % SLS_ALIGN) {
@@ -819,6 +834,32 @@ static sl_status load(reader *r, sl_mapping *map, sl_scene *out)
     return SL_OK;
 }
 
+/* Texture paths of a loaded file are relative to the file's folder (docs/slscene-format.md). */
+static sl_status set_base_dir_of(const char *path, sl_scene *out, sl_error *err)
+{
+    const char *slash = strrchr(path, '/');
+    size_t n = slash ? (size_t)(slash - path) : 0;
+    char *dir = sl_alloc(&(*out)->alloc, n + 2);
+    sl_status st = SL_OK;
+    if (!dir) {
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    } else {
+        if (!slash)
+            memcpy(dir, ".", 2);
+        else if (n == 0)
+            memcpy(dir, "/", 2);
+        else
+            memcpy(dir, path, n), dir[n] = 0;
+        st = sl_scene_set_base_dir(*out, dir, err);
+        sl_free(&(*out)->alloc, dir, n + 2);
+    }
+    if (st != SL_OK) {
+        sl_scene_destroy(*out);
+        *out = NULL;
+    }
+    return st;
+}
+
 sl_status sl_scene_load(const char *path, const sl_load_options *opt, const sl_allocator *alloc, sl_scene *out,
                         sl_error *err)
 {
@@ -847,14 +888,15 @@ sl_status sl_scene_load(const char *path, const sl_load_options *opt, const sl_a
         r.borrow = true;
         /* the loader reads every section once in file order: ask for read-ahead */
         madvise(map.data, map.size, MADV_WILLNEED);
-        return load(&r, &map, out);
+        st = load(&r, &map, out);
+        return st == SL_OK ? set_base_dir_of(path, out, err) : st;
     }
     sl_status ost = sl_file_open_read(path, &r.fd, &r.size, err); /* a FIFO is refused, not waited on */
     if (ost != SL_OK)
         return ost;
     sl_status st = load(&r, &map, out);
     close(r.fd);
-    return st;
+    return st == SL_OK ? set_base_dir_of(path, out, err) : st;
 }
 
 sl_status sl_scene_load_memory(const void *data, size_t size, const char *name, const sl_allocator *alloc, sl_scene *out,

@@ -29,6 +29,14 @@ typedef struct frustum_entry {
     uint32_t thread;
 } frustum_entry;
 
+/* A see-through object's pixels in one view (docs/oracle.md, "See-through objects"): pixels where
+ * one of its fragments is at least as near as the solid surface; open: one of them passes rule 4. */
+typedef struct see_through_hit {
+    uint32_t object;
+    uint32_t pixels;
+    bool open;
+} see_through_hit;
+
 struct sl_oracle_t {
     sl_allocator alloc;
     sl_scene scene;
@@ -55,6 +63,12 @@ struct sl_oracle_t {
     size_t counts_cap;
     sl_array visible;           /* uint32 */
     sl_array visible_pixels;    /* uint32 */
+
+    /* see-through objects: their own id + depth buffer (one view), and what they showed */
+    uint32_t *st_ids;
+    float *st_depth;
+    size_t st_cap;
+    sl_array st_hits;           /* see_through_hit, over all views of the render */
 };
 
 sl_oracle_options sl_oracle_default_options(void)
@@ -138,6 +152,9 @@ void sl_oracle_destroy(sl_oracle o)
     sl_free(a, o->counts, o->counts_cap * sizeof(uint32_t));
     sl_array_free(a, &o->visible, sizeof(uint32_t));
     sl_array_free(a, &o->visible_pixels, sizeof(uint32_t));
+    sl_free(a, o->st_ids, o->st_cap * sizeof(uint32_t));
+    sl_free(a, o->st_depth, o->st_cap * sizeof(float));
+    sl_array_free(a, &o->st_hits, sizeof(see_through_hit));
     sl_free(a, o, sizeof *o);
 }
 
@@ -209,9 +226,9 @@ static void *run_thread(void *p)
     const frustum_entry *list = o->frustum.data;
     const sl_affine identity = sl_affine_identity();
     for (size_t i = 0; i < o->frustum.count; i++) {
-        if (list[i].thread != arg->thread)
-            continue;
         const sl_object_rec *obj = &objects[list[i].object];
+        if (list[i].thread != arg->thread || (obj->flags & SL_OBJECT_SEE_THROUGH))
+            continue; /* see-through objects write no depth: drawn after the solids (see_through_pass) */
         const sl_mesh_rec *mesh = &meshes[obj->mesh];
         const sl_affine *xf = obj->transform == SL_NONE ? &identity : &transforms[obj->transform];
         double m[16];
@@ -225,6 +242,9 @@ static void *run_thread(void *p)
     }
     return NULL;
 }
+
+static sl_status see_through_pass(struct sl_oracle_t *o, uint32_t v, const double vp[16], const sl_refrast_target *solid,
+                                  sl_error *err);
 
 /* Draw view `v` of the current render with the world-to-clip matrix vp (column-major floats),
  * sampling every pixel at (sx, sy) from its top-left corner: the clip-space x and y are moved by
@@ -324,7 +344,7 @@ static sl_status render_view(struct sl_oracle_t *o, uint32_t v, const sl_mat4 *v
     }
     for (uint32_t t = 1; t < T; t++)
         sl_refrast_merge(&job.targets[0], &job.targets[t], 0, o->height);
-    return SL_OK;
+    return see_through_pass(o, v, vp, &job.targets[0], err);
 }
 
 static int cmp_u32(const void *a, const void *b)
@@ -432,6 +452,27 @@ static bool unproject(const double inv[16], double x, double y, double z, double
  * sight line that, from the near plane to just before the surface (2 mm or 0.01% short), never
  * enters solid space from open space. Marks OPEN_BIT in o->counts of such objects; the pixels of
  * an object are traced until one passes. */
+/* Whether the sight line to pixel (x, y) at stored depth d passes rule 4 (ok: inv is valid). */
+static bool pixel_open(const struct sl_oracle_t *o, const sl_bsp_view *bsp, const double inv[16], bool ok, uint32_t x,
+                       uint32_t y, float d)
+{
+    double nx = 2.0 * (x + 0.5) / o->width - 1.0, ny = 1.0 - 2.0 * (y + 0.5) / o->height;
+    double a[3], b[3];
+    if (!ok || !unproject(inv, nx, ny, -1.0, a) || !unproject(inv, nx, ny, 1.0 - 2.0 * d, b))
+        return true; /* cannot tell: keep it (the safe side for a judge) */
+    double len2 = 0, dir[3];
+    for (int k = 0; k < 3; k++) {
+        dir[k] = b[k] - a[k];
+        len2 += dir[k] * dir[k];
+    }
+    double keep = 1.0 - fmax(1e-4, 2e-3 / fmax(sqrt(len2), 1e-9));
+    if (keep <= 0)
+        return true;
+    for (int k = 0; k < 3; k++)
+        b[k] = a[k] + keep * dir[k];
+    return sl_bsp_sight_line_open(bsp, a, b, true);
+}
+
 static void mark_open(struct sl_oracle_t *o, const sl_bsp_view *bsp)
 {
     size_t px = (size_t)o->width * o->height;
@@ -446,28 +487,114 @@ static void mark_open(struct sl_oracle_t *o, const sl_bsp_view *bsp)
                 uint32_t id = ids[i];
                 if (id == SL_NONE || (o->counts[id] & OPEN_BIT))
                     continue;
-                double nx = 2.0 * (x + 0.5) / o->width - 1.0, ny = 1.0 - 2.0 * (y + 0.5) / o->height;
-                double a[3], b[3];
-                if (!ok || !unproject(inv, nx, ny, -1.0, a) || !unproject(inv, nx, ny, 1.0 - 2.0 * depth[i], b)) {
-                    o->counts[id] |= OPEN_BIT; /* cannot tell: keep it (the safe side for a judge) */
-                    continue;
-                }
-                double len2 = 0, dir[3];
-                for (int k = 0; k < 3; k++) {
-                    dir[k] = b[k] - a[k];
-                    len2 += dir[k] * dir[k];
-                }
-                double keep = 1.0 - fmax(1e-4, 2e-3 / fmax(sqrt(len2), 1e-9));
-                if (keep <= 0) {
-                    o->counts[id] |= OPEN_BIT;
-                    continue;
-                }
-                for (int k = 0; k < 3; k++)
-                    b[k] = a[k] + keep * dir[k];
-                if (sl_bsp_sight_line_open(bsp, a, b, true))
+                if (pixel_open(o, bsp, inv, ok, x, y, depth[i]))
                     o->counts[id] |= OPEN_BIT;
             }
     }
+}
+
+/* Conservative pixel rectangle [x0, x1) x [y0, y1) that a box's fragments can fall in: the hull
+ * of its projected corners plus a pixel, or the whole screen when a corner is not in front. */
+static void box_rect(const struct sl_oracle_t *o, const double vp[16], const sl_aabb *b, uint32_t r[4])
+{
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (int c = 0; c < 8; c++) {
+        double p[3] = {c & 1 ? b->max.x : b->min.x, c & 2 ? b->max.y : b->min.y, c & 4 ? b->max.z : b->min.z};
+        double cx = vp[0] * p[0] + vp[4] * p[1] + vp[8] * p[2] + vp[12];
+        double cy = vp[1] * p[0] + vp[5] * p[1] + vp[9] * p[2] + vp[13];
+        double cw = vp[3] * p[0] + vp[7] * p[1] + vp[11] * p[2] + vp[15];
+        if (!(cw > 1e-9)) {
+            r[0] = 0, r[1] = 0, r[2] = o->width, r[3] = o->height;
+            return;
+        }
+        double sx = (cx / cw + 1.0) * 0.5 * o->width, sy = (1.0 - cy / cw) * 0.5 * o->height;
+        lo[0] = fmin(lo[0], sx), hi[0] = fmax(hi[0], sx);
+        lo[1] = fmin(lo[1], sy), hi[1] = fmax(hi[1], sy);
+    }
+    double lim[2] = {o->width, o->height};
+    for (int k = 0; k < 2; k++) {
+        double a = floor(lo[k]) - 1, z = ceil(hi[k]) + 2;
+        r[k] = (uint32_t)fmin(fmax(a, 0), lim[k]);
+        r[2 + k] = (uint32_t)fmin(fmax(z, 0), lim[k]);
+    }
+}
+
+/* The see-through rule (docs/oracle.md): after the solids, each see-through object in the frustum
+ * is drawn alone into its own buffer; it shows at every pixel where its nearest fragment is at
+ * least as near as the solid depth there (ties: seen, as a decal on a wall is). It writes no depth,
+ * so it hides nothing, and the order of these objects does not matter. */
+static sl_status see_through_pass(struct sl_oracle_t *o, uint32_t v, const double vp[16], const sl_refrast_target *solid,
+                                  sl_error *err)
+{
+    const struct sl_scene_t *s = o->scene;
+    const sl_object_rec *objects = sl_scene_objects(s);
+    const sl_mesh_rec *meshes = sl_scene_meshes(s);
+    const sl_affine *transforms = sl_scene_transforms(s);
+    const sl_aabb *bounds = sl_scene_object_bounds_array(o->scene);
+    const frustum_entry *list = o->frustum.data;
+    const sl_affine identity = sl_affine_identity();
+    size_t px = (size_t)o->width * o->height;
+    sl_bsp_view bsp;
+    bool rule4 = !o->opt.see_through_solid && sl_scene_bsp(o->scene, &bsp) && bsp.node_count > 0;
+    double inv[16];
+    bool inv_ok = rule4 && invert4(o->view_proj[v].m, inv);
+    for (size_t i = 0; i < o->frustum.count; i++) {
+        uint32_t id = list[i].object;
+        const sl_object_rec *obj = &objects[id];
+        if (!(obj->flags & SL_OBJECT_SEE_THROUGH))
+            continue;
+        if (o->st_cap < px) {
+            sl_free(&o->alloc, o->st_ids, o->st_cap * sizeof(uint32_t));
+            sl_free(&o->alloc, o->st_depth, o->st_cap * sizeof(float));
+            o->st_ids = sl_alloc(&o->alloc, px * sizeof(uint32_t));
+            o->st_depth = sl_alloc(&o->alloc, px * sizeof(float));
+            o->st_cap = px;
+            if (!o->st_ids || !o->st_depth) {
+                sl_free(&o->alloc, o->st_ids, px * sizeof(uint32_t));
+                sl_free(&o->alloc, o->st_depth, px * sizeof(float));
+                o->st_ids = NULL, o->st_depth = NULL, o->st_cap = 0;
+                return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the see-through buffer");
+            }
+        }
+        uint32_t r[4];
+        box_rect(o, vp, &bounds[id], r);
+        if (r[0] >= r[2] || r[1] >= r[3])
+            continue;
+        for (uint32_t y = r[1]; y < r[3]; y++)
+            for (uint32_t x = r[0]; x < r[2]; x++) {
+                o->st_ids[(size_t)y * o->width + x] = SL_NONE;
+                o->st_depth[(size_t)y * o->width + x] = 0.0f;
+            }
+        sl_refrast_target t = *solid;
+        t.ids = o->st_ids;
+        t.depth = o->st_depth;
+        t.overdraw = NULL;
+        const sl_mesh_rec *mesh = &meshes[obj->mesh];
+        const sl_affine *xf = obj->transform == SL_NONE ? &identity : &transforms[obj->transform];
+        double m[16];
+        sl_refrast_compose(vp, xf, m);
+        sl_refrast_cull cull = SL_REFRAST_CULL_NONE;
+        if ((obj->flags & SL_OBJECT_CLOSED_CONVEX) && !o->opt.draw_closed_backfaces)
+            cull = affine_det(xf) < 0 ? SL_REFRAST_CULL_FRONT : SL_REFRAST_CULL_BACK;
+        if (!sl_refrast_scratch_reserve(&o->alloc, &o->scratch[0], mesh->vertex_count))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for %u transformed vertices",
+                           mesh->vertex_count);
+        sl_refrast_mesh(&t, &o->scratch[0], m, sl_scene_positions(s) + 3 * mesh->first_vertex, mesh->vertex_count,
+                        sl_scene_indices(s) + mesh->first_index, mesh->triangle_count, id, cull);
+        see_through_hit hit = {id, 0, !rule4};
+        for (uint32_t y = r[1]; y < r[3]; y++)
+            for (uint32_t x = r[0]; x < r[2]; x++) {
+                size_t k = (size_t)y * o->width + x;
+                if (o->st_ids[k] != id || o->st_depth[k] < solid->depth[k])
+                    continue;
+                hit.pixels++;
+                if (!hit.open && pixel_open(o, &bsp, inv, inv_ok, x, y, o->st_depth[k]))
+                    hit.open = true;
+            }
+        if (hit.pixels && !sl_array_push(&o->alloc, &o->st_hits, sizeof hit, &hit, 1))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the see-through list");
+    }
+    return SL_OK;
 }
 
 /* Count pixels per object over all views of the render and fill the frame's visible set. */
@@ -495,6 +622,14 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
         if (o->counts[id]++ == 0 && st == SL_OK && !sl_array_push(&o->alloc, &o->visible, sizeof id, &id, 1))
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the visible set");
     }
+    /* see-through objects: never in the id buffer; their pixels come from see_through_pass */
+    const see_through_hit *hits = o->st_hits.data;
+    for (size_t i = 0; i < o->st_hits.count && st == SL_OK; i++) {
+        uint32_t id = hits[i].object;
+        if ((o->counts[id] & ~OPEN_BIT) == 0 && !sl_array_push(&o->alloc, &o->visible, sizeof id, &id, 1))
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "oracle: out of memory for the visible set");
+        o->counts[id] = ((o->counts[id] & ~OPEN_BIT) + hits[i].pixels) | (o->counts[id] & OPEN_BIT);
+    }
     uint32_t *vis = o->visible.data;
     if (st == SL_OK) {
         if (o->visible.count > 1)
@@ -504,8 +639,12 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
     }
     sl_bsp_view bsp;
     bool rule4 = st == SL_OK && !o->opt.see_through_solid && sl_scene_bsp(o->scene, &bsp) && bsp.node_count > 0;
-    if (rule4)
+    if (rule4) {
         mark_open(o, &bsp);
+        for (size_t i = 0; i < o->st_hits.count; i++)
+            if (hits[i].open)
+                o->counts[hits[i].object] |= OPEN_BIT;
+    }
     /* put every counter back to zero, whatever happened */
     if (st == SL_OK) {
         uint32_t *pix = o->visible_pixels.data;
@@ -515,7 +654,8 @@ static sl_status count_pixels(struct sl_oracle_t *o, sl_oracle_frame *frame, sl_
             o->counts[vis[i]] = 0;
             if (rule4 && !(c & OPEN_BIT)) {
                 /* drawn, but only along sight lines through solid space */
-                covered -= c;
+                if (!(sl_scene_objects(o->scene)[vis[i]].flags & SL_OBJECT_SEE_THROUGH))
+                    covered -= c;
                 frame->hidden_by_solid++;
                 continue;
             }
@@ -567,6 +707,7 @@ static sl_status begin(struct sl_oracle_t *o, uint32_t views, uint32_t w, uint32
 {
     memset(frame, 0, sizeof *frame);
     o->view_count = 0;
+    o->st_hits.count = 0;
     sl_status st = reserve_pixels(o, views, w, h, err);
     if (st != SL_OK)
         return st;

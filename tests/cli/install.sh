@@ -28,7 +28,7 @@ int main(void)
         return 1;
     const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
     const uint32_t i[3] = {0, 1, 2};
-    sl_mesh_desc m = {p, NULL, 3, i, 1};
+    sl_mesh_desc m = {p, NULL, 3, i, 1, NULL};
     uint32_t mesh;
     if (sl_scene_add_mesh(s, &m, &mesh, &err) != SL_OK)
         return 1;

@@ -40,7 +40,8 @@ expect 1 "$SL" render city:tiny --path "$tmp/short.txt" --out "$tmp/x"
 has "short.txt:2" "$tmp/err"
 
 # ---- one camera ----
-expect 0 "$SL" render city:tiny --camera "0,0,1.7,45,0,0" --width 160 --height 120 --out "$tmp/one"
+# (the oracle's kinds; with OpenGL the default is shaded: tests/cli/render_shaded.sh)
+expect 0 "$SL" render city:tiny --camera "0,0,1.7,45,0,0" --width 160 --height 120 --images id,depth,overdraw --out "$tmp/one"
 has "3 images of 1 frame" "$tmp/out"
 for k in id depth overdraw; do
     f="$tmp/one/frame-00000-$k.png"
@@ -62,14 +63,14 @@ camera fov=70 width=96 height=64
 2 0 0 1.7 180 0 0
 3 0 0 30 270 -45 0
 EOF
-expect 0 "$SL" render city:tiny --path "$tmp/p.txt" --frames 1:3 --out "$tmp/path" --json
+expect 0 "$SL" render city:tiny --path "$tmp/p.txt" --frames 1:3 --images id,depth,overdraw --out "$tmp/path" --json
 has '"images":6' "$tmp/out"
 has '"frame":1' "$tmp/out"
 has '"frame":2' "$tmp/out"
 for f in 1 2; do for k in id depth overdraw; do is_png "$tmp/path/frame-0000$f-$k.png"; done; done
 [ "$(png_size "$tmp/path/frame-00001-id.png")" = "96x64" ] || fail "path intrinsics not used"
 [ ! -e "$tmp/path/frame-00000-id.png" ] || fail "frame 0 rendered outside --frames 1:3"
-expect 0 "$SL" render city:tiny --path "$tmp/p.txt" --frames 3 --width 50 --height 40 --out "$tmp/path1"
+expect 0 "$SL" render city:tiny --path "$tmp/p.txt" --frames 3 --width 50 --height 40 --depth --out "$tmp/path1"
 [ "$(png_size "$tmp/path1/frame-00003-depth.png")" = "50x40" ] || fail "--width with --path"
 expect 1 "$SL" render city:tiny --path "$tmp/p.txt" --frames 7: --out "$tmp/path2"
 has "beyond" "$tmp/err"

@@ -18,11 +18,11 @@ uint32_t sl_test_add_box(sl_scene s, sl_vec3 lo, sl_vec3 hi, uint32_t kind, uint
     sl_error err;
     float p[24];
     sl_test_box_vertices(lo, hi, p);
-    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12};
+    sl_mesh_desc md = {p, NULL, 8, sl_test_box_indices, 12, NULL};
     uint32_t mesh, obj;
     if (sl_scene_add_mesh(s, &md, &mesh, &err) != SL_OK)
         return SL_NONE;
-    sl_object_desc od = {mesh, NULL, 0xffffffffu, kind, flags};
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, kind, flags, 0};
     if (sl_scene_add_object(s, &od, &obj, &err) != SL_OK)
         return SL_NONE;
     return obj;

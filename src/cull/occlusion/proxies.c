@@ -319,7 +319,8 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
     const sl_object_rec *objects = sl_scene_objects(scene);
     const sl_affine *xfs = sl_scene_transforms(scene);
     for (uint32_t o = 0; o < s->object_count && st == SL_OK; o++) {
-        if ((!(objects[o].flags & SL_OBJECT_OCCLUDER) && !s->opt.all_objects) || s->object_proxy[o] != SL_NONE)
+        if ((!(objects[o].flags & SL_OBJECT_OCCLUDER) && !s->opt.all_objects) || s->object_proxy[o] != SL_NONE ||
+            (objects[o].flags & SL_OBJECT_SEE_THROUGH)) /* see-through never occludes, all_objects or not */
             continue;
         sl_affine id = sl_affine_identity();
         const sl_affine *xf = objects[o].transform == SL_NONE ? &id : &xfs[objects[o].transform];
