@@ -53,6 +53,12 @@ mutants=(
   'hoq-no-margin@@src/cull/hoq.c@@s/float m = \(float\)\(v->margin \* px/float m = 0 * (float)(v->margin * px/@@test_backend'
   'hoq-no-reach@@src/cull/hoq.c@@s/    if \(!v->reach\)\n        return true;/    if (v->reach)\n        return true;/@@test_backend'
   'backend-no-latency@@src/cull/backend_cpu.c@@s/s->ready_frame = b->frame \+ b->latency;/s->ready_frame = b->frame;/@@test_backend'
+  'backend-no-clock-latency@@src/cull/backend_cpu.c@@s/s->ready_ns = b->now \+ b->clock.query_latency_ns;/s->ready_ns = b->now;/@@test_query_cullers'
+  'chc-no-pullup@@src/cull/chc.c@@s/while \(n != SL_NONE && !s->visible\[n\]\) \{/while (0 \&\& n != SL_NONE \&\& !s->visible[n]) {/@@test_query_cullers'
+  'chc-drop-result@@src/cull/chc.c@@s/            traverse\(f, r->node\);\n        \} else \{/            (void)0;\n        } else {/@@test_query_cullers'
+  'chc-near-queried@@src/cull/chc.c@@s/if \(!queryable \|\| !f->drawn_any\) \{/if (!f->drawn_any) {/@@test_query_cullers'
+  'chcpp-no-split@@src/cull/chc.c@@s/                issue_i\(f, n\); \/\* split: one query a node \*\//                s->invisible_for[n]++;/@@test_query_cullers'
+  'chcpp-v-undrawn@@src/cull/chc.c@@s/            render_leaf\(f, n\);\n            s->vpend\[s->vpend_n\+\+\] = n;/            s->vpend[s->vpend_n++] = n;/@@test_query_cullers'
   'pvs-everything@@src/cull/pvs.c@@s/bool all = cell == SL_NONE;/bool all = true;/@@test_pvs_build test_domain'
   'pvs-no-frustum@@src/cull/pvs.c@@s/sl_frustum_classify_box\(fr->planes, slack, &bounds\[id\], 0x3fu, false, NULL\) >= 0/fr/@@test_pvs_build test_domain'
   'pvs-cell-only@@src/cull/pvs.c@@s/uint32_t nc = sl_viewcells_overlap\(s->cells, s->scene, &nb, s->near_cells, s->cell_count, &covered\);/uint32_t nc = 1; covered = true; s->near_cells[0] = cell; (void)nb;/@@test_pvs_build test_near_wall'
@@ -85,7 +91,7 @@ fi
 
 # the short set of .ci/run: one mutant a family, none that needs test_pvs_build but the pvs culler's
 ci_set=(vfc-visible hzb-visible lazygrid-visible hom-visible frusta-visible cplp-visible cullmap-visible
-  horizon-visible dhorizon-no-reuse portal-all gvs-all)
+  horizon-visible dhorizon-no-reuse portal-all gvs-all chc-drop-result chc-no-pullup)
 if [ "${1:-}" = "--ci" ]; then
   set -- "${ci_set[@]}"
 fi

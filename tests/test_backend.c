@@ -1,4 +1,4 @@
-/* Draw backends (include/sightline/backend.h) and the hoq method that culls through one:
+/* Draw backends (include/sightline/backend.h) and gl-stopwait (hoq before issue 15), which culls through one:
  *  - the CPU reference backend's buffer after drawing every object is the oracle's, bit for bit;
  *  - its query counts equal a brute-force count (each query triangle drawn alone into a fresh
  *    buffer with the reference rasterizer, its fragments at least as near as the backend's depth
@@ -236,7 +236,7 @@ static void test_cpu_latency(void **state)
     sl_scene s = sl_test_tiny_city();
     sl_error err;
     const uint32_t L = 2;
-    sl_draw_backend_cpu_options co = {L};
+    sl_draw_backend_cpu_options co = {.latency_frames = L};
     sl_draw_backend_cpu cpu;
     assert_int_equal(sl_draw_backend_cpu_create(s, &co, NULL, &cpu, &err), SL_OK);
     sl_draw_backend be = sl_draw_backend_cpu_table(cpu);
@@ -444,12 +444,12 @@ static void test_hoq_oracle_city(void **state)
     hoq_run runs[6];
     memset(runs, 0, sizeof runs);
     sl_culler_params with_given = {&given, NULL}, with_broken = {&broken, NULL};
-    assert_int_equal(sl_culler_create("hoq", s, NULL, NULL, &runs[0].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &with_given, NULL, &runs[1].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create("hoq", s, "latency=1", NULL, &runs[2].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create("hoq", s, "object_queries=false", NULL, &runs[3].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &with_broken, NULL, &runs[4].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create("hoq", s, "node_queries=false", NULL, &runs[5].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, NULL, NULL, &runs[0].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &with_given, NULL, &runs[1].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "latency=1", NULL, &runs[2].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "object_queries=false", NULL, &runs[3].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &with_broken, NULL, &runs[4].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "node_queries=false", NULL, &runs[5].c, &err), SL_OK);
     assert_int_equal(sl_culler_guarantee(runs[0].c), SL_CONSERVATIVE_AT_RESOLUTION);
     sl_path street = views_of(s, SL_VIEWS_STREET, sanitized() ? 8 : 100, 61, 320, 240);
     sl_path fly = views_of(s, SL_VIEWS_FLYOVER, sanitized() ? 3 : 30, 62, 320, 240);
@@ -485,7 +485,8 @@ static void test_hoq_oracle_city(void **state)
             fail_msg("hoq run %d missed %llu visible objects at the culling resolution", r,
                      (unsigned long long)runs[r].missed);
     assert_true(runs[0].queries > 0);
-    assert_int_equal(runs[0].stalls, 0);                 /* latency 0: every result ready at once */
+    assert_int_equal(runs[1].stalls, 0);                 /* a backend without clock, latency 0: ready at once */
+    assert_int_equal(runs[0].stalls, runs[0].queries);   /* its own clocked backend: every wait stalls */
     assert_int_equal(runs[2].stalls, runs[2].queries);   /* latency 1, stop and wait: every wait stalls */
     assert_true(runs[4].missed > 0);                     /* the check catches a backend that answers 0 */
     sl_draw_backend_cpu_stats cs;
@@ -527,8 +528,8 @@ static void test_hoq_oracle_map(void **state)
     sl_culler_params params = {&given, NULL};
     hoq_run runs[2];
     memset(runs, 0, sizeof runs);
-    assert_int_equal(sl_culler_create("hoq", s, NULL, NULL, &runs[0].c, &err), SL_OK);
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &params, NULL, &runs[1].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, NULL, NULL, &runs[0].c, &err), SL_OK);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &params, NULL, &runs[1].c, &err), SL_OK);
     run_hoq(s, p, runs, 2, 2, list->names[0]);
     print_message("%s: hoq kept %llu, missed %llu, %llu queries\n", list->names[0], (unsigned long long)runs[0].kept,
                   (unsigned long long)runs[0].missed, (unsigned long long)runs[0].queries);
@@ -680,7 +681,7 @@ static void test_hoq_eye_in_box(void **state)
     assert_int_equal(sl_oracle_render(or, &cam, &fr, &err), SL_OK);
     assert_int_equal(fr.visible_count, 2); /* O in front of W, W around it */
     sl_culler c;
-    assert_int_equal(sl_culler_create("hoq", s, "leaf_size=1,object_queries=false", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "leaf_size=1,object_queries=false", NULL, &c, &err), SL_OK);
     uint32_t out[2], k;
     assert_int_equal(sl_culler_cull(c, &cam, out, 2, &k, &err), SL_OK);
     sl_cull_metrics mt;
@@ -725,22 +726,26 @@ static void test_params_refused(void **state)
     assert_int_equal(sl_culler_create_with("vfc", s, NULL, &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "no draw backend"));
     assert_false(sl_cull_method_draws("vfc"));
-    assert_true(sl_cull_method_draws("hoq"));
+    assert_true(sl_cull_method_draws("gl-stopwait"));
     /* latency belongs to the backend hoq makes itself */
-    assert_int_equal(sl_culler_create_with("hoq", s, "latency=2", &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, "latency=2", &params, NULL, &c, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "latency"));
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, "clock=false", &params, NULL, &c, &err),
+                     SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "clock"));
     /* an incomplete table */
     sl_draw_backend bad = be;
     bad.wait_query = NULL;
     params.backend = &bad;
-    assert_int_equal(sl_culler_create_with("hoq", s, NULL, &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &params, NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "wait_query"));
     bad = be;
     bad.version = 99;
     assert_int_equal(sl_draw_backend_check(&bad, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_null(c);
     /* a bad option */
-    assert_int_equal(sl_culler_create("hoq", s, "margin=0", NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_culler_create("gl-stopwait", s, "margin=0", NULL, &c, &err), SL_ERROR_INVALID_ARGUMENT);
     sl_draw_backend_cpu_destroy(cpu);
     sl_scene_destroy(s);
 }

@@ -279,7 +279,7 @@ static void test_query_stalls_reported(void **state)
 {
     (void)state;
     known k = make_known();
-    sl_bench_method_spec specs[] = {{"vfc", NULL}, {"hoq", "latency=1,leaf_size=1"}};
+    sl_bench_method_spec specs[] = {{"vfc", NULL}, {"gl-stopwait", "latency=1,leaf_size=1"}};
     sl_bench_options opt = sl_bench_default_options();
     opt.label = "known";
     sl_bench b;
@@ -301,21 +301,27 @@ static void test_query_stalls_reported(void **state)
     snprintf(path, sizeof path, "%s/frames.csv", dir);
     assert_int_equal(sl_bench_write_csv(&b, 1, path, &err), SL_OK);
     char *text = read_text(path, NULL);
-    assert_non_null(strstr(text, ",phases,missed,skipped,query_stalls\n"));
-    /* each row's last field: 0 for vfc, hoq's stalls for hoq (the row's queries column too) */
+    assert_non_null(strstr(text, ",phases,missed,skipped,query_stalls,query_wait_ms\n"));
+    /* each row's last field but one: 0 for vfc, the stalls for gl-stopwait; the last, its wait ms */
     uint32_t hoq_rows = 0, vfc_rows = 0;
     uint64_t csv_stalls = 0;
     for (const char *line = strchr(text, '\n') + 1; *line; line = strchr(line, '\n') + 1) {
-        const char *end = strchr(line, '\n'), *last = end;
+        const char *end = strchr(line, '\n'), *wait = end;
+        while (wait > line && wait[-1] != ',')
+            wait--;
+        const char *last = wait - 1;
         while (last > line && last[-1] != ',')
             last--;
-        if (strstr(line, ",hoq,") && strstr(line, ",hoq,") < end) {
+        assert_true(wait < end); /* the wait time: a number */
+        if (strstr(line, ",gl-stopwait,") && strstr(line, ",gl-stopwait,") < end) {
             hoq_rows++;
             csv_stalls += strtoull(last, NULL, 10);
+            assert_true(strtod(wait, NULL) > 0); /* its backend's simulated clock waited */
         } else {
             vfc_rows++;
             assert_int_equal(strtoull(last, NULL, 10), 0);
-            assert_true(last < end); /* a number, not empty */
+            assert_true(last < wait - 1); /* a number, not empty */
+            assert_true(strtod(wait, NULL) == 0);
         }
     }
     assert_int_equal(hoq_rows, 2);
@@ -327,14 +333,15 @@ static void test_query_stalls_reported(void **state)
     text = read_text(path, NULL);
     sl_bench_record r0;
     assert_int_equal(sl_bench_get_record(b, 0, 1, &r0, &err), SL_OK);
-    snprintf(want, sizeof want, "\"pixel_queries\":%llu,\"query_stalls\":%llu}",
-             (unsigned long long)r0.stats.pixel_queries, (unsigned long long)r0.stats.query_stalls);
+    snprintf(want, sizeof want, "\"pixel_queries\":%llu,\"query_stalls\":%llu,\"query_wait_ms\":%.6f}",
+             (unsigned long long)r0.stats.pixel_queries, (unsigned long long)r0.stats.query_stalls,
+             r0.stats.query_wait_ms);
     assert_non_null(strstr(text, want));
     free(text);
     snprintf(path, sizeof path, "%s/summary.md", dir);
     assert_int_equal(sl_bench_write_summary(&b, 1, path, &err), SL_OK);
     text = read_text(path, NULL);
-    snprintf(want, sizeof want, "Occlusion queries per frame (mean): hoq %.1f queries (%.1f stalls).", queries / 2.0,
+    snprintf(want, sizeof want, "Occlusion queries per frame (mean): gl-stopwait %.1f queries (%.1f stalls, ", queries / 2.0,
              stalls / 2.0);
     assert_non_null(strstr(text, want));
     assert_null(strstr(text, ": vfc ")); /* no queries, no entry */
@@ -384,7 +391,8 @@ static void test_reports(void **state)
     char *text = read_text(path, NULL);
     assert_int_equal(count_lines(text), 1 + 3 + 2);
     assert_true(!strncmp(text, "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,", 77));
-    assert_true(strstr(text, ",missed,skipped,query_stalls\n") == strchr(text, '\n') - 28); /* camera frames: no view columns */
+    /* camera frames: no view columns */
+    assert_true(strstr(text, ",missed,skipped,query_stalls,query_wait_ms\n") == strchr(text, '\n') - 42);
     char row[128];
     snprintf(row, sizeof row, ",broken,conservative,1.000000,1.000000,2,14,3,26,1,");
     assert_non_null(strstr(text, row));
@@ -632,6 +640,10 @@ static void test_run_view(void **state)
         assert_int_equal(sl_bench_run_frame(a, &cam, &err), SL_OK);
         assert_int_equal(sl_bench_run_view(b, &v, &err), SL_OK);
         for (uint32_t m = 0; m < nm; m++) {
+            /* chc and chc++ start from the last frame's classification, and b culls other views in
+             * between: their sets depend on that history (never a miss: the violations below) */
+            if (!strcmp(specs[m].name, "chc") || !strcmp(specs[m].name, "chc++"))
+                continue;
             sl_bench_record ra, rb;
             assert_int_equal(sl_bench_get_record(a, f, m, &ra, &err), SL_OK);
             assert_int_equal(sl_bench_get_record(b, 2 * f, m, &rb, &err), SL_OK); /* b: camera, engine, ... */
@@ -656,11 +668,11 @@ static void test_run_view(void **state)
     snprintf(path, sizeof path, "%s/frames.csv", dir);
     assert_int_equal(sl_bench_write_csv(&a, 1, path, &err), SL_OK);
     char *cams = read_text(path, NULL);
-    assert_non_null(strstr(cams, ",missed,skipped,query_stalls\n"));
+    assert_non_null(strstr(cams, ",missed,skipped,query_stalls,query_wait_ms\n"));
     assert_null(strstr(cams, "mirrored"));
     assert_int_equal(sl_bench_write_csv(both, 2, path, &err), SL_OK);
     char *mixed = read_text(path, NULL);
-    assert_non_null(strstr(mixed, ",missed,skipped,query_stalls,view,clip_depth,projection,near,far,rect_left,rect_right,rect_bottom,"
+    assert_non_null(strstr(mixed, ",missed,skipped,query_stalls,query_wait_ms,view,clip_depth,projection,near,far,rect_left,rect_right,rect_bottom,"
                                   "rect_top,forward_x,forward_y,forward_z,up_x,up_y,up_z,width,height,mirrored\n"));
     assert_non_null(strstr(mixed, ",camera,gl,perspective,"));
     assert_non_null(strstr(mixed, ",matrices,reversed,perspective,"));

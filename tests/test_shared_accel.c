@@ -30,7 +30,7 @@ static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 
 /* vfc, the occlusion framework's BVH walkers, hoq, and two methods without an object BVH (they
  * ignore the handle) */
-static const char *const g_methods[] = {"vfc", "hzb", "hom", "lazygrid", "frusta", "hoq", "cullmap", "horizon"};
+static const char *const g_methods[] = {"vfc", "hzb", "hom", "lazygrid", "frusta", "gl-stopwait", "cullmap", "horizon"};
 #define NM (sizeof g_methods / sizeof g_methods[0])
 
 typedef struct shared_job {
@@ -157,7 +157,7 @@ static void test_memory_one_tree(void **state)
     sl_bvh_get_stats(sl_scene_accel_bvh(accel), &bs);
     assert_true(ac.live >= bs.memory_bytes / 2);
     sl_culler_params params = {NULL, accel};
-    const char *methods[] = {"vfc", "hzb", "hoq"};
+    const char *methods[] = {"vfc", "hzb", "gl-stopwait"};
     const uint32_t N = 8;
     for (size_t m = 0; m < SL_COUNTOF(methods); m++) {
         sl_test_counter priv = {0, 0, 0}, shared = {0, 0, 0};

@@ -408,7 +408,7 @@ static const struct {
     {"vfc", NULL},       {"cullmap", NULL},          {"horizon", NULL},  {"dhorizon", NULL},
     {"hzb", NULL},       {"hzb", "res=culling"},     {"lazygrid", NULL}, {"lazygrid", "res=culling"},
     {"lazygrid-z", NULL}, {"busygrid", NULL},        {"hom", NULL},      {"hom", "res=culling"},
-    {"frusta", NULL},    {"frusta", "all_objects=true"}, {"cplp", NULL}, {"hoq", NULL},
+    {"frusta", NULL},    {"frusta", "all_objects=true"}, {"cplp", NULL}, {"gl-stopwait", NULL},
     {"pvs", NULL}, /* options: the file of a bake (maps only; skipped without) */
 };
 #define NM SL_COUNTOF(g_methods)

@@ -113,7 +113,7 @@ SL_API uint32_t sl_bvh_query_ray(sl_bvh bvh, sl_vec3 origin, sl_vec3 dir, float 
  * sl_scene_accel holds a scene's object BVH once, for every culler created with it (cull.h,
  * sl_culler_create_with): a server with one culler per client keeps one tree, not one per client.
  * The methods that walk an object BVH (vfc and the occlusion framework's hzb, hom, frusta, lazygrid,
- * lazygrid_z, busygrid, and hoq) use the handle's tree instead of building their own; their
+ * lazygrid_z, busygrid, and gl-stopwait, chc, chc++) use the handle's tree instead of building their own; their
  * leaf_size option must equal the handle's (else creation fails naming both); the other methods keep
  * no object BVH and ignore the handle.
  *

@@ -99,6 +99,17 @@ SL_API sl_status sl_draw_backend_check(const sl_draw_backend *backend, sl_error 
  * yet, counts a stall and makes it ready. The result is computed when the query ends (against the
  * depth at that moment, as a GPU would), only its availability is delayed.
  *
+ * The simulated clock (the time fields of the options; all 0: off, and the above is all). A
+ * deterministic model of a GPU that runs in step with the calls: each draw_objects call and each
+ * query adds ns_per_call, each triangle drawn or queried (a box: 12) ns_per_triangle, each fragment
+ * that passes (written by a draw, counted by a query) ns_per_fragment to the clock; frame k begins
+ * at max(clock, k * frame_ns). A query ended at clock t is ready for poll once the clock reaches
+ * t + query_latency_ns (and the frame rule above holds). poll costs nothing; a wait on a result that
+ * is not ready moves the clock to its ready time: a stall, and the time moved is wait time
+ * (sl_draw_backend_cpu_stats.wait_ns). So the sets and every counter are the same run to run, and
+ * a culler that waits at once (stop and wait) pays the latency per query, one that keeps drawing
+ * while queries are in flight (CHC) finds them ready.
+ *
  * Thread safety: one thread at a time per backend (any call, the table's callbacks included);
  * distinct CPU backends on one scene run in parallel while the scene does not change. */
 
@@ -106,7 +117,18 @@ typedef struct sl_draw_backend_cpu_t *sl_draw_backend_cpu;
 
 typedef struct sl_draw_backend_cpu_options {
     uint32_t latency_frames; /* frames until a query's result is ready for poll; 0: at once; at most 64 */
+    /* The simulated clock (above), in simulated nanoseconds; each finite, 0..1e12; all 0: off.
+     * Appended (issue 15): a zeroed struct keeps the behaviour before it. */
+    double ns_per_call;      /* a draw_objects call, a query (begin_query..end_query) */
+    double ns_per_triangle;  /* a triangle drawn or queried (a box: 12) */
+    double ns_per_fragment;  /* a fragment that passes: written by a draw, counted by a query */
+    double query_latency_ns; /* from a query's end until its result is ready for poll */
+    double frame_ns;         /* frame k begins no earlier than k * frame_ns */
 } sl_draw_backend_cpu_options;
+
+/* The clock of sl_culler's query methods' own CPU backends (docs/query-culling.md): 2 us a call,
+ * 2 ns a triangle, 0.05 ns a fragment, a 20 us query latency, 33.3 ms frames (30 fps). */
+SL_API sl_draw_backend_cpu_options sl_draw_backend_cpu_clock_default(void);
 
 /* Counters since creation or the last reset. */
 typedef struct sl_draw_backend_cpu_stats {
@@ -121,6 +143,10 @@ typedef struct sl_draw_backend_cpu_stats {
     uint64_t samples_passed;  /* sum of the query results */
     uint64_t polls, polls_not_ready;
     uint64_t waits, stalls;   /* wait calls; those that found the result not ready */
+    /* the simulated clock (appended, issue 15; 0 with the clock off) */
+    double clock_ns;          /* the clock now (not reset by reset_stats) */
+    double busy_ns;           /* time added by draws and queries */
+    double wait_ns;           /* time added by waits on results not ready (stalls) */
 } sl_draw_backend_cpu_stats;
 
 /* Create a CPU backend for a scene (which must outlive it and keep its objects). options and alloc
@@ -131,6 +157,9 @@ SL_API sl_status sl_draw_backend_cpu_create(sl_scene scene, const sl_draw_backen
 SL_API void sl_draw_backend_cpu_destroy(sl_draw_backend_cpu cpu);
 /* The table to create a culler with (user = cpu); valid while cpu lives. */
 SL_API sl_draw_backend sl_draw_backend_cpu_table(sl_draw_backend_cpu cpu);
+/* The CPU backend behind a table made by sl_draw_backend_cpu_table, NULL for any other table (so
+ * that a culler reads its simulated clock). */
+SL_API sl_draw_backend_cpu sl_draw_backend_cpu_of(const sl_draw_backend *table);
 /* Counters; reset sets them to zero. */
 SL_API void sl_draw_backend_cpu_get_stats(sl_draw_backend_cpu cpu, sl_draw_backend_cpu_stats *out);
 SL_API void sl_draw_backend_cpu_reset_stats(sl_draw_backend_cpu cpu);

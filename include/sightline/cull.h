@@ -82,6 +82,9 @@ typedef struct sl_cull_stats {
     uint64_t query_stalls;      /* query results waited for before they were ready (a draw backend's
                                    latency; see backend.h). Appended (docs/versions.md: fields are
                                    added at the end) */
+    double query_wait_ms;       /* time this frame spent waiting for query results: simulated ms
+                                   of a CPU backend's clock (backend.h), else wall ms inside
+                                   wait_query (the query cullers; appended, issue 15) */
 } sl_cull_stats;
 
 /* A registered method. Strings are static. */
@@ -112,7 +115,7 @@ SL_API sl_status sl_culler_create(const char *method, sl_scene scene, const char
 /* What a culler may be created with besides its options (sl_culler_create_with). A zeroed struct
  * (or NULL) is what sl_culler_create uses. */
 typedef struct sl_culler_params {
-    /* A draw backend (backend.h) for the methods that draw (hoq); copied at creation, its user
+    /* A draw backend (backend.h) for the methods that draw (gl-stopwait, chc, chc++); copied at creation, its user
      * pointer must stay valid while the culler lives. NULL: such a method uses a CPU reference
      * backend of its own (sl_draw_backend_cpu). A method that draws nothing refuses a backend
      * (SL_ERROR_INVALID_ARGUMENT naming the method). */

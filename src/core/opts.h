@@ -28,12 +28,13 @@ typedef struct sl_opts {
  * repeat. */
 sl_status sl_opts_parse(sl_opts *o, const char *method, const char *options, sl_error *err);
 
-/* Typed getters: *out receives the value given for `key`, or `def` when the key is absent. A
+/* Typed getters (float and bool exported: the render layer's gpu-hiz, libsightline_render, reads its
+ * options with them): *out receives the value given for `key`, or `def` when the key is absent. A
  * malformed or out-of-range value fails with SL_ERROR_INVALID_ARGUMENT naming the key. */
 sl_status sl_opts_u32(sl_opts *o, const char *key, uint32_t def, uint32_t min, uint32_t max, uint32_t *out, sl_error *err);
-sl_status sl_opts_float(sl_opts *o, const char *key, float def, float min, float max, float *out, sl_error *err);
+SL_API sl_status sl_opts_float(sl_opts *o, const char *key, float def, float min, float max, float *out, sl_error *err);
 /* true/false, 1/0, yes/no, on/off (any case). */
-sl_status sl_opts_bool(sl_opts *o, const char *key, bool def, bool *out, sl_error *err);
+SL_API sl_status sl_opts_bool(sl_opts *o, const char *key, bool def, bool *out, sl_error *err);
 /* One of names[0..count-1] (exact match); *out is its index. */
 sl_status sl_opts_enum(sl_opts *o, const char *key, const char *const *names, uint32_t count, uint32_t def,
                        uint32_t *out, sl_error *err);

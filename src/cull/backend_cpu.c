@@ -23,6 +23,8 @@ typedef struct query_slot {
     uint8_t state;
     uint64_t samples;
     uint64_t ready_frame; /* first frame its result is ready for poll */
+    double ready_ns;      /* the simulated clock from which it is ready */
+    uint64_t triangles;   /* its triangles so far (the clock) */
     bool forced;          /* made ready by a wait */
 } query_slot;
 
@@ -30,6 +32,9 @@ struct sl_draw_backend_cpu_t {
     sl_allocator alloc;
     sl_scene scene;
     uint32_t latency;
+    sl_draw_backend_cpu_options clock; /* the time model (its latency_frames unused) */
+    bool clocked;             /* any time field non-zero */
+    double now;               /* the simulated clock, ns */
     uint32_t width, height;   /* of the buffers */
     float *depth;
     uint32_t *ids;
@@ -118,6 +123,8 @@ static sl_status cpu_begin_frame(void *user, const float world_to_clip[16], uint
     for (int i = 0; i < 16; i++)
         b->vp[i] = (double)world_to_clip[i]; /* as the oracle converts its float matrix */
     b->frame = b->frames_begun++;
+    if (b->clocked)
+        b->now = fmax(b->now, (double)b->frame * b->clock.frame_ns);
     b->in_frame = true;
     b->stats.frames++;
     return SL_OK;
@@ -170,6 +177,13 @@ static sl_status check_ids(const struct sl_draw_backend_cpu_t *b, const uint32_t
     return SL_OK;
 }
 
+/* The clock: work of the simulated GPU. */
+static void advance(struct sl_draw_backend_cpu_t *b, double ns)
+{
+    b->now += ns;
+    b->stats.busy_ns += ns;
+}
+
 static sl_status cpu_draw_objects(void *user, const uint32_t *ids, uint32_t count, sl_error *err)
 {
     struct sl_draw_backend_cpu_t *b = user;
@@ -188,6 +202,13 @@ static sl_status cpu_draw_objects(void *user, const uint32_t *ids, uint32_t coun
         b->slots[b->open - 1].samples += passed;
     b->stats.draw_calls++;
     b->stats.objects_drawn += count;
+    if (b->clocked) {
+        uint64_t tris = 0;
+        for (uint32_t i = 0; i < count; i++)
+            tris += sl_scene_meshes(s)[sl_scene_objects(s)[ids[i]].mesh].triangle_count;
+        advance(b, b->clock.ns_per_call + (double)tris * b->clock.ns_per_triangle +
+                       (double)passed * b->clock.ns_per_fragment);
+    }
     return SL_OK;
 }
 
@@ -254,6 +275,7 @@ static sl_status cpu_begin_query(void *user, sl_draw_query q, sl_error *err)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "cpu backend: begin_query: %u is not a query object", q);
     s->state = Q_OPEN;
     s->samples = 0;
+    s->triangles = 0;
     s->forced = false;
     b->open = q;
     b->stats.queries++;
@@ -290,6 +312,7 @@ static sl_status cpu_query_boxes(void *user, const sl_aabb *boxes, uint32_t coun
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "cpu backend: query box %u is empty or not finite", i);
         b->stats.query_boxes++;
         b->stats.query_triangles += 12;
+        b->slots[b->open - 1].triangles += 12;
         if (!sl_refrast_box_visible(b->vp, x, b->width, b->height))
             continue; /* covers no pixel centre */
         float pos[24];
@@ -317,7 +340,9 @@ static sl_status cpu_query_objects(void *user, const uint32_t *ids, uint32_t cou
     uint64_t passed = 0;
     for (uint32_t i = 0; i < count; i++) {
         passed += object_fragments(b, ids[i], true);
-        b->stats.query_triangles += sl_scene_meshes(s)[sl_scene_objects(s)[ids[i]].mesh].triangle_count;
+        uint32_t tris = sl_scene_meshes(s)[sl_scene_objects(s)[ids[i]].mesh].triangle_count;
+        b->stats.query_triangles += tris;
+        b->slots[b->open - 1].triangles += tris;
     }
     b->stats.query_objects += count;
     b->slots[b->open - 1].samples += passed;
@@ -333,6 +358,10 @@ static sl_status cpu_end_query(void *user, sl_error *err)
     query_slot *s = &b->slots[b->open - 1];
     s->state = Q_DONE;
     s->ready_frame = b->frame + b->latency;
+    if (b->clocked) /* (draws inside the query were charged by draw_objects) */
+        advance(b, b->clock.ns_per_call + (double)s->triangles * b->clock.ns_per_triangle +
+                       (double)s->samples * b->clock.ns_per_fragment);
+    s->ready_ns = b->now + b->clock.query_latency_ns;
     b->stats.samples_passed += s->samples;
     b->open = 0;
     return SL_OK;
@@ -361,7 +390,7 @@ static sl_status cpu_poll_query(void *user, sl_draw_query q, bool *ready, uint64
     if (st != SL_OK)
         return st;
     b->stats.polls++;
-    *ready = s->forced || b->frame >= s->ready_frame;
+    *ready = s->forced || (b->frame >= s->ready_frame && b->now >= s->ready_ns);
     *samples = *ready ? s->samples : 0;
     if (!*ready)
         b->stats.polls_not_ready++;
@@ -378,9 +407,13 @@ static sl_status cpu_wait_query(void *user, sl_draw_query q, uint64_t *samples, 
     if (st != SL_OK)
         return st;
     b->stats.waits++;
-    if (!s->forced && b->frame < s->ready_frame) {
+    if (!s->forced && (b->frame < s->ready_frame || b->now < s->ready_ns)) {
         b->stats.stalls++;
         s->forced = true;
+        if (b->clocked && b->now < s->ready_ns) { /* the clock waits for it */
+            b->stats.wait_ns += s->ready_ns - b->now;
+            b->now = s->ready_ns;
+        }
     }
     *samples = s->samples;
     return SL_OK;
@@ -412,6 +445,23 @@ sl_status sl_draw_backend_cpu_create(sl_scene scene, const sl_draw_backend_cpu_o
     if (latency > MAX_LATENCY)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "cpu backend: latency_frames %u is above %u", latency,
                        MAX_LATENCY);
+    sl_draw_backend_cpu_options clock;
+    memset(&clock, 0, sizeof clock);
+    if (options)
+        clock = *options;
+    const struct {
+        const char *name;
+        double v;
+    } times[] = {{"ns_per_call", clock.ns_per_call},           {"ns_per_triangle", clock.ns_per_triangle},
+                 {"ns_per_fragment", clock.ns_per_fragment},   {"query_latency_ns", clock.query_latency_ns},
+                 {"frame_ns", clock.frame_ns}};
+    bool clocked = false;
+    for (size_t i = 0; i < SL_COUNTOF(times); i++) {
+        if (!(times[i].v >= 0 && times[i].v <= 1e12))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "cpu backend: %s %g is not in 0..1e12 ns", times[i].name,
+                           times[i].v);
+        clocked |= times[i].v > 0;
+    }
     alloc = sl_alloc_or_default(alloc);
     struct sl_draw_backend_cpu_t *b = sl_calloc(alloc, 1, sizeof *b);
     if (!b)
@@ -419,6 +469,8 @@ sl_status sl_draw_backend_cpu_create(sl_scene scene, const sl_draw_backend_cpu_o
     b->alloc = *alloc;
     b->scene = scene;
     b->latency = latency;
+    b->clock = clock;
+    b->clocked = clocked;
     /* scratch for the largest mesh (and a box), so that drawing allocates nothing */
     const struct sl_scene_t *s = scene;
     uint32_t nm = sl_scene_mesh_count(scene), maxv = 8;
@@ -465,14 +517,33 @@ sl_draw_backend sl_draw_backend_cpu_table(sl_draw_backend_cpu b)
     return t;
 }
 
+sl_draw_backend_cpu sl_draw_backend_cpu_of(const sl_draw_backend *t)
+{
+    return t && t->begin_frame == cpu_begin_frame && t->poll_query == cpu_poll_query ? t->user : NULL;
+}
+
+sl_draw_backend_cpu_options sl_draw_backend_cpu_clock_default(void)
+{
+    sl_draw_backend_cpu_options o;
+    memset(&o, 0, sizeof o);
+    o.ns_per_call = 2000;
+    o.ns_per_triangle = 2;
+    o.ns_per_fragment = 0.05;
+    o.query_latency_ns = 20000;
+    o.frame_ns = 1e9 / 30;
+    return o;
+}
+
 void sl_draw_backend_cpu_get_stats(sl_draw_backend_cpu b, sl_draw_backend_cpu_stats *out)
 {
     if (!out)
         return;
-    if (!b)
+    if (!b) {
         memset(out, 0, sizeof *out);
-    else
+    } else {
         *out = b->stats;
+        out->clock_ns = b->now;
+    }
 }
 
 void sl_draw_backend_cpu_reset_stats(sl_draw_backend_cpu b)

@@ -253,11 +253,25 @@ sl_status sl_culler_create_with(const char *method, sl_scene scene, const char *
     sl_status st = sl_cull_method_find(method, &index, err);
     if (st != SL_OK)
         return st;
-    const sl_cull_method *m = sl_cull_registry_get(index);
+    return sl_culler_create_from_method(sl_cull_registry_get(index), scene, options, params, alloc, out, err);
+}
+
+sl_status sl_culler_create_from_method(const sl_cull_method *m, sl_scene scene, const char *options,
+                                       const sl_culler_params *params, const sl_allocator *alloc, sl_culler *out,
+                                       sl_error *err)
+{
+    if (!out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: out is NULL");
+    *out = NULL;
+    if (!scene || !m)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_culler_create: scene or method is NULL");
+    sl_status st = SL_OK;
     if (params && params->backend) {
         if (!m->draws)
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                           "%s: this method draws nothing and takes no draw backend (methods that draw: hoq)", m->name);
+                           "%s: this method draws nothing and takes no draw backend (methods that draw: gl-stopwait, chc, "
+                           "chc++)",
+                           m->name);
         if ((st = sl_draw_backend_check(params->backend, err)) != SL_OK) {
             sl_error_prefix(err, "%s", m->name);
             return st;

@@ -75,6 +75,15 @@ typedef struct sl_cull_method {
 uint32_t sl_cull_registry_count(void);
 const sl_cull_method *sl_cull_registry_get(uint32_t index);
 
+/* The registry hook for methods defined above this layer (the render layer's GL-only "gpu-hiz"):
+ * sl_culler_create_with for a method table that is not in the registry (the caller keeps it
+ * alive, e.g. a const table of its own), with every check and the bookkeeping of a registered
+ * method. The cull layer never includes the caller's headers: the table is all it sees. Exported
+ * (SL_API) for libsightline_render, though not in a public header. */
+SL_API sl_status sl_culler_create_from_method(const sl_cull_method *method, sl_scene scene, const char *options,
+                                       const sl_culler_params *params, const sl_allocator *alloc, sl_culler *out,
+                                       sl_error *err);
+
 /* ---- helpers for methods ---- */
 
 /* Milliseconds between two sl_now() readings. */

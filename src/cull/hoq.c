@@ -1,4 +1,5 @@
-/* hoq: hierarchical occlusion queries through a draw backend (backend.h), stop and wait.
+/* gl-stopwait (called hoq before issue 15): hierarchical occlusion queries through a draw backend
+ * (backend.h), stop and wait: the baseline of the query cullers (chc, chc++: chc.c).
  *
  * The object BVH is walked front to back (sl_bvh_traverse). A node in the frustum is tested by an
  * occlusion query over its box, grown by a margin (below), against what has been drawn so far: the
@@ -40,7 +41,7 @@
 
 typedef struct hoq_config {
     uint32_t leaf_size;
-    uint32_t latency;
+    sl_qc_backend_opts backend;
     bool object_queries;
     bool node_queries;
     float margin;   /* pixels */
@@ -52,8 +53,7 @@ typedef struct hoq_state {
     hoq_config cfg;
     sl_bvh bvh;
     bool bvh_owned;
-    sl_draw_backend be;
-    sl_draw_backend_cpu cpu;   /* the backend of its own, or NULL */
+    sl_qc_backend qb;          /* the backend (given, or its own) */
     sl_draw_query query;
     uint32_t object_count;
     uint32_t *sort_scratch;
@@ -77,9 +77,7 @@ static const char g_help[] =
     "object_queries=BOOL (default true): query each object of a visible leaf by its own triangles before drawing it\n"
     "node_queries=BOOL (default true): query BVH nodes by their grown boxes (false: only the objects, every answer exact)\n"
     "margin=0.0625..4 (default 0.0625): pixels each queried node box grows by, at its farthest corner (before its "
-    "reach toward the eye)\n"
-    "latency=0..64 (default 0): frames until a query result is ready, of the CPU backend it makes when "
-    "given none (a wait before that is a stall)\n";
+    "reach toward the eye)\n" SL_QC_BACKEND_HELP;
 
 static sl_status hoq_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
@@ -91,7 +89,7 @@ static sl_status hoq_configure(sl_opts *o, void *config, sl_cull_guarantee *g, s
         (st = sl_opts_bool(o, "object_queries", true, &c->object_queries, err)) != SL_OK ||
         (st = sl_opts_bool(o, "node_queries", true, &c->node_queries, err)) != SL_OK ||
         (st = sl_opts_float(o, "margin", 0.0625f, 0.0625f, 4.0f, &c->margin, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "latency", 0, 0, 64, &c->latency, err)) != SL_OK)
+        (st = sl_qc_backend_configure(o, &c->backend, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -101,9 +99,9 @@ static void hoq_destroy(void *state)
     hoq_state *s = state;
     if (!s)
         return;
-    if (s->query && s->be.destroy_queries)
-        s->be.destroy_queries(s->be.user, &s->query, 1);
-    sl_draw_backend_cpu_destroy(s->cpu);
+    if (s->query && s->qb.be.destroy_queries)
+        s->qb.be.destroy_queries(s->qb.be.user, &s->query, 1);
+    sl_qc_backend_close(&s->qb);
     if (s->bvh_owned)
         sl_bvh_destroy(s->bvh);
     sl_free(&s->alloc, s->sort_scratch, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
@@ -115,28 +113,15 @@ static sl_status hoq_create(sl_scene scene, const void *config, const sl_cull_ex
 {
     hoq_state *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "hoq: out of memory");
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "gl-stopwait: out of memory");
     s->alloc = *alloc;
     s->scene = scene;
     s->cfg = *(const hoq_config *)config;
     s->object_count = sl_scene_object_count(scene);
     sl_status st = sl_cull_object_bvh(scene, extras, s->cfg.leaf_size, alloc, &s->bvh, &s->bvh_owned, err);
-    if (st == SL_OK) {
-        if (extras && extras->backend) {
-            if (s->cfg.latency)
-                st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                             "latency=%u is for the CPU backend made without a backend; the given backend has its own",
-                             s->cfg.latency);
-            else
-                s->be = *extras->backend;
-        } else {
-            sl_draw_backend_cpu_options co = {s->cfg.latency};
-            st = sl_draw_backend_cpu_create(scene, &co, alloc, &s->cpu, err);
-            if (st == SL_OK)
-                s->be = sl_draw_backend_cpu_table(s->cpu);
-        }
-    }
-    if (st == SL_OK && (st = s->be.create_queries(s->be.user, 1, &s->query, err)) != SL_OK)
+    if (st == SL_OK)
+        st = sl_qc_backend_open(&s->qb, scene, &s->cfg.backend, extras, alloc, err);
+    if (st == SL_OK && (st = s->qb.be.create_queries(s->qb.be.user, 1, &s->query, err)) != SL_OK)
         s->query = 0;
     if (st == SL_OK) {
         s->sort_scratch = sl_alloc(alloc, (size_t)(s->object_count ? s->object_count : 1) * sizeof(uint32_t));
@@ -144,7 +129,7 @@ static sl_status hoq_create(sl_scene scene, const void *config, const sl_cull_ex
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "out of memory for %u objects", s->object_count);
     }
     if (st != SL_OK) {
-        sl_error_prefix(err, "hoq");
+        sl_error_prefix(err, "gl-stopwait");
         hoq_destroy(s);
         return st;
     }
@@ -161,7 +146,7 @@ static sl_status hoq_scene_changed(void *state, sl_error *err)
     if (st == SL_OK)
         st = sl_bvh_rebuild_if_degraded(s->bvh, s->scene, 0, NULL, err);
     if (st != SL_OK)
-        sl_error_prefix(err, "hoq");
+        sl_error_prefix(err, "gl-stopwait");
     return st;
 }
 
@@ -271,7 +256,7 @@ static bool query_visible(frame_ctx *f, const sl_aabb *box, const uint32_t *obje
     if (!f->drawn_any)
         return true; /* nothing drawn: anything on screen passes wherever it covers a centre */
     hoq_state *s = f->s;
-    const sl_draw_backend *be = &s->be;
+    const sl_draw_backend *be = &s->qb.be;
     sl_error *err = f->err;
     f->stats->occlusion_tests++;
     f->stats->queries++;
@@ -289,7 +274,7 @@ static bool query_visible(frame_ctx *f, const sl_aabb *box, const uint32_t *obje
         st = be->poll_query(be->user, s->query, &ready, &samples, err);
     if (st == SL_OK && !ready) {
         f->stats->query_stalls++;
-        st = be->wait_query(be->user, s->query, &samples, err);
+        st = sl_qc_wait(&s->qb, s->query, &samples, err);
     }
     if (st != SL_OK) {
         f->st = st;
@@ -322,7 +307,7 @@ static bool object_fn(void *user, uint32_t object, const sl_aabb *bounds)
         return true;
     if (f->s->cfg.object_queries && !query_visible(f, bounds, &object))
         return f->st == SL_OK;
-    const sl_draw_backend *be = &f->s->be;
+    const sl_draw_backend *be = &f->s->qb.be;
     sl_status st = be->draw_objects(be->user, &object, 1, f->err);
     if (st != SL_OK) {
         f->st = st;
@@ -352,7 +337,8 @@ static sl_status hoq_cull(void *state, const sl_view *view, uint32_t *out, uint3
                     s->cfg.margin);
 
     double t0 = sl_now();
-    const sl_draw_backend *be = &s->be;
+    sl_qc_frame_start(&s->qb);
+    const sl_draw_backend *be = &s->qb.be;
     sl_status st = be->begin_frame(be->user, vpf.m, width, height, err);
     if (st == SL_OK) {
         sl_bvh_traverse(s->bvh, (sl_vec3){f.view.eye[0], f.view.eye[1], f.view.eye[2]}, node_fn, object_fn, &f);
@@ -364,20 +350,22 @@ static sl_status hoq_cull(void *state, const sl_view *view, uint32_t *out, uint3
             st = st2;
     }
     if (st != SL_OK) {
-        sl_error_prefix(err, "hoq");
+        sl_error_prefix(err, "gl-stopwait");
         return st;
     }
     double t1 = sl_now();
     sl_cull_sort_ids(out, f.count, s->sort_scratch);
     sl_cull_phase(stats, "traverse+draw", sl_cull_ms(t0, t1));
+    stats->query_wait_ms = sl_qc_wait_ms(&s->qb);
     *count = f.count;
     return SL_OK;
 }
 
-const sl_cull_method sl_cull_method_hoq = {
-    .name = "hoq",
-    .summary = "hierarchical occlusion queries over the object BVH, front to back, stop and wait, through a draw "
-               "backend (its own CPU reference backend when given none; Bittner et al. 2004, section 3)",
+const sl_cull_method sl_cull_method_stopwait = {
+    .name = "gl-stopwait",
+    .summary = "hierarchical stop-and-wait occlusion queries over the object BVH, front to back, through a draw "
+               "backend (its own CPU reference backend with a simulated clock when given none; the baseline of "
+               "Bittner et al. 2004, section 3; called hoq before issue 15)",
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE_AT_RESOLUTION,
     .config_size = sizeof(hoq_config),
@@ -389,3 +377,81 @@ const sl_cull_method sl_cull_method_hoq = {
     .scene_changed = hoq_scene_changed,
     .destroy = hoq_destroy,
 };
+
+/* ---- what the query cullers share ---- */
+
+sl_status sl_qc_backend_configure(sl_opts *o, sl_qc_backend_opts *c, sl_error *err)
+{
+    sl_status st;
+    if ((st = sl_opts_u32(o, "latency", 0, 0, 64, &c->latency, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "clock", true, &c->clock, err)) != SL_OK ||
+        (st = sl_opts_float(o, "query_latency_us", 20.0f, 0.0f, 100000.0f, &c->query_latency_us, err)) != SL_OK)
+        return st;
+    return SL_OK;
+}
+
+sl_status sl_qc_backend_open(sl_qc_backend *q, sl_scene scene, const sl_qc_backend_opts *c, const sl_cull_extras *extras,
+                             const sl_allocator *alloc, sl_error *err)
+{
+    memset(q, 0, sizeof *q);
+    if (extras && extras->backend) {
+        const char *own = c->latency ? "latency" : !c->clock ? "clock" : c->query_latency_us != 20.0f ? "query_latency_us"
+                                                                                                      : NULL;
+        if (own)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                           "%s= is for the CPU backend made without a backend; the given backend has its own", own);
+        q->be = *extras->backend;
+        q->cpu = sl_draw_backend_cpu_of(&q->be);
+        return SL_OK;
+    }
+    sl_draw_backend_cpu_options co;
+    if (c->clock) {
+        co = sl_draw_backend_cpu_clock_default();
+        co.query_latency_ns = 1000.0 * (double)c->query_latency_us;
+    } else {
+        memset(&co, 0, sizeof co);
+    }
+    co.latency_frames = c->latency;
+    sl_status st = sl_draw_backend_cpu_create(scene, &co, alloc, &q->own, err);
+    if (st != SL_OK)
+        return st;
+    q->cpu = q->own;
+    q->be = sl_draw_backend_cpu_table(q->own);
+    return SL_OK;
+}
+
+void sl_qc_backend_close(sl_qc_backend *q)
+{
+    sl_draw_backend_cpu_destroy(q->own);
+    q->own = q->cpu = NULL;
+}
+
+void sl_qc_frame_start(sl_qc_backend *q)
+{
+    q->wall_wait_ms = 0;
+    q->wait_ns0 = 0;
+    if (q->cpu) {
+        sl_draw_backend_cpu_stats st;
+        sl_draw_backend_cpu_get_stats(q->cpu, &st);
+        q->wait_ns0 = st.wait_ns;
+    }
+}
+
+double sl_qc_wait_ms(const sl_qc_backend *q)
+{
+    if (!q->cpu)
+        return q->wall_wait_ms;
+    sl_draw_backend_cpu_stats st;
+    sl_draw_backend_cpu_get_stats(q->cpu, &st);
+    return (st.wait_ns - q->wait_ns0) * 1e-6;
+}
+
+sl_status sl_qc_wait(sl_qc_backend *q, sl_draw_query query, uint64_t *samples, sl_error *err)
+{
+    if (q->cpu)
+        return q->be.wait_query(q->be.user, query, samples, err);
+    double t0 = sl_now();
+    sl_status st = q->be.wait_query(q->be.user, query, samples, err);
+    q->wall_wait_ms += sl_cull_ms(t0, sl_now());
+    return st;
+}

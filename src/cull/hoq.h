@@ -5,6 +5,8 @@
 
 #include "core/sl_core.h"
 #include "sightline/geom.h"
+#include "sightline/backend.h"
+#include "cull/culler_internal.h"
 
 /* What the query box needs of a view. */
 typedef struct sl_hoq_view {
@@ -43,5 +45,43 @@ void sl_hoq_view_set(sl_hoq_view *v, const sl_mat4 *view_proj, const sl_mat4 *pr
  * with the margin to spare (against both snappings), so its rasterized front is at least as near
  * as any fragment of b's triangles at every pixel they cover. */
 bool sl_hoq_grow_box(const sl_hoq_view *v, const sl_aabb *b, sl_aabb *g);
+
+/* ---- what the query cullers share (gl-stopwait here, chc and chc++ in chc.c) ----
+ * The backend: the one given (sl_cull_extras.backend), or a CPU reference backend of their own
+ * with `latency` frames and, with `clock` (default), the simulated clock of
+ * sl_draw_backend_cpu_clock_default with its query latency set by query_latency_us. */
+typedef struct sl_qc_backend_opts {
+    uint32_t latency;        /* frames */
+    bool clock;
+    float query_latency_us;
+} sl_qc_backend_opts;
+
+/* The options' help lines of the backend options, and their reader (configure). */
+#define SL_QC_BACKEND_HELP                                                                                            \
+    "latency=0..64 (default 0): frames until a query result is ready, of the CPU backend it makes when given none "  \
+    "(a wait before that is a stall)\n"                                                                               \
+    "clock=BOOL (default true): that backend's simulated clock (docs/query-culling.md: 2 us a call, 2 ns a "          \
+    "triangle, 0.05 ns a fragment, 30 fps frames), which makes results wait for their latency\n"                     \
+    "query_latency_us=0..100000 (default 20): the clock's query latency, simulated microseconds\n"
+sl_status sl_qc_backend_configure(sl_opts *o, sl_qc_backend_opts *c, sl_error *err);
+
+typedef struct sl_qc_backend {
+    sl_draw_backend be;
+    sl_draw_backend_cpu own;    /* the backend of its own, or NULL */
+    sl_draw_backend_cpu cpu;    /* the CPU backend behind `be` (own or given), or NULL */
+    double wait_ns0;            /* its wait time at the frame's start */
+    double wall_wait_ms;        /* wall time inside wait_query this frame (other backends) */
+} sl_qc_backend;
+
+/* Open it (a given backend with non-default backend options is refused, naming them). */
+sl_status sl_qc_backend_open(sl_qc_backend *q, sl_scene scene, const sl_qc_backend_opts *c, const sl_cull_extras *extras,
+                             const sl_allocator *alloc, sl_error *err);
+void sl_qc_backend_close(sl_qc_backend *q);
+/* Frame bracket of the wait time: start sets the counters, wait_ms reads the frame's wait (the CPU
+ * backend's simulated wait time, else the wall time inside wait_query). */
+void sl_qc_frame_start(sl_qc_backend *q);
+double sl_qc_wait_ms(const sl_qc_backend *q);
+/* wait_query, timed. */
+sl_status sl_qc_wait(sl_qc_backend *q, sl_draw_query query, uint64_t *samples, sl_error *err);
 
 #endif

@@ -17,7 +17,9 @@
     X(frusta)                   \
     X(plp)                      \
     X(cplp)                     \
-    X(hoq)
+    X(stopwait)                 \
+    X(chc)                      \
+    X(chcpp)
 
 #define SL_DECLARE_METHOD(name) extern const sl_cull_method sl_cull_method_##name;
 SL_CULL_METHODS(SL_DECLARE_METHOD)

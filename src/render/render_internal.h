@@ -224,7 +224,11 @@ struct sl_renderer_t {
     sl_render_pass frame_pass;    /* the pass of the frame's kind */
     sl_render_frame_stats frame;  /* counts accumulate here; copied out at the end */
 
-    /* overlay.c (viewer): the overlays' programs and buffers, made on first use */
+    /* the GL draw backend's objects (backend_gl.c: box program and buffers, the open query), made
+     * at its first use; sl_render_queries_release frees them in sl_renderer_destroy */
+    struct sl_render_queries *queries;
+    /* overlay.c (viewer): the overlays' programs and buffers, made on first use;
+     * sl_render_overlay_release frees them in sl_renderer_destroy */
     struct sl_render_overlay *overlay;
 };
 
@@ -255,6 +259,9 @@ sl_status sl_render_clear(sl_renderer r, sl_render_pass pass, sl_error *err);
  * framebuffer (see the header comment). */
 sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count, sl_render_pass pass,
                              sl_error *err);
+/* backend_gl.c: release the GL draw backend's objects (GL ones only when gl_current: the
+ * renderer's context is current). */
+void sl_render_queries_release(sl_renderer r, bool gl_current);
 /* materials.c: upload the scene's materials and decode their base-colour textures. */
 sl_status sl_render_upload_materials(sl_renderer r, sl_error *err);
 /* overlay.c: release the overlays' state (sl_renderer_destroy; gl: its context is current). */

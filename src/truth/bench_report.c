@@ -54,7 +54,7 @@ static const char csv_header[] =
     "scene,frame,time_s,x,y,z,yaw_deg,pitch_deg,roll_deg,method,guarantee,cull_ms,cull_ms_min,"
     "objects_drawn,triangles_drawn,visible_exact,triangles_visible,missed_objects,missed_pixels,extra_objects,"
     "overestimation,objects_in_frustum,triangles_in_frustum,covered_pixels,oracle_ms,objects_tested,nodes_visited,"
-    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped,query_stalls";
+    "occlusion_tests,queries,pixels_rasterized,pixel_queries,phases,missed,skipped,query_stalls,query_wait_ms";
 
 /* The view columns, after the others, only in a file with a frame given by matrices (so that a
  * file of camera frames keeps its columns byte for byte): the view as culled, exactly. */
@@ -106,7 +106,7 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
             if (fr->out_of_domain) {
                 /* one row for the skipped frame: where it was, no method, the reason last */
                 csv_text(&f, b->label);
-                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain,", fr->source,
+                out(&f, ",%u,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,,,,,,,,,,,,,,,,,,,,,,,,,out_of_domain,,", fr->source,
                     (double)fr->time, (double)c->position.x, (double)c->position.y, (double)c->position.z,
                     c->yaw * RAD2DEG, c->pitch * RAD2DEG, c->roll * RAD2DEG);
                 if (views)
@@ -140,7 +140,8 @@ sl_status sl_bench_write_csv(const sl_bench *benches, uint32_t count, const char
                 out(&f, ",");
                 for (uint32_t k = 0; k < r->missed_kept; k++)
                     out(&f, "%s%u:%u", k ? ";" : "", r->missed_ids[k], r->missed_pixels[k]);
-                out(&f, ",,%llu", (unsigned long long)s->query_stalls); /* skipped empty, then query_stalls */
+                /* skipped empty, then query_stalls and query_wait_ms */
+                out(&f, ",,%llu,%.6f", (unsigned long long)s->query_stalls, s->query_wait_ms);
                 if (views)
                     csv_view(&f, fr);
                 out(&f, "\n");
@@ -308,11 +309,12 @@ sl_status sl_bench_write_json(const sl_bench *benches, uint32_t count, const cha
                     (unsigned long long)fr->covered_pixels);
                 json_num(&f, fr->oracle_ms);
                 out(&f, ",\"stats\":{\"objects_tested\":%llu,\"nodes_visited\":%llu,\"occlusion_tests\":%llu,"
-                        "\"queries\":%llu,\"pixels_rasterized\":%llu,\"pixel_queries\":%llu,\"query_stalls\":%llu}",
+                        "\"queries\":%llu,\"pixels_rasterized\":%llu,\"pixel_queries\":%llu,\"query_stalls\":%llu,"
+                        "\"query_wait_ms\":%.6f}",
                     (unsigned long long)s->objects_tested, (unsigned long long)s->nodes_visited,
                     (unsigned long long)s->occlusion_tests, (unsigned long long)s->queries,
                     (unsigned long long)s->pixels_rasterized, (unsigned long long)s->pixel_queries,
-                    (unsigned long long)s->query_stalls);
+                    (unsigned long long)s->query_stalls, s->query_wait_ms);
                 out(&f, ",\"phases_ms\":{");
                 for (uint32_t p = 0; p < s->phase_count && p < SL_CULL_MAX_PHASES; p++) {
                     out(&f, "%s", p ? "," : "");
@@ -364,6 +366,7 @@ static void query_line(struct sl_bench_t *b, FILE *fp)
     bool any = false;
     for (uint32_t mi = 0; mi < b->method_count; mi++) {
         uint64_t queries = 0, stalls = 0;
+        double wait = 0;
         uint32_t frames = 0;
         for (uint32_t fi = 0; fi < b->frames.count; fi++) {
             const sl_bench_record *r = bench_rec(b, fi, mi);
@@ -372,11 +375,12 @@ static void query_line(struct sl_bench_t *b, FILE *fp)
             frames++;
             queries += r->stats.queries;
             stalls += r->stats.query_stalls;
+            wait += r->stats.query_wait_ms;
         }
         if (!queries)
             continue;
-        fprintf(fp, "%s %s %.1f queries (%.1f stalls)", any ? ";" : "Occlusion queries per frame (mean):", b->methods[mi].name,
-                (double)queries / frames, (double)stalls / frames);
+        fprintf(fp, "%s %s %.1f queries (%.1f stalls, %.3f ms wait)", any ? ";" : "Occlusion queries per frame (mean):",
+                b->methods[mi].name, (double)queries / frames, (double)stalls / frames, wait / frames);
         any = true;
     }
     if (any)

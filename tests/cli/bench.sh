@@ -207,13 +207,13 @@ has '"violations":0' "$tmp/out"
 has '"frames":1,' "$tmp/out"
 has '"name":"pvs"' "$tmp/out"
 # the reports show the view itself (docs/bench.md, "the view columns"); camera runs have none
-head -1 "$tmp/bv/frames.csv" | grep -q ',skipped,query_stalls,view,clip_depth,projection,near,far,rect_left,.*,mirrored$' ||
+head -1 "$tmp/bv/frames.csv" | grep -q ',skipped,query_stalls,query_wait_ms,view,clip_depth,projection,near,far,rect_left,.*,mirrored$' ||
     fail "frames.csv of a view from matrices: no view columns"
 grep -q ',matrices,reversed,perspective,0.100000001,inf,' "$tmp/bv/frames.csv" || fail "frames.csv: not the view given"
 grep -q '"view":{"source":"matrices","clip_depth":"reversed"' "$tmp/bv/frames.json" || fail "frames.json: no view"
 grep -q "from an engine's matrices (frame 0: reversed depth, perspective, near 0.1 m, far infinite" "$tmp/bv/summary.md" ||
     fail "summary.md: the view is not described"
-head -1 "$tmp/walk/frames.csv" | grep -q ',missed,skipped,query_stalls$' || fail "frames.csv of cameras: columns changed"
+head -1 "$tmp/walk/frames.csv" | grep -q ',missed,skipped,query_stalls,query_wait_ms$' || fail "frames.csv of cameras: columns changed"
 expect 2 "$SL" bench city:tiny --view-matrix $VM --proj-matrix $PREV --walk 5
 has "only one of" "$tmp/err"
 expect 2 "$SL" bench city:tiny --proj-matrix $PREV
