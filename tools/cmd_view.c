@@ -304,7 +304,6 @@ static void note(viewer *v, const char *fmt, ...)
 
 /* ---- cullers ---- */
 
-#ifdef SL_VIEW_RENDER_CULLERS
 static bool is_render_method(const char *name)
 {
     for (uint32_t i = 0; i < sl_render_method_count(); i++) {
@@ -314,19 +313,12 @@ static bool is_render_method(const char *name)
     }
     return false;
 }
-#else
-static bool is_render_method(const char *name) { (void)name; return false; }
-#endif
 
 /* The culler of method i (made on first use); NULL for "none". */
 static sl_status culler_of(viewer *v, uint32_t i, sl_culler *out, sl_error *err)
 {
     if (!v->made[i] && strcmp(v->methods.m[i].name, VIEW_NO_CULLING)) {
-#ifdef SL_VIEW_RENDER_CULLERS
         sl_status st = sl_renderer_create_culler(v->r, v->methods.m[i].name, v->methods.m[i].options, &v->cullers[i], err);
-#else
-        sl_status st = sl_culler_create(v->methods.m[i].name, v->scene, v->methods.m[i].options, NULL, &v->cullers[i], err);
-#endif
         if (st != SL_OK)
             return st;
     }
