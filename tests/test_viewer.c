@@ -21,7 +21,7 @@
 
 static const char *sl_bin;
 static char dir[256];
-static char xvfb[512]; /* "xvfb-run -a -s ..." */
+static const char xvfb[] = ""; /* the test runs inside xvfb-run (main): DISPLAY is Xvfb's */
 
 static char *slurp(const char *path)
 {
@@ -220,6 +220,42 @@ static void test_freeze_and_map(void **state)
     image_free(&m);
 }
 
+/* Keys (scripted with --keys, through the same handler as the window's): Tab and Shift+Tab cycle
+ * the methods, M the map, P a screenshot, R starts and stops a recording. */
+static void test_keys(void **state)
+{
+    (void)state;
+    write_file("walk.txt", path_text);
+    expect_view(0, xvfb,
+                "city:tiny --path walk.txt --frames 4 --methods vfc,cullmap,hzb --no-hud "
+                "--keys 0:tab,0:m,1:p,1:r,2:r,3:shift+tab,3:shift+tab",
+                "method cullmap");
+    char p[300];
+    snprintf(p, sizeof p, "%s/err", dir);
+    char *err = slurp(p);
+    assert_non_null(strstr(err, "saved view-0001.png"));
+    assert_non_null(strstr(err, "recorded 1 poses into view-path-0001.txt"));
+    assert_non_null(strstr(err, "method hzb")); /* cullmap, back twice: hzb */
+    free(err);
+    snprintf(p, sizeof p, "%s/out", dir);
+    char *out = slurp(p);
+    assert_non_null(strstr(out, "4 frames"));
+    assert_non_null(strstr(out, "(hzb)"));
+    free(out);
+    image m = load("view-0001.png");
+    if (count_colour(&m, 0, m.h, 0x20ff20) < 4) /* the map's eye */
+        fail_msg("the screenshot after M shows no map");
+    image_free(&m);
+    snprintf(p, sizeof p, "%s/view-path-0001.txt", dir);
+    sl_path rec;
+    sl_error e;
+    assert_int_equal(sl_path_load(p, NULL, &rec, &e), SL_OK);
+    assert_int_equal(sl_path_count(rec), 1);
+    sl_path_destroy(rec);
+    expect_view(2, "", "city:tiny --keys 1:nokey", "--keys");
+    expect_view(2, "", "city:tiny --keys x:tab", "--keys");
+}
+
 static void test_record_round_trip(void **state)
 {
     (void)state;
@@ -248,8 +284,22 @@ static void test_record_round_trip(void **state)
     free(t2);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    (void)argc, (void)argv;
+    /* one X server for the whole test: run again inside xvfb-run */
+    if (!getenv("SL_TEST_VIEWER_IN_XVFB") && system("command -v xvfb-run >/dev/null 2>&1") == 0) {
+        setenv("SL_TEST_VIEWER_IN_XVFB", "1", 1);
+        char self[4096];
+        ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+        if (n > 0) {
+            self[n] = '\0';
+            fflush(stdout);
+            execlp("xvfb-run", "xvfb-run", "-a", "-s", "-screen 0 640x480x24", self, (char *)NULL);
+            perror("xvfb-run");
+            return 1;
+        }
+    }
     sl_bin = getenv("SL_SIGHTLINE");
     if (!sl_bin) {
         printf("SL_SIGHTLINE is not set (CTest sets it to the built sightline)\n");
@@ -282,8 +332,7 @@ int main(void)
         built = !strstr(err, "built without the viewer");
         free(err);
     }
-    bool have_xvfb = system("command -v xvfb-run >/dev/null 2>&1") == 0;
-    snprintf(xvfb, sizeof xvfb, "xvfb-run -a -s '-screen 0 640x480x24'");
+    bool have_xvfb = getenv("SL_TEST_VIEWER_IN_XVFB") != NULL;
     if (!built) {
         printf("skipped: this sightline was built without the viewer (no OpenGL renderer or no libglfw3-dev)\n");
         rc = 77;
@@ -296,6 +345,7 @@ int main(void)
             cmocka_unit_test(test_no_display),
             cmocka_unit_test(test_smoke),
             cmocka_unit_test(test_freeze_and_map),
+            cmocka_unit_test(test_keys),
             cmocka_unit_test(test_record_round_trip),
         };
         rc = cmocka_run_group_tests(tests, NULL, NULL);

@@ -52,6 +52,8 @@ static void usage(FILE *out)
             "                     stops it); following --path, the recorded file is the path's poses\n"
             "  --size WxH         window size in pixels (default 1280x720)\n"
             "  --freeze-at N      freeze the culling at frame N (as Space does)\n"
+            "  --keys N:KEY,...   press KEY at frame N (scripted input): tab, shift+tab, space, m, f, r,\n"
+            "                     p, h, g, f1, plus, minus, 1..9, esc\n"
             "  --top-down         start with the top-down map\n"
             "  --ghosts MODE      frustum|all|none: which culled objects a frozen view ghosts (default frustum)\n"
             "  --fly              fly even where the scene could be walked\n"
@@ -74,7 +76,7 @@ static void usage(FILE *out)
 }
 
 typedef struct view_args {
-    const char *scene, *map, *methods, *camera, *path, *screenshot, *record, *pvs, *ghosts;
+    const char *scene, *map, *methods, *camera, *path, *screenshot, *record, *pvs, *ghosts, *keys;
     const char *mopts[VIEW_MAX_METHODS];
     uint32_t mopt_count;
     uint32_t frames, width, height, freeze_at;
@@ -114,6 +116,8 @@ static int parse(int argc, char **argv, view_args *g)
             g->screenshot = cli_value(&a, name, val);
         } else if (!strcmp(name, "record")) {
             g->record = cli_value(&a, name, val);
+        } else if (!strcmp(name, "keys")) {
+            g->keys = cli_value(&a, name, val);
         } else if (!strcmp(name, "ghosts")) {
             g->ghosts = cli_value(&a, name, val);
         } else if (!strcmp(name, "frames")) {
@@ -234,15 +238,11 @@ static const char *glfw_error_text(void)
     return code != GLFW_NO_ERROR && d ? d : "no reason given";
 }
 
-static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
+/* A key pressed (from the window, or from --keys). */
+static void press(viewer *v, int key, int mods)
 {
-    (void)scancode;
-    viewer *v = glfwGetWindowUserPointer(w);
-    if (action != GLFW_PRESS && !(action == GLFW_REPEAT && (key == GLFW_KEY_EQUAL || key == GLFW_KEY_MINUS ||
-                                                            key == GLFW_KEY_KP_ADD || key == GLFW_KEY_KP_SUBTRACT)))
-        return;
     switch (key) {
-    case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(w, GLFW_TRUE); break;
+    case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(v->win, GLFW_TRUE); break;
     case GLFW_KEY_TAB: v->method_step += (mods & GLFW_MOD_SHIFT) ? -1 : 1; break;
     case GLFW_KEY_SPACE: v->freeze_key = true; break;
     case GLFW_KEY_M: v->map_key = true; break;
@@ -262,6 +262,15 @@ static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
             v->method_pick = key - GLFW_KEY_1 + 1;
         break;
     }
+}
+
+static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
+{
+    (void)scancode;
+    viewer *v = glfwGetWindowUserPointer(w);
+    if (action == GLFW_PRESS || (action == GLFW_REPEAT && (key == GLFW_KEY_EQUAL || key == GLFW_KEY_MINUS ||
+                                                           key == GLFW_KEY_KP_ADD || key == GLFW_KEY_KP_SUBTRACT)))
+        press(v, key, mods);
 }
 
 static bool down(GLFWwindow *w, int key) { return glfwGetKey(w, key) == GLFW_PRESS; }
@@ -300,6 +309,60 @@ static void note(viewer *v, const char *fmt, ...)
     va_end(ap);
     v->message_until = tool_now() + 4;
     fprintf(stderr, "sightline view: %s\n", v->message);
+}
+
+/* ---- --keys N:KEY,... ---- */
+
+#define VIEW_MAX_KEYS 64
+typedef struct scripted_key {
+    uint32_t frame;
+    int key, mods;
+} scripted_key;
+
+static const struct {
+    const char *name;
+    int key, mods;
+} key_names[] = {{"tab", GLFW_KEY_TAB, 0}, {"shift+tab", GLFW_KEY_TAB, GLFW_MOD_SHIFT}, {"space", GLFW_KEY_SPACE, 0},
+                 {"m", GLFW_KEY_M, 0},     {"f", GLFW_KEY_F, 0},     {"r", GLFW_KEY_R, 0},
+                 {"p", GLFW_KEY_P, 0},     {"h", GLFW_KEY_H, 0},     {"g", GLFW_KEY_G, 0},
+                 {"f1", GLFW_KEY_F1, 0},   {"plus", GLFW_KEY_EQUAL, 0}, {"minus", GLFW_KEY_MINUS, 0},
+                 {"esc", GLFW_KEY_ESCAPE, 0}};
+
+/* false after a usage error */
+static bool parse_keys(const char *cmd, const char *text, scripted_key *out, uint32_t *count)
+{
+    *count = 0;
+    for (const char *p = text; p && *p;) {
+        size_t len = strcspn(p, ",");
+        char item[32];
+        if (len == 0 || len >= sizeof item || *count == VIEW_MAX_KEYS)
+            goto bad;
+        memcpy(item, p, len);
+        item[len] = '\0';
+        char *colon = strchr(item, ':'), *end;
+        if (!colon || colon == item || item[0] == '-' || item[0] == '+')
+            goto bad;
+        *colon = '\0';
+        unsigned long frame = strtoul(item, &end, 10);
+        if (*end || frame > UINT32_MAX)
+            goto bad;
+        const char *k = colon + 1;
+        int key = -1, mods = 0;
+        if (k[0] >= '1' && k[0] <= '9' && !k[1])
+            key = GLFW_KEY_1 + (k[0] - '1');
+        for (size_t i = 0; key < 0 && i < TOOL_COUNTOF(key_names); i++)
+            if (!strcmp(k, key_names[i].name))
+                key = key_names[i].key, mods = key_names[i].mods;
+        if (key < 0)
+            goto bad;
+        out[(*count)++] = (scripted_key){(uint32_t)frame, key, mods};
+        p += len + (p[len] ? 1 : 0);
+    }
+    return true;
+bad:
+    cli_error(cmd, "--keys '%s': expected N:KEY,... (at most %d; keys: tab, shift+tab, space, m, f, r, p, h, g, f1, "
+                   "plus, minus, 1..9, esc)", text, VIEW_MAX_KEYS);
+    return false;
 }
 
 /* ---- cullers ---- */
@@ -638,7 +701,7 @@ static sl_camera start_camera(sl_scene scene, const view_args *g, sl_path path)
     return cam;
 }
 
-static int run(viewer *v, const view_args *g, sl_path path)
+static int run(viewer *v, const view_args *g, sl_path path, const scripted_key *keys, uint32_t key_count)
 {
     const char *cmd = v->cmd;
     sl_error err;
@@ -685,6 +748,9 @@ static int run(viewer *v, const view_args *g, sl_path path)
             break;
         if (g->has_freeze && frame == g->freeze_at)
             v->freeze_key = true;
+        for (uint32_t k = 0; k < key_count; k++)
+            if (keys[k].frame == frame)
+                press(v, keys[k].key, keys[k].mods);
         if ((s = draw_frame(v, &view, &st, &err)) != SL_OK)
             break;
         /* keys act after the frame they were pressed in was culled (freeze keeps its set) */
@@ -766,6 +832,10 @@ int sl_cmd_view(int argc, char **argv)
             cli_error(cmd, "%s", err.message);
             return 2;
         }
+    scripted_key keys[VIEW_MAX_KEYS];
+    uint32_t key_count = 0;
+    if (g.keys && !parse_keys(cmd, g.keys, keys, &key_count))
+        return 2;
     /* the path and the scene before the window: their errors need no display */
     sl_path path = NULL;
     if (g.path && sl_path_load(g.path, NULL, &path, &err) != SL_OK)
@@ -853,7 +923,7 @@ int sl_cmd_view(int argc, char **argv)
             goto done_glfw;
         }
     }
-    rc = run(&v, &g, path);
+    rc = run(&v, &g, path, keys, key_count);
 done_glfw:
     for (uint32_t i = 0; i < v.methods.count; i++)
         sl_culler_destroy(v.cullers[i]);
