@@ -133,6 +133,25 @@ static void test_box_pixels(void **state)
     for (uint32_t y = 0; y < 48; y++)
         rows += ids[y * 64 + 32] == 0;
     assert_true(rows >= 16 && rows <= 19);
+    /* colours of the caller's, then the scene's again */
+    {
+        sl_scene s = box_scene(0xC04020FFu);
+        sl_renderer r = make_renderer(s, 64, 48, toward);
+        sl_view v = box_view(64, 48);
+        sl_error err;
+        uint32_t id = 0, green = 0x00FF00FFu;
+        assert_int_equal(sl_renderer_set_colors(r, &green, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(r, dark, &err), SL_OK);
+        c = dark + 4 * (24 * 64 + 32);
+        assert_true(c[0] < 3 && abs(c[1] - (int)lrint(255 * 0.92)) <= 2 && c[2] < 3);
+        assert_int_equal(sl_renderer_set_colors(r, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(r, dark, &err), SL_OK);
+        assert_memory_equal(dark + 4 * (24 * 64 + 32), lit + 4 * (24 * 64 + 32), 3);
+        sl_renderer_destroy(r);
+        sl_scene_destroy(s);
+    }
     /* the sun away from the face: ambient only, base * (0.22 + 0.08) */
     render_box(away, dark, ids, depth);
     c = dark + 4 * (24 * 64 + 32);
@@ -434,6 +453,169 @@ static void test_two_renderers(void **state)
     sl_scene_destroy(s);
 }
 
+/* ---- the depth pre-pass draws the same image ---- */
+
+static void test_depth_prepass(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_path p;
+    sl_error err;
+    assert_int_equal(sl_test_city_views(SL_CITY_TINY, 2, 13, 128, 96, &s, &p, &err), SL_OK);
+    sl_renderer plain = make_renderer(s, 128, 96, NULL);
+    sl_renderer_options o;
+    sl_renderer_options_default(&o);
+    o.width = 128;
+    o.height = 96;
+    o.depth_prepass = true;
+    sl_renderer pre;
+    assert_int_equal(sl_renderer_create(s, &o, NULL, &pre, &err), SL_OK);
+    uint8_t *a = malloc(128 * 96 * 4), *b = malloc(128 * 96 * 4);
+    uint32_t *ia = malloc(128 * 96 * 4), *ib = malloc(128 * 96 * 4);
+    for (uint32_t k = 0; k < sl_path_count(p); k++) {
+        sl_camera cam = sl_path_camera(p, k);
+        sl_view v;
+        assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+        sl_render_frame_stats sa, sb;
+        assert_int_equal(sl_renderer_frame(plain, NULL, &v, SL_RENDER_SHADED, NULL, NULL, &sa, &err), SL_OK);
+        assert_int_equal(sl_renderer_frame(pre, NULL, &v, SL_RENDER_SHADED, NULL, NULL, &sb, &err), SL_OK);
+        assert_int_equal(sa.objects_drawn, sb.objects_drawn);
+        assert_true(sb.draw_calls > sa.draw_calls); /* the depth pass's calls too */
+        assert_int_equal(sl_renderer_read_rgba(plain, a, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(pre, b, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_ids(plain, ia, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_ids(pre, ib, &err), SL_OK);
+        assert_memory_equal(a, b, 128 * 96 * 4);
+        assert_memory_equal(ia, ib, 128 * 96 * 4);
+    }
+    free(a);
+    free(b);
+    free(ia);
+    free(ib);
+    sl_renderer_destroy(plain);
+    sl_renderer_destroy(pre);
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
+}
+
+/* ---- present into the caller's framebuffer; a renderer on the caller's current context ---- */
+
+static void test_present_and_current_context(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0xC04020FFu);
+    sl_renderer a = make_renderer(s, 32, 24, NULL);
+    sl_view v = box_view(32, 24);
+    sl_error err;
+    uint32_t id = 0;
+    uint8_t small[32 * 24 * 4];
+    assert_int_equal(sl_renderer_draw(a, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_rgba(a, small, &err), SL_OK);
+    /* a's context is current on this thread: a framebuffer of the caller's, twice the size */
+    GLuint tex = 0, fbo = 0;
+    glCreateTextures(GL_TEXTURE_2D, 1, &tex);
+    glTextureStorage2D(tex, 1, GL_RGBA8, 64, 48);
+    glCreateFramebuffers(1, &fbo);
+    glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT0, tex, 0);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fbo);
+    assert_int_equal(sl_renderer_present(a, 64, 48, &err), SL_OK);
+    uint8_t *big = malloc(64 * 48 * 4);
+    glGetTextureImage(tex, 0, GL_RGBA, GL_UNSIGNED_BYTE, 64 * 48 * 4, big);
+    /* GL rows bottom first: the centre is the box's colour, the top row the sky's */
+    const uint8_t *c = big + 4 * (24 * 64 + 32), *want = small + 4 * (12 * 32 + 16);
+    for (int k = 0; k < 3; k++)
+        assert_true(abs(c[k] - want[k]) <= 2);
+    const uint8_t *top = big + 4 * (47 * 64 + 1), *sky = small + 4 * 0;
+    for (int k = 0; k < 3; k++)
+        assert_true(abs(top[k] - sky[k]) <= 4);
+    /* a renderer on the current context (the viewer's way): it draws, and leaves the context */
+    sl_renderer_options o;
+    sl_renderer_options_default(&o);
+    o.width = 32;
+    o.height = 24;
+    o.context = SL_GL_CONTEXT_CURRENT;
+    sl_renderer b;
+    assert_int_equal(sl_renderer_create(s, &o, NULL, &b, &err), SL_OK);
+    sl_renderer_info info;
+    sl_renderer_get_info(b, &info);
+    assert_int_equal(info.context, SL_GL_CONTEXT_CURRENT);
+    uint32_t ids[32 * 24];
+    assert_int_equal(sl_renderer_draw(b, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(b, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], 0);
+    sl_renderer_destroy(b);
+    /* a still works, and its KHR_debug callback is back: a driver message comes with its text */
+    glDeleteFramebuffers(1, &fbo);
+    glDeleteTextures(1, &tex);
+    glBindBuffer(GL_ARRAY_BUFFER, 987654u);
+    assert_int_not_equal(sl_renderer_draw(a, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    assert_non_null(strstr(err.message, "glBindBuffer"));
+    assert_int_equal(sl_renderer_draw(a, &v, &id, 1, SL_RENDER_SHADED, NULL, &err), SL_OK);
+    free(big);
+    sl_renderer_destroy(a);
+    sl_scene_destroy(s);
+}
+
+/* ---- moved objects: sl_renderer_scene_changed uploads their transforms ---- */
+
+static void test_scene_changed(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0xC04020FFu);
+    sl_renderer r = make_renderer(s, 32, 24, NULL);
+    sl_view v = box_view(32, 24);
+    sl_error err;
+    uint32_t id = 0, ids[32 * 24];
+    sl_affine moved = {{1, 0, 0, 0, 0, 1, 0, 2.5f, 0, 0, 1, 0}}; /* 2.5 m to the left (+y) */
+    assert_int_equal(sl_scene_set_object_transform(s, 0, &moved, &err), SL_OK);
+    /* not told yet: the old place */
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], 0);
+    assert_int_equal(sl_renderer_scene_changed(r, &err), SL_OK);
+    assert_int_equal(sl_renderer_draw(r, &v, &id, 1, SL_RENDER_IDS, NULL, &err), SL_OK);
+    assert_int_equal(sl_renderer_read_ids(r, ids, &err), SL_OK);
+    assert_int_equal(ids[12 * 32 + 16], SL_NONE); /* the centre is free now */
+    assert_int_equal(ids[12 * 32 + 2], 0);        /* the box is at the left */
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+}
+
+/* ---- context kinds: AUTO resolves to a device with a hardware driver or to surfaceless ---- */
+
+static void test_context_kinds(void **state)
+{
+    (void)state;
+    sl_scene s = box_scene(0xFFFFFFFFu);
+    sl_error err;
+    bool device = sl_renderer_probe(SL_GL_CONTEXT_DEVICE, &err) == SL_OK;
+    if (!device) {
+        print_message("no EGL device with a hardware driver: %s\n", err.message);
+        assert_non_null(strstr(err.message, "device platform"));
+    }
+    bool surfaceless = sl_renderer_probe(SL_GL_CONTEXT_SURFACELESS, &err) == SL_OK;
+    sl_gl_context_kind kinds[3] = {SL_GL_CONTEXT_AUTO, SL_GL_CONTEXT_DEVICE, SL_GL_CONTEXT_SURFACELESS};
+    for (int k = 0; k < 3; k++) {
+        if ((kinds[k] == SL_GL_CONTEXT_DEVICE && !device) || (kinds[k] == SL_GL_CONTEXT_SURFACELESS && !surfaceless))
+            continue;
+        sl_renderer_options o;
+        sl_renderer_options_default(&o);
+        o.width = 16;
+        o.height = 12;
+        o.context = kinds[k];
+        sl_renderer r;
+        assert_int_equal(sl_renderer_create(s, &o, NULL, &r, &err), SL_OK);
+        sl_renderer_info info;
+        sl_renderer_get_info(r, &info);
+        sl_gl_context_kind want = kinds[k] != SL_GL_CONTEXT_AUTO ? kinds[k]
+                                  : device ? SL_GL_CONTEXT_DEVICE : SL_GL_CONTEXT_SURFACELESS;
+        assert_int_equal(info.context, want);
+        print_message("context %d: %s (%s)\n", (int)kinds[k], info.renderer, info.version);
+        sl_renderer_destroy(r);
+    }
+    sl_scene_destroy(s);
+}
+
 /* ---- frames decided by a culler ---- */
 
 static void test_frame_with_culler(void **state)
@@ -494,6 +676,10 @@ int main(void)
         cmocka_unit_test(test_resize_and_png),
         cmocka_unit_test(test_facing_rule),
         cmocka_unit_test(test_two_renderers),
+        cmocka_unit_test(test_scene_changed),
+        cmocka_unit_test(test_context_kinds),
+        cmocka_unit_test(test_depth_prepass),
+        cmocka_unit_test(test_present_and_current_context),
         cmocka_unit_test(test_frame_with_culler),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -12,6 +12,9 @@
 #include "sightline/path.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
+#ifdef SL_HAVE_GL
+#include "sightline/render.h"
+#endif
 
 #include <errno.h>
 #include <math.h>
@@ -58,6 +61,61 @@ static void usage(FILE *out)
             DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, CLI_PVS_ALONG_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
 }
+
+#ifdef SL_HAVE_GL
+/* The walk frame shaded, and the same view from above with the oracle's visible set highlighted
+ * (frame-shaded.png, frame-above.png in work). Without a GL context the report says why instead. */
+static void demo_shaded(sl_scene scene, const sl_camera *cam, const uint32_t *visible, uint32_t nvisible,
+                        const char *work, const char *images[2], char *note, size_t note_size)
+{
+    static const char *files[2] = {"frame-shaded.png", "frame-above.png"};
+    sl_error err;
+    sl_renderer_options o;
+    sl_renderer_options_default(&o);
+    o.width = cam->width;
+    o.height = cam->height;
+    sl_renderer r = NULL;
+    uint32_t n = sl_scene_object_count(scene);
+    uint32_t *colors = calloc(n ? n : 1, 4);
+    char path[4400];
+    sl_view v;
+    sl_status st = colors ? sl_renderer_create(scene, &o, NULL, &r, &err)
+                          : tool_fail(&err, SL_ERROR_OUT_OF_MEMORY, "out of memory");
+    if (st == SL_OK && (st = sl_view_from_camera(cam, &v, &err)) == SL_OK &&
+        (st = sl_renderer_frame(r, NULL, &v, SL_RENDER_SHADED, NULL, NULL, NULL, &err)) == SL_OK) {
+        snprintf(path, sizeof path, "%s/%s", work, files[0]);
+        st = sl_renderer_write_png(r, path, &err);
+    }
+    if (st == SL_OK) {
+        /* from 150 m above the walker, looking down, the walker's heading up in the image */
+        sl_camera above = *cam;
+        above.position.z += 150.0f;
+        above.pitch = (float)(-89.0 * M_PI / 180.0);
+        above.roll = 0.0f;
+        above.fov_y = (float)(60.0 * M_PI / 180.0);
+        above.near_plane = 1.0f;
+        above.far_plane = 2000.0f;
+        for (uint32_t i = 0; i < n; i++)
+            colors[i] = sl_scene_object(scene, i).kind == SL_KIND_GROUND ? 0xB4B4B4FFu : 0x8C8C8CFFu;
+        for (uint32_t k = 0; k < nvisible; k++)
+            if (visible[k] < n)
+                colors[visible[k]] = sl_scene_object(scene, visible[k]).kind == SL_KIND_GROUND ? 0xF2D3A0FFu : 0xFF8C1AFFu;
+        if ((st = sl_view_from_camera(&above, &v, &err)) == SL_OK && (st = sl_renderer_set_colors(r, colors, &err)) == SL_OK &&
+            (st = sl_renderer_frame(r, NULL, &v, SL_RENDER_SHADED, NULL, NULL, NULL, &err)) == SL_OK) {
+            snprintf(path, sizeof path, "%s/%s", work, files[1]);
+            st = sl_renderer_write_png(r, path, &err);
+        }
+    }
+    if (st == SL_OK) {
+        images[0] = files[0];
+        images[1] = files[1];
+    } else {
+        snprintf(note, note_size, "No shaded frames: %s", err.message);
+    }
+    sl_renderer_destroy(r);
+    free(colors);
+}
+#endif
 
 /* ---- report writing ---- */
 
@@ -179,8 +237,9 @@ static void html_summary(report *r, sl_bench b)
 
 static void write_report_body(report *r, sl_scene scene, const char *label, sl_bench *benches, uint32_t nb,
                               const sl_bench_skip *skipped, uint32_t nskipped, const char *pvs_note,
-                              const char *frame_images[3], uint32_t frame_index, uint64_t violations,
-                              const char *preset, uint64_t seed, double seconds)
+                              const char *frame_images[3], uint32_t frame_index, const char *shaded_images[2],
+                              const char *shaded_note, uint64_t violations, const char *preset, uint64_t seed,
+                              double seconds)
 {
     char text[2048], g1[48], g2[48], g3[48];
     sl_scene_stats ss;
@@ -291,6 +350,22 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
             snprintf(text, sizeof text, "Walk frame %u: %s", frame_index, what[k]);
             put_image(r, frame_images[k], text);
         }
+
+    put_heading(r, 2, "The frame, shaded");
+    if (shaded_images[0]) {
+        snprintf(text, sizeof text,
+                 "Walk frame %u drawn by the OpenGL renderer (headless; docs/render.md), and the same view from "
+                 "above: the objects the oracle finds visible from the walker's camera in orange (ground in pale "
+                 "orange), the rest grey.",
+                 frame_index);
+        put_para(r, text);
+        snprintf(text, sizeof text, "Walk frame %u, shaded", frame_index);
+        put_image(r, shaded_images[0], text);
+        snprintf(text, sizeof text, "Walk frame %u from above: the visible set highlighted", frame_index);
+        put_image(r, shaded_images[1], text);
+    } else {
+        put_para(r, shaded_note);
+    }
 
     put_heading(r, 2, "Top-down visibility maps");
     put_para(r, "The city from above, each object coloured by what the oracle and one method say from the first "
@@ -503,6 +578,8 @@ int sl_cmd_demo(int argc, char **argv)
     /* one frame of the walk as images: the middle one */
     uint32_t frame_index = walk ? sl_path_count(walk) / 2 : 0;
     const char *frame_images[3] = {NULL, NULL, NULL};
+    const char *shaded_images[2] = {NULL, NULL};
+    char shaded_note[700] = "This sightline was built without the OpenGL renderer (docs/render.md): no shaded frames.";
     if (!status) {
         sl_oracle_options oo = sl_oracle_default_options();
         oo.count_overdraw = true;
@@ -524,6 +601,11 @@ int sl_cmd_demo(int argc, char **argv)
             if (st == SL_OK)
                 frame_images[k] = files[k];
         }
+#ifdef SL_HAVE_GL
+        if (st == SL_OK)
+            demo_shaded(scene, &c, fr.visible, fr.visible_count, work, shaded_images, shaded_note,
+                        sizeof shaded_note);
+#endif
         sl_oracle_destroy(oracle);
         if (st != SL_OK)
             status = cli_fail(cmd, &err);
@@ -555,7 +637,7 @@ int sl_cmd_demo(int argc, char **argv)
             status = cli_fail(cmd, &err);
         } else {
             write_report_body(&r, scene, label, benches, nb, skipped, nskipped, pvs_note, frame_images, frame_index,
-                              violations, sl_city_preset_name(preset), seed, tool_now() - t0);
+                              shaded_images, shaded_note, violations, sl_city_preset_name(preset), seed, tool_now() - t0);
             /* a write error makes the commit fail */
             sl_status s1 = sl_output_commit(r.md, &err);
             if (s1 != SL_OK) {

@@ -21,11 +21,10 @@
 #include <sys/stat.h>
 
 #include "sightline/urban.h"
+#include <unistd.h>
 #ifdef SL_HAVE_GL
 #include "sightline/render.h"
-#include <signal.h>
 #include <sys/wait.h>
-#include <unistd.h>
 #define SL_ORACLE_DEFAULT false /* with the renderer, `shaded` is the default kind */
 #else
 #define SL_ORACLE_DEFAULT true
@@ -97,6 +96,22 @@ static sl_status write_cullmap(render_ctx *ctx, const char *file, sl_error *err)
     return sl_cullmap_render_png_view(ctx->scene, &ctx->view, NULL, file, err);
 }
 
+/* Is `name` an executable in PATH? */
+static bool in_path(const char *name)
+{
+    const char *path = getenv("PATH");
+    char buf[4200];
+    for (const char *p = path ? path : "/usr/bin:/bin"; *p;) {
+        const char *e = strchr(p, ':');
+        size_t n = e ? (size_t)(e - p) : strlen(p);
+        snprintf(buf, sizeof buf, "%.*s/%s", (int)n, p, name);
+        if (n && access(buf, X_OK) == 0)
+            return true;
+        p += n + (e ? 1 : 0);
+    }
+    return false;
+}
+
 #ifdef SL_HAVE_GL
 /* ---- shaded: the OpenGL renderer, headless (docs/render.md) ---- */
 
@@ -113,22 +128,6 @@ typedef struct shaded_state {
     uint8_t *rgba;
     bool failed;
 } shaded_state;
-
-/* Is `name` an executable in PATH? */
-static bool in_path(const char *name)
-{
-    const char *path = getenv("PATH");
-    char buf[4200];
-    for (const char *p = path ? path : "/usr/bin:/bin"; *p;) {
-        const char *e = strchr(p, ':');
-        size_t n = e ? (size_t)(e - p) : strlen(p);
-        snprintf(buf, sizeof buf, "%.*s/%s", (int)n, p, name);
-        if (n && access(buf, X_OK) == 0)
-            return true;
-        p += n + (e ? 1 : 0);
-    }
-    return false;
-}
 
 static sl_status shaded_setup(render_ctx *ctx, sl_error *err)
 {

@@ -87,6 +87,10 @@ SL_API void sl_renderer_get_info(sl_renderer r, sl_renderer_info *out);
 SL_API sl_status sl_renderer_resize(sl_renderer r, uint32_t width, uint32_t height, sl_error *err);
 /* Objects moved (sl_scene_set_object_transform): upload their transforms. */
 SL_API sl_status sl_renderer_scene_changed(sl_renderer r, sl_error *err);
+/* Draw every object in a colour of the caller's instead of its own or its material's (0xRRGGBBAA,
+ * one per object, copied; the alpha is ignored: see-through objects stay see-through), e.g. to
+ * highlight a visible set; NULL restores the scene's colours and materials. */
+SL_API sl_status sl_renderer_set_colors(sl_renderer r, const uint32_t *rgba, sl_error *err);
 
 /* What a frame cost and drew. Times in milliseconds; GPU times -1 when timer queries are off. */
 typedef struct sl_render_frame_stats {

@@ -12,19 +12,6 @@
 #include <stb_image_resize.h>
 #endif
 
-static void *ralloc(sl_renderer r, size_t size)
-{
-    void *p = r->alloc.alloc(r->alloc.user, size ? size : 1, 16);
-    if (p)
-        memset(p, 0, size);
-    return p;
-}
-static void rfree(sl_renderer r, void *p, size_t size)
-{
-    if (p)
-        r->alloc.free(r->alloc.user, p, size ? size : 1);
-}
-
 /* The side of every layer: 512 for a few textures, smaller for many (bounded memory). */
 static uint32_t layer_size(uint32_t layers)
 {
@@ -38,11 +25,11 @@ sl_status sl_render_upload_materials(sl_renderer r, sl_error *err)
     r->material_count = n;
     size_t bytes = ((size_t)n + 1) * sizeof(sl_render_material_gpu);
     size_t pbytes = ((size_t)n + 1) * sizeof(const char *);
-    sl_render_material_gpu *m = ralloc(r, bytes);
-    const char **paths = ralloc(r, pbytes); /* material -> its texture's path (one layer per path) */
+    sl_render_material_gpu *m = sl_render_alloc(r, bytes);
+    const char **paths = sl_render_alloc(r, pbytes); /* material -> its texture's path (one layer per path) */
     if (!m || !paths) {
-        rfree(r, m, bytes);
-        rfree(r, paths, pbytes);
+        sl_render_free(r, m, bytes);
+        sl_render_free(r, paths, pbytes);
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "renderer: %zu bytes of materials", bytes);
     }
     uint32_t layers = 0;
@@ -78,7 +65,7 @@ sl_status sl_render_upload_materials(sl_renderer r, sl_error *err)
         glTextureParameteri(r->texture_array, GL_TEXTURE_WRAP_S, GL_REPEAT);
         glTextureParameteri(r->texture_array, GL_TEXTURE_WRAP_T, GL_REPEAT);
         size_t sbytes = (size_t)size * size * 4;
-        uint8_t *scaled = ralloc(r, sbytes);
+        uint8_t *scaled = sl_render_alloc(r, sbytes);
         if (!scaled)
             st = sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "renderer: texture scratch");
         for (uint32_t i = 1; i <= n && st == SL_OK; i++) {
@@ -113,7 +100,7 @@ sl_status sl_render_upload_materials(sl_renderer r, sl_error *err)
             glTextureSubImage3D(r->texture_array, 0, 0, 0, (GLint)(m[i].layer - 1), (GLsizei)size, (GLsizei)size, 1,
                                 GL_RGBA, GL_UNSIGNED_BYTE, scaled);
         }
-        rfree(r, scaled, sbytes);
+        sl_render_free(r, scaled, sbytes);
         if (st == SL_OK) {
             glGenerateTextureMipmap(r->texture_array);
             r->texture_layers = layers;
@@ -130,7 +117,7 @@ sl_status sl_render_upload_materials(sl_renderer r, sl_error *err)
         glNamedBufferStorage(r->material_ssbo, (GLsizeiptr)bytes, m, 0);
         st = sl_render_check(r, "uploading the materials", err);
     }
-    rfree(r, m, bytes);
-    rfree(r, paths, pbytes);
+    sl_render_free(r, m, bytes);
+    sl_render_free(r, paths, pbytes);
     return st;
 }

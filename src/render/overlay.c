@@ -35,17 +35,6 @@ struct sl_render_overlay {
     size_t scratch_bytes;
 };
 
-static void *ov_alloc(sl_renderer r, size_t size)
-{
-    return size ? r->alloc.alloc(r->alloc.user, size, 16) : NULL;
-}
-
-static void ov_free(sl_renderer r, void *p, size_t size)
-{
-    if (p)
-        r->alloc.free(r->alloc.user, p, size);
-}
-
 static const char ghost_vs[] =
     "#version 450 core\n"
     "layout(location = 0) in vec3 a_position;\n"
@@ -133,10 +122,10 @@ void sl_render_overlay_release(sl_renderer r, bool gl)
         glDeleteVertexArrays(2, vaos);
         glDeleteBuffers(3, bufs);
     }
-    ov_free(r, o->cmds, (size_t)r->object_count * sizeof *o->cmds);
-    ov_free(r, o->mark, r->object_count);
-    ov_free(r, o->scratch, o->scratch_bytes);
-    ov_free(r, o, sizeof *o);
+    sl_render_free(r, o->cmds, (size_t)r->object_count * sizeof *o->cmds);
+    sl_render_free(r, o->mark, r->object_count);
+    sl_render_free(r, o->scratch, o->scratch_bytes);
+    sl_render_free(r, o, sizeof *o);
     r->overlay = NULL;
 }
 
@@ -147,10 +136,9 @@ static sl_status overlay_of(sl_renderer r, struct sl_render_overlay **out, sl_er
         *out = r->overlay;
         return SL_OK;
     }
-    struct sl_render_overlay *o = ov_alloc(r, sizeof *o);
+    struct sl_render_overlay *o = sl_render_alloc(r, sizeof *o);
     if (!o)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "overlays: out of memory");
-    memset(o, 0, sizeof *o);
     r->overlay = o;
     sl_status st;
     if ((st = compile(ghost_vs, "ghost", &o->ghost_prog, err)) != SL_OK ||
@@ -171,8 +159,8 @@ static sl_status overlay_of(sl_renderer r, struct sl_render_overlay **out, sl_er
         glCreateBuffers(1, &o->indirect);
         glNamedBufferData(o->indirect, (GLsizeiptr)((size_t)r->object_count * sizeof(sl_render_indirect)), NULL,
                           GL_DYNAMIC_DRAW);
-        o->cmds = ov_alloc(r, (size_t)r->object_count * sizeof *o->cmds);
-        o->mark = ov_alloc(r, r->object_count);
+        o->cmds = sl_render_alloc(r, (size_t)r->object_count * sizeof *o->cmds);
+        o->mark = sl_render_alloc(r, r->object_count);
         if (!o->cmds || !o->mark) {
             sl_render_overlay_release(r, true);
             return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "overlays: out of memory");
@@ -192,10 +180,10 @@ static sl_status scratch(sl_renderer r, struct sl_render_overlay *o, size_t byte
     if (o->scratch_bytes >= bytes)
         return SL_OK;
     size_t want = bytes < 4096 ? 4096 : bytes + bytes / 2;
-    float *p = ov_alloc(r, want);
+    float *p = sl_render_alloc(r, want);
     if (!p)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "overlays: out of memory (%zu bytes)", want);
-    ov_free(r, o->scratch, o->scratch_bytes);
+    sl_render_free(r, o->scratch, o->scratch_bytes);
     o->scratch = p, o->scratch_bytes = want;
     return SL_OK;
 }

@@ -179,6 +179,8 @@ struct sl_renderer_t {
     /* KHR_debug: the first error-type or high-severity message since the last check */
     bool debug_pending;
     char debug_message[400];
+    GLDEBUGPROC prev_debug_fn;    /* SL_GL_CONTEXT_CURRENT: the caller's callback, restored at destroy */
+    const void *prev_debug_user;
 
     /* scene */
     GLuint vao;
@@ -187,7 +189,8 @@ struct sl_renderer_t {
     GLuint material_ssbo;         /* sl_render_material_gpu[material_count + 1] (0: none) */
     GLuint texture_array;         /* GL_TEXTURE_2D_ARRAY, one layer per distinct base-colour texture */
     uint32_t material_count, texture_layers, texture_size;
-    char texture_warning[288];    /* the first texture that could not be decoded (drawn untextured) */
+    char texture_warning[288];
+    uint32_t *color_override;     /* [object_count] from sl_renderer_set_colors, or NULL */    /* the first texture that could not be decoded (drawn untextured) */
     GLuint indirect_buffer;       /* sl_render_indirect[object_count], rewritten per draw */
     sl_render_record *records;    /* [object_count] */
     uint64_t vertex_bytes, index_bytes, texture_bytes;
@@ -266,6 +269,9 @@ void sl_render_queries_release(sl_renderer r, bool gl_current);
 sl_status sl_render_upload_materials(sl_renderer r, sl_error *err);
 /* overlay.c: release the overlays' state (sl_renderer_destroy; gl: its context is current). */
 void sl_render_overlay_release(sl_renderer r, bool gl);
+/* The renderer's allocator (zeroed memory; free with the size allocated). */
+void *sl_render_alloc(sl_renderer r, size_t size);
+void sl_render_free(sl_renderer r, void *p, size_t size);
 /* Monotonic wall time in seconds. */
 double sl_render_now(void);
 

@@ -159,14 +159,14 @@ static sl_status compile(sl_renderer r, const char *name, const char *vs, const 
 
 /* ---- memory ---- */
 
-static void *ralloc(sl_renderer r, size_t size)
+void *sl_render_alloc(sl_renderer r, size_t size)
 {
     void *p = r->alloc.alloc(r->alloc.user, size ? size : 1, 16);
     if (p)
         memset(p, 0, size);
     return p;
 }
-static void rfree(sl_renderer r, void *p, size_t size)
+void sl_render_free(sl_renderer r, void *p, size_t size)
 {
     if (p)
         r->alloc.free(r->alloc.user, p, size ? size : 1);
@@ -273,12 +273,16 @@ static void object_gpu(const sl_object_view *ov, sl_render_object_gpu *g, uint32
 static sl_status upload_objects(sl_renderer r, bool create, sl_error *err)
 {
     size_t bytes = (size_t)r->object_count * sizeof(sl_render_object_gpu);
-    sl_render_object_gpu *objs = ralloc(r, bytes);
+    sl_render_object_gpu *objs = sl_render_alloc(r, bytes);
     if (!objs)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "renderer: %zu bytes for the object buffer", bytes);
     for (uint32_t i = 0; i < r->object_count; i++) {
         sl_object_view ov = sl_scene_object(r->scene, i);
         object_gpu(&ov, &objs[i], &r->records[i].group);
+        if (r->color_override) {
+            objs[i].color = r->color_override[i] | 0xFFu;
+            objs[i].material = 0;
+        }
     }
     if (create) {
         glCreateBuffers(1, &r->object_ssbo);
@@ -286,7 +290,7 @@ static sl_status upload_objects(sl_renderer r, bool create, sl_error *err)
     } else if (bytes) {
         glNamedBufferSubData(r->object_ssbo, 0, (GLsizeiptr)bytes, objs);
     }
-    rfree(r, objs, bytes);
+    sl_render_free(r, objs, bytes);
     return sl_render_check(r, "uploading the object transforms", err);
 }
 
@@ -295,7 +299,7 @@ static sl_status upload_scene(sl_renderer r, sl_error *err)
     sl_scene s = r->scene;
     uint32_t mesh_count = sl_scene_mesh_count(s);
     size_t mbytes = (size_t)mesh_count * 2 * sizeof(uint64_t);
-    uint64_t *mesh_at = ralloc(r, mbytes); /* [2m]: first vertex + 1 (0: unused), [2m+1]: first index */
+    uint64_t *mesh_at = sl_render_alloc(r, mbytes); /* [2m]: first vertex + 1 (0: unused), [2m+1]: first index */
     if (!mesh_at)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "renderer: mesh table");
     uint64_t vertices = 0, indices = 0;
@@ -311,17 +315,17 @@ static sl_status upload_scene(sl_renderer r, sl_error *err)
     }
     if (vertices > (uint64_t)INT32_MAX || indices > (uint64_t)UINT32_MAX ||
         vertices * sizeof(sl_render_vertex) > ((uint64_t)1 << 40)) {
-        rfree(r, mesh_at, mbytes);
+        sl_render_free(r, mesh_at, mbytes);
         return sl_render_fail(err, SL_ERROR_LIMIT, "renderer: the scene's %llu vertices / %llu indices exceed one buffer",
                               (unsigned long long)vertices, (unsigned long long)indices);
     }
     size_t vbytes = (size_t)vertices * sizeof(sl_render_vertex), ibytes = (size_t)indices * 4;
-    sl_render_vertex *vb = ralloc(r, vbytes);
-    uint32_t *ib = ralloc(r, ibytes);
+    sl_render_vertex *vb = sl_render_alloc(r, vbytes);
+    uint32_t *ib = sl_render_alloc(r, ibytes);
     if (!vb || !ib) {
-        rfree(r, vb, vbytes);
-        rfree(r, ib, ibytes);
-        rfree(r, mesh_at, mbytes);
+        sl_render_free(r, vb, vbytes);
+        sl_render_free(r, ib, ibytes);
+        sl_render_free(r, mesh_at, mbytes);
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "renderer: %zu + %zu bytes of vertices and indices", vbytes,
                               ibytes);
     }
@@ -349,26 +353,26 @@ static sl_status upload_scene(sl_renderer r, sl_error *err)
         rec->index_count = 3 * mv.triangle_count;
         rec->base_vertex = (int32_t)(mesh_at[2 * ov.mesh] - 1);
     }
-    rfree(r, mesh_at, mbytes);
+    sl_render_free(r, mesh_at, mbytes);
 
     glCreateBuffers(1, &r->vbo);
     glNamedBufferStorage(r->vbo, vbytes ? (GLsizeiptr)vbytes : 16, vbytes ? vb : NULL, 0);
     glCreateBuffers(1, &r->ibo);
     glNamedBufferStorage(r->ibo, ibytes ? (GLsizeiptr)ibytes : 16, ibytes ? ib : NULL, 0);
-    rfree(r, vb, vbytes);
-    rfree(r, ib, ibytes);
+    sl_render_free(r, vb, vbytes);
+    sl_render_free(r, ib, ibytes);
     r->vertex_bytes = vbytes;
     r->index_bytes = ibytes;
 
     size_t idbytes = (size_t)r->object_count * 4;
-    uint32_t *idv = ralloc(r, idbytes);
+    uint32_t *idv = sl_render_alloc(r, idbytes);
     if (!idv)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "renderer: id buffer");
     for (uint32_t i = 0; i < r->object_count; i++)
         idv[i] = i;
     glCreateBuffers(1, &r->id_vbo);
     glNamedBufferStorage(r->id_vbo, idbytes ? (GLsizeiptr)idbytes : 16, idbytes ? idv : NULL, 0);
-    rfree(r, idv, idbytes);
+    sl_render_free(r, idv, idbytes);
     glCreateBuffers(1, &r->indirect_buffer);
     size_t cbytes = (size_t)(r->object_count ? r->object_count : 1) * sizeof(sl_render_indirect);
     glNamedBufferStorage(r->indirect_buffer, (GLsizeiptr)cbytes, NULL, GL_DYNAMIC_STORAGE_BIT);
@@ -466,6 +470,13 @@ sl_status sl_renderer_create(sl_scene scene, const sl_renderer_options *options,
         return st;
     }
     if (r->opt.debug) {
+        if (!r->own_context) {
+            void *fn = NULL, *user = NULL;
+            glGetPointerv(GL_DEBUG_CALLBACK_FUNCTION, &fn);
+            glGetPointerv(GL_DEBUG_CALLBACK_USER_PARAM, &user);
+            r->prev_debug_fn = (GLDEBUGPROC)(uintptr_t)fn;
+            r->prev_debug_user = user;
+        }
         glEnable(GL_DEBUG_OUTPUT);
         glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS);
         glDebugMessageCallback(sl_render_debug_callback, r);
@@ -473,11 +484,11 @@ sl_status sl_renderer_create(sl_scene scene, const sl_renderer_options *options,
     }
     glGetError();
     size_t n = r->object_count ? r->object_count : 1;
-    r->records = ralloc(r, n * sizeof *r->records);
-    r->stamp = ralloc(r, n * 4);
-    r->scratch_ids = ralloc(r, n * 4);
-    r->frame_ids = ralloc(r, n * 4);
-    r->cmds = ralloc(r, n * sizeof *r->cmds);
+    r->records = sl_render_alloc(r, n * sizeof *r->records);
+    r->stamp = sl_render_alloc(r, n * 4);
+    r->scratch_ids = sl_render_alloc(r, n * 4);
+    r->frame_ids = sl_render_alloc(r, n * 4);
+    r->cmds = sl_render_alloc(r, n * sizeof *r->cmds);
     if (!r->records || !r->stamp || !r->scratch_ids || !r->frame_ids || !r->cmds) {
         sl_renderer_destroy(r);
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_renderer_create: per-object tables");
@@ -526,17 +537,18 @@ void sl_renderer_destroy(sl_renderer r)
             glDeleteProgram(r->sky.program);
         if (r->timers[0])
             glDeleteQueries(2, r->timers);
-        if (r->opt.debug)
-            glDebugMessageCallback(NULL, NULL);
+        if (r->opt.debug) /* the caller's callback back on its context (none on ours) */
+            glDebugMessageCallback(r->prev_debug_fn, r->prev_debug_user);
     }
     if (r->own_context)
         sl_render_context_release(r->egl_display, r->egl_context);
     size_t n = r->object_count ? r->object_count : 1;
-    rfree(r, r->records, n * sizeof *r->records);
-    rfree(r, r->stamp, n * 4);
-    rfree(r, r->scratch_ids, n * 4);
-    rfree(r, r->frame_ids, n * 4);
-    rfree(r, r->cmds, n * sizeof *r->cmds);
+    sl_render_free(r, r->records, n * sizeof *r->records);
+    sl_render_free(r, r->stamp, n * 4);
+    sl_render_free(r, r->scratch_ids, n * 4);
+    sl_render_free(r, r->frame_ids, n * 4);
+    sl_render_free(r, r->cmds, n * sizeof *r->cmds);
+    sl_render_free(r, r->color_override, n * 4);
     sl_allocator a = r->alloc;
     a.free(a.user, r, sizeof *r);
 }
@@ -587,6 +599,25 @@ sl_status sl_renderer_scene_changed(sl_renderer r, sl_error *err)
         return sl_render_fail(err, SL_ERROR_INVALID_ARGUMENT,
                               "sl_renderer_scene_changed: the scene has %u objects, the renderer was made with %u",
                               sl_scene_object_count(r->scene), r->object_count);
+    return upload_objects(r, false, err);
+}
+
+sl_status sl_renderer_set_colors(sl_renderer r, const uint32_t *rgba, sl_error *err)
+{
+    if (!r)
+        return sl_render_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_renderer_set_colors: renderer is NULL");
+    sl_status st = sl_render_enter(r, "sl_renderer_set_colors", err);
+    if (st != SL_OK)
+        return st;
+    size_t n = r->object_count ? r->object_count : 1;
+    if (!rgba) {
+        sl_render_free(r, r->color_override, n * 4);
+        r->color_override = NULL;
+    } else {
+        if (!r->color_override && !(r->color_override = sl_render_alloc(r, n * 4)))
+            return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_renderer_set_colors: %zu bytes", n * 4);
+        memcpy(r->color_override, rgba, (size_t)r->object_count * 4);
+    }
     return upload_objects(r, false, err);
 }
 
@@ -995,7 +1026,7 @@ sl_status sl_renderer_write_png(sl_renderer r, const char *path, sl_error *err)
     if (!r || !path)
         return sl_render_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_renderer_write_png: %s is NULL", r ? "path" : "renderer");
     size_t bytes = (size_t)r->width * r->height * 4;
-    uint8_t *px = ralloc(r, bytes);
+    uint8_t *px = sl_render_alloc(r, bytes);
     if (!px)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_renderer_write_png: %zu bytes", bytes);
     sl_status st = sl_renderer_read_rgba(r, px, err);
@@ -1004,7 +1035,7 @@ sl_status sl_renderer_write_png(sl_renderer r, const char *path, sl_error *err)
             px[i] = 255; /* an opaque image */
         st = sl_png_write(path, r->width, r->height, 4, px, 0, err);
     }
-    rfree(r, px, bytes);
+    sl_render_free(r, px, bytes);
     return st;
 }
 

@@ -45,6 +45,18 @@ for r in $(grep -o '](\([^)]*\))' "$tmp/d/report.md" | sed 's/^](//; s/)$//'); d
     [ -s "$tmp/d/$r" ] || fail "report.md references missing $r"
 done
 is_png "$tmp/d/frame-id.png"
+# the shaded frames (with the OpenGL renderer): the view and the view from above, or why not
+has "The frame, shaded" "$tmp/d/report.md"
+if "$SL" render --help 2>/dev/null | grep -q '^  shaded '; then
+    if [ -e "$tmp/d/frame-shaded.png" ]; then
+        is_png "$tmp/d/frame-shaded.png"
+        is_png "$tmp/d/frame-above.png"
+    else
+        has "No shaded frames: no headless GL context" "$tmp/d/report.md"
+    fi
+else
+    has "built without the OpenGL renderer" "$tmp/d/report.md"
+fi
 "$SL" path check "$tmp/d/walk.txt" >/dev/null 2>&1 || fail "walk.txt is not a valid path file"
 
 # shellcheck disable=SC2086

@@ -48,9 +48,9 @@ has "needs a value" "$tmp/err"
 # output folders (cli_outdir_begin and its one mkdir -p, make_parents in tools/cli.c): missing
 # parents are made, an existing folder is reused, a file in the way is refused by name
 cam="0,0,300,30,-45,0,70"
-expect 0 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/a/b" --quiet
+expect 0 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --images id --out "$tmp/o/a/b" --quiet
 [ -s "$tmp/o/a/b/frame-00000-id.png" ] || fail "render did not make the missing folders"
-expect 0 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/a/b" --quiet
+expect 0 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --images id --out "$tmp/o/a/b" --quiet
 : >"$tmp/o/file"
 expect 1 "$SL" render city:tiny --camera "$cam" --width 64 --height 48 --out "$tmp/o/file" --quiet
 has "exists and is not a folder" "$tmp/err"
