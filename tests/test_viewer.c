@@ -1,5 +1,6 @@
 /* `sightline view` end to end (the binary in $SL_SIGHTLINE): usage errors and bad files before any
- * window; without a display it says so and exits 1; under Xvfb (xvfb-run -a) a few frames of the
+ * window; without a display it says so and exits 1, and so it does when the driver gives less than
+ * OpenGL 4.5 (Mesa capped by MESA_GL_VERSION_OVERRIDE); under Xvfb (xvfb-run -a) a few frames of the
  * tiny city along a short path, with a screenshot that is not blank (many colours, the HUD's white
  * text in the top rows, which a run with --no-hud lacks, the rest of the frame identical), freezing
  * (the frozen frustum's colour appears) and the top-down map; a recorded path round-trips (the
@@ -161,6 +162,8 @@ static void test_no_display(void **state)
 {
     (void)state;
     expect_view(1, "env -u DISPLAY -u WAYLAND_DISPLAY", "city:tiny --frames 2", "no display");
+    /* a driver giving less than 4.5 (Mesa capped at 4.1) */
+    expect_view(1, "env MESA_GL_VERSION_OVERRIDE=4.1", "city:tiny --frames 2", "no OpenGL 4.5 core context");
 }
 
 static void test_smoke(void **state)
