@@ -278,6 +278,8 @@ static void test_record_round_trip(void **state)
     assert_int_equal(sl_path_count(a), 4);
     assert_int_equal(sl_path_count(b), 4);
     assert_memory_equal(sl_path_poses(a), sl_path_poses(b), 4 * sizeof(sl_pose));
+    sl_pose path_poses[4];
+    memcpy(path_poses, sl_path_poses(a), sizeof path_poses);
     sl_camera ia = sl_path_intrinsics(a), ib = sl_path_intrinsics(b);
     assert_true(ia.fov_y == ib.fov_y && ia.width == ib.width && ia.height == ib.height &&
                 ia.near_plane == ib.near_plane && ia.far_plane == ib.far_plane);
@@ -287,6 +289,15 @@ static void test_record_round_trip(void **state)
     assert_string_equal(t1, t2);
     free(t1);
     free(t2);
+    /* past the path's end the input takes over and the recording goes on, its times in order */
+    expect_view(0, xvfb, "city:tiny --path walk.txt --frames 6 --no-hud --record rec3.txt", "recorded 6 poses");
+    char p3[300];
+    snprintf(p3, sizeof p3, "%s/rec3.txt", dir);
+    assert_int_equal(sl_path_load(p3, NULL, &b, &err), SL_OK);
+    assert_int_equal(sl_path_count(b), 6);
+    assert_memory_equal(sl_path_poses(b), path_poses, 4 * sizeof(sl_pose));
+    assert_true(sl_path_poses(b)[4].time >= sl_path_poses(b)[3].time);
+    sl_path_destroy(b);
 }
 
 int main(int argc, char **argv)

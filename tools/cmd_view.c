@@ -222,7 +222,7 @@ typedef struct viewer {
     sl_path rec;
     const char *rec_file;     /* --record, used by the first recording */
     char rec_name[64];
-    double rec_start;
+    double rec_wall;          /* wall time of the last pose recorded */
     uint32_t shots;
     char message[160];
     double message_until;
@@ -405,7 +405,7 @@ static sl_status record_start(viewer *v, sl_error *err)
     sl_camera in = v->intrinsics;
     in.width = v->fb_w, in.height = v->fb_h;
     sl_status st = sl_path_create(&in, NULL, &v->rec, err);
-    v->rec_start = tool_now();
+    v->rec_wall = tool_now();
     return st;
 }
 
@@ -757,8 +757,14 @@ static int run(viewer *v, const view_args *g, sl_path path, const scripted_key *
         if ((s = handle_keys(v, &view, &err)) != SL_OK)
             break;
         if (v->rec) {
-            sl_pose q = {following ? sl_path_poses(path)[frame].time : (float)(now - v->rec_start), cam.position,
-                         cam.yaw, cam.pitch, cam.roll};
+            /* following: the path's own times; else wall time, going on from the last pose recorded
+             * (a recording that started on the path and goes on by hand keeps its times in order) */
+            uint32_t have = sl_path_count(v->rec);
+            double t = following ? sl_path_poses(path)[frame].time
+                       : have    ? sl_path_poses(v->rec)[have - 1].time + (now - v->rec_wall)
+                                 : 0.0;
+            v->rec_wall = now;
+            sl_pose q = {(float)t, cam.position, cam.yaw, cam.pitch, cam.roll};
             if ((s = sl_path_append(v->rec, &q, &err)) != SL_OK)
                 break;
         }
