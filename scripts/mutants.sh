@@ -58,6 +58,7 @@ mutants=(
   'chc-drop-result@@src/cull/chc.c@@s/            traverse\(f, r->node\);\n        \} else \{/            (void)0;\n        } else {/@@test_query_cullers'
   'chc-near-queried@@src/cull/chc.c@@s/if \(!queryable \|\| !f->drawn_any\) \{/if (!f->drawn_any) {/@@test_query_cullers'
   'chcpp-no-split@@src/cull/chc.c@@s/                issue_i\(f, n\); \/\* split: one query a node \*\//                s->invisible_for[n]++;/@@test_query_cullers'
+  'chc-no-refit@@src/cull/chc.c@@s/(static sl_status chc_scene_changed\(void \*state, sl_error \*err\)\n\{\n)/$1    if (state) return SL_OK;\n/@@test_query_cullers'
   'chcpp-v-undrawn@@src/cull/chc.c@@s/            render_leaf\(f, n\);\n            s->vpend\[s->vpend_n\+\+\] = n;/            s->vpend[s->vpend_n++] = n;/@@test_query_cullers'
   'pvs-everything@@src/cull/pvs.c@@s/bool all = cell == SL_NONE;/bool all = true;/@@test_pvs_build test_domain'
   'pvs-no-frustum@@src/cull/pvs.c@@s/sl_frustum_classify_box\(fr->planes, slack, &bounds\[id\], 0x3fu, false, NULL\) >= 0/fr/@@test_pvs_build test_domain'

@@ -33,6 +33,7 @@
 #include "sightline/truth.h"
 #include "support/city_views.h"
 #include "support/pk3_names.h"
+#include "support/zero_backend.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -308,79 +309,6 @@ static void test_cpu_latency(void **state)
 
 /* ---- hoq against the oracle ---- */
 
-/* A backend that forwards to the CPU backend but answers every query with 0 samples (broken on
- * purpose: the oracle check below must catch it). */
-typedef struct zero_backend {
-    sl_draw_backend inner;
-} zero_backend;
-
-static sl_status zb_begin_frame(void *u, const float m[16], uint32_t w, uint32_t h, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_frame(z->inner.user, m, w, h, e);
-}
-static sl_status zb_draw(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.draw_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_create(void *u, uint32_t n, sl_draw_query *q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.create_queries(z->inner.user, n, q, e);
-}
-static void zb_destroy(void *u, const sl_draw_query *q, uint32_t n)
-{
-    zero_backend *z = u;
-    z->inner.destroy_queries(z->inner.user, q, n);
-}
-static sl_status zb_begin_query(void *u, sl_draw_query q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_query(z->inner.user, q, e);
-}
-static sl_status zb_boxes(void *u, const sl_aabb *b, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_boxes(z->inner.user, b, n, e);
-}
-static sl_status zb_objects(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_end_query(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_query(z->inner.user, e);
-}
-static sl_status zb_poll(void *u, sl_draw_query q, bool *ready, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.poll_query(z->inner.user, q, ready, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_wait(void *u, sl_draw_query q, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.wait_query(z->inner.user, q, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_end_frame(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_frame(z->inner.user, e);
-}
-
-static sl_draw_backend zero_table(zero_backend *z)
-{
-    sl_draw_backend t = {SL_DRAW_BACKEND_VERSION, z, zb_begin_frame, zb_draw, zb_create, zb_destroy, zb_begin_query,
-                         zb_boxes, zb_objects, zb_end_query, zb_poll, zb_wait, zb_end_frame};
-    return t;
-}
-
 /* hoq's kept objects over vfc's on the street views: measured 0.394 (0.453 with objects queried
  * by their boxes), plus a quarter of the way to 1. */
 #define HOQ_FLOOR 0.55
@@ -439,8 +367,9 @@ static void test_hoq_oracle_city(void **state)
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu2, &err), SL_OK);
     sl_draw_backend given = sl_draw_backend_cpu_table(cpu);
-    zero_backend zb = {sl_draw_backend_cpu_table(cpu2)};
-    sl_draw_backend broken = zero_table(&zb);
+    /* answers every query with 0 samples (broken on purpose: the oracle check below must catch it) */
+    sl_test_zero_backend zb;
+    sl_draw_backend broken = sl_test_zero_table(&zb, sl_draw_backend_cpu_table(cpu2));
     hoq_run runs[6];
     memset(runs, 0, sizeof runs);
     sl_culler_params with_given = {&given, NULL}, with_broken = {&broken, NULL};

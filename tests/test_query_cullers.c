@@ -11,8 +11,10 @@
  *    gl-stopwait; chc++ issues fewer queries than chc; the pull-up of leaves assumed visible saves
  *    queries (pullup_fix=false issues more);
  *  - a view held still: fewer queries after the first frame (the pull-up);
- *  - threshold > 0 is aggressive and an object it drops owns at most threshold pixels;
+ *  - threshold > 0 is aggressive, drops visible objects, and each owns at most threshold pixels;
  *  - a backend answering 0 samples makes chc and chc++ miss (the check can fail);
+ *  - with a shared acceleration handle's tree, the same ids and queries as with their own;
+ *  - moving objects (sl_culler_scene_changed every frame): no misses;
  *  - options parse and bad values are refused. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -32,6 +34,7 @@
 #include "sightline/truth.h"
 #include "support/city_views.h"
 #include "support/pk3_names.h"
+#include "support/zero_backend.h"
 
 #define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 
@@ -320,70 +323,6 @@ static void test_oracle_city(void **state)
 /* Through a given CPU backend, chc's and chc++'s depth buffer after each frame is the oracle's
  * (every visible object drawn: the image of vfc's set, whatever the depth ties); a backend answering
  * 0 samples makes them miss. */
-typedef struct zero_backend {
-    sl_draw_backend inner;
-} zero_backend;
-
-static sl_status zb_begin_frame(void *u, const float m[16], uint32_t w, uint32_t h, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_frame(z->inner.user, m, w, h, e);
-}
-static sl_status zb_draw(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.draw_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_create(void *u, uint32_t n, sl_draw_query *q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.create_queries(z->inner.user, n, q, e);
-}
-static void zb_destroy(void *u, const sl_draw_query *q, uint32_t n)
-{
-    zero_backend *z = u;
-    z->inner.destroy_queries(z->inner.user, q, n);
-}
-static sl_status zb_begin_query(void *u, sl_draw_query q, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.begin_query(z->inner.user, q, e);
-}
-static sl_status zb_boxes(void *u, const sl_aabb *b, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_boxes(z->inner.user, b, n, e);
-}
-static sl_status zb_objects(void *u, const uint32_t *ids, uint32_t n, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.query_objects(z->inner.user, ids, n, e);
-}
-static sl_status zb_end_query(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_query(z->inner.user, e);
-}
-static sl_status zb_poll(void *u, sl_draw_query q, bool *ready, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.poll_query(z->inner.user, q, ready, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_wait(void *u, sl_draw_query q, uint64_t *samples, sl_error *e)
-{
-    zero_backend *z = u;
-    sl_status st = z->inner.wait_query(z->inner.user, q, samples, e);
-    *samples = 0;
-    return st;
-}
-static sl_status zb_end_frame(void *u, sl_error *e)
-{
-    zero_backend *z = u;
-    return z->inner.end_frame(z->inner.user, e);
-}
-
 static void test_given_backend(void **state)
 {
     (void)state;
@@ -394,7 +333,7 @@ static void test_given_backend(void **state)
     memset(runs, 0, sizeof runs);
     const char *methods[4] = {"chc", "chc++", "chc", "chc++"};
     sl_draw_backend_cpu inner[2];
-    zero_backend zb[2];
+    sl_test_zero_backend zb[2];
     for (int i = 0; i < 4; i++) {
         runs[i].method = methods[i];
         if (i < 2) {
@@ -402,10 +341,7 @@ static void test_given_backend(void **state)
             open_run(s, &runs[i]);
         } else {
             assert_int_equal(sl_draw_backend_cpu_create(s, &co, NULL, &inner[i - 2], &err), SL_OK);
-            zb[i - 2].inner = sl_draw_backend_cpu_table(inner[i - 2]);
-            sl_draw_backend t = {SL_DRAW_BACKEND_VERSION, &zb[i - 2], zb_begin_frame, zb_draw, zb_create,
-                                 zb_destroy, zb_begin_query, zb_boxes, zb_objects, zb_end_query, zb_poll, zb_wait,
-                                 zb_end_frame};
+            sl_draw_backend t = sl_test_zero_table(&zb[i - 2], sl_draw_backend_cpu_table(inner[i - 2]));
             sl_culler_params pa = {&t, NULL};
             assert_int_equal(sl_culler_create_with(methods[i], s, NULL, &pa, NULL, &runs[i].c, &err), SL_OK);
         }
@@ -438,6 +374,133 @@ static void test_given_backend(void **state)
     }
     sl_draw_backend_cpu_destroy(inner[0]);
     sl_draw_backend_cpu_destroy(inner[1]);
+    sl_path_destroy(walk);
+    sl_scene_destroy(s);
+}
+
+/* With a shared per-scene acceleration handle (its tree instead of their own), chc and chc++ give
+ * the same ids and queries as with their own tree, frame for frame over a walk. */
+static void test_shared_tree(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_error err;
+    sl_scene_accel accel;
+    assert_int_equal(sl_scene_accel_create(s, NULL, &accel, &err), SL_OK);
+    sl_culler_params pa = {NULL, accel};
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 160;
+    po.intrinsics.height = 120;
+    po.frames = sanitized() ? 8 : 30;
+    po.fps = 10;
+    sl_path walk;
+    assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b);
+    const char *methods[] = {"chc", "chc++"};
+    for (int m = 0; m < 2; m++) {
+        sl_culler own, shared;
+        assert_int_equal(sl_culler_create(methods[m], s, NULL, NULL, &own, &err), SL_OK);
+        assert_int_equal(sl_culler_create_with(methods[m], s, NULL, &pa, NULL, &shared, &err), SL_OK);
+        for (uint32_t f = 0; f < sl_path_count(walk); f++) {
+            sl_camera cam = sl_path_camera(walk, f);
+            uint32_t ka, kb;
+            assert_int_equal(sl_culler_cull(own, &cam, a, n, &ka, &err), SL_OK);
+            sl_cull_stats sa, sb;
+            sl_culler_stats(own, &sa);
+            assert_int_equal(sl_culler_cull(shared, &cam, b, n, &kb, &err), SL_OK);
+            sl_culler_stats(shared, &sb);
+            assert_int_equal(ka, kb);
+            assert_memory_equal(a, b, ka * sizeof *a);
+            assert_int_equal(sa.queries, sb.queries);
+        }
+        /* another leaf size than the handle's is refused, naming both */
+        sl_culler bad = NULL;
+        assert_int_equal(sl_culler_create_with(methods[m], s, "leaf_size=2", &pa, NULL, &bad, &err),
+                         SL_ERROR_INVALID_ARGUMENT);
+        assert_non_null(strstr(err.message, "leaf_size"));
+        sl_culler_destroy(own);
+        sl_culler_destroy(shared);
+    }
+    free(a);
+    free(b);
+    sl_path_destroy(walk);
+    sl_scene_accel_destroy(accel);
+    sl_scene_destroy(s);
+}
+
+/* Moving objects with sl_culler_scene_changed every frame: the cars shuttle 1.5 m a frame, and one
+ * car jumps to 10 m in front of the eye on odd frames and back on even ones; the classification
+ * kept from the last frame may be wrong for them, never the drawn set. */
+static void test_moving_objects(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_error err;
+    run runs[3] = {{"gl-stopwait", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
+                   {"chc", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
+                   {"chc++", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
+    for (int i = 0; i < 3; i++)
+        open_run(s, &runs[i]);
+    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
+    po.intrinsics.width = 320;
+    po.intrinsics.height = 240;
+    po.frames = sanitized() ? 10 : 40;
+    po.fps = 10;
+    sl_path walk;
+    assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), moved = 0, cars_seen = 0, jumper = SL_NONE;
+    sl_affine home;
+    for (uint32_t i = 0; i < n && jumper == SL_NONE; i++)
+        if (sl_scene_object(s, i).flags & SL_OBJECT_DYNAMIC) {
+            jumper = i;
+            home = sl_scene_object(s, i).transform;
+        }
+    assert_int_not_equal(jumper, SL_NONE);
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    for (uint32_t f = 0; f < sl_path_count(walk); f++) {
+        for (uint32_t i = 0; i < n; i++) {
+            sl_object_view info = sl_scene_object(s, i);
+            if (!(info.flags & SL_OBJECT_DYNAMIC))
+                continue;
+            sl_affine t = info.transform;
+            t.m[3] += (f / 10) % 2 ? -1.5f : 1.5f;
+            if (i == jumper) {
+                t = home;
+                if (f % 2) {
+                    sl_camera c = sl_path_camera(walk, f);
+                    sl_view v;
+                    assert_int_equal(sl_view_from_camera(&c, &v, &err), SL_OK);
+                    t.m[3] = v.eye.x + 10 * v.forward.x;
+                    t.m[7] = v.eye.y + 10 * v.forward.y;
+                    t.m[11] = v.eye.z + 10 * v.forward.z - 1;
+                }
+            }
+            assert_int_equal(sl_scene_set_object_transform(s, i, &t, &err), SL_OK);
+            moved++;
+        }
+        sl_camera cam = sl_path_camera(walk, f);
+        sl_oracle_frame fr;
+        assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+        for (uint32_t k = 0; k < fr.visible_count; k++)
+            cars_seen += (sl_scene_object(s, fr.visible[k]).flags & SL_OBJECT_DYNAMIC) != 0;
+        for (int i = 0; i < 3; i++)
+            assert_int_equal(sl_culler_scene_changed(runs[i].c, &err), SL_OK);
+        sl_path one; /* this frame's view alone, judged against the scene as it is now */
+        sl_camera in = sl_path_intrinsics(walk);
+        assert_int_equal(sl_path_create(&in, NULL, &one, &err), SL_OK);
+        assert_int_equal(sl_path_append(one, &sl_path_poses(walk)[f], &err), SL_OK);
+        run_views(s, one, runs, 3, false, "moving");
+        sl_path_destroy(one);
+    }
+    sl_oracle_destroy(o);
+    print_message("moving cars: %u cars moved, %u seen (objects x frames)\n", moved, cars_seen);
+    assert_true(moved > 0 && cars_seen > 0);
+    for (int i = 0; i < 3; i++) {
+        report(&runs[i], "moving cars");
+        assert_int_equal(runs[i].missed, 0);
+        sl_culler_destroy(runs[i].c);
+    }
     sl_path_destroy(walk);
     sl_scene_destroy(s);
 }
@@ -525,14 +588,14 @@ static void test_static_view(void **state)
     sl_scene_destroy(s);
 }
 
-/* threshold > 0: aggressive, and an object it drops owns at most threshold pixels. */
+/* threshold > 0: aggressive; it drops visible objects, each owning at most threshold pixels. */
 static void test_threshold(void **state)
 {
     (void)state;
     sl_scene s = sl_test_tiny_city();
     sl_error err;
-    run runs[2] = {{"chc", "threshold=20", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
-                   {"chc++", "threshold=20", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
+    run runs[2] = {{"chc", "threshold=50", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
+                   {"chc++", "threshold=50", NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
     for (int i = 0; i < 2; i++) {
         open_run(s, &runs[i]);
         assert_int_equal(sl_culler_guarantee(runs[i].c), SL_AGGRESSIVE);
@@ -540,14 +603,15 @@ static void test_threshold(void **state)
     sl_path_options po = sl_path_options_default(SL_PATH_WALK);
     po.intrinsics.width = 320;
     po.intrinsics.height = 240;
-    po.frames = sanitized() ? 8 : 60;
+    po.frames = sanitized() ? 30 : 60;
     po.fps = 10;
     sl_path walk;
     assert_int_equal(sl_path_generate(s, &po, NULL, &walk, &err), SL_OK);
     run_views(s, walk, runs, 2, false, "threshold");
     for (int i = 0; i < 2; i++) {
-        report(&runs[i], "threshold=20");
-        assert_true(runs[i].max_missed_px <= 20);
+        report(&runs[i], "threshold=50");
+        assert_true(runs[i].missed > 0); /* it does drop visible objects (measured: 60 in 60 frames) */
+        assert_true(runs[i].max_missed_px <= 50);
         sl_culler_destroy(runs[i].c);
     }
     sl_path_destroy(walk);
@@ -609,9 +673,9 @@ static void test_options(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_clock),         cmocka_unit_test(test_options),    cmocka_unit_test(test_oracle_city),
-        cmocka_unit_test(test_static_view),
-        cmocka_unit_test(test_given_backend), cmocka_unit_test(test_threshold),  cmocka_unit_test(test_oracle_map),
+        cmocka_unit_test(test_clock),         cmocka_unit_test(test_options),     cmocka_unit_test(test_oracle_city),
+        cmocka_unit_test(test_static_view),   cmocka_unit_test(test_given_backend), cmocka_unit_test(test_shared_tree),
+        cmocka_unit_test(test_threshold),     cmocka_unit_test(test_oracle_map),  cmocka_unit_test(test_moving_objects),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

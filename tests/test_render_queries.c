@@ -1,20 +1,22 @@
 /* Occlusion queries on the GL renderer (sl_renderer_backend) and the render layer's gpu-hiz, on a
  * headless EGL context (llvmpipe here):
- *  - the GL backend's sample counts equal the CPU reference backend's for the same calls (boxes and
- *    objects, after drawing part of the tiny city), exactly but for the few queries where GL's and
- *    the reference rasterizer's fragments differ (depth ties and pixel centres on an edge: counted
- *    and bounded);
+ *  - the GL backend's sample counts equal the CPU reference backend's for the same calls: exactly
+ *    on a scene without coplanar faces, and on the tiny city (boxes and objects, after drawing part
+ *    of it) but for the queries where GL's and the reference rasterizer's fragments differ (depth
+ *    ties and pixel centres on an edge: counted and bounded);
  *  - poll and wait: a query never issued, misuse (one open at a time, outside a frame, an open
  *    query at end_frame) refused; a wait returns what a ready poll returns; the renderer's frame
  *    stats carry the culler's queries and the backend's stalls;
- *  - hoq on the GL backend (sl_renderer_create_culler) keeps every object of the GL image drawn
- *    without culling, and every object the oracle sees at the culling resolution unless GL's own
- *    image does not show it (a depth tie or a silhouette pixel the two rasterizers decide apart);
- *    its frame's id image is the unculled one but where the depths tie; on the tiny city (street
- *    and flyover views) and a Quake III map;
+ *  - gl-stopwait on the GL backend (sl_renderer_create_culler) keeps every object of the GL image
+ *    drawn without culling, and every object the oracle sees at the culling resolution unless GL's
+ *    own image does not show it (a depth tie or a silhouette pixel the two rasterizers decide
+ *    apart); every frame's id and depth images are the unculled ones but at depth ties (shaded
+ *    frames: the colours too); on the tiny city (street and flyover views) and a Quake III map;
+ *  - gl-stopwait, chc and chc++ (and vfc, whose frames are the unculled ones) over a walk;
  *  - gpu-hiz over a short walk of the tiny city (with and without indirect count, and shaded),
- *    the same checks (its declared guarantee: conservative at the culling resolution), and it
- *    culls (fewer objects than vfc).
+ *    past an occluder's edge by fractions of a pixel, and behind a see-through wall: the same
+ *    checks (its declared guarantee: conservative at the culling resolution), and it culls
+ *    (fewer objects than vfc).
  * Exits 77 (skipped) only when no GL context can be made. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -271,11 +273,15 @@ static void test_poll_wait(void **state)
     assert_int_equal(gl.query_boxes(gl.user, &all, 1, &err), SL_OK);
     assert_int_equal(gl.end_query(gl.user, &err), SL_OK);
     assert_int_equal(gl.end_query(gl.user, &err), SL_ERROR_INVALID_ARGUMENT); /* none open */
-    /* poll until ready (bounded), then a wait returns the same count */
-    for (int i = 0; i < 100000 && !ready; i++)
-        assert_int_equal(gl.poll_query(gl.user, q[0], &ready, &samples, &err), SL_OK);
-    assert_true(ready);
+    /* a poll (ready or not: it never blocks), a wait, then a poll is ready with the same count */
+    assert_int_equal(gl.poll_query(gl.user, q[0], &ready, &samples, &err), SL_OK);
+    uint64_t polled = ready ? samples : UINT64_MAX;
     assert_int_equal(gl.wait_query(gl.user, q[0], &waited, &err), SL_OK);
+    if (polled != UINT64_MAX)
+        assert_int_equal(waited, polled);
+    ready = false;
+    assert_int_equal(gl.poll_query(gl.user, q[0], &ready, &samples, &err), SL_OK);
+    assert_true(ready);
     assert_int_equal(waited, samples);
     /* the scene's box from inside it: every pixel, both facings of the faces around the eye */
     assert_true(samples >= (uint64_t)W * H);
@@ -295,13 +301,13 @@ static void test_poll_wait(void **state)
 
     /* the renderer's frame stats: the culler's queries, the backend's stalls, its own draws */
     sl_culler c;
-    assert_int_equal(sl_renderer_create_culler(r, "hoq", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_renderer_create_culler(r, "gl-stopwait", NULL, &c, &err), SL_OK);
     sl_view v;
     assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
     uint32_t n = sl_scene_object_count(s), *ids = malloc(n * 4), k = 0;
     sl_render_frame_stats st;
     assert_int_equal(sl_renderer_frame(r, c, &v, SL_RENDER_SHADED, ids, &k, &st, &err), SL_OK);
-    print_message("hoq frame: %u objects, %llu queries, %llu stalls (culler %llu), wait %.3f ms, frame %.3f ms\n", k,
+    print_message("gl-stopwait frame: %u objects, %llu queries, %llu stalls (culler %llu), wait %.3f ms, frame %.3f ms\n", k,
                   (unsigned long long)st.queries, (unsigned long long)st.query_stalls,
                   (unsigned long long)st.cull.query_stalls, st.wait_ms, st.frame_ms);
     assert_true(st.queries > 0);
@@ -334,10 +340,13 @@ typedef struct gl_judge {
     sl_renderer r;
     sl_oracle o;
     uint32_t n, npx;
+    uint32_t draws_per_object; /* 1; 2 for chc's zpass (a depth pass, then the colour pass) */
     uint32_t *all, *ids, *missed, *missed_px, *full_ids, *frame_ids;
     float *full_depth, *frame_depth;
     uint8_t *shown;
     /* totals */
+    uint64_t depth_differ, rgba_differ;
+    uint8_t *frame_rgba, *full_rgba;
     uint64_t frames, kept, gl_missed, oracle_missed, oracle_missed_gl_shows, pixels_differ, pixels_differ_no_tie;
 } gl_judge;
 
@@ -350,6 +359,7 @@ static void judge_init(gl_judge *j, sl_scene s, uint32_t w, uint32_t h)
     assert_int_equal(sl_oracle_create(s, NULL, NULL, &j->o, &err), SL_OK);
     j->n = sl_scene_object_count(s);
     j->npx = w * h;
+    j->draws_per_object = 1;
     j->all = malloc(j->n * 4);
     j->ids = malloc(j->n * 4);
     j->missed = malloc(j->n * 4);
@@ -361,6 +371,8 @@ static void judge_init(gl_judge *j, sl_scene s, uint32_t w, uint32_t h)
     j->full_depth = malloc(j->npx * 4);
     j->frame_depth = malloc(j->npx * 4);
     j->shown = malloc(j->n);
+    j->frame_rgba = malloc((size_t)j->npx * 4);
+    j->full_rgba = malloc((size_t)j->npx * 4);
 }
 
 static void judge_free(gl_judge *j)
@@ -376,6 +388,8 @@ static void judge_free(gl_judge *j)
     free(j->full_depth);
     free(j->frame_depth);
     free(j->shown);
+    free(j->frame_rgba);
+    free(j->full_rgba);
 }
 
 /* One frame of culler c: no object GL's unculled image shows may be missing, and the frame's id
@@ -395,12 +409,24 @@ static void judge_frame(gl_judge *j, sl_culler c, const sl_camera *cam, sl_rende
     sl_render_frame_stats st;
     if (sl_renderer_frame(j->r, c, &v, kind, j->ids, &k, &st, &err) != SL_OK)
         fail_msg("%s frame %u: %s", label, f, err.message);
-    assert_int_equal(st.objects_drawn, k);
+    /* the culler's draws only, each object once (see-through objects are drawn in the shaded pass only) */
+    uint64_t drawable = 0;
+    for (uint32_t i = 0; i < k; i++)
+        drawable += kind == SL_RENDER_SHADED || !(sl_scene_object(j->s, j->ids[i]).flags & SL_OBJECT_SEE_THROUGH);
+    assert_int_equal(st.objects_drawn, drawable * j->draws_per_object);
     if (kind == SL_RENDER_DEPTH) {
         assert_int_equal(sl_renderer_read_depth(j->r, j->frame_depth, &err), SL_OK);
     } else {
         assert_int_equal(sl_renderer_read_ids(j->r, j->frame_ids, &err), SL_OK);
         assert_int_equal(sl_renderer_read_depth(j->r, j->frame_depth, &err), SL_OK);
+    }
+    if (kind == SL_RENDER_SHADED) {
+        /* the colours too: the unculled shaded frame (see-through objects blended in both) */
+        assert_int_equal(sl_renderer_read_rgba(j->r, j->frame_rgba, &err), SL_OK);
+        assert_int_equal(sl_renderer_draw(j->r, &v, j->all, j->n, SL_RENDER_SHADED, NULL, &err), SL_OK);
+        assert_int_equal(sl_renderer_read_rgba(j->r, j->full_rgba, &err), SL_OK);
+        for (uint32_t p = 0; p < j->npx; p++)
+            j->rgba_differ += memcmp(j->frame_rgba + 4 * p, j->full_rgba + 4 * p, 4) != 0;
     }
     assert_int_equal(sl_renderer_draw(j->r, &v, j->all, j->n, SL_RENDER_IDS, NULL, &err), SL_OK);
     assert_int_equal(sl_renderer_read_ids(j->r, j->full_ids, &err), SL_OK);
@@ -420,8 +446,11 @@ static void judge_frame(gl_judge *j, sl_culler c, const sl_camera *cam, sl_rende
             print_message("%s frame %u: object %u shows in GL's image but was culled\n", label, f, i);
         }
     }
-    /* the frame's image is the unculled one but for depth ties */
+    /* the frame's image is the unculled one but for depth ties, and its depth is the unculled
+     * depth everywhere (see-through objects write none) */
     for (uint32_t p = 0; p < j->npx; p++) {
+        if (j->frame_depth[p] != j->full_depth[p])
+            j->depth_differ++;
         bool differ = kind == SL_RENDER_DEPTH ? j->frame_depth[p] != j->full_depth[p]
                                               : j->frame_ids[p] != j->full_ids[p];
         if (!differ)
@@ -455,6 +484,13 @@ static void assert_judged(const gl_judge *j, const char *label)
 {
     judge_report(j, label);
     assert_true(j->frames > 0);
+    /* shaded frames: the same colours (a pixel whose ids differ by a tie may differ in colour) */
+    if (j->rgba_differ > j->pixels_differ)
+        fail_msg("%s: %llu pixels of the shaded frames differ from the unculled ones", label,
+                 (unsigned long long)j->rgba_differ);
+    if (j->depth_differ)
+        fail_msg("%s: %llu pixels of the frames' depth differ from the unculled depth", label,
+                 (unsigned long long)j->depth_differ);
     if (j->gl_missed || j->oracle_missed_gl_shows || j->pixels_differ_no_tie)
         fail_msg("%s: culled objects that show (GL %llu, oracle %llu), %llu pixels differ without a tie", label,
                  (unsigned long long)j->gl_missed, (unsigned long long)j->oracle_missed_gl_shows,
@@ -486,22 +522,22 @@ static void test_hoq_gl_city(void **state)
     judge_init(&j, s, W, H);
     sl_error err;
     sl_culler c;
-    assert_int_equal(sl_renderer_create_culler(j.r, "hoq", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_renderer_create_culler(j.r, "gl-stopwait", NULL, &c, &err), SL_OK);
     assert_int_equal(sl_culler_guarantee(c), SL_CONSERVATIVE_AT_RESOLUTION);
     sl_path street = views_of(s, SL_VIEWS_STREET, sanitized() ? 4 : 24, 61);
     sl_path fly = views_of(s, SL_VIEWS_FLYOVER, sanitized() ? 2 : 8, 62);
     for (uint32_t f = 0; f < sl_path_count(street); f++) {
         sl_camera cam = sl_path_camera(street, f);
-        judge_frame(&j, c, &cam, f % 4 == 0 ? SL_RENDER_SHADED : SL_RENDER_IDS, "hoq street", f);
+        judge_frame(&j, c, &cam, f % 4 == 0 ? SL_RENDER_SHADED : SL_RENDER_IDS, "gl-stopwait street", f);
     }
     uint64_t street_kept = j.kept;
     for (uint32_t f = 0; f < sl_path_count(fly); f++) {
         sl_camera cam = sl_path_camera(fly, f);
-        judge_frame(&j, c, &cam, SL_RENDER_IDS, "hoq flyover", f);
+        judge_frame(&j, c, &cam, f % 2 ? SL_RENDER_DEPTH : SL_RENDER_IDS, "gl-stopwait flyover", f);
     }
-    assert_judged(&j, "hoq on GL, tiny city");
+    assert_judged(&j, "gl-stopwait on GL, tiny city");
     uint64_t vk = vfc_kept(s, street);
-    print_message("street views: hoq on GL keeps %llu, vfc %llu\n", (unsigned long long)street_kept,
+    print_message("street views: gl-stopwait on GL keeps %llu, vfc %llu\n", (unsigned long long)street_kept,
                   (unsigned long long)vk);
     assert_true(street_kept * 10 < vk * 8); /* it culls by its queries */
     sl_culler_destroy(c);
@@ -533,7 +569,7 @@ static void test_hoq_gl_map(void **state)
     gl_judge j;
     judge_init(&j, s, W, H);
     sl_culler c;
-    assert_int_equal(sl_renderer_create_culler(j.r, "hoq", NULL, &c, &err), SL_OK);
+    assert_int_equal(sl_renderer_create_culler(j.r, "gl-stopwait", NULL, &c, &err), SL_OK);
     for (uint32_t f = 0; f < sl_path_count(p); f++) {
         sl_camera cam = sl_path_camera(p, f);
         judge_frame(&j, c, &cam, SL_RENDER_IDS, list->names[0], f);
@@ -544,6 +580,122 @@ static void test_hoq_gl_map(void **state)
     sl_path_destroy(p);
     sl_scene_destroy(s);
     free(list);
+}
+
+/* ---- the edge of an occluder, by fractions of a pixel ---- */
+
+/* A wall x in [-20, 0] at 6.3 in front of the eye and two small boxes x in [-0.2, 0] and [-0.6, 0]
+ * (1.5 and 4.5 pixels: tested at the pyramid's levels 0 to 2) 10 behind it:
+ * with the eye at x_e > 0 the box peeks past the wall's edge by about 12 x_e pixels, with x_e < 0
+ * it is hidden. The eye sweeps x_e by 1/20 pixel steps through the edge, the camera rolled by
+ * multiples of 45 degrees so that the peeking edge is each side of the box's screen rectangle in
+ * turn, and diagonal across the pyramid's texels: gpu-hiz must keep the box in every frame GL's
+ * image shows it. */
+static void test_gpu_hiz_edges(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    sl_test_add_box(s, (sl_vec3){-20, 0, -20}, (sl_vec3){0, 0.3f, 20}, SL_KIND_BUILDING,
+                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    sl_test_add_box(s, (sl_vec3){-0.2f, 10, -0.1f}, (sl_vec3){0, 10.2f, 0.1f}, SL_KIND_BUILDING,
+                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    sl_test_add_box(s, (sl_vec3){-0.6f, 10, 0.5f}, (sl_vec3){0, 10.2f, 1.1f}, SL_KIND_BUILDING,
+                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    gl_judge j;
+    judge_init(&j, s, W, H);
+    sl_culler c;
+    assert_int_equal(sl_renderer_create_culler(j.r, "gpu-hiz", NULL, &c, &err), SL_OK);
+    uint32_t shown = 0, hidden = 0, n = sanitized() ? 10 : 40;
+    for (int roll = 0; roll < 8; roll++)
+        for (uint32_t f = 0; f < n; f++) {
+            sl_camera cam = sl_camera_default();
+            float xe = -0.02f + 0.16f / (float)n * (float)f; /* 1/20 pixel steps (n = 40) */
+            cam.position = (sl_vec3){xe, -6.3f, 0.0f};
+            cam.yaw = 1.57079633f;
+            cam.pitch = 0.0f;
+            cam.roll = 0.785398163f * (float)roll;
+            cam.fov_y = 0.9f;
+            cam.near_plane = 0.1f;
+            cam.far_plane = 100.0f;
+            cam.width = W;
+            cam.height = H;
+            judge_frame(&j, c, &cam, SL_RENDER_IDS, "gpu-hiz edges", f);
+            for (int b = 1; b <= 2; b++)
+                if (j.shown[b])
+                    shown++;
+                else
+                    hidden++;
+        }
+    print_message("edges: a box shows %u times, is hidden %u times\n", shown, hidden);
+    assert_true(shown > 0 && hidden > 0);
+    assert_judged(&j, "gpu-hiz edges");
+    sl_culler_destroy(c);
+    judge_free(&j);
+    sl_scene_destroy(s);
+}
+
+/* See-through objects never hide (the oracle's rule): a see-through wall in front of a box, the eye
+ * walking along it; gpu-hiz keeps them out of pass 1 and so out of its pyramid: the box is drawn in
+ * every frame GL's image shows it. Then a wall moves into the view (scene_changed). */
+static void test_gpu_hiz_see_through(void **state)
+{
+    (void)state;
+    sl_scene s;
+    sl_error err;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    uint32_t wall = sl_test_add_box(s, (sl_vec3){-20, 0, -20}, (sl_vec3){20, 0.3f, 20}, SL_KIND_BUILDING,
+                                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_SEE_THROUGH);
+    uint32_t box = sl_test_add_box(s, (sl_vec3){-1, 10, -1}, (sl_vec3){1, 12, 1}, SL_KIND_BUILDING,
+                                   SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    uint32_t mover = sl_test_add_box(s, (sl_vec3){50, 3, -3}, (sl_vec3){52, 3.5f, 3}, SL_KIND_BUILDING,
+                                     SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER | SL_OBJECT_DYNAMIC);
+    assert_true(wall != SL_NONE && box != SL_NONE && mover != SL_NONE);
+    gl_judge j;
+    judge_init(&j, s, W, H);
+    sl_culler c;
+    assert_int_equal(sl_renderer_create_culler(j.r, "gpu-hiz", NULL, &c, &err), SL_OK);
+    uint32_t shown = 0;
+    for (uint32_t f = 0; f < 8; f++) {
+        sl_camera cam = sl_camera_default();
+        cam.position = (sl_vec3){-1.0f + 0.25f * (float)f, -6.3f, 0.2f};
+        cam.yaw = 1.57079633f;
+        cam.pitch = 0.0f;
+        cam.fov_y = 0.9f;
+        cam.near_plane = 0.1f;
+        cam.far_plane = 100.0f;
+        cam.width = W;
+        cam.height = H;
+        judge_frame(&j, c, &cam, f % 2 ? SL_RENDER_SHADED : SL_RENDER_IDS, "gpu-hiz see-through", f);
+        shown += j.shown[box];
+    }
+    assert_int_equal(shown, 8);
+    /* a solid wall beside the view moves in front of the box: scene_changed gives gpu-hiz its new box
+     * (a stale one, outside the frustum, would cull it) */
+    sl_affine in_front = {{1, 0, 0, -51.0f, 0, 1, 0, 0, 0, 0, 1, 0}};
+    assert_int_equal(sl_scene_set_object_transform(s, mover, &in_front, &err), SL_OK);
+    assert_int_equal(sl_renderer_scene_changed(j.r, &err), SL_OK);
+    assert_int_equal(sl_culler_scene_changed(c, &err), SL_OK);
+    uint32_t mover_shown = 0;
+    for (uint32_t f = 0; f < 4; f++) {
+        sl_camera cam = sl_camera_default();
+        cam.position = (sl_vec3){-0.2f + 0.1f * (float)f, -6.3f, 0.2f};
+        cam.yaw = 1.57079633f;
+        cam.pitch = 0.0f;
+        cam.fov_y = 0.9f;
+        cam.near_plane = 0.1f;
+        cam.far_plane = 100.0f;
+        cam.width = W;
+        cam.height = H;
+        judge_frame(&j, c, &cam, SL_RENDER_IDS, "gpu-hiz moved", f);
+        mover_shown += j.shown[mover];
+    }
+    assert_int_equal(mover_shown, 4);
+    assert_judged(&j, "gpu-hiz see-through");
+    sl_culler_destroy(c);
+    judge_free(&j);
+    sl_scene_destroy(s);
 }
 
 /* ---- gpu-hiz over a walk ---- */
@@ -560,6 +712,53 @@ static sl_path walk_of(sl_scene s, uint32_t frames)
     if (sl_path_generate(s, &po, NULL, &p, &err) != SL_OK)
         fail_msg("%s", err.message);
     return p;
+}
+
+/* gl-stopwait, chc (threshold 0: its images are vfc's, which are the unculled ones, but for depth
+ * ties) and chc++ on GL over a walk: coherence is what CHC uses. */
+static void test_query_cullers_gl_walk(void **state)
+{
+    (void)state;
+    sl_scene s = sl_test_tiny_city();
+    sl_path p = walk_of(s, sanitized() ? 6 : 40);
+    /* vfc first: its frames on this renderer are the unculled images too (what chc's are compared with) */
+    static const char *const methods[6] = {"vfc", "gl-stopwait", "chc", "chc", "chc++", "chc++"};
+    static const char *const opts[6] = {NULL, NULL, NULL, "assume_visible=3,zpass=true", NULL, "geometry_queries=false"};
+    uint64_t vk = vfc_kept(s, p), queries[6];
+    for (int m = 0; m < 6; m++) {
+        gl_judge j;
+        judge_init(&j, s, W, H);
+        if (opts[m] && strstr(opts[m], "zpass=true"))
+            j.draws_per_object = 2;
+        sl_error err;
+        sl_culler c;
+        if (sl_renderer_create_culler(j.r, methods[m], opts[m], &c, &err) != SL_OK)
+            fail_msg("%s %s: %s", methods[m], opts[m] ? opts[m] : "", err.message);
+        assert_int_equal(sl_culler_guarantee(c), m == 0 ? SL_CONSERVATIVE : SL_CONSERVATIVE_AT_RESOLUTION);
+        char label[80];
+        snprintf(label, sizeof label, "%s %s", methods[m], opts[m] ? opts[m] : "(defaults)");
+        queries[m] = 0;
+        for (uint32_t f = 0; f < sl_path_count(p); f++) {
+            sl_camera cam = sl_path_camera(p, f);
+            judge_frame(&j, c, &cam, f % 8 == 0 ? SL_RENDER_SHADED : SL_RENDER_IDS, label, f);
+            sl_cull_stats cs;
+            sl_culler_stats(c, &cs);
+            queries[m] += cs.queries;
+        }
+        assert_judged(&j, label);
+        print_message("%s: %llu queries over the walk, kept %llu (vfc %llu)\n", label, (unsigned long long)queries[m],
+                      (unsigned long long)j.kept, (unsigned long long)vk);
+        if (m == 0) {
+            assert_int_equal(j.kept, vk);
+        } else {
+            assert_true(queries[m] > 0);
+            assert_true(j.kept < vk); /* it culls */
+        }
+        sl_culler_destroy(c);
+        judge_free(&j);
+    }
+    sl_path_destroy(p);
+    sl_scene_destroy(s);
 }
 
 static void test_gpu_hiz_walk(void **state)
@@ -587,6 +786,21 @@ static void test_gpu_hiz_walk(void **state)
         }
         assert_judged(&j, label);
         kept[m] = j.kept;
+        if (m == 0) {
+            /* outside sl_renderer_frame (sl_culler_cull): it clears and draws the frame itself */
+            for (uint32_t f = 0; f < 3; f++) {
+                sl_camera cam = sl_path_camera(p, f * (sl_path_count(p) / 3));
+                uint32_t k;
+                assert_int_equal(sl_culler_cull(c, &cam, j.ids, j.n, &k, &err), SL_OK);
+                assert_int_equal(sl_renderer_read_ids(j.r, j.frame_ids, &err), SL_OK);
+                sl_view v;
+                assert_int_equal(sl_view_from_camera(&cam, &v, &err), SL_OK);
+                assert_int_equal(sl_renderer_draw(j.r, &v, j.all, j.n, SL_RENDER_IDS, NULL, &err), SL_OK);
+                assert_int_equal(sl_renderer_read_ids(j.r, j.full_ids, &err), SL_OK);
+                assert_memory_equal(j.frame_ids, j.full_ids, (size_t)j.npx * 4);
+                assert_true(k > 0);
+            }
+        }
         sl_culler_destroy(c);
         judge_free(&j);
     }
@@ -613,7 +827,10 @@ int main(void)
         cmocka_unit_test(test_poll_wait),
         cmocka_unit_test(test_hoq_gl_city),
         cmocka_unit_test(test_hoq_gl_map),
+        cmocka_unit_test(test_query_cullers_gl_walk),
         cmocka_unit_test(test_gpu_hiz_walk),
+        cmocka_unit_test(test_gpu_hiz_edges),
+        cmocka_unit_test(test_gpu_hiz_see_through),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,6 +1,8 @@
 /* The registry of culling methods: one line per method. A method lives in src/cull/<name>.c and
  * defines `const sl_cull_method sl_cull_method_<name>`; listing it here is all it takes for the
- * command, the viewer, the benchmarks and the tests to offer it. Order is the listing order. */
+ * command, the viewer, the benchmarks and the tests to offer it. Order is the listing order.
+ * The X() argument is a C identifier; the name users type is the table's .name, which may hold
+ * '-' and '+' (lazygrid_z is "lazygrid-z", stopwait "gl-stopwait" in hoq.c, chcpp "chc++"). */
 #include "culler_internal.h"
 
 #define SL_CULL_METHODS(X) \

@@ -66,7 +66,7 @@ void sl_render_queries_release(sl_renderer r, bool gl_current)
         glDeleteBuffers(2, buffers);
         glDeleteVertexArrays(1, &q->box_vao);
     }
-    r->alloc.free(r->alloc.user, q, sizeof *q);
+    sl_render_free(r, q, sizeof *q);
     r->queries = NULL;
 }
 
@@ -92,10 +92,9 @@ static sl_status need_queries(sl_renderer r, sl_error *err)
 {
     if (r->queries)
         return SL_OK;
-    struct sl_render_queries *q = r->alloc.alloc(r->alloc.user, sizeof *q, 16);
+    struct sl_render_queries *q = sl_render_alloc(r, sizeof *q);
     if (!q)
         return sl_render_fail(err, SL_ERROR_OUT_OF_MEMORY, "gl backend: out of memory");
-    memset(q, 0, sizeof *q);
     r->queries = q;
     GLuint vs = 0, fs = 0;
     sl_status st = shader(GL_VERTEX_SHADER, box_vertex_src, &vs, err);
@@ -130,37 +129,15 @@ static sl_status need_queries(sl_renderer r, sl_error *err)
 
 /* ---- the table ---- */
 
-/* Inverse of a column-major 4x4 (Gauss-Jordan in double); false when singular. */
-static bool inverse(const float m[16], double out[16])
+void sl_render_facing_state(int facing)
 {
-    double a[4][8];
-    for (int i = 0; i < 4; i++)
-        for (int j = 0; j < 8; j++)
-            a[i][j] = j < 4 ? (double)m[j * 4 + i] : (double)(j - 4 == i);
-    for (int c = 0; c < 4; c++) {
-        int p = c;
-        for (int i = c + 1; i < 4; i++)
-            if (fabs(a[i][c]) > fabs(a[p][c]))
-                p = i;
-        if (a[p][c] == 0.0)
-            return false;
-        for (int j = 0; j < 8; j++) {
-            double t = a[c][j];
-            a[c][j] = a[p][j];
-            a[p][j] = t;
-        }
-        double d = a[c][c];
-        for (int j = 0; j < 8; j++)
-            a[c][j] /= d;
-        for (int i = 0; i < 4; i++)
-            if (i != c)
-                for (int j = 7; j >= 0; j--)
-                    a[i][j] -= a[i][c] * a[c][j];
+    if (facing == SL_RENDER_GROUP_TWO_SIDED) {
+        glDisable(GL_CULL_FACE);
+    } else {
+        glEnable(GL_CULL_FACE);
+        glCullFace(GL_BACK);
+        glFrontFace(facing == SL_RENDER_GROUP_CULL_CCW ? GL_CCW : GL_CW);
     }
-    for (int i = 0; i < 4; i++)
-        for (int j = 0; j < 4; j++)
-            out[j * 4 + i] = a[i][j + 4];
-    return true;
 }
 
 /* The frame's view from a world-to-clip matrix (OpenGL clip space): remapped as the renderer's,
@@ -175,8 +152,10 @@ static void set_matrix(sl_renderer r, const float world_to_clip[16])
         o[2] = (float)(0.5 * ((double)m[3] - (double)m[2])); /* z' = (w - z) / 2 (sl_render_view_matrix) */
         o[3] = m[3];
     }
-    double inv[16];
-    if (!inverse(r->view_proj, inv))
+    double d[16], inv[16];
+    for (int i = 0; i < 16; i++)
+        d[i] = r->view_proj[i];
+    if (!sl_render_invert4(d, inv))
         memset(inv, 0, sizeof inv);
     for (int i = 0; i < 16; i++)
         r->inv_view_proj[i] = (float)inv[i];
@@ -397,13 +376,7 @@ static sl_status gl_query_objects(void *user, const uint32_t *ids, uint32_t coun
                 c->base_instance = ids[i];
             }
             if (k && (i == count || k == r->object_count)) {
-                if (facing == SL_RENDER_GROUP_TWO_SIDED) {
-                    glDisable(GL_CULL_FACE);
-                } else {
-                    glEnable(GL_CULL_FACE);
-                    glCullFace(GL_BACK);
-                    glFrontFace(facing == SL_RENDER_GROUP_CULL_CCW ? GL_CCW : GL_CW);
-                }
+                sl_render_facing_state(facing);
                 glNamedBufferSubData(r->indirect_buffer, 0, (GLsizeiptr)(k * sizeof(sl_render_indirect)), r->cmds);
                 glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, NULL, (GLsizei)k, 0);
                 r->frame.draw_calls++;

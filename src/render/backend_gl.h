@@ -8,6 +8,10 @@
 /* Is the table a renderer's GL backend (sl_renderer_backend)? Then *out is its renderer. */
 bool sl_render_backend_of(const sl_draw_backend *backend, sl_renderer *out);
 
+/* The cull-face state of a facing group (SL_RENDER_GROUP_TWO_SIDED, _CULL_CCW, _CULL_CW), as
+ * sl_render_draw_ids sets it. */
+void sl_render_facing_state(int facing);
+
 /* gpu-hiz (gpu_hiz.c): the method table, created through sl_culler_create_from_method by
  * sl_renderer_create_culler with the renderer's backend, and its public description. */
 extern const sl_cull_method sl_render_method_gpu_hiz;

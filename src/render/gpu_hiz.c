@@ -5,9 +5,9 @@
  *   1. select (compute): last frame's visible set, solid objects in the frustum, as indirect
  *      commands (flag D1);
  *   2. pass 1: draw them (the frame's pass: shaded, ids or depth), one multi-draw per facing group;
- *   3. pyramid (compute): the depth buffer copied into level 0, each next level the farthest
- *      (smallest: reversed z) of 2x2 texels of the one below, down to 1x1 (sizes halved rounding up,
- *      so texel (x, y) of level k covers pixels [x 2^k, (x + 1) 2^k) of the image);
+ *   3. pyramid (compute): level 0 is the depth texture itself, each next level (in an SSBO) the
+ *      farthest (smallest: reversed z) of 2x2 texels of the one below, down to 1x1 (sizes halved
+ *      rounding up, so texel (x, y) of level k covers pixels [x 2^k, (x + 1) 2^k) of the image);
  *   4. test (compute): every object's box, grown by the float rounding of its coordinates, is
  *      projected: outside the frustum culled; a corner behind the near plane: visible; else the
  *      pixels whose centres its screen rectangle (grown by `margin` pixels) holds, and its nearest
@@ -63,7 +63,7 @@ typedef struct hiz_state {
     hiz_config cfg;
     PFNGLMULTIDRAWELEMENTSINDIRECTCOUNTPROC draw_count; /* NULL: zeroed instance counts */
     GLuint p_copy, p_reduce, p_cull;
-    GLint u_copy_size, u_src_size, u_dst_size, u_src_off, u_dst_off;
+    GLint u_copy_size, u_copy_dst_size, u_copy_dst_off, u_src_size, u_dst_size, u_src_off, u_dst_off;
     GLint u_vp, u_size, u_objects, u_mode, u_compact, u_margin, u_base;
     GLuint sampler;
     GLuint boxes, records, flags, pyramid;
@@ -88,16 +88,23 @@ static const char g_help[] =
 
 /* ---- shaders ---- */
 
-static const char cs_copy[] =
+static const char cs_copy[] = /* level 1 straight from the depth texture (level 0 is the texture) */
     "#version 450 core\n"
     "layout(local_size_x = 8, local_size_y = 8) in;\n"
     "layout(binding = 0) uniform sampler2D depth_tex;\n"
     "layout(std430, binding = 3) writeonly buffer Pyramid { float pyr[]; };\n"
-    "uniform ivec2 size;\n"
+    "uniform ivec2 size, dst_size;\n"
+    "uniform int dst_off;\n"
     "void main() {\n"
     "    ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
-    "    if (p.x >= size.x || p.y >= size.y) return;\n"
-    "    pyr[p.y * size.x + p.x] = texelFetch(depth_tex, p, 0).r;\n"
+    "    if (p.x >= dst_size.x || p.y >= dst_size.y) return;\n"
+    "    ivec2 q = 2 * p;\n"
+    "    bool rx = q.x + 1 < size.x, ry = q.y + 1 < size.y;\n"
+    "    float m = texelFetch(depth_tex, q, 0).r;\n"
+    "    if (rx) m = min(m, texelFetch(depth_tex, q + ivec2(1, 0), 0).r);\n"
+    "    if (ry) m = min(m, texelFetch(depth_tex, q + ivec2(0, 1), 0).r);\n"
+    "    if (rx && ry) m = min(m, texelFetch(depth_tex, q + ivec2(1, 1), 0).r);\n"
+    "    pyr[dst_off + p.y * dst_size.x + p.x] = m;\n"
     "}\n";
 
 static const char cs_reduce[] =
@@ -123,7 +130,8 @@ static const char cs_cull[] =
     "layout(local_size_x = 64) in;\n"
     "struct Cmd { uint count, instance_count, first_index; int base_vertex; uint base_instance; };\n"
     "struct Rec { uint count, instance_count, first_index; int base_vertex; uint base_instance; uint group, slot; };\n"
-    "layout(std430, binding = 3) readonly buffer Pyramid { float pyr[]; };\n"
+    "layout(binding = 0) uniform sampler2D depth_tex;\n" /* the pyramid's level 0 */
+    "layout(std430, binding = 3) readonly buffer Pyramid { float pyr[]; };\n" /* levels 1.. */
     "layout(std430, binding = 4) readonly buffer Boxes { vec4 box[]; };\n"
     "layout(std430, binding = 5) readonly buffer Records { Rec rec[]; };\n"
     "layout(std430, binding = 6) buffer Flags { uint flag[]; };\n"
@@ -180,7 +188,7 @@ static const char cs_cull[] =
     "    float far_d = 1.0;\n"
     "    for (int y = r.y >> k; y <= (r.w >> k); y++)\n"
     "        for (int x = r.x >> k; x <= (r.z >> k); x++)\n"
-    "            far_d = min(far_d, pyr[off + y * sz.x + x]);\n"
+    "            far_d = min(far_d, k == 0 ? texelFetch(depth_tex, ivec2(x, y), 0).r : pyr[off + y * sz.x + x]);\n"
     "    return dnear * (1.0 + 1e-5) >= far_d;\n"
     "}\n"
     "void emit(uint i, bool on) {\n"
@@ -378,6 +386,8 @@ static sl_status hiz_create(sl_scene scene, const void *config, const sl_cull_ex
         return st;
     }
     s->u_copy_size = glGetUniformLocation(s->p_copy, "size");
+    s->u_copy_dst_size = glGetUniformLocation(s->p_copy, "dst_size");
+    s->u_copy_dst_off = glGetUniformLocation(s->p_copy, "dst_off");
     s->u_src_size = glGetUniformLocation(s->p_reduce, "src_size");
     s->u_dst_size = glGetUniformLocation(s->p_reduce, "dst_size");
     s->u_src_off = glGetUniformLocation(s->p_reduce, "src_off");
@@ -452,14 +462,7 @@ static sl_status need_pyramid(hiz_state *s, sl_error *err)
 /* Set one facing group's state for a pass (the renderer's rules, render_internal.h). */
 static void group_state(int g, sl_render_pass pass)
 {
-    int facing = g % SL_RENDER_GROUP_SEE_THROUGH;
-    if (facing == SL_RENDER_GROUP_TWO_SIDED) {
-        glDisable(GL_CULL_FACE);
-    } else {
-        glEnable(GL_CULL_FACE);
-        glCullFace(GL_BACK);
-        glFrontFace(facing == SL_RENDER_GROUP_CULL_CCW ? GL_CCW : GL_CW);
-    }
+    sl_render_facing_state(g % SL_RENDER_GROUP_SEE_THROUGH);
     if (g >= SL_RENDER_GROUP_SEE_THROUGH) { /* shaded pass only: seen where at least as near, no depth, no id */
         (void)pass;
         glDepthFunc(GL_GEQUAL);
@@ -544,14 +547,18 @@ static void dispatch_cull(hiz_state *s, int mode)
 static void build_pyramid(hiz_state *s)
 {
     sl_renderer r = s->r;
-    glUseProgram(s->p_copy);
     glBindTextureUnit(0, r->depth_tex);
     glBindSampler(0, s->sampler);
-    glUniform2i(s->u_copy_size, (GLint)r->width, (GLint)r->height);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, PYR_BINDING, s->pyramid);
-    glDispatchCompute((r->width + 7) / 8, (r->height + 7) / 8, 1);
+    if (s->pyr_levels > 1) {
+        glUseProgram(s->p_copy);
+        glUniform2i(s->u_copy_size, (GLint)r->width, (GLint)r->height);
+        glUniform2i(s->u_copy_dst_size, (GLint)s->pyr_lw[1], (GLint)s->pyr_lh[1]);
+        glUniform1i(s->u_copy_dst_off, (GLint)s->pyr_off[1]);
+        glDispatchCompute((s->pyr_lw[1] + 7) / 8, (s->pyr_lh[1] + 7) / 8, 1);
+    }
     glUseProgram(s->p_reduce);
-    for (uint32_t k = 0; k + 1 < s->pyr_levels; k++) {
+    for (uint32_t k = 1; k + 1 < s->pyr_levels; k++) {
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
         glUniform2i(s->u_src_size, (GLint)s->pyr_lw[k], (GLint)s->pyr_lh[k]);
         glUniform2i(s->u_dst_size, (GLint)s->pyr_lw[k + 1], (GLint)s->pyr_lh[k + 1]);
@@ -560,8 +567,6 @@ static void build_pyramid(hiz_state *s)
         glDispatchCompute((s->pyr_lw[k + 1] + 7) / 8, (s->pyr_lh[k + 1] + 7) / 8, 1);
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    glBindSampler(0, 0);
-    glBindTextureUnit(0, 0);
 }
 
 static sl_status hiz_cull(void *state, const sl_view *view, uint32_t *out, uint32_t capacity, uint32_t *count,
@@ -596,7 +601,9 @@ static sl_status hiz_cull(void *state, const sl_view *view, uint32_t *out, uint3
         return st;
     double t1 = sl_render_now();
     build_pyramid(s);
-    dispatch_cull(s, 1);
+    dispatch_cull(s, 1); /* reads level 0 from the depth texture bound by build_pyramid */
+    glBindSampler(0, 0);
+    glBindTextureUnit(0, 0);
     if ((st = sl_render_check(r, "gpu-hiz: pyramid and box test (compute)", err)) != SL_OK)
         return st;
     double t2 = sl_render_now();

@@ -254,6 +254,8 @@ void sl_render_context_release(EGLDisplay display, EGLContext context);
 
 /* World -> clip of a view with the depth remap above (column-major). */
 void sl_render_view_matrix(const sl_view *view, float out[16]);
+/* Inverse of a column-major 4x4 matrix (Gauss-Jordan in double); false when singular. */
+bool sl_render_invert4(const double m[16], double out[16]);
 /* Set the frame's view: r->view_proj, eye, viewport to the framebuffer. */
 void sl_render_set_view(sl_renderer r, const sl_view *view);
 /* Clear the framebuffer for a pass (colour: sky drawn; ids SL_NONE; depth 0). Binds r->fbo. */

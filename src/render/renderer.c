@@ -623,7 +623,7 @@ sl_status sl_renderer_set_colors(sl_renderer r, const uint32_t *rgba, sl_error *
 
 /* ---- views ---- */
 
-static bool invert4(const double m[16], double out[16])
+bool sl_render_invert4(const double m[16], double out[16])
 {
     double a[4][8];
     for (int i = 0; i < 4; i++)
@@ -676,7 +676,7 @@ void sl_render_set_view(sl_renderer r, const sl_view *view)
     double d[16], inv[16];
     for (int i = 0; i < 16; i++)
         d[i] = r->view_proj[i];
-    if (!invert4(d, inv))
+    if (!sl_render_invert4(d, inv))
         memset(inv, 0, sizeof inv);
     for (int i = 0; i < 16; i++)
         r->inv_view_proj[i] = (float)inv[i];
