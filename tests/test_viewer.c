@@ -223,6 +223,20 @@ static void test_freeze_and_map(void **state)
     if (distinct_colours(&m) < 16)
         fail_msg("map: %u colours", distinct_colours(&m));
     image_free(&m);
+    /* indoors (a Quake III map, cut above the eye): the eye and the frustum are still drawn */
+    static const char pk3[] = "/usr/share/games/openarena/baseoa/pak1-maps.pk3";
+    if (access(pk3, R_OK) == 0) {
+        char args[512];
+        snprintf(args, sizeof args, "'%s' --map oa_dm1 --frames 2 --size 320x200 --top-down --no-hud --screenshot q3.png",
+                 pk3);
+        expect_view(0, xvfb, args, NULL);
+        image q = load("q3.png");
+        uint32_t qe = count_colour(&q, 0, q.h, 0x20ff20), qf = count_colour(&q, 0, q.h, 0xffe020);
+        if (qe < 4 || qf < 20)
+            fail_msg("map of oa_dm1: %u eye pixels, %u frustum pixels", qe, qf);
+        image_free(&q);
+    } else
+        printf("(%s not installed: the indoor map is not tested)\n", pk3);
 }
 
 /* Keys (scripted with --keys, through the same handler as the window's): Tab and Shift+Tab cycle

@@ -472,8 +472,10 @@ static uint32_t frustum_segments(const sl_view *view, double reach, float *seg)
     return k;
 }
 
-/* The top-down map's camera: orthographic, from above the scene's bounds, north up. */
-static sl_status map_view(viewer *v, sl_view *out, sl_error *err)
+/* The top-down map's camera: orthographic, from above the scene's bounds, north up. Indoors (a
+ * scene with BSP data: a Quake III map) it starts 1 m above the eye, so that the ceilings above
+ * do not hide the floor plan. */
+static sl_status map_view(viewer *v, double eye_z, sl_view *out, sl_error *err)
 {
     sl_aabb b = scene_box(v->scene);
     double ex = b.max.x - b.min.x, ey = b.max.y - b.min.y, ez = b.max.z - b.min.z;
@@ -486,6 +488,10 @@ static sl_status map_view(viewer *v, sl_view *out, sl_error *err)
     m.ortho_height = (float)(1.05 * fmax(1.0, fmax(ey, ex / aspect)));
     m.near_plane = 1;
     m.far_plane = (float)(ez + 20);
+    sl_scene_stats ss;
+    sl_scene_get_stats(v->scene, &ss);
+    if (ss.has_bsp && eye_z + 1 < m.position.z - 1)
+        m.near_plane = (float)(m.position.z - (eye_z + 1));
     m.width = v->fb_w, m.height = v->fb_h;
     return sl_view_from_camera(&m, out, err);
 }
@@ -547,7 +553,7 @@ static sl_status draw_frame(viewer *v, const sl_view *view, sl_render_frame_stat
     float seg[12 * 6 + 6 * 6];
     if (v->map) {
         sl_view mv;
-        if ((s = map_view(v, &mv, err)) != SL_OK)
+        if ((s = map_view(v, view->eye.z, &mv, err)) != SL_OK)
             return s;
         /* every object, then the visible set highlighted */
         for (uint32_t i = 0; i < v->n; i++)
@@ -556,7 +562,7 @@ static sl_status draw_frame(viewer *v, const sl_view *view, sl_render_frame_stat
             (s = sl_renderer_draw_ghosts(v->r, &mv, set, set_count, VISIBLE_RGBA, err)) != SL_OK)
             return s;
         uint32_t k = frustum_segments(culled_from, scene_reach(v->scene) * 0.25, seg);
-        float top = (float)(scene_box(v->scene).max.z + 5);
+        float top = (float)(mv.camera.position.z - mv.camera.near_plane - 0.5); /* just below the near plane */
         for (uint32_t i = 0; i < k; i++)
             seg[i * 6 + 2] = seg[i * 6 + 5] = top;
         if ((s = sl_renderer_draw_lines(v->r, &mv, seg, k, FRUSTUM_RGBA, err)) != SL_OK)
