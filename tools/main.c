@@ -16,6 +16,7 @@ static const sl_command commands[] = {
     {"radar", sl_cmd_radar, "radar echo image of a terrain from a transmitter (occlusion horizon sweep)"},
     {"pvs", sl_cmd_pvs, "from-region visibility: pvs build | info | query | verify"},
     {"occlusion", sl_cmd_occlusion, "debugging of the occlusion methods: occlusion replay FILE (a recorded frame)"},
+    {"view", sl_cmd_view, "walk or fly through a scene in a window: the renderer, a culler, HUD, freeze, map"},
     {"demo", sl_cmd_demo, "generate the default city, run the walkthrough and write a report"},
 };
 

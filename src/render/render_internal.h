@@ -230,6 +230,9 @@ struct sl_renderer_t {
     /* the GL draw backend's objects (backend_gl.c: box program and buffers, the open query), made
      * at its first use; sl_render_queries_release frees them in sl_renderer_destroy */
     struct sl_render_queries *queries;
+    /* overlay.c (viewer): the overlays' programs and buffers, made on first use;
+     * sl_render_overlay_release frees them in sl_renderer_destroy */
+    struct sl_render_overlay *overlay;
 };
 
 /* Set err (when not NULL) and return status; printf format. */
@@ -266,6 +269,8 @@ sl_status sl_render_draw_ids(sl_renderer r, const uint32_t *ids, uint32_t count,
 void sl_render_queries_release(sl_renderer r, bool gl_current);
 /* materials.c: upload the scene's materials and decode their base-colour textures. */
 sl_status sl_render_upload_materials(sl_renderer r, sl_error *err);
+/* overlay.c: release the overlays' state (sl_renderer_destroy; gl: its context is current). */
+void sl_render_overlay_release(sl_renderer r, bool gl);
 /* The renderer's allocator (zeroed memory; free with the size allocated). */
 void *sl_render_alloc(sl_renderer r, size_t size);
 void sl_render_free(sl_renderer r, void *p, size_t size);

@@ -521,6 +521,7 @@ void sl_renderer_destroy(sl_renderer r)
     bool current = !r->own_context || eglMakeCurrent(r->egl_display, EGL_NO_SURFACE, EGL_NO_SURFACE, r->egl_context);
     bool gl = current && (r->own_context || glGetString(GL_VERSION));
     sl_render_queries_release(r, gl);
+    sl_render_overlay_release(r, gl);
     if (gl) {
         free_framebuffer(r);
         GLuint buffers[6] = {r->vbo, r->ibo, r->id_vbo, r->object_ssbo, r->indirect_buffer, r->material_ssbo};

@@ -8,7 +8,7 @@ set -u
 SL="$1"
 . "$(dirname "$0")/lib/common.sh"
 
-cmds=("gen city" "import" "info" "export" "bench" "render" "radar" "methods" "demo" "path gen" "path random"
+cmds=("gen city" "import" "info" "export" "bench" "render" "view" "radar" "methods" "demo" "path gen" "path random"
       "path info" "path check" "pvs build" "pvs info" "pvs query" "pvs verify" "occlusion replay")
 for c in "${cmds[@]}"; do
     # shellcheck disable=SC2086
@@ -23,7 +23,7 @@ for c in "${cmds[@]}"; do
     has "unknown option --no-such-option" "$tmp/err"
 done
 # one positional argument only
-for c in "import" "info" "render" "path info" "path check" "pvs info" "pvs query" "pvs verify" "pvs build"; do
+for c in "import" "info" "render" "view" "path info" "path check" "pvs info" "pvs query" "pvs verify" "pvs build"; do
     # shellcheck disable=SC2086
     expect 2 "$SL" $c a.slscene b.slscene
     has "unexpected argument" "$tmp/err"
