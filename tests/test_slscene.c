@@ -445,7 +445,7 @@ static void test_deterministic(void **state)
     assert_int_equal(get64(f + H_FILE_SIZE), fx->size);
     assert_int_equal(fx->size % 64, 0);
     uint32_t n = get32(f + H_COUNT);
-    assert_int_equal(n, 28); /* 23 of format 1.0, five of 1.1 (materials, uvs) */
+    assert_int_equal(n, 30); /* 23 of format 1.0, seven of 1.1 (materials, uvs, object names) */
     for (uint32_t i = 0; i < n; i++) {
         const uint8_t *e = f + HDR + (size_t)i * ENTRY;
         assert_int_equal(get64(e + E_OFFSET) % 64, 0);

@@ -637,8 +637,10 @@ static sl_status hiz_cull(void *state, const sl_view *view, uint32_t *out, uint3
     return SL_OK;
 }
 
+#define HIZ_SUITS "the GL renderer: GPU-driven culling of any scene (last frame's set drawn, the rest tested on the GPU)"
 const sl_cull_method sl_render_method_gpu_hiz = {
     .name = "gpu-hiz",
+    .suits = HIZ_SUITS,
     .summary = HIZ_SUMMARY,
     .options_help = g_help,
     .guarantee = SL_CONSERVATIVE_AT_RESOLUTION,
@@ -653,4 +655,4 @@ const sl_cull_method sl_render_method_gpu_hiz = {
 };
 
 const sl_cull_method_desc sl_render_desc_gpu_hiz = {"gpu-hiz", HIZ_SUMMARY, g_help, SL_CONSERVATIVE_AT_RESOLUTION,
-                                                    false};
+                                                    false, HIZ_SUITS};
