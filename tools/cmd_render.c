@@ -235,9 +235,9 @@ static sl_status shaded_write(render_ctx *ctx, const char *file, sl_error *err)
         if (!st->ids)
             return tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "shaded: out of memory");
         if (rs->method) {
-            /* a method that draws (hoq, the query cullers) gets the CPU reference backend here and
-             * the renderer draws its set (sl_renderer_create_culler gives it the GL backend) */
-            if ((s = sl_culler_create(rs->method, ctx->scene, rs->method_options, NULL, &st->culler, err)) != SL_OK)
+            /* the renderer's culler: a method that draws (gl-stopwait, chc, chc++) gets the GL
+             * backend and draws the frame while it culls; gpu-hiz is the render layer's own */
+            if ((s = sl_renderer_create_culler(st->r, rs->method, rs->method_options, &st->culler, err)) != SL_OK)
                 return s;
         }
         sl_renderer_info info;
@@ -551,7 +551,12 @@ int sl_cmd_render(int argc, char **argv)
             }
             snprintf(method_opts, sizeof method_opts, "%s", method_options + k + 1);
         }
-        if (strcmp(method_name, "none")) {
+        bool render_method = false;
+#ifdef SL_HAVE_GL
+        for (uint32_t i = 0; i < sl_render_method_count(); i++)
+            render_method |= !strcmp(sl_render_method(i)->name, method_name);
+#endif
+        if (strcmp(method_name, "none") && !render_method) { /* a render-layer method's options: checked at creation */
             sl_error merr;
             uint32_t index;
             if (sl_cull_method_find(method_name, &index, &merr) != SL_OK ||

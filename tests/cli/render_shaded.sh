@@ -70,6 +70,15 @@ if command -v ffmpeg >/dev/null 2>&1; then
     fi
     ls "$tmp" | grep -q 'walk.mp4.tmp-' && fail "temporary video left behind"
 fi
+# the query cullers draw through the renderer's GL backend (queries counted per frame), gpu-hiz is
+# the render layer's own method; both draw fewer objects than no culling
+for m in chc gpu-hiz; do
+    expect 0 "$SL" render city:tiny --walk 3 --width 96 --height 64 --methods $m --out "$tmp/q_$m" --quiet
+    has "^2,$m," "$tmp/q_$m/frames.csv"
+done
+awk -F, 'NR > 1 && $13 > 0 { q = 1 } END { exit !q }' "$tmp/q_chc/frames.csv" || fail "chc issued no GL queries"
+expect 1 "$SL" render city:tiny --walk 2 --methods gpu-hiz:bogus=1 --out "$tmp/x"
+has "gpu-hiz: unknown option .bogus." "$tmp/err"
 # without ffmpeg in PATH: a clear message and exit 1
 PATH=/nonexistent expect 1 "$SL" render city:tiny --walk 2 --video "$tmp/none.mp4" --out "$tmp/nov"
 has "ffmpeg command is not installed" "$tmp/err"
