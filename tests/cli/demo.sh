@@ -27,10 +27,10 @@ for f in report.html report.md frames.csv frames.json summary.md walk.txt walk.s
     [ -s "$tmp/d/$f" ] || fail "no $f"
 done
 has "Every conservative method kept every visible object" "$tmp/d/report.md"
-has "<h2>The methods</h2>" "$tmp/d/report.html"
+has "<h2 id=\"methods\">The methods</h2>" "$tmp/d/report.html"
 # the recommendation comes before the results, in the report and on stdout
-has "<h2>Recommendation</h2>" "$tmp/d/report.html"
-awk '/<h2>Recommendation<\/h2>/ { r = NR } /<h2>Results<\/h2>/ { s = NR } END { exit !(r && s && r < s) }' "$tmp/d/report.html" ||
+has "<h2 id=\"recommendation\">Recommendation</h2>" "$tmp/d/report.html"
+awk '/<h2 id="recommendation">/ { r = NR } /<h2 id="results">/ { s = NR } END { exit !(r && s && r < s) }' "$tmp/d/report.html" ||
     fail "the recommendation is not before the results"
 has "Fastest within 2× the exact visible set: \|No conservative method passed" "$tmp/d/report.html"
 has "Recommendation" "$tmp/out"
