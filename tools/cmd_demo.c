@@ -430,7 +430,18 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     put(&r->md, "Contents:");
     put(&r->html, "<nav class=\"toc\" id=\"contents\"><b>Contents</b><ol>\n");
     for (size_t i = 0; i < SECTION_COUNT; i++) {
-        put(&r->md, "%s [%s](#%s)", i ? " ·" : "", sections[i][1], sections[i][0]);
+        /* the anchor Markdown viewers make of a heading: lower case, spaces as dashes, no punctuation */
+        char slug[64];
+        size_t o = 0;
+        for (const char *c = sections[i][1]; *c && o + 1 < sizeof slug; c++)
+            if ((*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9') || *c == '-')
+                slug[o++] = *c;
+            else if (*c >= 'A' && *c <= 'Z')
+                slug[o++] = (char)(*c - 'A' + 'a');
+            else if (*c == ' ')
+                slug[o++] = '-';
+        slug[o] = 0;
+        put(&r->md, "%s [%s](#%s)", i ? " ·" : "", sections[i][1], slug);
         put(&r->html, "<li><a href=\"#%s\">%s</a></li>\n", sections[i][0], sections[i][1]);
     }
     put(&r->md, "\n\n");
