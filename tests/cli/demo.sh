@@ -109,6 +109,14 @@ has 'id="map-key"' "$H"
 maps=$(ls "$tmp/d"/*-map-*.png | wc -l)
 thumbs=$(grep -o '<a href="[^"]*-map-[^"]*\.png"><img loading="lazy"' "$H" | wc -l)
 [ "$thumbs" -eq "$maps" ] || fail "$thumbs map thumbnails for $maps maps"
+# every map has its scale bar (black on white, lower left: a corner otherwise without black) and the
+# eye's frustum (its blue wedge) drawn in
+for m in "$tmp/d"/city-tiny-1-walk-map-vfc.png "$tmp/d"/city-tiny-1-flyover-map-hzb.png; do
+    dark=$(png_dark "$m" 'iw/3:ih/8:0:ih*7/8')
+    [ -z "$dark" ] || [ "$dark" -ge 100 ] || fail "no scale bar in the lower left of $m ($dark dark pixels)"
+done
+has 'scale in metres' "$H"
+has 'its view frustum' "$H"
 # self-contained: no http(s) resources
 grep -Eq '(src|href)="(https?:)?//' "$H" && fail "report.html loads something from the network"
 
