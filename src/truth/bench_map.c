@@ -54,8 +54,10 @@ static void blend_px(sl_canvas *cv, long x, long y, uint32_t c, double a)
     }
 }
 
-/* A filled triangle blended over the canvas (pixel centres inside), clipped to the canvas. */
-static void fill_triangle(sl_canvas *cv, const double x[3], const double y[3], uint32_t c, double a)
+/* A filled triangle blended over the canvas (pixel centres inside), clipped to the canvas, only
+ * where ids shows no object: the objects keep the colours of the key. */
+static void fill_triangle(sl_canvas *cv, const uint32_t *ids, const double x[3], const double y[3], uint32_t c,
+                          double a)
 {
     for (int k = 0; k < 3; k++)
         if (!isfinite(x[k]) || !isfinite(y[k]))
@@ -74,7 +76,7 @@ static void fill_triangle(sl_canvas *cv, const double x[3], const double y[3], u
                 int a1 = (k + 1) % 3, a2 = (k + 2) % 3;
                 w[k] = ((x[a2] - x[a1]) * (cy - y[a1]) - (cx - x[a1]) * (y[a2] - y[a1])) / area;
             }
-            if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0)
+            if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0 && ids[(size_t)py * cv->width + (size_t)px] == SL_NONE)
                 blend_px(cv, px, py, c, a);
         }
 }
@@ -334,7 +336,7 @@ sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, co
             to_pixel(&vp, w, h, l, &lx, &ly);
             to_pixel(&vp, w, h, r, &rx, &ry);
             double tx[3] = {ex0, lx, rx}, ty[3] = {ey0, ly, ry};
-            fill_triangle(&canvas, tx, ty, FRUSTUM_COLOR, 0.22);
+            fill_triangle(&canvas, tv.ids, tx, ty, FRUSTUM_COLOR, 0.22);
             sl_canvas_line(&canvas, ex0, ey0, lx, ly, FRUSTUM_COLOR, (int)lround(2 * unit));
             sl_canvas_line(&canvas, ex0, ey0, rx, ry, FRUSTUM_COLOR, (int)lround(2 * unit));
         }
