@@ -106,7 +106,7 @@ hasnt '>vfc</text>' "$tmp/d/city-tiny-1-walk-missed-pixels.svg"
 has '<div class="grid maps">' "$H"
 has 'id="map-key"' "$H"
 [ "$(sed -n '/id="map-key"/p' "$H" | grep -o 'class="sw"' | wc -l)" -ge 5 ] || fail "the map key has fewer than 5 colours"
-maps=$(ls "$tmp/d"/*-map-*.png | wc -l)
+maps=$(find "$tmp/d" -maxdepth 1 -name '*-map-*.png' | wc -l)
 thumbs=$(grep -o '<a href="[^"]*-map-[^"]*\.png"><img loading="lazy"' "$H" | wc -l)
 [ "$thumbs" -eq "$maps" ] || fail "$thumbs map thumbnails for $maps maps"
 # every map has its scale bar (black on white, lower left: a corner otherwise without black) and the
