@@ -540,7 +540,9 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
                 continue;
             char file[256];
             snprintf(file, sizeof file, "%s-map-%s.png", sl_bench_label(benches[bi]), info.name);
-            put(&r->md, "[![%s](%s)](%s) ", info.name, file, file);
+            /* thumbnails: HTML inside Markdown, which the common viewers render */
+            put(&r->md, "<a href=\"%s\"><img src=\"%s\" width=\"170\" alt=\"%s\" title=\"%s\"></a>\n", file, file,
+                info.name, info.name);
             put(&r->html, "<figure><a href=\"%s\"><img loading=\"lazy\" src=\"%s\" alt=\"", file, file);
             put_html(&r->html, info.name);
             put(&r->html, " map\"></a><figcaption>");
