@@ -239,7 +239,7 @@ static const char report_css[] =
     "th{background:#f4f4f4}"
     ".best{background:#c8efc8;font-weight:bold}"
     ".bad{background:#f66;color:#000;font-weight:bold}"
-    ".pick{font-size:.8em;color:#1a5c1a;margin-left:.4em}"
+    ".pick{font-size:.8em;color:#1a5c1a;margin-left:.4em;white-space:nowrap}"
     ".ok{color:#186a18}.fail{color:#c00;font-weight:bold}"
     ".legend{font-size:.9em;color:#444}"
     ".sw{display:inline-block;width:1em;height:1em;border:1px solid #555;vertical-align:-.15em;margin:0 .3em 0 .8em}"
