@@ -38,9 +38,11 @@ static void usage(FILE *out)
             "sampled every %.2f m) and %u random flyover views with every registered culling method (one\n"
             "that cannot run with its default options is named as not run; the pvs culler gets a PVS baked\n"
             "for the street cells along the walk, walk.slpvs, with the %s method), judge every frame\n"
-            "with the exact point oracle, and write a report into DIR: report.html\n"
-            "and report.md with the summary tables, what each method is, the scene's statistics, a rendered\n"
-            "frame (ids, depth, overdraw), top-down visibility maps and plots, plus the raw per-frame\n"
+            "with the exact point oracle, and write a report into DIR: report.html and report.md with the\n"
+            "verdict and the recommendation first, a table of contents, the results tables (the best value\n"
+            "of each column highlighted), plots, a rendered frame (ids, depth, overdraw; shaded with the\n"
+            "OpenGL renderer), a grid of top-down visibility maps with a colour key and a scale bar, what\n"
+            "each method is and the scene's statistics (docs/bench.md, \"The report\"), plus the raw per-frame\n"
             "frames.csv / frames.json and the walk's path file (walk.txt) to replay with `sightline bench`.\n"
             "Takes well under a few minutes on 2 cores with the small city.\n\n"
             "options:\n"
@@ -182,7 +184,7 @@ static const char *grouped(char *buf, size_t n, double v)
     return buf;
 }
 
-/* An image in both reports (path relative to the report). */
+/* An image in both reports (path relative to the report), with its caption. */
 static void put_image(report *r, const char *file, const char *caption)
 {
     put(&r->md, "![%s](%s)\n\n*%s*\n\n", caption, file, caption);
@@ -193,12 +195,14 @@ static void put_image(report *r, const char *file, const char *caption)
     put(&r->html, "</figcaption></figure>\n");
 }
 
-static void put_heading(report *r, int level, const char *text)
+/* A section heading with an anchor (id) for the table of contents; Markdown viewers derive the
+ * same anchors from the text. */
+static void put_section(report *r, const char *id, const char *text)
 {
-    put(&r->md, "%.*s %s\n\n", level, "####", text);
-    put(&r->html, "<h%d>", level);
+    put(&r->md, "## %s\n\n", text);
+    put(&r->html, "<h2 id=\"%s\">", id);
     put_html(&r->html, text);
-    put(&r->html, "</h%d>\n", level);
+    put(&r->html, "</h2>\n");
 }
 
 static void put_para(report *r, const char *text)
@@ -209,31 +213,170 @@ static void put_para(report *r, const char *text)
     put(&r->html, "</p>\n");
 }
 
-/* The summary table of one bench in HTML (Markdown comes from sl_bench_print_summary). */
+/* The sections, in order: anchor and title (the table of contents lists them). */
+static const char *const sections[][2] = {
+    {"recommendation", "Recommendation"},
+    {"results", "Results"},
+    {"plots", "Plots"},
+    {"frame", "A frame of the walk"},
+    {"shaded", "The frame, shaded"},
+    {"maps", "Top-down visibility maps"},
+    {"methods", "The methods"},
+    {"scene", "The scene"},
+    {"further", "Going further"},
+};
+#define SECTION_COUNT (sizeof sections / sizeof sections[0])
+
+/* The report's style: a readable width on a laptop, wide tables scroll inside their box, the best
+ * cell of each column green, violations red, maps in a grid of thumbnails. No external resources. */
+static const char report_css[] =
+    "body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.4}"
+    "h2{border-bottom:1px solid #ddd;padding-bottom:.2em;margin-top:1.8em}"
+    ".scroll{overflow-x:auto;max-width:100%}"
+    "table{border-collapse:collapse;margin:.6em 0;font-size:.92em}"
+    "td,th{border:1px solid #ccc;padding:3px 7px;text-align:right;vertical-align:top}"
+    "td:first-child,th:first-child,td.l,th.l{text-align:left}"
+    "th{background:#f4f4f4}"
+    ".best{background:#c8efc8;font-weight:bold}"
+    ".bad{background:#f66;color:#000;font-weight:bold}"
+    ".pick{font-size:.8em;color:#1a5c1a;margin-left:.4em;white-space:nowrap}"
+    ".ok{color:#186a18}.fail{color:#c00;font-weight:bold}"
+    ".legend{font-size:.9em;color:#444}"
+    ".sw{display:inline-block;width:1em;height:1em;border:1px solid #555;vertical-align:-.15em;margin:0 .3em 0 .8em}"
+    "nav.toc{background:#f7f7f7;border:1px solid #ddd;padding:.4em 1em;margin:1em 0}"
+    "nav.toc ol{margin:.3em 0;padding-left:1.4em;columns:2}"
+    "img{max-width:100%;height:auto;border:1px solid #ddd}"
+    "figure{margin:1em 0}figcaption{font-size:.9em;color:#444}"
+    ".grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(170px,1fr));gap:.6em}"
+    ".grid figure{margin:0}.grid img{width:100%}"
+    ".pair{display:grid;grid-template-columns:repeat(auto-fit,minmax(320px,1fr));gap:1em}"
+    "details{margin:0}summary{cursor:pointer;color:#245}"
+    "code{background:#f3f3f3;padding:1px 3px}"
+    "details code{display:block;white-space:pre-wrap;overflow-wrap:anywhere;max-width:34em;font-size:.85em}";
+
+/* Which way a column improves: 0 not ranked, -1 lower is better. */
+enum { COL_FRAMES, COL_OBJECTS, COL_TRIANGLES, COL_VISIBLE, COL_OVER, COL_MISSED, COL_MISSED_PX, COL_MED, COL_P95,
+       COL_MAX, COL_COUNT };
+static const char *const col_names[COL_COUNT] = {"frames", "objects drawn", "triangles drawn", "exact visible",
+                                                 "over-estimation", "missed objects", "missed pixels",
+                                                 "cull ms median", "p95", "max"};
+/* whether a column is ranked, and among which methods: the drawn counts and the over-estimation
+ * only among those that missed nothing (dropping objects is not a way to be tight) */
+static const bool col_ranked[COL_COUNT] = {false, true, true, false, true, true, true, true, true, true};
+static const bool col_needs_no_miss[COL_COUNT] = {false, true, true, false, true, false, false, false, false, false};
+
+static double col_value(const sl_bench_summary *s, int c)
+{
+    switch (c) {
+    case COL_FRAMES: return s->frames;
+    case COL_OBJECTS: return s->objects_drawn_mean;
+    case COL_TRIANGLES: return s->triangles_drawn_mean;
+    case COL_VISIBLE: return s->visible_mean;
+    case COL_OVER: return s->overestimation;
+    case COL_MISSED: return (double)s->missed_objects_total;
+    case COL_MISSED_PX: return (double)s->missed_pixels_total;
+    case COL_MED: return s->cull_ms.median;
+    case COL_P95: return s->cull_ms.p95;
+    default: return s->cull_ms.max;
+    }
+}
+
+/* The value shown in a cell, as printed (the best is found among the printed values, so that
+ * two cells that read the same are both highlighted or neither). */
+static void col_text(char *buf, size_t n, const sl_bench_summary *s, int c)
+{
+    double v = col_value(s, c);
+    switch (c) {
+    case COL_FRAMES: case COL_MISSED: case COL_MISSED_PX: snprintf(buf, n, "%.0f", v); break;
+    case COL_OBJECTS: case COL_TRIANGLES: case COL_VISIBLE: grouped(buf, n, v); break;
+    case COL_OVER: snprintf(buf, n, "%.2f", v); break;
+    default: snprintf(buf, n, "%.3f", v); break;
+    }
+}
+
+/* The results table of one bench in HTML (Markdown comes from sl_bench_print_summary): the best
+ * cell of every ranked column has class "best" (all of them on a tie; none when every method
+ * ties), a conservative method's misses class "bad", the recommended methods a note. */
 static void html_summary(report *r, sl_bench b)
 {
-    put(&r->html, "<table><tr><th>method</th><th>guarantee</th><th>frames</th><th>objects drawn</th>"
-                  "<th>triangles drawn</th><th>exact visible</th><th>over-estimation</th><th>missed objects</th>"
-                  "<th>missed pixels</th><th>cull ms median</th><th>p95</th><th>max</th></tr>\n");
-    char g1[48], g2[48], g3[48];
-    for (uint32_t mi = 0; mi < sl_bench_method_count(b); mi++) {
-        sl_bench_method_info info;
-        sl_bench_summary s;
-        if (sl_bench_method(b, mi, &info, NULL) != SL_OK || sl_bench_summarize(b, mi, &s, NULL) != SL_OK)
-            continue;
-        bool bad = sl_cull_guarantee_keeps_visible(info.guarantee, true) && s.missed_objects_total;
-        put(&r->html, "<tr><td>");
-        put_html(&r->html, info.name);
-        put(&r->html,
-            "</td><td>%s</td><td>%u</td><td>%s</td><td>%s</td><td>%s</td><td>%.2f</td><td%s>%llu</td><td>%llu</td>"
-            "<td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
-            sl_cull_guarantee_name(info.guarantee), s.frames, grouped(g1, sizeof g1, s.objects_drawn_mean),
-            grouped(g2, sizeof g2, s.triangles_drawn_mean), grouped(g3, sizeof g3, s.visible_mean),
-            s.overestimation, bad ? " class=\"bad\"" : "", (unsigned long long)s.missed_objects_total,
-            (unsigned long long)s.missed_pixels_total, s.cull_ms.median, s.cull_ms.p95, s.cull_ms.max);
+    uint32_t nm = sl_bench_method_count(b);
+    sl_bench_summary *sum = calloc(nm ? nm : 1, sizeof *sum);
+    sl_bench_method_info *info = calloc(nm ? nm : 1, sizeof *info);
+    bool *ok = calloc(nm ? nm : 1, sizeof *ok);
+    if (!sum || !info || !ok) {
+        put(&r->html, "<p class=\"fail\">out of memory for the results table</p>\n");
+        free(sum), free(info), free(ok);
+        return;
     }
-    put(&r->html, "</table>\n");
+    for (uint32_t mi = 0; mi < nm; mi++)
+        ok[mi] = sl_bench_method(b, mi, &info[mi], NULL) == SL_OK && sl_bench_summarize(b, mi, &sum[mi], NULL) == SL_OK &&
+                 sum[mi].frames > 0;
+    /* the best printed value of each ranked column, and whether some method differs from it */
+    double best[COL_COUNT];
+    bool spread[COL_COUNT];
+    char cell[64];
+    for (int c = 0; c < COL_COUNT; c++) {
+        best[c] = INFINITY;
+        spread[c] = false;
+        double first = NAN;
+        for (uint32_t mi = 0; mi < nm && col_ranked[c]; mi++) {
+            if (!ok[mi] || (col_needs_no_miss[c] && sum[mi].missed_objects_total))
+                continue;
+            col_text(cell, sizeof cell, &sum[mi], c);
+            double v = strtod(cell, NULL); /* grouped numbers parse up to the first comma: compare the values */
+            v = c == COL_OBJECTS || c == COL_TRIANGLES ? round(col_value(&sum[mi], c)) : v;
+            if (isnan(first))
+                first = v;
+            else if (v != first)
+                spread[c] = true;
+            best[c] = fmin(best[c], v);
+        }
+    }
+    sl_bench_recommendation rec;
+    if (sl_bench_recommend(b, &rec, NULL) != SL_OK)
+        rec.fastest = rec.tightest = -1;
+    put(&r->html, "<div class=\"scroll\"><table><tr><th>method</th><th class=\"l\">guarantee</th>");
+    for (int c = 0; c < COL_COUNT; c++)
+        put(&r->html, "<th>%s</th>", col_names[c]);
+    put(&r->html, "</tr>\n");
+    for (uint32_t mi = 0; mi < nm; mi++) {
+        if (!ok[mi])
+            continue;
+        const sl_bench_summary *s = &sum[mi];
+        bool bad = sl_cull_guarantee_keeps_visible(info[mi].guarantee, true) && s->missed_objects_total;
+        put(&r->html, "<tr><td>");
+        put_html(&r->html, info[mi].name);
+        if ((int32_t)mi == rec.fastest)
+            put(&r->html, "<span class=\"pick\">&#9733; fastest pick</span>");
+        if ((int32_t)mi == rec.tightest)
+            put(&r->html, "<span class=\"pick\">&#9733; tightest pick</span>");
+        put(&r->html, "</td><td class=\"l\">%s</td>", sl_cull_guarantee_name(info[mi].guarantee));
+        for (int c = 0; c < COL_COUNT; c++) {
+            col_text(cell, sizeof cell, s, c);
+            double v = c == COL_OBJECTS || c == COL_TRIANGLES ? round(col_value(s, c)) : strtod(cell, NULL);
+            bool is_best = col_ranked[c] && spread[c] && v == best[c] &&
+                           !(col_needs_no_miss[c] && s->missed_objects_total);
+            const char *cls = (c == COL_MISSED || c == COL_MISSED_PX) && bad ? " class=\"bad\""
+                              : is_best                                     ? " class=\"best\""
+                                                                            : "";
+            put(&r->html, "<td%s>%s</td>", cls, cell);
+        }
+        put(&r->html, "</tr>\n");
+    }
+    put(&r->html, "</table></div>\n");
+    free(sum), free(info), free(ok);
 }
+
+/* The colours of the top-down maps (src/truth/bench_map.c draws them), for the key. */
+static const struct {
+    const char *color, *text;
+} map_key[] = {
+    {"#2ca02c", "visible and kept"},
+    {"#ff9f1c", "kept although hidden or outside the view (over-estimation)"},
+    {"#8c8c8c", "culled, and indeed not visible"},
+    {"#e00000", "visible but dropped (ringed in red): a conservative method never shows it"},
+    {"#1f5fbf", "the eye (black dot) and its view frustum"},
+};
 
 static void write_report_body(report *r, sl_scene scene, const char *label, sl_bench *benches, uint32_t nb,
                               const sl_bench_skip *skipped, uint32_t nskipped, const char *pvs_note,
@@ -244,26 +387,27 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     char text[2048], g1[48], g2[48], g3[48];
     sl_scene_stats ss;
     sl_scene_get_stats(scene, &ss);
+    uint32_t nmethods = nb ? sl_bench_method_count(benches[0]) : 0;
     put(&r->md, "# Sightline demo: %s\n\n", label);
-    put(&r->html, "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Sightline demo: %s</title>\n"
-                  "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
-                  "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:4px 8px;"
-                  "text-align:right}td:first-child,th:first-child{text-align:left}.bad{background:#f66;"
-                  "font-weight:bold}.ok{color:#186a18}.fail{color:#c00;font-weight:bold}img{max-width:100%%;"
-                  "border:1px solid #ddd}figure{margin:1em 0}code{background:#f3f3f3;padding:1px 3px}"
-                  "</style></head><body>\n<h1>Sightline demo: %s</h1>\n",
-        label, label);
+    put(&r->html, "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+                  "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
+                  "<title>Sightline demo: %s</title>\n<style>%s</style></head><body>\n"
+                  "<h1>Sightline demo: %s</h1>\n",
+        label, report_css, label);
+
+    /* summary: what ran, the verdict */
+    put(&r->html, "<div id=\"summary\">\n");
     snprintf(text, sizeof text,
-             "Every registered culling method ran on the same frames of a procedurally generated city (preset %s, "
-             "seed %llu) and was judged against the exact point oracle, which rasterizes every triangle into an "
-             "object-id buffer and reports which objects own a pixel. A conservative method must never drop a "
-             "visible object. The run took %.1f s.",
-             preset, (unsigned long long)seed, seconds);
+             "%u culling methods ran on the same frames of a procedurally generated city (preset %s, seed %llu: "
+             "a street-level walk and a few flyover views) and were judged against the exact point oracle, which "
+             "rasterizes every triangle into an object-id buffer and reports which objects own a pixel. A "
+             "conservative method must never drop a visible object. The run took %.1f s.",
+             nmethods, preset, (unsigned long long)seed, seconds);
     put_para(r, text);
     if (violations) {
         snprintf(text, sizeof text,
                  "CONSERVATIVENESS VIOLATION: conservative methods dropped %llu visible object(s) in total; see the "
-                 "missed objects column and frames.csv.",
+                 "missed objects column (red) and frames.csv.",
                  (unsigned long long)violations);
         put(&r->md, "**%s**\n\n", text);
         put(&r->html, "<p class=\"fail\">%s</p>\n", text);
@@ -272,8 +416,186 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
         put(&r->html, "<p class=\"ok\"><b>Every conservative method kept every visible object in every frame "
                       "(0 missed).</b></p>\n");
     }
+    put(&r->html, "</div>\n");
 
-    put_heading(r, 2, "The scene");
+    /* the recommendation first: what a reader came for */
+    put_section(r, sections[0][0], sections[0][1]);
+    for (uint32_t bi = 0; bi < nb; bi++) {
+        sl_bench_recommendation rec;
+        if (sl_bench_recommend(benches[bi], &rec, NULL) != SL_OK)
+            continue;
+        snprintf(text, sizeof text, "%s: %s", sl_bench_label(benches[bi]), rec.text);
+        put_para(r, text);
+    }
+
+    /* the table of contents */
+    put(&r->md, "Contents:");
+    put(&r->html, "<nav class=\"toc\" id=\"contents\"><b>Contents</b><ol>\n");
+    for (size_t i = 0; i < SECTION_COUNT; i++) {
+        /* the anchor Markdown viewers make of a heading: lower case, spaces as dashes, no punctuation */
+        char slug[64];
+        size_t o = 0;
+        for (const char *c = sections[i][1]; *c && o + 1 < sizeof slug; c++)
+            if ((*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9') || *c == '-')
+                slug[o++] = *c;
+            else if (*c >= 'A' && *c <= 'Z')
+                slug[o++] = (char)(*c - 'A' + 'a');
+            else if (*c == ' ')
+                slug[o++] = '-';
+        slug[o] = 0;
+        put(&r->md, "%s [%s](#%s)", i ? " ·" : "", sections[i][1], slug);
+        put(&r->html, "<li><a href=\"#%s\">%s</a></li>\n", sections[i][0], sections[i][1]);
+    }
+    put(&r->md, "\n\n");
+    put(&r->html, "</ol></nav>\n");
+
+    put_section(r, sections[1][0], sections[1][1]);
+    put_para(r, "Objects drawn, triangles drawn and exact visible are means per frame; missed objects and pixels are "
+                "totals over the frames (a conservative method must show 0); over-estimation is the sum over the "
+                "frames of the objects drawn divided by the sum of the objects the oracle finds visible (a ratio of "
+                "sums: 1.00 is exact, 2.00 draws twice what is seen); cull time is the wall time of one cull call in "
+                "milliseconds (median, 95th percentile and maximum over the frames; the machine may be shared). "
+                "frames.csv and frames.json hold every frame; docs/bench.md describes the columns.");
+    put(&r->html, "<p class=\"legend\"><span class=\"sw best\"></span>best in its column: the fewest objects and "
+                  "triangles drawn and the least over-estimation among the methods that missed nothing, the fewest "
+                  "missed objects and pixels, the shortest cull times (every tie is highlighted; a column where all "
+                  "methods tie is not)<span class=\"sw bad\"></span>a conservative method that dropped a visible "
+                  "object &#9733; the recommended methods</p>\n");
+    for (uint32_t bi = 0; bi < nb; bi++) {
+        put(&r->html, "<h3>");
+        put_html(&r->html, sl_bench_label(benches[bi]));
+        put(&r->html, "</h3>\n");
+        html_summary(r, benches[bi]);
+    }
+    if (!ferror(sl_output_stream(r->md)))
+        sl_bench_print_summary(benches, nb, sl_output_stream(r->md));
+
+    put_section(r, sections[2][0], sections[2][1]);
+    put_para(r, "Per frame and method: cull time, triangles drawn (the black dashed line is the exact visible set's "
+                "triangles) and missed pixels (only the methods that missed any; none when no method did). Every "
+                "method has its own colour, dash pattern and marker, named in the legend on the right; a logarithmic "
+                "axis is marked as such.");
+    static const char *plots[3][2] = {{"cull-time", "cull time per frame and method"},
+                                      {"triangles", "triangles drawn per frame (dashed: the exact visible set)"},
+                                      {"missed-pixels", "missed pixels per frame, methods with misses only"}};
+    for (uint32_t bi = 0; bi < nb; bi++)
+        for (int k = 0; k < 3; k++) {
+            char file[256];
+            snprintf(file, sizeof file, "%s-%s.svg", sl_bench_label(benches[bi]), plots[k][0]);
+            snprintf(text, sizeof text, "%s: %s", sl_bench_label(benches[bi]), plots[k][1]);
+            put_image(r, file, text);
+        }
+
+    put_section(r, sections[3][0], sections[3][1]);
+    snprintf(text, sizeof text,
+             "Frame %u of the walk as the oracle sees it: every object in its own colour; the distance (near is "
+             "bright); and the depth complexity, i.e. how many fragments a renderer drawing everything in the "
+             "frustum would write per pixel (dark blue few, yellow the most).",
+             frame_index);
+    put_para(r, text);
+    static const char *what[3] = {"object ids", "depth", "depth complexity (overdraw)"};
+    put(&r->html, "<div class=\"pair\">\n");
+    for (int k = 0; k < 3; k++)
+        if (frame_images[k]) {
+            snprintf(text, sizeof text, "Walk frame %u: %s", frame_index, what[k]);
+            put_image(r, frame_images[k], text);
+        }
+    put(&r->html, "</div>\n");
+
+    put_section(r, sections[4][0], sections[4][1]);
+    if (shaded_images[0]) {
+        snprintf(text, sizeof text,
+                 "Walk frame %u drawn by the OpenGL renderer (headless; docs/render.md), and the same view from "
+                 "150 m above the walker (the walker's heading up): the objects the oracle finds visible from the "
+                 "walker's camera in orange (ground in pale orange), the rest grey.",
+                 frame_index);
+        put_para(r, text);
+        put(&r->html, "<div class=\"pair\">\n");
+        snprintf(text, sizeof text, "Walk frame %u, shaded", frame_index);
+        put_image(r, shaded_images[0], text);
+        snprintf(text, sizeof text, "Walk frame %u from above: the visible set highlighted (orange)", frame_index);
+        put_image(r, shaded_images[1], text);
+        put(&r->html, "</div>\n");
+    } else {
+        put_para(r, shaded_note);
+    }
+
+    put_section(r, sections[5][0], sections[5][1]);
+    put_para(r, "The city from above, each object coloured by what the oracle and one method say from the first "
+                "frame's camera; ground and water are paler, lighter is higher. The bar in the lower left corner "
+                "gives the scale in metres. Click a map for the full size.");
+    put(&r->md, "Key: green = visible and kept; orange = kept although hidden or outside the view (over-estimation); "
+                "grey = culled and indeed not visible; red (ringed) = visible but dropped; black dot = the eye, blue "
+                "wedge = its view frustum.\n\n");
+    put(&r->html, "<p class=\"legend\" id=\"map-key\"><b>Key:</b>");
+    for (size_t i = 0; i < sizeof map_key / sizeof map_key[0]; i++)
+        put(&r->html, "<span class=\"sw\" style=\"background:%s\"></span>%s", map_key[i].color, map_key[i].text);
+    put(&r->html, "</p>\n");
+    for (uint32_t bi = 0; bi < nb; bi++) {
+        put(&r->html, "<h3>");
+        put_html(&r->html, sl_bench_label(benches[bi]));
+        put(&r->html, ", first frame</h3>\n<div class=\"grid maps\">\n");
+        put(&r->md, "### %s, first frame\n\n", sl_bench_label(benches[bi]));
+        for (uint32_t mi = 0; mi < sl_bench_method_count(benches[bi]); mi++) {
+            sl_bench_method_info info;
+            if (sl_bench_method(benches[bi], mi, &info, NULL) != SL_OK || info.external)
+                continue;
+            char file[256];
+            snprintf(file, sizeof file, "%s-map-%s.png", sl_bench_label(benches[bi]), info.name);
+            /* thumbnails: HTML inside Markdown, which the common viewers render */
+            put(&r->md, "<a href=\"%s\"><img src=\"%s\" width=\"170\" alt=\"%s\" title=\"%s\"></a>\n", file, file,
+                info.name, info.name);
+            put(&r->html, "<figure><a href=\"%s\"><img loading=\"lazy\" src=\"%s\" alt=\"", file, file);
+            put_html(&r->html, info.name);
+            put(&r->html, " map\"></a><figcaption>");
+            put_html(&r->html, info.name);
+            put(&r->html, "</figcaption></figure>\n");
+        }
+        put(&r->md, "\n\n");
+        put(&r->html, "</div>\n");
+    }
+
+    put_section(r, sections[6][0], sections[6][1]);
+    put(&r->md, "| method | guarantee | what it does | options (effective) |\n|---|---|---|---|\n");
+    put(&r->html, "<div class=\"scroll\"><table><tr><th>method</th><th class=\"l\">guarantee</th>"
+                  "<th class=\"l\">what it does</th><th class=\"l\">options (effective)</th></tr>\n");
+    for (uint32_t mi = 0; mi < nmethods; mi++) {
+        sl_bench_method_info info;
+        uint32_t idx;
+        sl_cull_method_desc d;
+        if (sl_bench_method(benches[0], mi, &info, NULL) != SL_OK ||
+            sl_cull_method_find(info.name, &idx, NULL) != SL_OK || sl_cull_method_info(idx, &d, NULL) != SL_OK)
+            continue;
+        put(&r->md, "| %s | %s | ", info.name, sl_cull_guarantee_name(info.guarantee));
+        put_md(&r->md, d.summary);
+        put(&r->md, " | `%s` |\n", info.options);
+        put(&r->html, "<tr><td>");
+        put_html(&r->html, info.name);
+        put(&r->html, "</td><td class=\"l\">%s</td><td class=\"l\">", sl_cull_guarantee_name(info.guarantee));
+        put_html(&r->html, d.summary);
+        put(&r->html, "</td><td class=\"l\">");
+        if (info.options[0]) {
+            put(&r->html, "<details><summary>options</summary><code>");
+            put_html(&r->html, info.options);
+            put(&r->html, "</code></details>");
+        } else {
+            put(&r->html, "(none)");
+        }
+        put(&r->html, "</td></tr>\n");
+    }
+    put(&r->md, "\n");
+    put(&r->html, "</table></div>\n");
+    if (pvs_note[0])
+        put_para(r, pvs_note);
+    for (uint32_t i = 0; i < nskipped; i++) {
+        snprintf(text, sizeof text, "Not run: %s, which needs an option the demo cannot choose for it: %s",
+                 skipped[i].name, skipped[i].reason);
+        put_para(r, text);
+    }
+    put(&r->md, "`sightline methods` lists every method with its options.\n\n");
+    put(&r->html, "<p><code>sightline methods</code> lists every method with its options.</p>\n");
+
+    put_section(r, sections[7][0], sections[7][1]);
     snprintf(text, sizeof text,
              "%s objects (%u buildings, %u ground and water patches, %u trees, %u cars, %u lamps), %s triangles "
              "drawn (%s stored, instancing shares the props), %u 2.5D footprints, %u street edges; bounds "
@@ -287,133 +609,14 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
              (double)ss.memory_bytes / (1024.0 * 1024.0));
     put_para(r, text);
 
-    put_heading(r, 2, "The methods");
-    put(&r->md, "| method | guarantee | what it does | options (effective) |\n|---|---|---|---|\n");
-    put(&r->html, "<table><tr><th>method</th><th>guarantee</th><th style=\"text-align:left\">what it does</th>"
-                  "<th style=\"text-align:left\">options (effective)</th></tr>\n");
-    if (nb) {
-        for (uint32_t mi = 0; mi < sl_bench_method_count(benches[0]); mi++) {
-            sl_bench_method_info info;
-            uint32_t idx;
-            sl_cull_method_desc d;
-            if (sl_bench_method(benches[0], mi, &info, NULL) != SL_OK ||
-                sl_cull_method_find(info.name, &idx, NULL) != SL_OK || sl_cull_method_info(idx, &d, NULL) != SL_OK)
-                continue;
-            put(&r->md, "| %s | %s | ", info.name, sl_cull_guarantee_name(info.guarantee));
-            put_md(&r->md, d.summary);
-            put(&r->md, " | `%s` |\n", info.options);
-            put(&r->html, "<tr><td>");
-            put_html(&r->html, info.name);
-            put(&r->html, "</td><td>%s</td><td style=\"text-align:left\">", sl_cull_guarantee_name(info.guarantee));
-            put_html(&r->html, d.summary);
-            put(&r->html, "</td><td style=\"text-align:left\"><code>");
-            put_html(&r->html, info.options);
-            put(&r->html, "</code></td></tr>\n");
-        }
-    }
-    put(&r->md, "\n");
-    put(&r->html, "</table>\n");
-    if (pvs_note[0])
-        put_para(r, pvs_note);
-    for (uint32_t i = 0; i < nskipped; i++) {
-        snprintf(text, sizeof text, "Not run: %s, which needs an option the demo cannot choose for it: %s",
-                 skipped[i].name, skipped[i].reason);
-        put_para(r, text);
-    }
-    put(&r->md, "`sightline methods` lists every method with its options.\n\n");
-    put(&r->html, "<p><code>sightline methods</code> lists every method with its options.</p>\n");
-
-    /* the recommendation first: what a reader came for */
-    put_heading(r, 2, "Recommendation");
-    for (uint32_t bi = 0; bi < nb; bi++) {
-        sl_bench_recommendation rec;
-        if (sl_bench_recommend(benches[bi], &rec, NULL) != SL_OK)
-            continue;
-        snprintf(text, sizeof text, "%s: %s", sl_bench_label(benches[bi]), rec.text);
-        put_para(r, text);
-    }
-
-    put_heading(r, 2, "Results");
-    put_para(r, "Means are per frame; missed objects and pixels are totals over the frames; over-estimation is "
-                "the objects drawn over the exactly visible objects, each summed over the frames; cull time is the wall time of one cull call in "
-                "milliseconds (median, 95th percentile and maximum over the frames). frames.csv and frames.json "
-                "hold every frame; docs/bench.md describes the columns.");
-    for (uint32_t bi = 0; bi < nb; bi++) {
-        put(&r->html, "<h3>");
-        put_html(&r->html, sl_bench_label(benches[bi]));
-        put(&r->html, "</h3>\n");
-        html_summary(r, benches[bi]);
-    }
-    if (!ferror(sl_output_stream(r->md)))
-        sl_bench_print_summary(benches, nb, sl_output_stream(r->md));
-
-    put_heading(r, 2, "A frame of the walk");
-    snprintf(text, sizeof text,
-             "Frame %u of the walk as the oracle sees it: every object in its own colour; the distance (near is "
-             "bright); and the depth complexity, i.e. how many fragments a renderer drawing everything in the "
-             "frustum would write per pixel (dark blue few, yellow the most).",
-             frame_index);
-    put_para(r, text);
-    static const char *what[3] = {"object ids", "depth", "depth complexity (overdraw)"};
-    for (int k = 0; k < 3; k++)
-        if (frame_images[k]) {
-            snprintf(text, sizeof text, "Walk frame %u: %s", frame_index, what[k]);
-            put_image(r, frame_images[k], text);
-        }
-
-    put_heading(r, 2, "The frame, shaded");
-    if (shaded_images[0]) {
-        snprintf(text, sizeof text,
-                 "Walk frame %u drawn by the OpenGL renderer (headless; docs/render.md), and the same view from "
-                 "above: the objects the oracle finds visible from the walker's camera in orange (ground in pale "
-                 "orange), the rest grey.",
-                 frame_index);
-        put_para(r, text);
-        snprintf(text, sizeof text, "Walk frame %u, shaded", frame_index);
-        put_image(r, shaded_images[0], text);
-        snprintf(text, sizeof text, "Walk frame %u from above: the visible set highlighted", frame_index);
-        put_image(r, shaded_images[1], text);
-    } else {
-        put_para(r, shaded_note);
-    }
-
-    put_heading(r, 2, "Top-down visibility maps");
-    put_para(r, "The city from above, each object coloured by what the oracle and one method say from the first "
-                "frame's camera (black dot and wedge): green = visible and kept; orange = kept although hidden or "
-                "outside the view (over-estimation); grey = culled and indeed not visible; red (ringed) = visible "
-                "but dropped, which a conservative method must never do. Ground and water are paler; lighter is "
-                "higher.");
-    for (uint32_t bi = 0; bi < nb; bi++)
-        for (uint32_t mi = 0; mi < sl_bench_method_count(benches[bi]); mi++) {
-            sl_bench_method_info info;
-            if (sl_bench_method(benches[bi], mi, &info, NULL) != SL_OK || info.external)
-                continue;
-            char file[256];
-            snprintf(file, sizeof file, "%s-map-%s.png", sl_bench_label(benches[bi]), info.name);
-            snprintf(text, sizeof text, "%s, first frame: %s", sl_bench_label(benches[bi]), info.name);
-            put_image(r, file, text);
-        }
-
-    put_heading(r, 2, "Plots");
-    static const char *plots[3][2] = {{"cull-time", "cull time per frame and method"},
-                                      {"triangles", "triangles drawn per frame (dashed: the exact visible set)"},
-                                      {"missed-pixels", "missed pixels per frame"}};
-    for (uint32_t bi = 0; bi < nb; bi++)
-        for (int k = 0; k < 3; k++) {
-            char file[256];
-            snprintf(file, sizeof file, "%s-%s.svg", sl_bench_label(benches[bi]), plots[k][0]);
-            snprintf(text, sizeof text, "%s: %s", sl_bench_label(benches[bi]), plots[k][1]);
-            put_image(r, file, text);
-        }
-
-    put_heading(r, 2, "Going further");
+    put_section(r, sections[8][0], sections[8][1]);
     snprintf(text, sizeof text,
              "Replay the walk with more repeats per frame: sightline bench city:%s:%llu --path walk.txt --repeat 5. "
              "Other views: --random street --count 200, or --random flyover. Render any frame: sightline render "
              "city:%s:%llu --path walk.txt --frames 10:11. See docs/bench.md.",
              preset, (unsigned long long)seed, preset, (unsigned long long)seed);
     put_para(r, text);
-    put(&r->html, "</body></html>\n");
+    put(&r->html, "<p><a href=\"#contents\">Back to the contents</a></p>\n</body></html>\n");
 }
 
 /* ---- the command ---- */

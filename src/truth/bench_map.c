@@ -14,6 +14,8 @@
 
 enum { CLS_CULLED = 0, CLS_EXTRA = 1, CLS_VISIBLE = 2, CLS_MISSED = 3 };
 static const uint32_t class_color[4] = {0x8c8c8c, 0xff9f1c, 0x2ca02c, 0xe00000};
+/* the eye's frustum (the demo report's map key names these colours) */
+#define FRUSTUM_COLOR 0x1f5fbfu
 
 /* Blend colour c toward white by t in [0,1], then scale by brightness k. */
 static uint32_t shade(uint32_t c, double pale, double k)
@@ -38,6 +40,101 @@ static void to_pixel(const sl_mat4 *vp, uint32_t w, uint32_t h, sl_vec3 p, doubl
         cw = 1;
     *px = (cx / cw + 1.0) * 0.5 * w;
     *py = (1.0 - cy / cw) * 0.5 * h;
+}
+
+/* Blend colour c over pixel x, y with opacity a. */
+static void blend_px(sl_canvas *cv, long x, long y, uint32_t c, double a)
+{
+    if (x < 0 || y < 0 || x >= (long)cv->width || y >= (long)cv->height)
+        return;
+    uint8_t *p = cv->rgb + 3 * ((size_t)y * cv->width + (size_t)x);
+    for (int k = 0; k < 3; k++) {
+        double v = (double)((c >> (16 - 8 * k)) & 255);
+        p[k] = (uint8_t)lround((1 - a) * p[k] + a * v);
+    }
+}
+
+/* A filled triangle blended over the canvas (pixel centres inside), clipped to the canvas, only
+ * where ids shows no object: the objects keep the colours of the key. */
+static void fill_triangle(sl_canvas *cv, const uint32_t *ids, const double x[3], const double y[3], uint32_t c,
+                          double a)
+{
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(x[k]) || !isfinite(y[k]))
+            return;
+    double area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+    if (area == 0)
+        return;
+    long x0 = (long)floor(SL_MIN(SL_MIN(x[0], x[1]), x[2])), x1 = (long)ceil(SL_MAX(SL_MAX(x[0], x[1]), x[2]));
+    long y0 = (long)floor(SL_MIN(SL_MIN(y[0], y[1]), y[2])), y1 = (long)ceil(SL_MAX(SL_MAX(y[0], y[1]), y[2]));
+    x0 = SL_MAX(x0, 0), y0 = SL_MAX(y0, 0);
+    x1 = SL_MIN(x1, (long)cv->width - 1), y1 = SL_MIN(y1, (long)cv->height - 1);
+    for (long py = y0; py <= y1; py++)
+        for (long px = x0; px <= x1; px++) {
+            double cx = px + 0.5, cy = py + 0.5, w[3];
+            for (int k = 0; k < 3; k++) {
+                int a1 = (k + 1) % 3, a2 = (k + 2) % 3;
+                w[k] = ((x[a2] - x[a1]) * (cy - y[a1]) - (cx - x[a1]) * (y[a2] - y[a1])) / area;
+            }
+            if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0 && ids[(size_t)py * cv->width + (size_t)px] == SL_NONE)
+                blend_px(cv, px, py, c, a);
+        }
+}
+
+/* Glyphs of the scale bar's label, 5 rows of 5 bits (the high bit the left column): the digits,
+ * then 'm' and a space. */
+static const uint8_t glyphs[12][5] = {
+    {0x1c, 0x14, 0x14, 0x14, 0x1c}, {0x08, 0x18, 0x08, 0x08, 0x1c}, {0x1c, 0x04, 0x1c, 0x10, 0x1c},
+    {0x1c, 0x04, 0x1c, 0x04, 0x1c}, {0x14, 0x14, 0x1c, 0x04, 0x04}, {0x1c, 0x10, 0x1c, 0x04, 0x1c},
+    {0x1c, 0x10, 0x1c, 0x14, 0x1c}, {0x1c, 0x04, 0x04, 0x04, 0x04}, {0x1c, 0x14, 0x1c, 0x14, 0x1c},
+    {0x1c, 0x14, 0x1c, 0x04, 0x1c}, {0x00, 0x1e, 0x15, 0x15, 0x15}, {0x00, 0x00, 0x00, 0x00, 0x00},
+};
+
+/* Text of digits, 'm' and spaces at x, y (top left), each glyph cell s x s pixels; returns the
+ * width drawn. */
+static double draw_text(sl_canvas *cv, double x, double y, const char *text, int s, uint32_t c)
+{
+    double x_start = x;
+    for (; *text; text++) {
+        int g = *text >= '0' && *text <= '9' ? *text - '0' : *text == 'm' ? 10 : 11;
+        int cols = g == 10 ? 5 : 3; /* digits in the three high bits */
+        for (int row = 0; row < 5; row++)
+            for (int col = 0; col < cols; col++)
+                if (glyphs[g][row] & (0x10 >> col))
+                    for (int dy = 0; dy < s; dy++)
+                        for (int dx = 0; dx < s; dx++)
+                            blend_px(cv, (long)(x + col * s + dx), (long)(y + row * s + dy), c, 1.0);
+        x += (cols + 1) * s;
+    }
+    return x - x_start;
+}
+
+/* A scale bar in the lower left corner: a round length (1, 2 or 5 times a power of ten metres)
+ * of about a fifth of the map's width, black on a white box, labelled "N m". */
+static void draw_scale_bar(sl_canvas *cv, double ppm, double *metres_out)
+{
+    double want = 0.2 * cv->width / ppm, p = pow(10, floor(log10(want))), m = want / p;
+    double metres = (m < 1.5 ? 1 : m < 3.5 ? 2 : m < 7.5 ? 5 : 10) * p, len = metres * ppm;
+    int s = (int)SL_MAX(1, lround(cv->width / 400.0)); /* glyph cell: 2 px on a 1024 map */
+    char label[32];
+    snprintf(label, sizeof label, "%.0f m", metres);
+    double pad = 3.0 * s, bar = 2.0 * s, text_h = 5.0 * s, text_w = (double)strlen(label) * 6 * s;
+    double x0 = 0.025 * cv->width, y1 = cv->height - 0.025 * cv->height; /* the box's lower left */
+    double bw = SL_MAX(len, text_w) + 2 * pad, bh = text_h + bar + 3 * pad + 2 * s;
+    for (long y = (long)(y1 - bh); y < (long)y1; y++)
+        for (long x = (long)x0; x < (long)(x0 + bw); x++)
+            blend_px(cv, x, y, 0xffffff, 0.85);
+    double by = y1 - pad - bar;
+    for (long y = (long)by; y < (long)(by + bar); y++)
+        for (long x = (long)(x0 + pad); x < (long)(x0 + pad + len); x++)
+            blend_px(cv, x, y, 0x000000, 1.0);
+    for (long y = (long)(by - 2 * s); y < (long)(by + bar); y++) /* end ticks */
+        for (int k = 0; k < 2; k++)
+            for (long x = 0; x < s; x++)
+                blend_px(cv, (long)(x0 + pad + (k ? len - s : 0)) + x, y, 0x000000, 1.0);
+    draw_text(cv, x0 + pad, by - 2 * s - pad - text_h, label, s, 0x000000);
+    if (metres_out)
+        *metres_out = metres;
 }
 
 /* Mark every object a method keeps from the viewpoint: one cull for a camera, the union of the
@@ -183,7 +280,7 @@ sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, co
         goto done;
     }
     sl_canvas canvas = {rgb, w, h};
-    double ppm = w / ex; /* pixels per metre */
+    double ppm = h / (double)tc.ortho_height; /* pixels per metre (square pixels) */
 
     /* 3. one image per method */
     for (uint32_t mi = 0; mi < b->method_count; mi++) {
@@ -223,11 +320,12 @@ sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, co
             to_pixel(&vp, w, h, c, &px, &py);
             sl_canvas_ring(&canvas, px, py, SL_MIN(r, 0.25 * SL_MAX(w, h)), class_color[CLS_MISSED], 2);
         }
-        /* the viewpoint: a dot, and the frustum's horizontal wedge or a ring for all directions */
-        double ex0, ey0;
+        /* the viewpoint: a dot, and the frustum's horizontal wedge (filled, outlined) or a ring for
+         * all directions; sized to the map so that a thumbnail still shows them */
+        double ex0, ey0, unit = SL_MAX(1.0, SL_MAX(w, h) / 512.0);
         to_pixel(&vp, w, h, eye, &ex0, &ey0);
         if (o.use_eye) {
-            sl_canvas_ring(&canvas, ex0, ey0, 14, 0x000000, 3);
+            sl_canvas_ring(&canvas, ex0, ey0, 10 * unit, FRUSTUM_COLOR, (int)lround(2 * unit));
         } else {
             sl_frustum fu = sl_camera_frustum(&cam);
             /* far corners: bl, br, tr, tl at indices 4..7; the wedge follows the mid-height of the
@@ -237,11 +335,14 @@ sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, co
             double lx, ly, rx, ry;
             to_pixel(&vp, w, h, l, &lx, &ly);
             to_pixel(&vp, w, h, r, &rx, &ry);
-            sl_canvas_line(&canvas, ex0, ey0, lx, ly, 0x000000, 2);
-            sl_canvas_line(&canvas, ex0, ey0, rx, ry, 0x000000, 2);
+            double tx[3] = {ex0, lx, rx}, ty[3] = {ey0, ly, ry};
+            fill_triangle(&canvas, tv.ids, tx, ty, FRUSTUM_COLOR, 0.22);
+            sl_canvas_line(&canvas, ex0, ey0, lx, ly, FRUSTUM_COLOR, (int)lround(2 * unit));
+            sl_canvas_line(&canvas, ex0, ey0, rx, ry, FRUSTUM_COLOR, (int)lround(2 * unit));
         }
-        sl_canvas_disc(&canvas, ex0, ey0, 7, 0xffffff);
-        sl_canvas_disc(&canvas, ex0, ey0, 5, 0x000000);
+        sl_canvas_disc(&canvas, ex0, ey0, 5.5 * unit, 0xffffff);
+        sl_canvas_disc(&canvas, ex0, ey0, 4 * unit, 0x000000);
+        draw_scale_bar(&canvas, ppm, NULL);
         snprintf(path, plen, "%s%s.png", prefix, m->name);
         st = sl_png_write(path, w, h, 3, rgb, 0, err);
         if (st != SL_OK)

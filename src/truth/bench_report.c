@@ -540,7 +540,8 @@ sl_status sl_bench_write_plots(sl_bench b, const char *prefix, sl_error *err)
     plot.series = series;
 
     for (size_t mi = 0; mi < nm; mi++)
-        series[mi] = (sl_plot_series){b->methods[mi].name, ms + mi * nf, nf, sl_plot_color((uint32_t)mi), false};
+        series[mi] = (sl_plot_series){b->methods[mi].name, ms + mi * nf, nf, sl_plot_color((uint32_t)mi), false,
+                                      (uint32_t)mi + 1};
     snprintf(title, sizeof title, "%s: cull time per frame", b->label);
     plot.title = title;
     plot.y_label = "cull time (ms)";
@@ -553,7 +554,7 @@ sl_status sl_bench_write_plots(sl_bench b, const char *prefix, sl_error *err)
 
     for (size_t mi = 0; mi < nm; mi++)
         series[mi].y = tri + mi * nf;
-    series[nm] = (sl_plot_series){"exact visible", exact, nf, 0x000000, true};
+    series[nm] = (sl_plot_series){"exact visible", exact, nf, 0x000000, true, 0};
     snprintf(title, sizeof title, "%s: triangles drawn per frame", b->label);
     plot.y_label = "triangles";
     plot.series_count = (uint32_t)nm + 1;
@@ -562,11 +563,21 @@ sl_status sl_bench_write_plots(sl_bench b, const char *prefix, sl_error *err)
     if (st != SL_OK)
         goto done;
 
-    for (size_t mi = 0; mi < nm; mi++)
-        series[mi].y = miss + mi * nf;
-    snprintf(title, sizeof title, "%s: missed pixels per frame (conservative methods: 0)", b->label);
+    /* only the methods that missed something: a flat line at 0 would read as a miss */
+    size_t with_misses = 0;
+    for (size_t mi = 0; mi < nm; mi++) {
+        bool any = false;
+        for (size_t fi = 0; fi < nf && !any; fi++)
+            any = miss[mi * nf + fi] > 0;
+        if (any) {
+            series[with_misses] = series[mi];
+            series[with_misses++].y = miss + mi * nf;
+        }
+    }
+    snprintf(title, sizeof title, "%s: missed pixels per frame (methods with misses only)", b->label);
     plot.y_label = "missed pixels";
-    plot.series_count = (uint32_t)nm;
+    plot.series_count = (uint32_t)with_misses;
+    plot.empty_note = "no misses: no method missed a visible pixel in any frame";
     plot.y_scale = SL_PLOT_LINEAR;
     snprintf(path, plen, "%smissed-pixels.svg", prefix);
     st = sl_plot_write_svg(&plot, path, a, err);

@@ -15,10 +15,16 @@
 
 uint32_t sl_plot_color(uint32_t i)
 {
-    static const uint32_t palette[10] = {0x1f77b4, 0xff7f0e, 0x2ca02c, 0xd62728, 0x9467bd,
-                                         0x8c564b, 0xe377c2, 0x7f7f7f, 0xbcbd22, 0x17becf};
-    return palette[i % 10];
+    /* qualitative, told apart on white and mostly by the colour-blind too; black is the reference's */
+    static const uint32_t palette[SL_PLOT_COLORS] = {0x1f77b4, 0xd62728, 0x2ca02c, 0xff7f0e, 0x9467bd,
+                                                     0x8c564b, 0xe377c2, 0x17becf, 0xa6a600, 0x393b79,
+                                                     0x7f7f7f, 0xaa3377, 0x00786a, 0xf4a582};
+    return palette[i % SL_PLOT_COLORS];
 }
+
+/* Dash patterns of the lines (solid first) and of a reference line. */
+static const char *const dash_patterns[SL_PLOT_DASHES] = {"", "9,3", "2,2.5", "9,3,2,3", "4.5,4.5"};
+#define REFERENCE_DASH "12,6"
 
 static void out(sl_atomic_file *f, const char *fmt, ...) SL_PRINTF(2, 3);
 static void out(sl_atomic_file *f, const char *fmt, ...)
@@ -85,12 +91,48 @@ static double axis_pos(const axis *a, double v, double p0, double p1)
     return p0 + t * (p1 - p0);
 }
 
+/* Marker m (0..SL_PLOT_MARKERS-1: circle, square, triangle, diamond, inverted triangle, cross,
+ * plus) of colour c centred on x, y. */
+static void out_marker(sl_atomic_file *f, uint32_t m, double x, double y, uint32_t c)
+{
+    const double r = 4.2;
+    c &= 0xffffff;
+    switch (m % SL_PLOT_MARKERS) {
+    case 0: out(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"%.1f\" fill=\"#%06x\" stroke=\"white\"/>\n", x, y, r, c); break;
+    case 1:
+        out(f, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"#%06x\" stroke=\"white\"/>\n",
+            x - 0.85 * r, y - 0.85 * r, 1.7 * r, 1.7 * r, c);
+        break;
+    case 2:
+        out(f, "<path d=\"M%.1f %.1fL%.1f %.1fL%.1f %.1fZ\" fill=\"#%06x\" stroke=\"white\"/>\n", x, y - 1.15 * r,
+            x + r, y + 0.75 * r, x - r, y + 0.75 * r, c);
+        break;
+    case 3:
+        out(f, "<path d=\"M%.1f %.1fL%.1f %.1fL%.1f %.1fL%.1f %.1fZ\" fill=\"#%06x\" stroke=\"white\"/>\n", x,
+            y - 1.2 * r, x + r, y, x, y + 1.2 * r, x - r, y, c);
+        break;
+    case 4:
+        out(f, "<path d=\"M%.1f %.1fL%.1f %.1fL%.1f %.1fZ\" fill=\"#%06x\" stroke=\"white\"/>\n", x, y + 1.15 * r,
+            x + r, y - 0.75 * r, x - r, y - 0.75 * r, c);
+        break;
+    case 5:
+        out(f, "<path d=\"M%.1f %.1fL%.1f %.1fM%.1f %.1fL%.1f %.1f\" stroke=\"#%06x\" stroke-width=\"2.2\"/>\n",
+            x - r, y - r, x + r, y + r, x - r, y + r, x + r, y - r, c);
+        break;
+    default:
+        out(f, "<path d=\"M%.1f %.1fL%.1f %.1fM%.1f %.1fL%.1f %.1f\" stroke=\"#%06x\" stroke-width=\"2.2\"/>\n",
+            x - 1.2 * r, y, x + 1.2 * r, y, x, y - 1.2 * r, x, y + 1.2 * r, c);
+        break;
+    }
+}
+
 sl_status sl_plot_write_svg(const sl_plot *p, const char *path, const sl_allocator *alloc, sl_error *err)
 {
     if (!p || !path || (p->series_count && !p->series))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_plot_write_svg: plot and path must not be NULL");
     double W = p->width ? p->width : 960, H = p->height ? p->height : 480;
     const double left = 84, right = 190, top = 44, bottom = 56;
+    H = SL_MAX(H, top + 20.0 + 20.0 * p->series_count + bottom); /* room for the legend */
     double px0 = left, px1 = W - right, py0 = H - bottom, py1 = top; /* py0: bottom of the plot area */
     if (px1 - px0 < 50 || py0 - py1 < 50)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: plot size %gx%g is too small", path, W, H);
@@ -199,8 +241,12 @@ sl_status sl_plot_write_svg(const sl_plot *p, const char *path, const sl_allocat
     out_text(&f, p->y_label);
     out(&f, "%s</text>\n", ay.log ? " (log scale)" : "");
     if (!have)
-        out(&f, "<text x=\"%g\" y=\"%g\" text-anchor=\"middle\" fill=\"#888\">no data</text>\n", 0.5 * (px0 + px1),
+    {
+        out(&f, "<text x=\"%g\" y=\"%g\" text-anchor=\"middle\" font-size=\"15\" fill=\"#555\">", 0.5 * (px0 + px1),
             0.5 * (py0 + py1));
+        out_text(&f, p->empty_note && !p->series_count ? p->empty_note : "no data");
+        out(&f, "</text>\n");
+    }
 
     /* series: polylines clipped to the plot area; thinned per pixel column when long */
     out(&f, "<clipPath id=\"area\"><rect x=\"%g\" y=\"%g\" width=\"%g\" height=\"%g\"/></clipPath>\n", px0 - 2,
@@ -208,9 +254,12 @@ sl_status sl_plot_write_svg(const sl_plot *p, const char *path, const sl_allocat
     size_t columns = (size_t)(px1 - px0);
     for (uint32_t s = 0; s < p->series_count; s++) {
         const sl_plot_series *se = &p->series[s];
-        uint32_t c = se->color;
-        out(&f, "<g clip-path=\"url(#area)\" fill=\"none\" stroke=\"#%06x\" stroke-width=\"1.6\"%s>\n", c & 0xffffff,
-            se->dashed ? " stroke-dasharray=\"6,4\"" : "");
+        uint32_t c = se->color, style = se->style ? se->style - 1 : s;
+        const char *dash = se->dashed ? REFERENCE_DASH : dash_patterns[style % SL_PLOT_DASHES];
+        out(&f, "<g clip-path=\"url(#area)\" fill=\"none\" stroke=\"#%06x\" stroke-width=\"1.6\"", c & 0xffffff);
+        if (dash[0])
+            out(&f, " stroke-dasharray=\"%s\"", dash);
+        out(&f, ">\n");
         bool open = false;
         size_t points = 0;
         size_t bucket = se->count > 4 * columns ? (se->count + columns - 1) / columns : 1;
@@ -262,6 +311,18 @@ sl_status sl_plot_write_svg(const sl_plot *p, const char *path, const sl_allocat
         }
         if (open)
             out(&f, "\"/>\n");
+        /* markers: on every point of a short series, else at 8 places staggered per style */
+        if (!se->dashed && se->count) {
+            size_t marks = se->count <= 16 ? se->count : 8;
+            double shift = se->count <= 16 ? 0 : ((double)((style * 3) % 7) + 0.5) / 7.0;
+            for (size_t k = 0; k < marks; k++) {
+                size_t i = se->count <= 16 ? k : (size_t)(((double)k + shift) * (double)se->count / (double)marks);
+                if (i >= se->count || !isfinite(se->y[i]))
+                    continue;
+                double v = ay.log ? SL_MAX(se->y[i], ay.lo) : se->y[i];
+                out_marker(&f, style, axis_pos(&ax, p->x ? p->x[i] : (double)i, px0, px1), axis_pos(&ay, v, py0, py1), c);
+            }
+        }
         if (points == 1) /* a single frame: a dot, since a one-point line draws nothing */
             for (size_t i = 0; i < se->count; i++)
                 if (isfinite(se->y[i])) {
@@ -275,10 +336,17 @@ sl_status sl_plot_write_svg(const sl_plot *p, const char *path, const sl_allocat
     /* legend */
     for (uint32_t s = 0; s < p->series_count; s++) {
         const sl_plot_series *se = &p->series[s];
-        double y = py1 + 10 + 20.0 * s, x = px1 + 14;
-        out(&f, "<line x1=\"%g\" y1=\"%g\" x2=\"%g\" y2=\"%g\" stroke=\"#%06x\" stroke-width=\"2.5\"%s/>\n", x, y,
-            x + 24, y, se->color & 0xffffff, se->dashed ? " stroke-dasharray=\"6,4\"" : "");
-        out(&f, "<text x=\"%g\" y=\"%g\">", x + 30, y + 4);
+        double y = py1 + 10 + 20.0 * s, x = px1 + 10;
+        uint32_t style = se->style ? se->style - 1 : s;
+        const char *dash = se->dashed ? REFERENCE_DASH : dash_patterns[style % SL_PLOT_DASHES];
+        out(&f, "<line x1=\"%g\" y1=\"%g\" x2=\"%g\" y2=\"%g\" stroke=\"#%06x\" stroke-width=\"2.2\"", x, y, x + 34, y,
+            se->color & 0xffffff);
+        if (dash[0])
+            out(&f, " stroke-dasharray=\"%s\"", dash);
+        out(&f, "/>\n");
+        if (!se->dashed)
+            out_marker(&f, style, x + 17, y, se->color);
+        out(&f, "<text x=\"%g\" y=\"%g\">", x + 40, y + 4);
         out_text(&f, se->name);
         out(&f, "</text>\n");
     }

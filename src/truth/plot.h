@@ -14,7 +14,10 @@ typedef struct sl_plot_series {
     const double *y;
     size_t count;
     uint32_t color;            /* 0xRRGGBB */
-    bool dashed;
+    bool dashed;               /* a reference line: long dashes, no markers */
+    uint32_t style;            /* 1 + the index whose dash pattern and marker the line gets (give the
+                                  index given to sl_plot_color, so that a series looks the same in
+                                  every plot); 0: its position in the plot */
 } sl_plot_series;
 
 typedef enum sl_plot_scale { SL_PLOT_LINEAR = 0, SL_PLOT_LOG = 1, SL_PLOT_AUTO = 2 } sl_plot_scale;
@@ -25,13 +28,19 @@ typedef struct sl_plot {
     const sl_plot_series *series;
     uint32_t series_count;
     sl_plot_scale y_scale;     /* AUTO: logarithmic when the positive values span over 2 decades */
-    uint32_t width, height;    /* 0, 0: 960 x 480 */
+    uint32_t width, height;    /* 0, 0: 960 x 480 (taller when the legend needs it) */
+    const char *empty_note;    /* shown in the plot area without series (NULL: "no data") */
 } sl_plot;
 
 /* Write a line plot as a standalone SVG file (axes, ticks, grid, legend, title). */
 sl_status sl_plot_write_svg(const sl_plot *plot, const char *path, const sl_allocator *alloc, sl_error *err);
 
-/* Colour of series i from a qualitative palette (0xRRGGBB); repeats after 10. */
+/* Colour of series i from a qualitative palette of SL_PLOT_COLORS colours (0xRRGGBB); it repeats
+ * after that, but with another marker: series i gets marker i % SL_PLOT_MARKERS and dash pattern
+ * i % SL_PLOT_DASHES, so no two of the first SL_PLOT_COLORS * SL_PLOT_MARKERS series look alike. */
+#define SL_PLOT_COLORS 14u
+#define SL_PLOT_MARKERS 7u
+#define SL_PLOT_DASHES 5u
 uint32_t sl_plot_color(uint32_t i);
 
 /* The PNGs of an oracle view (ids, depth, overdraw): sl_image_write_* in sightline/truth.h. */

@@ -27,10 +27,10 @@ for f in report.html report.md frames.csv frames.json summary.md walk.txt walk.s
     [ -s "$tmp/d/$f" ] || fail "no $f"
 done
 has "Every conservative method kept every visible object" "$tmp/d/report.md"
-has "<h2>The methods</h2>" "$tmp/d/report.html"
+has "<h2 id=\"methods\">The methods</h2>" "$tmp/d/report.html"
 # the recommendation comes before the results, in the report and on stdout
-has "<h2>Recommendation</h2>" "$tmp/d/report.html"
-awk '/<h2>Recommendation<\/h2>/ { r = NR } /<h2>Results<\/h2>/ { s = NR } END { exit !(r && s && r < s) }' "$tmp/d/report.html" ||
+has "<h2 id=\"recommendation\">Recommendation</h2>" "$tmp/d/report.html"
+awk '/<h2 id="recommendation">/ { r = NR } /<h2 id="results">/ { s = NR } END { exit !(r && s && r < s) }' "$tmp/d/report.html" ||
     fail "the recommendation is not before the results"
 has "Fastest within 2× the exact visible set: \|No conservative method passed" "$tmp/d/report.html"
 has "Recommendation" "$tmp/out"
@@ -48,7 +48,11 @@ for r in $refs; do
     case "$r" in *.png) is_png "$tmp/d/$r" ;; esac
 done
 for r in $(grep -o '](\([^)]*\))' "$tmp/d/report.md" | sed 's/^](//; s/)$//'); do
-    [ -s "$tmp/d/$r" ] || fail "report.md references missing $r"
+    case "$r" in
+    \#*) sed -n 's/^## //p' "$tmp/d/report.md" | tr 'A-Z ' 'a-z-' | tr -cd 'a-z0-9\n-' | grep -qx -- "${r#\#}" ||
+        fail "report.md's contents link to no section $r" ;;
+    *) [ -s "$tmp/d/$r" ] || fail "report.md references missing $r" ;;
+    esac
 done
 is_png "$tmp/d/frame-id.png"
 # the shaded frames (with the OpenGL renderer): the view and the view from above, or why not
@@ -64,6 +68,57 @@ else
     has "built without the OpenGL renderer" "$tmp/d/report.md"
 fi
 "$SL" path check "$tmp/d/walk.txt" >/dev/null 2>&1 || fail "walk.txt is not a valid path file"
+
+# the report's structure (report.html)
+H="$tmp/d/report.html"
+# a table of contents whose every link (#id) names an element of the page, nine sections or more
+toc=$(grep -o 'href="#[^"]*"' "$H" | sed 's/^href="#//; s/"$//' | sort -u)
+[ "$(echo "$toc" | wc -l)" -ge 9 ] || fail "the contents list fewer than 9 sections"
+for id in $toc; do grep -q "id=\"$id\"" "$H" || fail "the contents link #$id leads nowhere"; done
+has '<nav class="toc"' "$H"
+# the summary, the recommendation and the contents come before every other section
+awk '/id="summary"/ { a = NR } /<h2 id="recommendation">/ { b = NR } /<nav class="toc"/ { c = NR }
+     /<h2 id="results">/ { d = NR } END { exit !(a && a < b && b < c && c < d) }' "$H" ||
+    fail "summary, recommendation, contents, results are not in that order"
+# the best value of the ranked columns highlighted (a legend says what), a star on the picks
+[ "$(grep -o 'class="best"' "$H" | wc -l)" -ge 4 ] || fail "fewer than 4 highlighted best cells"
+has 'best in its column' "$H"
+has 'fastest pick' "$H"
+# over-estimation defined as the ratio of sums it is
+has 'a ratio of sums' "$H"
+# the options folded
+has '<details><summary>options</summary><code>' "$H"
+# nothing wider than the page: a width limit, wide tables scroll in their box
+has 'max-width:1100px' "$H"
+has '<div class="scroll"><table>' "$H"
+# plots: a legend of every method, each with its own colour and dash pattern (and a marker)
+svg="$tmp/d/city-tiny-1-walk-cull-time.svg"
+is_svg "$svg"
+legend=$(grep 'stroke-width="2.2"' "$svg" | sed 's/x1="[^"]*" y1="[^"]*" x2="[^"]*" y2="[^"]*"//' | sort -u | wc -l)
+entries=$(grep -c 'stroke-width="2.2"' "$svg")
+[ "$entries" -ge 13 ] || fail "the cull-time plot's legend has $entries entries"
+[ "$legend" -eq "$entries" ] || fail "two methods share a colour and dash pattern in the cull-time plot"
+grep -q '<path d="M' "$svg" || fail "the plot draws no markers"
+# the missed-pixels plot: no method line when nothing was missed, and it says so
+has 'no misses' "$tmp/d/city-tiny-1-walk-missed-pixels.svg"
+hasnt '>vfc</text>' "$tmp/d/city-tiny-1-walk-missed-pixels.svg"
+# the maps: a grid of thumbnails linking to the full images, with a colour key
+has '<div class="grid maps">' "$H"
+has 'id="map-key"' "$H"
+[ "$(sed -n '/id="map-key"/p' "$H" | grep -o 'class="sw"' | wc -l)" -ge 5 ] || fail "the map key has fewer than 5 colours"
+maps=$(find "$tmp/d" -maxdepth 1 -name '*-map-*.png' | wc -l)
+thumbs=$(grep -o '<a href="[^"]*-map-[^"]*\.png"><img loading="lazy"' "$H" | wc -l)
+[ "$thumbs" -eq "$maps" ] || fail "$thumbs map thumbnails for $maps maps"
+# every map has its scale bar (black on white, lower left: a corner otherwise without black) and the
+# eye's frustum (its blue wedge) drawn in
+for m in "$tmp/d"/city-tiny-1-walk-map-vfc.png "$tmp/d"/city-tiny-1-flyover-map-hzb.png; do
+    dark=$(png_dark "$m" 'iw/3:ih/8:0:ih*7/8')
+    [ -z "$dark" ] || [ "$dark" -ge 100 ] || fail "no scale bar in the lower left of $m ($dark dark pixels)"
+done
+has 'scale in metres' "$H"
+has 'its view frustum' "$H"
+# self-contained: no http(s) resources
+grep -Eq '(src|href)="(https?:)?//' "$H" && fail "report.html loads something from the network"
 
 # shellcheck disable=SC2086
 expect 0 "$SL" demo --preset tiny --quick --frames 3 --out "$tmp/j" --json

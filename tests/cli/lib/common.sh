@@ -64,3 +64,19 @@ near() {
     awk -v v="$v" -v w="$2" -v t="$3" 'BEGIN { d = v - w; if (d < 0) d = -d; exit !(d <= t) }' ||
         fail "$1 is $v, expected $2 +- $3"
 }
+
+# png_colors FILE: the number of distinct RGB colours of FILE scaled to 200 pixels wide (nearest
+# neighbour), decoded by ffmpeg; prints nothing when ffmpeg is missing.
+png_colors() {
+    command -v ffmpeg >/dev/null 2>&1 || return 0
+    ffmpeg -loglevel error -i "$1" -vf scale=200:-1:flags=neighbor -f rawvideo -pix_fmt rgb24 - 2>/dev/null |
+        od -An -v -tx1 -w3 | sort -u | wc -l
+}
+
+# png_dark FILE CROP: how many pixels of the ffmpeg crop CROP (w:h:x:y, expressions of iw and ih)
+# of FILE are near black (grey level below 40); prints nothing when ffmpeg is missing.
+png_dark() {
+    command -v ffmpeg >/dev/null 2>&1 || return 0
+    ffmpeg -loglevel error -i "$1" -vf "crop=$2,format=gray" -f rawvideo -pix_fmt gray - 2>/dev/null |
+        od -An -v -tu1 -w1 | awk '$1 < 40 { n++ } END { print n + 0 }'
+}
