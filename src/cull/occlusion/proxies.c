@@ -327,11 +327,14 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
         st = add_mesh_proxy(s, &b, SL_OCC_MESH, objects[o].mesh, xf, o, SL_NONE,
                             s->opt.faces && !(objects[o].flags & SL_OBJECT_DYNAMIC), err);
     }
-    /* 3. the scene's 3D occluder meshes (static, trusted to lie inside their objects) */
+    /* 3. the scene's 3D occluder meshes (static, trusted to lie inside their objects); one with an
+     * object is that object's proxy when it has none yet (the walks reach proxies through objects),
+     * and is used only while the eye is outside the object's box (sl_occ_usable) */
     uint32_t no = sl_scene_occluder_count(scene);
     for (uint32_t i = 0; i < no && st == SL_OK; i++) {
         sl_occluder_view ov = sl_scene_occluder(scene, i);
-        st = add_mesh_proxy(s, &b, SL_OCC_SCENE_MESH, ov.mesh, &ov.transform, SL_NONE, i, s->opt.faces, err);
+        uint32_t owner = ov.object < s->object_count ? ov.object : SL_NONE;
+        st = add_mesh_proxy(s, &b, SL_OCC_SCENE_MESH, ov.mesh, &ov.transform, owner, i, s->opt.faces, err);
     }
     if (st != SL_OK)
         goto done;
