@@ -106,7 +106,11 @@ typedef struct sl_synth_options {
 /* What sl_synth_occluders did. */
 typedef struct sl_synth_stats {
     uint32_t considered;          /* objects looked at (not see-through, native or dynamic) */
-    uint32_t closed, open;        /* of those: closed and consistently oriented after welding, or not */
+    uint32_t closed, open;        /* of those: closed and consistently oriented after welding (or
+                                     closed but for holes in its base plane), or not */
+    uint32_t base_open;           /* of the closed: open only in the plane of their lowest z */
+    uint32_t partial;             /* of the closed: with open parts left out (their other connected
+                                     components are closed: the boxes lie inside those) */
     uint32_t see_through;         /* skipped: SL_OBJECT_SEE_THROUGH (never an occluder) */
     uint32_t native;              /* skipped: has a footprint, an occluder mesh or SL_OBJECT_OCCLUDER */
     uint32_t dynamic;             /* skipped: SL_OBJECT_DYNAMIC (a box would not follow it) */
@@ -127,8 +131,9 @@ SL_API sl_synth_options sl_synth_defaults(void);
 
 /* Synthesise conservative 3D occluders for the objects of `scene` that can carry them: for each
  * static object that is not see-through and has no occluder of its own (footprint, occluder mesh,
- * SL_OBJECT_OCCLUDER), whose mesh is closed and consistently oriented once welded, boxes lying
- * strictly inside the solid it encloses are added as one occluder mesh of the object
+ * SL_OBJECT_OCCLUDER), whose mesh is closed and consistently oriented once welded (its
+ * closed connected components, if it has open ones too; holes in the plane of its lowest z are
+ * allowed: a building without a floor), boxes lying strictly inside the solid they enclose are added as one occluder mesh of the object
  * (sl_scene_add_mesh + sl_scene_add_occluder: the boxes, 12 triangles each, closed, wound
  * outward, in world coordinates). Open meshes get nothing. The occlusion methods use an
  * occluder mesh with an object as that object's occluder, while the eye is outside the object's

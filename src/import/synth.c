@@ -70,6 +70,8 @@ typedef struct ctx {
     const sl_allocator *a;
     sl_synth_options opt;
     double weld, margin;
+    bool base;       /* the object being made is closed but for its base (its cap lies in z = lo.z) */
+    double base_z;
     sl_array boxes;  /* cbox */
     sl_synth_stats *st;
 } ctx;
@@ -163,36 +165,95 @@ static int hedge_cmp(const void *x, const void *y)
     return (p->a > q->a) - (p->a < q->a);
 }
 
-/* 1: closed and consistently oriented; 0: not; -1: out of memory */
-static int is_closed(ctx *c, const wmesh *w)
+typedef struct hedge_t { uint32_t a, b, t; } hedge_t; /* directed a -> b, of triangle t */
+
+static int hedge_t_cmp(const void *x, const void *y)
 {
-    if (w->nt < 4)
-        return 0;
-    size_t ne = 3 * (size_t)w->nt;
-    hedge *e = sl_alloc(c->a, ne * sizeof *e);
-    if (!e)
-        return -1;
-    for (uint32_t t = 0; t < w->nt; t++)
-        for (int k = 0; k < 3; k++)
-            e[3 * t + k] = (hedge){w->t[3 * t + k], w->t[3 * t + (k + 1) % 3]};
-    qsort(e, ne, sizeof *e, hedge_cmp);
-    int ok = 1;
-    for (size_t i = 0; i < ne && ok; i += 2) {
-        /* each undirected edge: exactly two half-edges, a->b and b->a */
-        if (i + 1 >= ne || SL_MIN(e[i].a, e[i].b) != SL_MIN(e[i + 1].a, e[i + 1].b) ||
-            SL_MAX(e[i].a, e[i].b) != SL_MAX(e[i + 1].a, e[i + 1].b) || e[i].a != e[i + 1].b)
-            ok = 0;
-        else if (i + 2 < ne && SL_MIN(e[i].a, e[i].b) == SL_MIN(e[i + 2].a, e[i + 2].b) &&
-                 SL_MAX(e[i].a, e[i].b) == SL_MAX(e[i + 2].a, e[i + 2].b))
-            ok = 0; /* a third face on the edge */
+    const hedge_t *p = x, *q = y;
+    hedge h1 = {p->a, p->b}, h2 = {q->a, q->b};
+    int r = hedge_cmp(&h1, &h2);
+    return r ? r : (p->t > q->t) - (p->t < q->t);
+}
+
+static uint32_t uf_find(uint32_t *parent, uint32_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
     }
+    return x;
+}
+
+/* Keep the closed parts of the welded mesh: its connected components (triangles joined through
+ * shared vertices) that are closed and consistently oriented (every edge used by exactly two of
+ * their triangles, once in each direction), or so but for holes in the object's base plane (edges
+ * used once with both ends at the object's lowest z, within tol: a building standing on the ground
+ * without a floor). The other components' triangles are dropped from w (*dropped counts them):
+ * the boxes need only lie inside the kept surface, which is drawn as well.
+ * Returns 1 (all kept parts closed), 2 (some open in the base plane), 0 (nothing kept) or -1 (out
+ * of memory). */
+static int keep_closed_parts(ctx *c, wmesh *w, double tol, uint32_t *dropped)
+{
+    *dropped = 0;
+    if (w->nt < 4) {
+        *dropped = w->nt;
+        return 0;
+    }
+    size_t ne = 3 * (size_t)w->nt;
+    hedge_t *e = sl_alloc(c->a, ne * sizeof *e);
+    uint32_t *parent = sl_alloc(c->a, (size_t)w->nv * sizeof *parent);
+    uint8_t *flag = sl_calloc(c->a, w->nv, 1); /* per component root: 1 bad, 2 base holes */
+    int ret = -1;
+    if (!e || !parent || !flag)
+        goto done;
+    for (uint32_t v = 0; v < w->nv; v++)
+        parent[v] = v;
+    for (uint32_t t = 0; t < w->nt; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = uf_find(parent, w->t[3 * t + k]), b = uf_find(parent, w->t[3 * t + (k + 1) % 3]);
+            if (a != b)
+                parent[SL_MAX(a, b)] = SL_MIN(a, b);
+            e[3 * t + k] = (hedge_t){w->t[3 * t + k], w->t[3 * t + (k + 1) % 3], t};
+        }
+    qsort(e, ne, sizeof *e, hedge_t_cmp);
+    for (size_t i = 0; i < ne;) {
+        size_t j = i + 1;
+        while (j < ne && SL_MIN(e[j].a, e[j].b) == SL_MIN(e[i].a, e[i].b) && SL_MAX(e[j].a, e[j].b) == SL_MAX(e[i].a, e[i].b))
+            j++;
+        uint32_t root = uf_find(parent, e[i].a);
+        if (j - i == 2 && e[i].a == e[i + 1].b) {
+            /* shared by two faces, once in each direction */
+        } else if (j - i == 1 && fabs(w->v[e[i].a].z - w->lo.z) <= tol && fabs(w->v[e[i].b].z - w->lo.z) <= tol) {
+            flag[root] |= 2;
+        } else {
+            flag[root] |= 1;
+        }
+        i = j;
+    }
+    uint32_t kept = 0;
+    bool base = false;
+    for (uint32_t t = 0; t < w->nt; t++) {
+        uint32_t root = uf_find(parent, w->t[3 * t]);
+        if (flag[root] & 1)
+            continue;
+        base = base || (flag[root] & 2);
+        memmove(&w->t[3 * kept], &w->t[3 * t], 3 * sizeof(uint32_t));
+        kept++;
+    }
+    *dropped = w->nt - kept;
+    w->nt = kept;
+    ret = kept < 4 ? 0 : base ? 2 : 1;
+done:
     sl_free(c->a, e, ne * sizeof *e);
-    return ok;
+    sl_free(c->a, parent, (size_t)w->nv * sizeof *parent);
+    sl_free(c->a, flag, w->nv);
+    return ret;
 }
 
 static double mesh_volume(const wmesh *w)
 {
-    dv3 o = {(w->lo.x + w->hi.x) / 2, (w->lo.y + w->hi.y) / 2, (w->lo.z + w->hi.z) / 2};
+    /* from a point of the base plane: a cap closing holes there adds nothing */
+    dv3 o = {(w->lo.x + w->hi.x) / 2, (w->lo.y + w->hi.y) / 2, w->lo.z};
     double v = 0;
     for (uint32_t t = 0; t < w->nt; t++) {
         dv3 p = w->v[w->t[3 * t]], q = w->v[w->t[3 * t + 1]], r = w->v[w->t[3 * t + 2]];
@@ -381,7 +442,7 @@ static bool solid_column(ctx *c, const wmesh *w, grid *g, uint32_t i, uint32_t j
         int total = 0;
         for (size_t q = 0; q < buf->count; q++)
             total += cs[q].s;
-        if (total != 0)
+        if (total != 0 && !c->base)
             return true; /* not a closed surface along this line: nothing solid here */
         qsort(cs, buf->count, sizeof *cs, cmp_crossing);
         size_t q = 0;
@@ -624,7 +685,7 @@ static sl_status synth_object(ctx *c, const wmesh *w, uint32_t object, double sc
                         sl[k] = b->hi[k], sh[k] = b->hi[k] + mid;
                     else
                         sh[k] = b->lo[k], sl[k] = b->lo[k] - mid;
-                    if (slab_touches(c, w, cand, nc, sl, sh))
+                    if ((c->base && sl[2] < c->base_z + 2 * c->margin) || slab_touches(c, w, cand, nc, sl, sh))
                         hi = mid;
                     else
                         lo = mid;
@@ -792,13 +853,18 @@ sl_status sl_synth_occluders(sl_scene scene, const sl_synth_options *opt, const 
         st = weld_object(&c, scene, o, &w, err);
         if (st != SL_OK)
             break;
-        int closed = is_closed(&c, &w);
+        uint32_t dropped = 0;
+        int closed = keep_closed_parts(&c, &w, c.weld, &dropped);
         if (closed < 0) {
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "occluder synthesis: out of memory");
         } else if (closed == 0) {
             s->open++;
         } else {
             s->closed++;
+            s->base_open += closed == 2;
+            s->partial += dropped > 0;
+            c.base = closed == 2;
+            c.base_z = w.lo.z;
             s->closed_volume += mesh_volume(&w);
             size_t before = c.boxes.count;
             st = synth_object(&c, &w, o, diag, err);

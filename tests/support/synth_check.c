@@ -55,6 +55,91 @@ static int parity(const tri3 *t, uint32_t nt, const double o[3], const double d[
     return (int)(hits & 1);
 }
 
+/* The triangles of the closed connected components (vertices equal after rounding to 0.1 mm;
+ * every edge used twice, or once in the plane of the lowest z), moved to the front of t; their
+ * count. The parity test holds for those only. */
+typedef struct vkey { int64_t k[3]; uint32_t id; } vkey;
+typedef struct ekey { uint32_t a, b, t; } ekey;
+static int vkey_cmp(const void *x, const void *y)
+{
+    const vkey *p = x, *q = y;
+    for (int i = 0; i < 3; i++)
+        if (p->k[i] != q->k[i])
+            return p->k[i] < q->k[i] ? -1 : 1;
+    return 0;
+}
+static int ekey_cmp(const void *x, const void *y)
+{
+    const ekey *p = x, *q = y;
+    if (p->a != q->a)
+        return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+static uint32_t root_of(uint32_t *par, uint32_t x)
+{
+    while (par[x] != x)
+        x = par[x] = par[par[x]];
+    return x;
+}
+static uint32_t keep_closed(tri3 *t, uint32_t nt)
+{
+    size_t nv = 3 * (size_t)nt;
+    vkey *vk = malloc((nv ? nv : 1) * sizeof *vk);
+    uint32_t *id = malloc((nv ? nv : 1) * sizeof *id), *par = malloc((nv ? nv : 1) * sizeof *par);
+    ekey *ek = malloc((nv ? nv : 1) * sizeof *ek);
+    uint8_t *bad = calloc(nv ? nv : 1, 1);
+    assert_true(vk && id && par && ek && bad);
+    double zmin = INFINITY;
+    for (size_t i = 0; i < nv; i++) {
+        const double *p = t[i / 3].v[i % 3];
+        for (int k = 0; k < 3; k++)
+            vk[i].k[k] = llround(p[k] * 1e4);
+        vk[i].id = (uint32_t)i;
+        zmin = fmin(zmin, p[2]);
+    }
+    qsort(vk, nv, sizeof *vk, vkey_cmp);
+    uint32_t n = 0;
+    for (size_t i = 0; i < nv; i++) {
+        if (i > 0 && vkey_cmp(&vk[i], &vk[i - 1]) != 0)
+            n++;
+        id[vk[i].id] = n;
+    }
+    for (size_t i = 0; i < nv; i++)
+        par[i] = (uint32_t)i;
+    for (uint32_t i = 0; i < nt; i++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = root_of(par, id[3 * i + k]), b = root_of(par, id[3 * i + (k + 1) % 3]);
+            par[a > b ? a : b] = a < b ? a : b;
+            uint32_t u = id[3 * i + k], w = id[3 * i + (k + 1) % 3];
+            ek[3 * i + k] = (ekey){u < w ? u : w, u < w ? w : u, i};
+        }
+    qsort(ek, nv, sizeof *ek, ekey_cmp);
+    for (size_t i = 0; i < nv;) {
+        size_t j = i + 1;
+        while (j < nv && ek[j].a == ek[i].a && ek[j].b == ek[i].b)
+            j++;
+        bool base;
+        /* a border edge in the lowest plane: both its ends there */
+        const tri3 *tr = &t[ek[i].t];
+        int ends = 0;
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = id[3 * ek[i].t + k];
+            if ((v == ek[i].a || v == ek[i].b) && fabs(tr->v[k][2] - zmin) < 1e-4)
+                ends++;
+        }
+        base = ends >= 2;
+        if (!(j - i == 2 || (j - i == 1 && base)))
+            bad[root_of(par, ek[i].a)] = 1;
+        i = j;
+    }
+    uint32_t kept = 0;
+    for (uint32_t i = 0; i < nt; i++)
+        if (!bad[root_of(par, id[3 * i])])
+            t[kept++] = t[i];
+    free(vk), free(id), free(par), free(ek), free(bad);
+    return kept;
+}
+
 static bool inside(const tri3 *t, uint32_t nt, const double p[3], sl_rng *rng)
 {
     for (int attempt = 0; attempt < 16; attempt++) {
@@ -63,7 +148,8 @@ static bool inside(const tri3 *t, uint32_t nt, const double p[3], sl_rng *rng)
             for (int k = 0; k < 3; k++)
                 d[k] = 2 * sl_rng_double(rng) - 1;
             l = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        } while (l < 0.01 || l > 1);
+        } while (l < 0.01 || l > 1 || d[2] < 0.1);
+        /* upward only: a surface closed but for holes in its lowest plane is closed for them */
         int r = parity(t, nt, p, d);
         if (r >= 0)
             return r == 1;
@@ -88,6 +174,7 @@ sl_synth_check sl_synth_check_object(sl_scene s, uint32_t object, uint32_t n)
         vol += a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0]) + a[2] * (b[0] * d[1] - b[1] * d[0]);
     }
     c.mesh_volume = fabs(vol) / 6;
+    uint32_t nt = keep_closed(t, mv.triangle_count);
     sl_rng rng;
     sl_rng_seed(&rng, 1234 + object, 5);
     for (uint32_t i = 0; i < sl_scene_occluder_count(s); i++) {
@@ -111,12 +198,11 @@ sl_synth_check sl_synth_check_object(sl_scene s, uint32_t object, uint32_t n)
                         sl_vec3 w = sl_affine_point(&oc.transform, (sl_vec3){fp[0], fp[1], fp[2]});
                         double p[3] = {w.x, w.y, w.z};
                         c.points++;
-                        if (!inside(t, mv.triangle_count, p, &rng))
+                        if (!inside(t, nt, p, &rng))
                             c.outside_points++;
                     }
-            for (uint32_t v = 0; v < mv.vertex_count; v++) {
-                double p[3];
-                world(&ov, mv.positions + 3 * (size_t)v, p);
+            for (uint32_t v = 0; v < 3 * nt; v++) { /* the closed parts' vertices */
+                const double *p = t[v / 3].v[v % 3];
                 bool in = true;
                 for (int k = 0; k < 3 && in; k++)
                     in = p[k] > lo[k] && p[k] < hi[k];

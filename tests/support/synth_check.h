@@ -9,7 +9,7 @@ typedef struct sl_synth_check {
     uint32_t boxes;            /* boxes of the object's occluder meshes (8 vertices each) */
     uint64_t points;           /* corners and grid points tested */
     uint64_t outside_points;   /* of those, outside the object's mesh (ray parity): must be 0 */
-    uint64_t vertices_inside;  /* mesh vertices strictly inside a box: must be 0 */
+    uint64_t vertices_inside;  /* mesh vertices strictly inside a box (of the closed parts: an open part may lie inside): must be 0 */
     double box_volume;         /* sum of the boxes' volumes */
     double mesh_volume;        /* volume the object's mesh encloses */
 } sl_synth_check;

@@ -434,6 +434,11 @@ bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
         ob = sl_scene_object_bounds_array(s->scene)[p->object];
         if (sl_occ_point_in_box(v->eye, &ob, g))
             return false;
+        /* a scene occluder stands inside its object's surface closed by a cap in the plane of the
+         * object's lowest z at most (sl_synth_occluders: a building without a floor): it hides
+         * what the surface hides only from above that plane */
+        if (p->kind == SL_OCC_SCENE_MESH && !(v->eye.z > ob.min.z + g))
+            return false;
     }
     /* Only an occluder beyond the near plane hides anything (issue 12: the renderer clips a
      * surface the eye is centimetres from and sees through the hole). A MESH proxy of a two-sided
