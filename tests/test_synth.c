@@ -327,6 +327,87 @@ static void test_box_house_views(void **state)
     sl_scene_destroy(s);
 }
 
+/* A house without a floor (its mesh open in the plane of its lowest z) gets boxes (the surface
+ * closed by a cap there encloses them); they are used only for eyes above that plane: from below
+ * the eye sees into the house through the missing floor (the furniture inside), and from above it
+ * the house hides what is behind it. */
+static void test_floorless_views(void **state)
+{
+    (void)state;
+    sl_scene s = new_scene();
+    float p[24];
+    sl_test_box_vertices((sl_vec3){0, 0, 0}, (sl_vec3){10, 10, 6}, p);
+    uint32_t floorless[30]; /* every face but -z (triangles 8 and 9 of sl_test_box_indices) */
+    memcpy(floorless, sl_test_box_indices, 24 * sizeof(uint32_t));
+    memcpy(floorless + 24, sl_test_box_indices + 30, 6 * sizeof(uint32_t));
+    uint32_t house = add_mesh_object(s, p, 8, floorless, 10, NULL, 0);
+    sl_test_add_box(s, (sl_vec3){4, 4, 2}, (sl_vec3){6, 6, 3}, SL_KIND_IMPORTED, 0); /* a lamp inside */
+    sl_test_add_box(s, (sl_vec3){4, 30, 0}, (sl_vec3){6, 32, 3}, SL_KIND_IMPORTED, 0); /* behind, seen from -y */
+    sl_synth_stats st = synth(s, NULL);
+    assert_int_equal(st.base_open, 1);
+    assert_true(st.boxes >= 1);
+    sl_synth_check c = sl_synth_check_object(s, house, 5);
+    assert_int_equal(c.outside_points, 0);
+    assert_true(c.box_volume > 0.9 * 600);
+    sl_camera cams[16];
+    for (uint32_t i = 0; i < 16; i++) {
+        sl_camera cam = sl_camera_default();
+        cam.width = 160, cam.height = 120;
+        if (i < 8) { /* below the missing floor, looking up into the house */
+            cam.position = (sl_vec3){2 + (float)i, 5, -2.0f - 0.3f * (float)i};
+            cam.yaw = 0.3f * (float)i;
+            cam.pitch = 1.2f;
+        } else { /* on the far side, level with the lamp */
+            cam.position = (sl_vec3){(float)i - 7, -25, 0.2f * (float)i};
+            cam.yaw = (float)M_PI / 2;
+            cam.pitch = 0;
+        }
+        cams[i] = cam;
+    }
+    sl_synth_views v = sl_synth_run_views(s, "vfc", NULL, cams, 16);
+    const char *methods[2] = {"hzb", "lazygrid"};
+    for (int m = 0; m < 2; m++) {
+        sl_synth_views r = sl_synth_run_views(s, methods[m], NULL, cams, 16);
+        print_message("floorless house %-9s kept %llu / visible %llu (vfc %llu), missed %llu\n", methods[m],
+                      (unsigned long long)r.kept, (unsigned long long)r.visible, (unsigned long long)v.kept,
+                      (unsigned long long)r.missed);
+        assert_int_equal(r.missed, 0);
+        assert_true(r.kept < v.kept); /* from the far side the house hides what is behind it */
+    }
+    sl_scene_destroy(s);
+}
+
+/* An L-shaped closed house with one box (budget 1: in one arm) and a table inside that arm: an eye
+ * in the other arm is inside the house but outside the box; it sees the table, which the box
+ * would hide. The boxes of an object are not used while the eye is inside the object's box. */
+static void test_eye_inside_object(void **state)
+{
+    (void)state;
+    sl_scene s = new_scene();
+    static const float L[] = {10, 10, 10, 40, 0, 40, 0, 0, 40, 0, 40, 10}; /* arms along x and y */
+    add_prism(s, L, 6, 0, 5, NULL);
+    sl_test_add_box(s, (sl_vec3){12, 1, 0}, (sl_vec3){14, 3, 1}, SL_KIND_IMPORTED, 0); /* table, x arm */
+    sl_synth_options o = sl_synth_defaults();
+    o.max_boxes_per_object = 1;
+    sl_synth_stats st = synth(s, &o);
+    assert_int_equal(st.boxes, 2); /* one in the house, one in the table */
+    sl_camera cams[8];
+    for (uint32_t i = 0; i < 8; i++) {
+        sl_camera c = sl_camera_default();
+        c.width = 160, c.height = 120;
+        c.position = (sl_vec3){1 + 0.3f * (float)i, 12 + 0.5f * (float)i, 1.5f}; /* in the y arm */
+        c.yaw = atan2f(2 - c.position.y, 13 - c.position.x);
+        cams[i] = c;
+    }
+    sl_synth_views v = sl_synth_run_views(s, "vfc", NULL, cams, 8);
+    assert_int_equal(v.visible, 16); /* the house and the table, every frame */
+    for (int m = 0; m < 2; m++) {
+        sl_synth_views r = sl_synth_run_views(s, m ? "lazygrid" : "hzb", NULL, cams, 8);
+        assert_int_equal(r.missed, 0);
+    }
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -336,6 +417,8 @@ int main(void)
         cmocka_unit_test(test_deterministic),
         cmocka_unit_test(test_options),
         cmocka_unit_test(test_box_house_views),
+        cmocka_unit_test(test_floorless_views),
+        cmocka_unit_test(test_eye_inside_object),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
