@@ -192,11 +192,20 @@ static void test_open_and_see_through(void **state)
     uint32_t t = flipped[1];
     flipped[1] = flipped[2], flipped[2] = t;
     add_mesh_object(s, p, 8, flipped, 12, NULL, 0);
-    /* a third face on an edge */
+    /* two cubes sharing an edge (four faces on it): not a closed surface around either */
+    float p2[48];
+    memcpy(p2, p, sizeof p);
+    sl_test_box_vertices((sl_vec3){5, 5, 0}, (sl_vec3){10, 10, 5}, p2 + 24);
+    uint32_t two[72];
+    for (int i = 0; i < 36; i++)
+        two[i] = sl_test_box_indices[i], two[36 + i] = 8 + sl_test_box_indices[i];
+    add_mesh_object(s, p2, 16, two, 24, NULL, 0);
+    /* a closed cube with a loose fin (a triangle on one of its edges): the fin is peeled off, the
+     * cube gets its box */
     uint32_t extra[39];
     memcpy(extra, sl_test_box_indices, sizeof sl_test_box_indices);
     extra[36] = 0, extra[37] = 1, extra[38] = 7;
-    add_mesh_object(s, p, 8, extra, 13, NULL, 0);
+    uint32_t fin = add_mesh_object(s, p, 8, extra, 13, NULL, 0);
     /* see-through: a blended material */
     sl_material m = {{1, 1, 1, 0.5f}, NULL, SL_ALPHA_BLEND, 0.5f, 0};
     uint32_t mat;
@@ -207,15 +216,19 @@ static void test_open_and_see_through(void **state)
     /* its own occluder already (flagged) */
     sl_test_add_box(s, (sl_vec3){20, 0, 0}, (sl_vec3){25, 5, 5}, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER);
     sl_synth_stats st = synth(s, NULL);
-    assert_int_equal(st.considered, 3);
+    assert_int_equal(st.considered, 4);
     assert_int_equal(st.open, 3);
-    assert_int_equal(st.closed, 0);
+    assert_int_equal(st.closed, 1);
+    assert_int_equal(st.partial, 1);
     assert_int_equal(st.see_through, 1);
     assert_int_equal(st.dynamic, 1);
     assert_int_equal(st.native, 1);
-    assert_int_equal(st.boxes, 0);
-    assert_int_equal(sl_scene_occluder_count(s), 0);
-    assert_null(sl_scene_meta(s, "occluders.synthesised"));
+    assert_int_equal(st.boxes, 1);
+    assert_int_equal(sl_scene_occluder_count(s), 1);
+    assert_int_equal(sl_scene_occluder(s, 0).object, fin);
+    assert_string_equal(sl_scene_meta(s, "occluders.synthesised"), "1");
+    sl_synth_check c = sl_synth_check_object(s, fin, 4);
+    assert_int_equal(c.outside_points, 0);
     sl_scene_destroy(s);
 }
 

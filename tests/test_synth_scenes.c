@@ -159,6 +159,15 @@ static void test_city_reimport(void **state)
         assert_int_equal(nat.missed, 0);
         assert_int_equal(syn.missed, 0);
         assert_true(syn.kept < vfc.kept);
+        if (!strcmp(g_methods[m], "hzb"))
+            assert_true(syn.overestimation <= 1.5 * nat.overestimation); /* issue 16's target */
+    }
+    for (uint32_t o = 0; o < sl_scene_object_count(re); o++) {
+        sl_synth_check c = sl_synth_check_object(re, o, 2);
+        if (c.outside_points || c.vertices_inside)
+            fail_msg("object %u: %llu of %llu points outside its mesh, %llu vertices inside a box", o,
+                     (unsigned long long)c.outside_points, (unsigned long long)c.points,
+                     (unsigned long long)c.vertices_inside);
     }
     free(cams);
     sl_path_destroy(views);

@@ -184,6 +184,82 @@ static uint32_t uf_find(uint32_t *parent, uint32_t x)
     return x;
 }
 
+/* Peel loose parts off: a triangle with a border edge (used by it alone, not in the base plane)
+ * cannot belong to a closed surface; remove it, and again for the triangles that this leaves with
+ * a border edge (a ledge or a cornice glued on along a wall's edge comes off face by face; a closed
+ * shell has no border edge and keeps every triangle). Compacts w->t to the rest; *peeled counts
+ * the triangles removed. Returns 0, or -1 out of memory. */
+static int peel(ctx *c, wmesh *w, double tol, uint32_t *peeled)
+{
+    *peeled = 0;
+    size_t ne = 3 * (size_t)w->nt;
+    uint32_t nt0 = w->nt;
+    if (!ne)
+        return 0;
+    hedge_t *e = sl_alloc(c->a, ne * sizeof *e);
+    uint32_t *grp = sl_alloc(c->a, ne * sizeof *grp);       /* per triangle edge (3t+k): its group */
+    uint32_t *gfirst = sl_alloc(c->a, (ne + 1) * sizeof *gfirst); /* group g: e[gfirst[g] .. gfirst[g+1]) */
+    uint32_t *alive_n = sl_alloc(c->a, ne * sizeof *alive_n);
+    uint8_t *base = sl_alloc(c->a, ne), *dead = sl_calloc(c->a, w->nt, 1);
+    uint32_t *stack = sl_alloc(c->a, ne * sizeof *stack);
+    int ret = -1;
+    if (!e || !grp || !gfirst || !alive_n || !base || !dead || !stack)
+        goto done;
+    for (uint32_t t = 0; t < w->nt; t++)
+        for (int k = 0; k < 3; k++)
+            e[3 * t + k] = (hedge_t){w->t[3 * t + k], w->t[3 * t + (k + 1) % 3], 3 * t + (uint32_t)k};
+    qsort(e, ne, sizeof *e, hedge_t_cmp);
+    uint32_t ng = 0;
+    for (size_t i = 0; i < ne;) {
+        size_t j = i + 1;
+        while (j < ne && SL_MIN(e[j].a, e[j].b) == SL_MIN(e[i].a, e[i].b) && SL_MAX(e[j].a, e[j].b) == SL_MAX(e[i].a, e[i].b))
+            j++;
+        gfirst[ng] = (uint32_t)i;
+        alive_n[ng] = (uint32_t)(j - i);
+        base[ng] = fabs(w->v[e[i].a].z - w->lo.z) <= tol && fabs(w->v[e[i].b].z - w->lo.z) <= tol;
+        for (size_t q = i; q < j; q++)
+            grp[e[q].t] = ng;
+        ng++;
+        i = j;
+    }
+    gfirst[ng] = (uint32_t)ne;
+    size_t sp = 0;
+    for (uint32_t g = 0; g < ng; g++)
+        if (alive_n[g] == 1 && !base[g])
+            stack[sp++] = e[gfirst[g]].t / 3;
+    while (sp) {
+        uint32_t t = stack[--sp];
+        if (dead[t])
+            continue;
+        dead[t] = 1;
+        (*peeled)++;
+        for (int k = 0; k < 3; k++) {
+            uint32_t g = grp[3 * t + k];
+            if (--alive_n[g] == 1 && !base[g])
+                for (uint32_t q = gfirst[g]; q < gfirst[g + 1]; q++)
+                    if (!dead[e[q].t / 3])
+                        stack[sp++] = e[q].t / 3;
+        }
+    }
+    uint32_t kept = 0;
+    for (uint32_t t = 0; t < w->nt; t++)
+        if (!dead[t]) {
+            memmove(&w->t[3 * kept], &w->t[3 * t], 3 * sizeof(uint32_t));
+            kept++;
+        }
+    w->nt = kept;
+    ret = 0;
+done:
+    sl_free(c->a, e, ne * sizeof *e);
+    sl_free(c->a, grp, ne * sizeof *grp);
+    sl_free(c->a, gfirst, (ne + 1) * sizeof *gfirst);
+    sl_free(c->a, alive_n, ne * sizeof *alive_n);
+    sl_free(c->a, base, ne);
+    sl_free(c->a, dead, nt0 ? nt0 : 1);
+    sl_free(c->a, stack, ne * sizeof *stack);
+    return ret;
+}
+
 /* Keep the closed parts of the welded mesh: its connected components (triangles joined through
  * shared vertices) that are closed and consistently oriented (every edge used by exactly two of
  * their triangles, once in each direction), or so but for holes in the object's base plane (edges
@@ -195,8 +271,11 @@ static uint32_t uf_find(uint32_t *parent, uint32_t x)
 static int keep_closed_parts(ctx *c, wmesh *w, double tol, uint32_t *dropped)
 {
     *dropped = 0;
+    uint32_t peeled = 0;
+    if (peel(c, w, tol, &peeled) < 0)
+        return -1;
     if (w->nt < 4) {
-        *dropped = w->nt;
+        *dropped = w->nt + peeled;
         return 0;
     }
     size_t ne = 3 * (size_t)w->nt;
@@ -240,7 +319,7 @@ static int keep_closed_parts(ctx *c, wmesh *w, double tol, uint32_t *dropped)
         memmove(&w->t[3 * kept], &w->t[3 * t], 3 * sizeof(uint32_t));
         kept++;
     }
-    *dropped = w->nt - kept;
+    *dropped = w->nt - kept + peeled;
     w->nt = kept;
     ret = kept < 4 ? 0 : base ? 2 : 1;
 done:

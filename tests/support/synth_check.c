@@ -114,6 +114,39 @@ static uint32_t keep_closed(tri3 *t, uint32_t nt)
             ek[3 * i + k] = (ekey){u < w ? u : w, u < w ? w : u, i};
         }
     qsort(ek, nv, sizeof *ek, ekey_cmp);
+    /* peel: drop triangles with an edge no other live triangle has (not in the lowest plane),
+     * round after round until none is left (a fin, a ledge glued along an edge) */
+    uint8_t *gone = calloc(nt ? nt : 1, 1);
+    assert_non_null(gone);
+    for (bool again = true; again;) {
+        again = false;
+        for (size_t i = 0; i < nv;) {
+            size_t j = i, live = 0, last = 0;
+            while (j < nv && ek[j].a == ek[i].a && ek[j].b == ek[i].b) {
+                if (!gone[ek[j].t])
+                    live++, last = j;
+                j++;
+            }
+            if (live == 1) {
+                const tri3 *tr = &t[ek[last].t];
+                int ends = 0;
+                for (int k = 0; k < 3; k++) {
+                    uint32_t v = id[3 * ek[last].t + k];
+                    if ((v == ek[last].a || v == ek[last].b) && fabs(tr->v[k][2] - zmin) < 1e-4)
+                        ends++;
+                }
+                if (ends < 2)
+                    gone[ek[last].t] = 1, again = true;
+            }
+            i = j;
+        }
+    }
+    /* the live edges: dead triangles' entries dropped */
+    size_t m = 0;
+    for (size_t i = 0; i < nv; i++)
+        if (!gone[ek[i].t])
+            ek[m++] = ek[i];
+    nv = m;
     for (size_t i = 0; i < nv;) {
         size_t j = i + 1;
         while (j < nv && ek[j].a == ek[i].a && ek[j].b == ek[i].b)
@@ -134,9 +167,9 @@ static uint32_t keep_closed(tri3 *t, uint32_t nt)
     }
     uint32_t kept = 0;
     for (uint32_t i = 0; i < nt; i++)
-        if (!bad[root_of(par, id[3 * i])])
+        if (!gone[i] && !bad[root_of(par, id[3 * i])])
             t[kept++] = t[i];
-    free(vk), free(id), free(par), free(ek), free(bad);
+    free(vk), free(id), free(par), free(ek), free(bad), free(gone);
     return kept;
 }
 
