@@ -131,8 +131,10 @@ SL_API sl_synth_options sl_synth_defaults(void);
 
 /* Synthesise conservative 3D occluders for the objects of `scene` that can carry them: for each
  * static object that is not see-through and has no occluder of its own (footprint, occluder mesh,
- * SL_OBJECT_OCCLUDER), whose mesh is closed and consistently oriented once welded (its
- * closed connected components, if it has open ones too; holes in the plane of its lowest z are
+ * SL_OBJECT_OCCLUDER), whose mesh is closed and consistently oriented once welded and
+ * once loose parts are peeled off (triangles with an edge no other triangle has, round after
+ * round: a ledge glued on along a wall's edge); its closed connected components, if it has open
+ * ones too; holes in the plane of its lowest z are
  * allowed: a building without a floor), boxes lying strictly inside the solid they enclose are added as one occluder mesh of the object
  * (sl_scene_add_mesh + sl_scene_add_occluder: the boxes, 12 triangles each, closed, wound
  * outward, in world coordinates). Open meshes get nothing. The occlusion methods use an
