@@ -18,6 +18,7 @@
 #include "sightline/scene.h"
 #include "sightline/truth.h"
 #include "support/box_mesh.h"
+#include "support/counting_alloc.h"
 #include "support/synth_check.h"
 
 /* ---- shapes ---- */
@@ -421,6 +422,30 @@ static void test_eye_inside_object(void **state)
     sl_scene_destroy(s);
 }
 
+/* Every byte the synthesis takes from the caller's allocator comes back (sizes included: the
+ * counting allocator checks each free against its allocation). */
+static void test_allocator(void **state)
+{
+    (void)state;
+    sl_scene s = det_scene();
+    sl_test_add_box(s, (sl_vec3){50, 0, 0}, (sl_vec3){60, 10, 5}, SL_KIND_IMPORTED, 0);
+    float p[24];
+    sl_test_box_vertices((sl_vec3){70, 0, 0}, (sl_vec3){75, 5, 5}, p);
+    uint32_t extra[39]; /* a cube with a fin: the peel */
+    memcpy(extra, sl_test_box_indices, sizeof sl_test_box_indices);
+    extra[36] = 0, extra[37] = 1, extra[38] = 7;
+    add_mesh_object(s, p, 8, extra, 13, NULL, 0);
+    sl_test_counter cnt = {0, 0, 0};
+    sl_allocator a = sl_test_counting_allocator(&cnt);
+    sl_synth_stats st;
+    sl_error err;
+    assert_int_equal(sl_synth_occluders(s, NULL, &a, &st, &err), SL_OK);
+    assert_true(st.boxes > 3);
+    assert_true(cnt.calls > 10);
+    assert_int_equal(cnt.live, 0);
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -432,6 +457,7 @@ int main(void)
         cmocka_unit_test(test_box_house_views),
         cmocka_unit_test(test_floorless_views),
         cmocka_unit_test(test_eye_inside_object),
+        cmocka_unit_test(test_allocator),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
