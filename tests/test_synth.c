@@ -446,6 +446,39 @@ static void test_allocator(void **state)
     sl_scene_destroy(s);
 }
 
+/* An object moved after the synthesis (sl_scene_set_object_transform, told to the culler) leaves
+ * its boxes behind: the cullers stop using them, so nothing the boxes cover is lost. */
+static void test_moved_object(void **state)
+{
+    (void)state;
+    sl_scene s = new_scene();
+    uint32_t wall = sl_test_add_box(s, (sl_vec3){-10, 10, 0}, (sl_vec3){10, 12, 8}, SL_KIND_IMPORTED, 0);
+    sl_test_add_box(s, (sl_vec3){-1, 20, 0}, (sl_vec3){1, 22, 2}, SL_KIND_IMPORTED, 0); /* behind the wall */
+    sl_synth_stats st = synth(s, NULL);
+    assert_true(st.boxes >= 2);
+    sl_camera cam = sl_camera_default();
+    cam.width = 160, cam.height = 120;
+    cam.position = (sl_vec3){0, 0, 1.5f};
+    cam.yaw = (float)M_PI / 2;
+    sl_error err;
+    for (int m = 0; m < 2; m++) {
+        sl_culler c;
+        assert_int_equal(sl_culler_create(m ? "lazygrid" : "hzb", s, NULL, NULL, &c, &err), SL_OK);
+        uint32_t out[4], k;
+        assert_int_equal(sl_culler_cull(c, &cam, out, 4, &k, &err), SL_OK);
+        assert_int_equal(k, 1); /* the wall hides the box behind it */
+        sl_affine aside = {{1, 0, 0, 14, 0, 1, 0, 0, 0, 0, 1, 0}}; /* the wall slides 14 m along x */
+        assert_int_equal(sl_scene_set_object_transform(s, wall, &aside, &err), SL_OK);
+        assert_int_equal(sl_culler_scene_changed(c, &err), SL_OK);
+        assert_int_equal(sl_culler_cull(c, &cam, out, 4, &k, &err), SL_OK);
+        assert_int_equal(k, 2); /* the wall, still in view, and the box behind, seen now */
+        sl_affine id = sl_affine_identity();
+        assert_int_equal(sl_scene_set_object_transform(s, wall, &id, &err), SL_OK);
+        sl_culler_destroy(c);
+    }
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -458,6 +491,7 @@ int main(void)
         cmocka_unit_test(test_floorless_views),
         cmocka_unit_test(test_eye_inside_object),
         cmocka_unit_test(test_allocator),
+        cmocka_unit_test(test_moved_object),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

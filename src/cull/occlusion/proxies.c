@@ -409,12 +409,14 @@ void sl_occ_set_scene_changed(sl_occ_set *s)
     const sl_affine *xfs = sl_scene_transforms(s->scene);
     for (uint32_t p = 0; p < s->proxy_count; p++) {
         sl_occ_proxy *pr = &s->proxies[p];
-        if (pr->kind != SL_OCC_PRISM || pr->object == SL_NONE || !pr->enabled)
+        /* a prism or a scene occluder stands for its object where the object was: once the
+         * object moves, it stands for nothing */
+        if ((pr->kind != SL_OCC_PRISM && pr->kind != SL_OCC_SCENE_MESH) || pr->object == SL_NONE || !pr->enabled)
             continue;
         sl_affine now = objects[pr->object].transform != SL_NONE ? xfs[objects[pr->object].transform]
                                                                  : sl_affine_identity();
         if (memcmp(&now, &s->prism_xf[p], sizeof now) != 0)
-            pr->enabled = false; /* the building moved off its footprint: never trust it again */
+            pr->enabled = false; /* the object moved off its footprint or boxes: never trust them again */
     }
 }
 
