@@ -24,6 +24,7 @@ typedef struct sl_command {
 /* Subcommands (each in tools/cmd_<name>.c). argv[0] is the subcommand name. */
 int sl_cmd_gen(int argc, char **argv);
 int sl_cmd_import(int argc, char **argv);
+int sl_cmd_occluders(int argc, char **argv);
 int sl_cmd_info(int argc, char **argv);
 int sl_cmd_path(int argc, char **argv);
 int sl_cmd_export(int argc, char **argv);
@@ -129,6 +130,25 @@ void cli_import_apply(const cli_import *imp, struct sl_import_options *opt);
     "                     model's own folder; repeatable (docs/import-export.md)\n"            \
     "  --import-timeout S  stop assimp (which reads a model in a child process) after S seconds\n" \
     "                     and fail; default: no limit\n"
+
+/* ---- occluder synthesis options (`occluders`, `import`; tools/cmd_occluders.c) ---- */
+struct sl_synth_options;
+struct sl_synth_stats;
+struct cli_json;
+/* --voxel, --min-box, --weld, --per-object, --max-boxes, --max-voxels, --no-expand (true when
+ * name was one of them; a bad value marks the parse failed). */
+bool cli_synth_option(cli_args *a, const char *name, const char *val, struct sl_synth_options *o);
+/* The statistics as text lines (stdout), or as the JSON object "occluders". */
+void cli_synth_print(const struct sl_synth_stats *s);
+void cli_synth_json(struct cli_json *j, const struct sl_synth_stats *s);
+#define CLI_SYNTH_HELP                                                                             \
+    "  --voxel M          voxel edge in metres (default: per object, from its size)\n"             \
+    "  --min-box M        smallest box edge kept, metres (default: two voxels)\n"                  \
+    "  --weld M           weld vertices closer than M (default: 1e-6 of the scene's size)\n"       \
+    "  --per-object N     at most N boxes per object, the largest (default 16)\n"                  \
+    "  --max-boxes N      at most N boxes in the scene, the largest (default 65536)\n"             \
+    "  --max-voxels N     voxels per object at most (default 2097152; coarser beyond)\n"           \
+    "  --no-expand        keep boxes on the voxel grid (no growing towards the surface)\n"
 
 /* ---- progress ----
  * A progress bar on stderr when stderr is a terminal, CI is unset and --quiet/--json were not

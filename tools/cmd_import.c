@@ -16,7 +16,8 @@ static void usage(FILE *out)
 {
     fprintf(out,
             "usage: sightline import INPUT [-o OUT.slscene] [--map NAME] [--list-maps] [--scale S] [--up y|z]\n"
-            "                        [--split N] [--bezier N] [--allow-external PATH] [--json] [--quiet]\n\n"
+            "                        [--split N] [--bezier N] [--allow-external PATH] [--no-occluders]\n"
+            "                        [synthesis options] [--json] [--quiet]\n\n"
             "Import a 3D file into a Sightline scene (.slscene): OBJ, glTF 2.0 (.gltf/.glb), PLY, FBX,\n"
             "COLLADA, 3DS and every other format assimp reads, or a Quake III map (.bsp, or a .pk3\n"
             "archive). Each node with meshes becomes one object; meshes shared by several nodes stay\n"
@@ -33,6 +34,11 @@ static void usage(FILE *out)
             "  --split N          split meshes larger than N triangles into spatially compact objects of\n"
             "                     about N triangles (0: one object per node; Quake III has its own default)\n"
             "  --bezier N         Quake III patch tessellation level (default 8)\n"
+            "  --no-occluders     do not synthesise occluders (by default every closed, opaque, static\n"
+            "                     object without occluders of its own gets boxes lying inside it, so\n"
+            "                     that the occlusion methods cull the model: docs/occluder-synthesis.md;\n"
+            "                     `sightline occluders` does it for an existing scene). Synthesis options:\n"
+            CLI_SYNTH_HELP
             CLI_ALLOW_EXTERNAL_HELP
             "                     Without it, a reference leaving the model's folder (a '../' path,\n"
             "                     an absolute path, a symlink pointing out) fails the import.\n"
@@ -118,7 +124,8 @@ int sl_cmd_import(int argc, char **argv)
     cli_args_init(&a, argc, argv);
     cli_import imp = {0};
     const char *name, *val, *up = NULL;
-    bool listing = false, have_bezier = false;
+    bool listing = false, have_bezier = false, synth = true;
+    sl_synth_options syo = sl_synth_defaults();
     cli_common com = {0};
     sl_import_options opt = sl_import_defaults();
     while (cli_next(&a, &name, &val)) {
@@ -141,6 +148,9 @@ int sl_cmd_import(int argc, char **argv)
         } else if (!strcmp(name, "bezier")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &opt.bezier_level);
             have_bezier = true;
+        } else if (!strcmp(name, "no-occluders")) {
+            synth = false;
+        } else if (cli_synth_option(&a, name, val, &syo)) {
         } else if (!cli_import_option(&a, name, val, &imp)) {
             cli_unknown(&a, name);
         }
@@ -200,6 +210,13 @@ int sl_cmd_import(int argc, char **argv)
     cli_progress_done(&ps);
     if (st != SL_OK)
         return cli_fail(a.cmd, &err);
+    sl_synth_stats ss;
+    memset(&ss, 0, sizeof ss);
+    if (synth && sl_synth_occluders(scene, &syo, NULL, &ss, &err) != SL_OK) {
+        sl_scene_destroy(scene);
+        return cli_fail(a.cmd, &err);
+    }
+    double ts = tool_now();
     if (sl_scene_save(scene, output, &err) != SL_OK) {
         sl_scene_destroy(scene);
         return cli_fail(a.cmd, &err);
@@ -244,7 +261,9 @@ int sl_cmd_import(int argc, char **argv)
             cli_json_uint(&j, "bsp_clusters", s.bsp_cluster_count);
         }
         cli_json_double(&j, "import_seconds", t1 - t0);
-        cli_json_double(&j, "save_seconds", t2 - t1);
+        cli_json_double(&j, "save_seconds", t2 - ts);
+        if (synth)
+            cli_synth_json(&j, &ss);
         cli_json_uint(&j, "output_bytes", bytes);
         cli_json_uint(&j, "peak_rss_bytes", cli_peak_rss());
         cli_json_end(&j);
@@ -263,7 +282,11 @@ int sl_cmd_import(int argc, char **argv)
                    s.uv_mesh_count);
         if (s.has_bsp)
             printf("  bsp            %u leaves, %u clusters\n", s.bsp_leaf_count, s.bsp_cluster_count);
-        printf("  time           %.3f s import, %.3f s save\n", t1 - t0, t2 - t1);
+        if (synth)
+            cli_synth_print(&ss);
+        else
+            printf("  occluders      none synthesised (--no-occluders)\n");
+        printf("  time           %.3f s import, %.3f s save\n", t1 - t0, t2 - ts);
         printf("  output         %s (%s peak resident)\n", cli_bytes(bytes, b1, sizeof b1), cli_bytes(cli_peak_rss(), b2, sizeof b2));
     }
     sl_scene_destroy(scene);

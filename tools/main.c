@@ -7,6 +7,7 @@
 static const sl_command commands[] = {
     {"gen", sl_cmd_gen, "generate a procedural scene (gen city --preset tiny|small|vienna)"},
     {"import", sl_cmd_import, "import OBJ/glTF/PLY/FBX/... (assimp) or Quake III .bsp/.pk3 into .slscene"},
+    {"occluders", sl_cmd_occluders, "synthesise conservative occluders (boxes inside closed meshes) for a scene"},
     {"info", sl_cmd_info, "counts, bounds, memory and per-kind statistics of a scene"},
     {"path", sl_cmd_path, "generate, inspect or validate a camera path"},
     {"export", sl_cmd_export, "export a scene to OBJ, glTF 2.0 or another assimp format"},

@@ -87,6 +87,66 @@ SL_API sl_status sl_pk3_list_maps(const char *pk3_path, void (*fn)(void *user, c
 SL_API sl_status sl_export_assimp(sl_scene scene, const char *path, const char *format, sl_up_axis up_axis,
                                   sl_error *err);
 
+/* --- occluder synthesis (docs/occluder-synthesis.md) ------------------------------------------ */
+
+/* Options of sl_synth_occluders. All zero (sl_synth_defaults) chooses every value from the scene. */
+typedef struct sl_synth_options {
+    float voxel;                   /* voxel edge in metres; 0: per object, the smaller of its longest
+                                      side / 48 and its shortest side / 6 (at least 1e-5 of the
+                                      scene's diagonal), coarsened until max_voxels holds */
+    float min_box;                 /* smallest edge of a box kept, metres; 0: two voxels */
+    float weld;                    /* vertices closer than this (same cell of a grid this fine)
+                                      become one; 0: 1e-6 of the scene's diagonal */
+    uint32_t max_boxes_per_object; /* 0: 16 (the largest boxes are kept) */
+    uint32_t max_boxes;            /* per scene; 0: 65536 (the largest boxes are kept) */
+    uint32_t max_voxels;           /* per object; 0: 2^21 */
+    bool no_expand;                /* true: boxes stay on the voxel grid (no growing towards the surface) */
+} sl_synth_options;
+
+/* What sl_synth_occluders did. */
+typedef struct sl_synth_stats {
+    uint32_t considered;          /* objects looked at (not see-through, native or dynamic) */
+    uint32_t closed, open;        /* of those: closed and consistently oriented after welding (or
+                                     closed but for holes in its base plane), or not */
+    uint32_t base_open;           /* of the closed: open only in the plane of their lowest z */
+    uint32_t partial;             /* of the closed: with open parts left out (their other connected
+                                     components are closed: the boxes lie inside those) */
+    uint32_t see_through;         /* skipped: SL_OBJECT_SEE_THROUGH (never an occluder) */
+    uint32_t native;              /* skipped: has a footprint, an occluder mesh or SL_OBJECT_OCCLUDER */
+    uint32_t dynamic;             /* skipped: SL_OBJECT_DYNAMIC (a box would not follow it) */
+    uint32_t objects_with_boxes;  /* closed objects that received at least one box */
+    uint32_t boxes;               /* boxes added (12 triangles each) */
+    uint32_t occluder_meshes;     /* occluder meshes added: one per object that got boxes */
+    uint32_t dropped_by_budget;   /* boxes left out by max_boxes */
+    uint64_t voxels, solid_voxels; /* over all closed objects */
+    double closed_volume;         /* m^3 enclosed by the closed objects */
+    double covered_volume;        /* m^3 of the added boxes on the voxel grid (a lower bound of what
+                                     they cover: growing towards the surface adds more) */
+    double volume_fraction;       /* covered_volume / closed_volume */
+    double seconds, cpu_seconds;  /* wall time; CPU time of the calling thread */
+} sl_synth_stats;
+
+/* Default options (all zero: everything chosen from the scene). */
+SL_API sl_synth_options sl_synth_defaults(void);
+
+/* Synthesise conservative 3D occluders for the objects of `scene` that can carry them: for each
+ * static object that is not see-through and has no occluder of its own (footprint, occluder mesh,
+ * SL_OBJECT_OCCLUDER), whose mesh is closed and consistently oriented once welded and
+ * once loose parts are peeled off (triangles with an edge no other triangle has, round after
+ * round: a ledge glued on along a wall's edge); its closed connected components, if it has open
+ * ones too; holes in the plane of its lowest z are
+ * allowed: a building without a floor), boxes lying strictly inside the solid they enclose are added as one occluder mesh of the object
+ * (sl_scene_add_mesh + sl_scene_add_occluder: the boxes, 12 triangles each, closed, wound
+ * outward, in world coordinates). Open meshes get nothing. The occlusion methods use an
+ * occluder mesh with an object as that object's occluder, while the eye is outside the object's
+ * box. Deterministic: the same scene and
+ * options add the same boxes in the same order. Sets the metadata key "occluders.synthesised" to
+ * the number of boxes when any were added. Running it again adds nothing (every object that got
+ * boxes now has occluders of its own). stats may be NULL; alloc may be NULL (the default).
+ * Thread safety: mutates the scene (exclusive access). */
+SL_API sl_status sl_synth_occluders(sl_scene scene, const sl_synth_options *opt, const sl_allocator *alloc,
+                                    sl_synth_stats *stats, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -327,11 +327,14 @@ sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_
         st = add_mesh_proxy(s, &b, SL_OCC_MESH, objects[o].mesh, xf, o, SL_NONE,
                             s->opt.faces && !(objects[o].flags & SL_OBJECT_DYNAMIC), err);
     }
-    /* 3. the scene's 3D occluder meshes (static, trusted to lie inside their objects) */
+    /* 3. the scene's 3D occluder meshes (static, trusted to lie inside their objects); one with an
+     * object is that object's proxy when it has none yet (the walks reach proxies through objects),
+     * and is used only while the eye is outside the object's box (sl_occ_usable) */
     uint32_t no = sl_scene_occluder_count(scene);
     for (uint32_t i = 0; i < no && st == SL_OK; i++) {
         sl_occluder_view ov = sl_scene_occluder(scene, i);
-        st = add_mesh_proxy(s, &b, SL_OCC_SCENE_MESH, ov.mesh, &ov.transform, SL_NONE, i, s->opt.faces, err);
+        uint32_t owner = ov.object < s->object_count ? ov.object : SL_NONE;
+        st = add_mesh_proxy(s, &b, SL_OCC_SCENE_MESH, ov.mesh, &ov.transform, owner, i, s->opt.faces, err);
     }
     if (st != SL_OK)
         goto done;
@@ -406,12 +409,14 @@ void sl_occ_set_scene_changed(sl_occ_set *s)
     const sl_affine *xfs = sl_scene_transforms(s->scene);
     for (uint32_t p = 0; p < s->proxy_count; p++) {
         sl_occ_proxy *pr = &s->proxies[p];
-        if (pr->kind != SL_OCC_PRISM || pr->object == SL_NONE || !pr->enabled)
+        /* a prism or a scene occluder stands for its object where the object was: once the
+         * object moves, it stands for nothing */
+        if ((pr->kind != SL_OCC_PRISM && pr->kind != SL_OCC_SCENE_MESH) || pr->object == SL_NONE || !pr->enabled)
             continue;
         sl_affine now = objects[pr->object].transform != SL_NONE ? xfs[objects[pr->object].transform]
                                                                  : sl_affine_identity();
         if (memcmp(&now, &s->prism_xf[p], sizeof now) != 0)
-            pr->enabled = false; /* the building moved off its footprint: never trust it again */
+            pr->enabled = false; /* the object moved off its footprint or boxes: never trust them again */
     }
 }
 
@@ -430,6 +435,11 @@ bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
     if (p->object != SL_NONE) {
         ob = sl_scene_object_bounds_array(s->scene)[p->object];
         if (sl_occ_point_in_box(v->eye, &ob, g))
+            return false;
+        /* a scene occluder stands inside its object's surface closed by a cap in the plane of the
+         * object's lowest z at most (sl_synth_occluders: a building without a floor): it hides
+         * what the surface hides only from above that plane */
+        if (p->kind == SL_OCC_SCENE_MESH && !(v->eye.z > ob.min.z + g))
             return false;
     }
     /* Only an occluder beyond the near plane hides anything (issue 12: the renderer clips a

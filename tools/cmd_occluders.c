@@ -1,0 +1,160 @@
+/* `sightline occluders SCENE -o OUT.slscene`: synthesise conservative occluders (boxes inside the
+ * closed objects, sl_synth_occluders) for an existing scene and save it; and the synthesis options
+ * and statistics `sightline import` shares (docs/occluder-synthesis.md). */
+#include "cli.h"
+
+#include "tool.h"
+#include "sightline/import.h"
+#include "sightline/scene.h"
+#include "sightline/slscene.h"
+
+#include <string.h>
+#include <sys/stat.h>
+
+bool cli_synth_option(cli_args *a, const char *name, const char *val, sl_synth_options *o)
+{
+    float f;
+    if (!strcmp(name, "voxel") || !strcmp(name, "min-box") || !strcmp(name, "weld")) {
+        if (!cli_parse_float(a, name, cli_value(a, name, val), &f))
+            return true;
+        if (!(f > 0)) {
+            cli_error(a->cmd, "--%s must be positive", name);
+            a->error = true;
+            return true;
+        }
+        *(!strcmp(name, "voxel") ? &o->voxel : !strcmp(name, "min-box") ? &o->min_box : &o->weld) = f;
+    } else if (!strcmp(name, "per-object")) {
+        cli_parse_u32(a, name, cli_value(a, name, val), &o->max_boxes_per_object);
+    } else if (!strcmp(name, "max-boxes")) {
+        cli_parse_u32(a, name, cli_value(a, name, val), &o->max_boxes);
+    } else if (!strcmp(name, "max-voxels")) {
+        cli_parse_u32(a, name, cli_value(a, name, val), &o->max_voxels);
+    } else if (!strcmp(name, "no-expand")) {
+        o->no_expand = true;
+    } else {
+        return false;
+    }
+    return true;
+}
+
+void cli_synth_print(const sl_synth_stats *s)
+{
+    printf("  occluders      %u boxes in %u meshes for %u of %u closed objects (%u open, %u see-through,\n"
+           "                 %u with their own occluders, %u dynamic); >= %.1f%% of the closed volume\n",
+           s->boxes, s->occluder_meshes, s->objects_with_boxes, s->closed, s->open, s->see_through, s->native,
+           s->dynamic, 100.0 * s->volume_fraction);
+    if (s->dropped_by_budget)
+        printf("                 %u boxes left out by the budget (--max-boxes)\n", s->dropped_by_budget);
+    printf("  synthesis      %.3f s (%.3f s CPU), %llu voxels (%llu solid)\n", s->seconds, s->cpu_seconds,
+           (unsigned long long)s->voxels, (unsigned long long)s->solid_voxels);
+}
+
+void cli_synth_json(cli_json *j, const sl_synth_stats *s)
+{
+    cli_json_object_begin(j, "occluders");
+    cli_json_uint(j, "considered", s->considered);
+    cli_json_uint(j, "closed", s->closed);
+    cli_json_uint(j, "open", s->open);
+    cli_json_uint(j, "see_through", s->see_through);
+    cli_json_uint(j, "native", s->native);
+    cli_json_uint(j, "dynamic", s->dynamic);
+    cli_json_uint(j, "objects_with_boxes", s->objects_with_boxes);
+    cli_json_uint(j, "boxes", s->boxes);
+    cli_json_uint(j, "meshes", s->occluder_meshes);
+    cli_json_uint(j, "dropped_by_budget", s->dropped_by_budget);
+    cli_json_uint(j, "voxels", s->voxels);
+    cli_json_uint(j, "solid_voxels", s->solid_voxels);
+    cli_json_double(j, "closed_volume", s->closed_volume);
+    cli_json_double(j, "covered_volume", s->covered_volume);
+    cli_json_double(j, "volume_fraction", s->volume_fraction);
+    cli_json_double(j, "seconds", s->seconds);
+    cli_json_double(j, "cpu_seconds", s->cpu_seconds);
+    cli_json_object_end(j);
+}
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline occluders SCENE -o OUT.slscene [--voxel M] [--min-box M] [--weld M]\n"
+            "                           [--per-object N] [--max-boxes N] [--max-voxels N] [--no-expand]\n"
+            "                           [--json] [--quiet]\n\n"
+            "Synthesise conservative occluders for a scene (any scene argument: a .slscene, a model\n"
+            "file, city:PRESET) and save it: every static, opaque object without occluders of its own\n"
+            "whose mesh is closed after welding gets boxes that lie strictly inside it (voxelised\n"
+            "solid interior merged into boxes); open meshes get none. The occlusion methods (hzb,\n"
+            "lazygrid, ...) then use them as the objects' occluders. `sightline import` does this by\n"
+            "default (docs/occluder-synthesis.md).\n\n"
+            "options:\n"
+            "  -o, --output FILE  the scene with its occluders (.slscene; required)\n"
+            CLI_SYNTH_HELP
+            "  --json             statistics as JSON on stdout\n"
+            "  --quiet            no progress output\n"
+            "  --help             this text\n\n"
+            "examples:\n"
+            "  sightline occluders house.slscene -o house-occ.slscene\n"
+            "  sightline occluders model.glb --voxel 0.1 --per-object 32 -o model.slscene --json\n");
+}
+
+int sl_cmd_occluders(int argc, char **argv)
+{
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    cli_common com = {0};
+    cli_import imp = {0};
+    sl_synth_options so = sl_synth_defaults();
+    const char *name, *val;
+    while (cli_next(&a, &name, &val)) {
+        if (cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_JSON | CLI_QUIET, &com)) {
+        } else if (cli_synth_option(&a, name, val, &so)) {
+        } else if (!cli_import_option(&a, name, val, &imp)) {
+            cli_unknown(&a, name);
+        }
+    }
+    int parsed = cli_parse_done(&a, &com, usage);
+    if (parsed >= 0)
+        return parsed;
+    if (!com.input) {
+        cli_error(a.cmd, "missing SCENE (see sightline occluders --help)");
+        return 2;
+    }
+    if (!com.output) {
+        cli_error(a.cmd, "missing -o OUT.slscene (see sightline occluders --help)");
+        return 2;
+    }
+    struct stat si, sout;
+    if (stat(com.input, &si) == 0 && stat(com.output, &sout) == 0 && si.st_dev == sout.st_dev &&
+        si.st_ino == sout.st_ino) {
+        cli_error(a.cmd, "the output %s is the input file", com.output);
+        return 2;
+    }
+    sl_import_options io = sl_import_defaults();
+    cli_import_apply(&imp, &io);
+    sl_error err;
+    sl_scene scene;
+    if (cli_open_scene(com.input, NULL, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
+        return cli_fail(a.cmd, &err);
+    uint32_t before = sl_scene_occluder_count(scene);
+    sl_synth_stats st;
+    if (sl_synth_occluders(scene, &so, NULL, &st, &err) != SL_OK || sl_scene_save(scene, com.output, &err) != SL_OK) {
+        sl_scene_destroy(scene);
+        return cli_fail(a.cmd, &err);
+    }
+    if (com.json) {
+        cli_json j;
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "input", com.input);
+        cli_json_string(&j, "output", com.output);
+        cli_json_uint(&j, "objects", sl_scene_object_count(scene));
+        cli_json_uint(&j, "occluders_before", before);
+        cli_json_uint(&j, "occluders_after", sl_scene_occluder_count(scene));
+        cli_synth_json(&j, &st);
+        cli_json_end(&j);
+    } else {
+        printf("%s -> %s\n", com.input, com.output);
+        printf("  objects        %u (occluder meshes %u before, %u after)\n", sl_scene_object_count(scene), before,
+               sl_scene_occluder_count(scene));
+        cli_synth_print(&st);
+    }
+    sl_scene_destroy(scene);
+    return 0;
+}
