@@ -523,7 +523,8 @@ static bool solid_column(ctx *c, const wmesh *w, grid *g, uint32_t i, uint32_t j
             total += cs[q].s;
         if (total != 0 && !c->base)
             return true; /* not a closed surface along this line: nothing solid here */
-        qsort(cs, buf->count, sizeof *cs, cmp_crossing);
+        if (buf->count > 1)
+            qsort(cs, buf->count, sizeof *cs, cmp_crossing);
         size_t q = 0;
         int wn = 0;
         for (int64_t k = (int64_t)g->n[2] - 1; k >= 0; k--) {
