@@ -64,9 +64,17 @@ sl_status sl_bench_recommend(sl_bench b, sl_bench_recommendation *out, sl_error 
         PUT("No conservative method culled in at most %.3g ms median here (raise --max-ms). ", out->max_ms);
     if (out->fastest >= 0 && out->fastest == out->tightest)
         PUT("%s is both: take it for these views.", b->methods[out->fastest].name);
-    else if (out->fastest >= 0 && out->tightest >= 0)
-        PUT("Take %s where the renderer's time per object drawn dominates, %s where culling time does.",
-            b->methods[out->tightest].name, b->methods[out->fastest].name);
+    else if (out->fastest >= 0 && out->tightest >= 0) {
+        /* of the two, the one passing fewer objects for a renderer whose cost is in drawing, the
+         * quicker one where culling time is what counts */
+        bool f_tighter = fs.overestimation < ts.overestimation, f_quicker = fs.cull_ms.median <= ts.cull_ms.median;
+        int32_t draw_pick = f_tighter ? out->fastest : out->tightest, cull_pick = f_quicker ? out->fastest : out->tightest;
+        if (draw_pick == cull_pick)
+            PUT("%s is the better of the two on both counts here.", b->methods[draw_pick].name);
+        else
+            PUT("Take %s where the renderer's time per object drawn dominates, %s where culling time does.",
+                b->methods[draw_pick].name, b->methods[cull_pick].name);
+    }
     else if (out->fastest >= 0 || out->tightest >= 0)
         PUT("Take %s for these views.", b->methods[out->fastest >= 0 ? out->fastest : out->tightest].name);
 #undef PUT
