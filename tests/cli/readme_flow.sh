@@ -24,8 +24,14 @@ done < "$tmp/flow"
 has "^\\*\\*Recommendation.\\*\\*" "$tmp/out.2"
 m=$(sed -n 's/.*--methods \([a-z+-]*\).*/\1/p' "$tmp/flow" | head -1)
 [ -n "$m" ] || fail "the README runs no recommended method"
-grep -q "\"fastest\":\"$m\"\|\"tightest\":\"$m\"" "$tmp/dm1-bench/summary.json" ||
-    fail "the README runs $m, the bench recommends $(grep -o '"recommendation":{[^}]*}' "$tmp/dm1-bench/summary.json")"
+# (the recommendation rests on cull times: under the sanitizers, ten times slower, another method
+# is the tightest within 2 ms, so the check is the release build's)
+if [ -z "${SL_SANITIZED:-}" ]; then
+    grep -q "\"fastest\":\"$m\"\|\"tightest\":\"$m\"" "$tmp/dm1-bench/summary.json" ||
+        fail "the README runs $m, the bench recommends $(grep -o '"recommendation":{[^}]*}' "$tmp/dm1-bench/summary.json")"
+fi
+grep -q '"recommendation":{"max_overestimation":2,"max_ms":2,"fastest":' "$tmp/dm1-bench/summary.json" ||
+    fail "no recommendation in summary.json"
 has "| $m | " "$tmp/dm1-hzb/summary.md"
 has "method portal (the conservative method for Quake III cluster cells" "$tmp/err.4"
 has "^cell 10 (cluster" "$tmp/out.5"
