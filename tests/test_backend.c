@@ -35,8 +35,6 @@
 #include "support/pk3_names.h"
 #include "support/zero_backend.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
-
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 
 static sl_path views_of(sl_scene s, sl_view_kind kind, uint32_t count, uint64_t seed, uint32_t w, uint32_t h)
@@ -435,22 +433,13 @@ static void test_hoq_oracle_city(void **state)
 static void test_hoq_oracle_map(void **state)
 {
     (void)state;
-    if (access(OA_PK3, R_OK) != 0) {
-        print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
+    sl_test_map map;
+    if (!sl_test_open_map(0, 320, 240, sanitized() ? 3 : 20, 31, &map))
         skip();
-    }
-    sl_test_name_list *list = calloc(1, sizeof *list);
+    sl_scene s = map.scene;
+    sl_path p = map.views;
+    const char *name = map.name;
     sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
-    assert_true(list->count >= 1);
-    sl_scene s;
-    if (sl_import_q3bsp(OA_PK3, list->names[0], NULL, NULL, &s, &err) != SL_OK)
-        fail_msg("%s", err.message);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 320;
-    po.intrinsics.height = 240;
-    sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, sanitized() ? 3 : 20, 31, &po, NULL, &p, &err), SL_OK);
     sl_draw_backend_cpu cpu;
     assert_int_equal(sl_draw_backend_cpu_create(s, NULL, NULL, &cpu, &err), SL_OK);
     sl_draw_backend given = sl_draw_backend_cpu_table(cpu);
@@ -459,17 +448,15 @@ static void test_hoq_oracle_map(void **state)
     memset(runs, 0, sizeof runs);
     assert_int_equal(sl_culler_create("gl-stopwait", s, NULL, NULL, &runs[0].c, &err), SL_OK);
     assert_int_equal(sl_culler_create_with("gl-stopwait", s, NULL, &params, NULL, &runs[1].c, &err), SL_OK);
-    run_hoq(s, p, runs, 2, 2, list->names[0]);
-    print_message("%s: hoq kept %llu, missed %llu, %llu queries\n", list->names[0], (unsigned long long)runs[0].kept,
+    run_hoq(s, p, runs, 2, 2, name);
+    print_message("%s: hoq kept %llu, missed %llu, %llu queries\n", name, (unsigned long long)runs[0].kept,
                   (unsigned long long)runs[0].missed, (unsigned long long)runs[0].queries);
     assert_int_equal(runs[0].missed, 0);
     assert_true(runs[0].queries > 0);
     sl_culler_destroy(runs[0].c);
     sl_culler_destroy(runs[1].c);
     sl_draw_backend_cpu_destroy(cpu);
-    sl_path_destroy(p);
-    sl_scene_destroy(s);
-    free(list);
+    sl_test_map_free(&map);
 }
 
 /* ---- hoq's query box covers its object ---- */

@@ -40,7 +40,9 @@ static double now_s(void)
 #include "sightline/truth.h"
 #include "support/box_mesh.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+#include "support/pk3_names.h"
+
+#define OA_PK3 SL_TEST_OA_PK3
 #define MAX_EYES 64
 #define MAX_METHODS 40
 

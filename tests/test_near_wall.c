@@ -43,7 +43,7 @@
 #include "support/city_views.h"
 #include "support/pk3_names.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+#define OA_PK3 SL_TEST_OA_PK3
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 

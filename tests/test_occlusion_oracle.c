@@ -25,7 +25,7 @@
 #include "sightline/truth.h"
 #include "support/pk3_names.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+#define OA_PK3 SL_TEST_OA_PK3
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 static bool long_tests(void)

@@ -26,7 +26,9 @@
 #include "sightline/truth.h"
 #include "support/box_mesh.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+#include "support/pk3_names.h"
+
+#define OA_PK3 SL_TEST_OA_PK3
 
 static char g_dir[64];
 

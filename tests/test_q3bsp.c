@@ -22,7 +22,7 @@
 #include "support/counting_alloc.h"
 #include "support/pk3_names.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+#define OA_PK3 SL_TEST_OA_PK3
 
 /* ---- a small IBSP 46 writer ---- */
 

@@ -36,8 +36,6 @@
 #include "support/pk3_names.h"
 #include "support/zero_backend.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
-
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 
 /* ---- the simulated clock ---- */
@@ -508,23 +506,12 @@ static void test_moving_objects(void **state)
 static void test_oracle_map(void **state)
 {
     (void)state;
-    if (access(OA_PK3, R_OK) != 0) {
-        print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
+    sl_test_map map;
+    if (!sl_test_open_map(1, 320, 240, sanitized() ? 3 : 20, 37, &map))
         skip();
-    }
-    sl_test_name_list *list = calloc(1, sizeof *list);
-    sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
-    assert_true(list->count >= 1);
-    const char *name = list->names[list->count > 1 ? 1 : 0];
-    sl_scene s;
-    if (sl_import_q3bsp(OA_PK3, name, NULL, NULL, &s, &err) != SL_OK)
-        fail_msg("%s", err.message);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 320;
-    po.intrinsics.height = 240;
-    sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, sanitized() ? 3 : 20, 37, &po, NULL, &p, &err), SL_OK);
+    sl_scene s = map.scene;
+    sl_path p = map.views;
+    const char *name = map.name;
     run runs[3] = {{"gl-stopwait", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
                    {"chc", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0},
                    {"chc++", NULL, NULL, NULL, 0, 0, 0, 0, 0, 0, 0, 0}};
@@ -539,9 +526,7 @@ static void test_oracle_map(void **state)
         assert_true(runs[i].queries > 0);
         sl_culler_destroy(runs[i].c);
     }
-    sl_path_destroy(p);
-    sl_scene_destroy(s);
-    free(list);
+    sl_test_map_free(&map);
 }
 
 /* A view held still: the first frame classifies from nothing (every node queried on the way down),

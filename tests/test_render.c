@@ -27,8 +27,6 @@
 #include "support/city_views.h"
 #include "support/pk3_names.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
-
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 
 static sl_renderer make_renderer(sl_scene s, uint32_t w, uint32_t h, const float sun[3])
@@ -259,27 +257,12 @@ static void test_ids_match_oracle_city(void **state)
 static void test_ids_match_oracle_map(void **state)
 {
     (void)state;
-    if (access(OA_PK3, R_OK) != 0) {
-        print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
+    sl_test_map map;
+    if (!sl_test_open_map(0, 160, 120, sanitized() ? 2 : 6, 31, &map))
         skip();
-    }
-    sl_test_name_list *list = calloc(1, sizeof *list);
-    sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
-    assert_true(list->count >= 1);
-    sl_scene s;
-    if (sl_import_q3bsp(OA_PK3, list->names[0], NULL, NULL, &s, &err) != SL_OK)
-        fail_msg("%s", err.message);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = 160;
-    po.intrinsics.height = 120;
-    sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, sanitized() ? 2 : 6, 31, &po, NULL, &p, &err), SL_OK);
     /* every drawn pixel counts (the open-space rule is the oracle's judgement, not drawing) */
-    compare_on(s, p, 160, 120, true, list->names[0]);
-    sl_path_destroy(p);
-    sl_scene_destroy(s);
-    free(list);
+    compare_on(map.scene, map.views, 160, 120, true, map.name);
+    sl_test_map_free(&map);
 }
 
 /* ---- KHR_debug and GL errors ---- */

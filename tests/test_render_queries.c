@@ -40,7 +40,6 @@
 #include "support/city_views.h"
 #include "support/pk3_names.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
 #define W 160
 #define H 120
 
@@ -550,36 +549,25 @@ static void test_hoq_gl_city(void **state)
 static void test_hoq_gl_map(void **state)
 {
     (void)state;
-    if (access(OA_PK3, R_OK) != 0) {
-        print_message("skipped: %s is not installed (Debian package openarena-081-maps)\n", OA_PK3);
+    sl_test_map map;
+    if (!sl_test_open_map(0, W, H, sanitized() ? 2 : 6, 31, &map))
         skip();
-    }
-    sl_test_name_list *list = calloc(1, sizeof *list);
+    sl_scene s = map.scene;
+    sl_path p = map.views;
+    const char *name = map.name;
     sl_error err;
-    assert_int_equal(sl_pk3_list_maps(OA_PK3, sl_test_collect_name, list, &err), SL_OK);
-    assert_true(list->count >= 1);
-    sl_scene s;
-    if (sl_import_q3bsp(OA_PK3, list->names[0], NULL, NULL, &s, &err) != SL_OK)
-        fail_msg("%s", err.message);
-    sl_path_options po = sl_path_options_default(SL_PATH_WALK);
-    po.intrinsics.width = W;
-    po.intrinsics.height = H;
-    sl_path p;
-    assert_int_equal(sl_path_random_views(s, SL_VIEWS_STREET, sanitized() ? 2 : 6, 31, &po, NULL, &p, &err), SL_OK);
     gl_judge j;
     judge_init(&j, s, W, H);
     sl_culler c;
     assert_int_equal(sl_renderer_create_culler(j.r, "gl-stopwait", NULL, &c, &err), SL_OK);
     for (uint32_t f = 0; f < sl_path_count(p); f++) {
         sl_camera cam = sl_path_camera(p, f);
-        judge_frame(&j, c, &cam, SL_RENDER_IDS, list->names[0], f);
+        judge_frame(&j, c, &cam, SL_RENDER_IDS, name, f);
     }
-    assert_judged(&j, list->names[0]);
+    assert_judged(&j, name);
     sl_culler_destroy(c);
     judge_free(&j);
-    sl_path_destroy(p);
-    sl_scene_destroy(s);
-    free(list);
+    sl_test_map_free(&map);
 }
 
 /* ---- the edge of an occluder, by fractions of a pixel ---- */

@@ -32,7 +32,9 @@
 
 #include "../bench/near_wall_views.h"
 
-#define OA_PK3 "/usr/share/games/openarena/baseoa/pak1-maps.pk3"
+#include "support/pk3_names.h"
+
+#define OA_PK3 SL_TEST_OA_PK3
 
 static bool sanitized(void) { return getenv("SL_SANITIZED") != NULL; }
 

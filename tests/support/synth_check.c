@@ -250,12 +250,26 @@ sl_synth_check sl_synth_check_object(sl_scene s, uint32_t object, uint32_t n)
 sl_synth_views sl_synth_run_views(sl_scene s, const char *method, const char *options, const sl_camera *cams,
                                   uint32_t n)
 {
+    return sl_synth_run_views_judged(s, method, options, cams, n, 0, SL_ORACLE_SAMPLES_CENTER);
+}
+
+sl_synth_views sl_synth_run_views_judged(sl_scene s, const char *method, const char *options, const sl_camera *cams,
+                                         uint32_t n, uint32_t scale, sl_oracle_samples samples)
+{
     sl_synth_views r;
     memset(&r, 0, sizeof r);
     sl_error err;
     sl_oracle o;
     sl_culler c;
-    if (sl_oracle_create(s, NULL, NULL, &o, &err) != SL_OK)
+    sl_oracle_options oo = sl_oracle_default_options();
+    if (scale && n) {
+        oo.width = cams[0].width * scale;
+        oo.height = cams[0].height * scale;
+        oo.samples = samples;
+        oo.sample_count = 4;
+        oo.jitter_seed = 20261202;
+    }
+    if (sl_oracle_create(s, scale ? &oo : NULL, NULL, &o, &err) != SL_OK)
         fail_msg("oracle: %s", err.message);
     if (sl_culler_create(method, s, options, NULL, &c, &err) != SL_OK)
         fail_msg("%s: %s", method, err.message);

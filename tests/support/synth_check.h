@@ -4,6 +4,7 @@
 #define SL_TEST_SYNTH_CHECK_H
 #include "sightline/camera.h"
 #include "sightline/scene.h"
+#include "sightline/truth.h"
 
 typedef struct sl_synth_check {
     uint32_t boxes;            /* boxes of the object's occluder meshes (8 vertices each) */
@@ -30,4 +31,9 @@ typedef struct sl_synth_views {
  * the first frame that missed an object in a message. */
 sl_synth_views sl_synth_run_views(sl_scene s, const char *method, const char *options, const sl_camera *cams,
                                   uint32_t n);
+/* The same, judged by an oracle of `scale` times the cameras' resolution with the given sample
+ * pattern (4 samples for MSAA and jitter): what a method claiming SL_CONSERVATIVE (any
+ * resolution) must keep. scale 0: the oracle of the cameras' own size and pixel centres. */
+sl_synth_views sl_synth_run_views_judged(sl_scene s, const char *method, const char *options, const sl_camera *cams,
+                                         uint32_t n, uint32_t scale, sl_oracle_samples samples);
 #endif
