@@ -14,8 +14,9 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 
 # low to high; keep in step with SL_LAYERS and SL_PUBLIC_* in CMakeLists.txt
-layers=(core scene accel raster pvs cull embree region import truth app render)
-# render (src/render, libsightline_render, optional) is the top layer and not part of libsightline
+layers=(core scene accel raster pvs cull embree region import truth app net render)
+# net (src/net, libsightline_net, optional) and render (src/render, libsightline_render, optional)
+# are not part of libsightline; nothing includes either
 declare -A rank public
 for i in "${!layers[@]}"; do rank[${layers[$i]}]=$i; done
 public_of() { # the layer implementing public header $1
@@ -30,6 +31,7 @@ public_of() { # the layer implementing public header $1
     import.h) echo import ;;
     truth.h | bench.h) echo truth ;;
     radar.h) echo app ;;
+    net.h) echo net ;;
     render.h) echo render ;;
     *) echo "" ;;
     esac
@@ -122,6 +124,8 @@ if [ $# -ge 1 ]; then
             nm -D --defined-only "$lib" | awk '$3 ~ /^sl_/ { print $3 }'
             [ ! -e "$build/libsightline_render.so" ] ||
                 nm -D --defined-only "$build/libsightline_render.so" | awk '$3 ~ /^sl_/ { print $3 }'
+            [ ! -e "$build/libsightline_net.so" ] ||
+                nm -D --defined-only "$build/libsightline_net.so" | awk '$3 ~ /^sl_/ { print $3 }'
             for o in $tool_objects; do nm --defined-only -g "$o" | awk '$3 ~ /^sl_/ { print $3 }'; done)
         for o in $tool_objects; do
             while read -r sym; do
