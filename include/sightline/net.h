@@ -45,8 +45,10 @@ extern "C" {
 /* What a received set holds good for. */
 typedef enum sl_vis_validity {
     SL_VIS_POINT = 0,  /* the method's set for exactly the viewpoint it answers (its seq) */
-    SL_VIS_CELL = 1    /* the set of view cell `cell` of the method's PVS: valid for every eye the
-                          cell holds, in any view direction (a superset of the method's set there) */
+    SL_VIS_CELL = 1    /* the set of view cell `cell` of the method's PVS: valid for every eye in
+                          the cell, in any view direction, with the same camera intrinsics, whose
+                          near-plane reach stays inside the cells (sl_vis_reference_cell says
+                          where): a superset of the method's set there */
 } sl_vis_validity;
 
 /* ===== the reference: what the server answers for a viewpoint ================================== */
@@ -70,8 +72,9 @@ SL_API sl_status sl_vis_reference_compute(sl_vis_reference ref, const sl_camera 
 /* The method's own set for cam (its culler; never a cell set). */
 SL_API sl_status sl_vis_reference_point(sl_vis_reference ref, const sl_camera *cam, uint32_t *ids, uint32_t capacity,
                                         uint32_t *count, sl_error *err);
-/* The view cell holding eye for region sets (SL_NONE: none, or no regions). */
-SL_API uint32_t sl_vis_reference_cell(sl_vis_reference ref, sl_vec3 eye);
+/* The view cell whose cell set the server answers camera cam with (SL_NONE: a point set). A
+ * displayed SL_VIS_CELL set of cell c is valid at cam exactly when this returns c. */
+SL_API uint32_t sl_vis_reference_cell(sl_vis_reference ref, const sl_camera *cam);
 
 /* ===== the server ================================================================================ */
 
@@ -91,6 +94,9 @@ typedef struct sl_vis_server_options {
     uint32_t queue_sets;         /* unsent sets kept per client, 1..64 (default 1); an older one
                                     is dropped for a newer */
     bool no_reuse;               /* never answer from a cached region set */
+    uint32_t socket_buffer;      /* bytes of each client socket's kernel send buffer (SO_SNDBUF;
+                                    0: the system's): less kernel queueing in front of a slow
+                                    reader, so it gets fresher sets */
     uint64_t cache_bytes;        /* region-set cache, bytes (default 64 MiB) */
     sl_scene_accel accel;        /* shared acceleration (NULL: the server makes one) */
     const sl_allocator *alloc;   /* NULL: the default allocator */

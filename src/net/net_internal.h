@@ -52,10 +52,11 @@ bool net_spec_file(const char *opts, char *out, size_t size);
 sl_status net_reference_create(sl_scene scene, const char *spec, bool reuse, sl_scene_accel accel, sl_pvs shared_pvs,
                                const sl_allocator *alloc, sl_vis_reference *out, sl_error *err);
 /* The region key of a camera's eye: cell and reach level (the near-plane reach rounded up to
- * 0.05 m * 2^level), or false when no cell set holds there (no regions, eye in no cell, outside
- * the domain, or the cells around the cell do not cover its reach). */
+ * R = 0.05 m * 2^level), or false when no cell set holds there: no regions, the eye outside the
+ * domain or in no cell, or the box of the eye +- R not covered by the cells. */
 bool net_reference_region_key(sl_vis_reference ref, const sl_camera *cam, uint32_t *cell, uint32_t *level);
-/* The set of region (cell, level): ascending ids; false with err when it has none (see above). */
+/* The set of region (cell, level): the union of the sets of the cells that the cell's box +- R
+ * meets, and every dynamic object; ascending. *valid false when it meets none. */
 sl_status net_reference_region_set(sl_vis_reference ref, uint32_t cell, uint32_t level, uint32_t *ids,
                                    uint32_t capacity, uint32_t *count, bool *valid, sl_error *err);
 uint32_t net_reference_object_count(sl_vis_reference ref);

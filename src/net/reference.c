@@ -174,13 +174,6 @@ sl_status sl_vis_reference_create(sl_scene scene, const char *spec, bool reuse, 
 bool sl_vis_reference_has_regions(sl_vis_reference r) { return r && r->regions; }
 uint32_t net_reference_object_count(sl_vis_reference r) { return r->object_count; }
 
-uint32_t sl_vis_reference_cell(sl_vis_reference r, sl_vec3 eye)
-{
-    if (!r || !r->regions || !sl_oracle_in_domain(r->scene, eye, NULL))
-        return SL_NONE;
-    return sl_viewcells_locate(r->cells, r->scene, eye);
-}
-
 /* The distance from the eye to the farthest corner of the near-plane region's box. */
 static double near_reach(const sl_camera *cam)
 {
@@ -190,9 +183,23 @@ static double near_reach(const sl_camera *cam)
     return sqrt((double)cam->near_plane * cam->near_plane + hh * hh + hw * hw);
 }
 
+/* box +- m on every axis, m = reach plus a rounding margin above the pvs culler's */
+static sl_aabb widen(sl_aabb box, double reach)
+{
+    float *lo = &box.min.x, *hi = &box.max.x;
+    for (int k = 0; k < 3; k++) {
+        double m = reach + 1e-3 + 1e-5 * (fabs((double)lo[k]) + fabs((double)hi[k]));
+        lo[k] = (float)(lo[k] - m);
+        hi[k] = (float)(hi[k] + m);
+    }
+    return box;
+}
+
 bool net_reference_region_key(sl_vis_reference r, const sl_camera *cam, uint32_t *cell, uint32_t *level)
 {
-    uint32_t c = sl_vis_reference_cell(r, cam->position);
+    if (!r->regions || !sl_oracle_in_domain(r->scene, cam->position, NULL))
+        return false;
+    uint32_t c = sl_viewcells_locate(r->cells, r->scene, cam->position);
     if (c == SL_NONE)
         return false;
     double reach = near_reach(cam);
@@ -201,9 +208,22 @@ bool net_reference_region_key(sl_vis_reference r, const sl_camera *cam, uint32_t
         l++;
     if (l >= 40)
         return false;
+    /* the near-plane region of any view from here stays inside the cells: the pvs culler takes
+     * baked sets (not every object) whatever the direction */
+    sl_aabb box = widen((sl_aabb){cam->position, cam->position}, 0.05 * ldexp(1.0, (int)l));
+    bool covered = false;
+    uint32_t nc = sl_viewcells_overlap(r->cells, r->scene, &box, r->near_cells, r->cell_count, &covered);
+    if (!covered || nc == 0)
+        return false;
     *cell = c;
     *level = l;
     return true;
+}
+
+uint32_t sl_vis_reference_cell(sl_vis_reference r, const sl_camera *cam)
+{
+    uint32_t c, l;
+    return r && net_reference_region_key(r, cam, &c, &l) ? c : SL_NONE;
 }
 
 sl_status net_reference_region_set(sl_vis_reference r, uint32_t cell, uint32_t level, uint32_t *ids,
@@ -216,18 +236,10 @@ sl_status net_reference_region_set(sl_vis_reference r, uint32_t cell, uint32_t l
     if (capacity < r->object_count)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis reference: capacity %u below the %u objects", capacity,
                         r->object_count);
-    const sl_viewcell *vc = &sl_viewcells_data(r->cells)[cell];
-    double reach = 0.05 * ldexp(1.0, (int)level);
-    sl_aabb box = vc->bounds;
-    float *lo = &box.min.x, *hi = &box.max.x;
-    for (int k = 0; k < 3; k++) {
-        double m = reach + 1e-3 + 1e-5 * (fabs((double)lo[k]) + fabs((double)hi[k]));
-        lo[k] = (float)(lo[k] - m);
-        hi[k] = (float)(hi[k] + m);
-    }
-    bool covered = false;
-    uint32_t nc = sl_viewcells_overlap(r->cells, r->scene, &box, r->near_cells, r->cell_count, &covered);
-    if (!covered || nc == 0)
+    /* every cell the widened box of an eye in this cell can meet */
+    sl_aabb box = widen(sl_viewcells_data(r->cells)[cell].bounds, 0.05 * ldexp(1.0, (int)level));
+    uint32_t nc = sl_viewcells_overlap(r->cells, r->scene, &box, r->near_cells, r->cell_count, NULL);
+    if (nc == 0)
         return SL_OK;
     for (uint32_t i = 0; i < nc; i++) {
         uint32_t k;

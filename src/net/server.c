@@ -108,7 +108,7 @@ struct sl_vis_server_t {
     char method[SLVP_METHOD_MAX + 1];
     uint32_t object_count;
     uint64_t scene_key;
-    uint32_t max_clients, worker_count, max_rate_hz, queue_sets;
+    uint32_t max_clients, worker_count, max_rate_hz, queue_sets, socket_buffer;
     uint64_t cache_limit;
     uint32_t set_body_max;
     /* loop */
@@ -778,6 +778,10 @@ static void on_connection(uv_stream_t *l, int status)
         return;
     }
     uv_tcp_nodelay(&c->tcp, 1);
+    if (s->socket_buffer) {
+        int size = (int)s->socket_buffer;
+        uv_send_buffer_size((uv_handle_t *)&c->tcp, &size);
+    }
     c->next = s->clients;
     if (s->clients)
         s->clients->prev = c;
@@ -920,6 +924,7 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
     s->max_clients = max_clients;
     s->max_rate_hz = rate;
     s->queue_sets = queue;
+    s->socket_buffer = o->socket_buffer;
     s->cache_limit = o->cache_bytes ? o->cache_bytes : 64ull << 20;
     s->set_body_max = slvp_set_body_max(s->object_count);
     sl_status st = SL_OK;
