@@ -36,6 +36,8 @@ int sl_cmd_methods(int argc, char **argv);
 int sl_cmd_pvs(int argc, char **argv);
 int sl_cmd_occlusion(int argc, char **argv);
 int sl_cmd_view(int argc, char **argv);
+int sl_cmd_vis_server(int argc, char **argv);
+int sl_cmd_vis_client(int argc, char **argv);
 
 /* ---- errors ---- */
 /* Print "sightline <cmd>: message" to stderr. */

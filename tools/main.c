@@ -18,6 +18,8 @@ static const sl_command commands[] = {
     {"pvs", sl_cmd_pvs, "from-region visibility: pvs build | info | query | verify"},
     {"occlusion", sl_cmd_occlusion, "debugging of the occlusion methods: occlusion replay FILE (a recorded frame)"},
     {"view", sl_cmd_view, "walk or fly through a scene in a window: the renderer, a culler, HUD, freeze, map"},
+    {"vis-server", sl_cmd_vis_server, "serve visible sets over TCP to clients sending viewpoints (docs/vis-server.md)"},
+    {"vis-client", sl_cmd_vis_client, "walk a path through a vis-server, optionally checking every set it displays"},
     {"demo", sl_cmd_demo, "generate the default city, run the walkthrough and write a report"},
 };
 

@@ -152,7 +152,7 @@ typedef struct sl_vis_set {
     uint32_t seq;                /* the viewpoint it answers (0: no set yet) */
     sl_vis_validity validity;
     uint32_t cell;               /* SL_VIS_CELL: the cell; SL_NONE otherwise */
-    double received;             /* when it was completely received (sl_now-like clock, seconds) */
+    double received;             /* when it was completely received (CLOCK_MONOTONIC, seconds) */
 } sl_vis_set;
 
 typedef struct sl_vis_client_stats {

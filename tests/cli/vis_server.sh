@@ -1,0 +1,96 @@
+#!/bin/bash
+# CLI test of `sightline vis-server` and `sightline vis-client` on loopback (docs/vis-server.md):
+#  - usage errors (no --method, no --port, a client without a path) exit 2; an unknown method 1;
+#  - a cullmap server on a free port (--port 0 --port-file): a walk at 30 Hz and a stalled drive,
+#    both with --check (every displayed set equals the local method's at its viewpoint; in --stall
+#    no frame displays a set not valid there), and four clients at once;
+#  - a pvs server from a PVS baked along a walk: cell sets shared between clients (cache hits),
+#    each a superset of the local pvs set (--check);
+#  - SIGTERM stops the server, which reports its statistics and exits 0; a client with no server
+#    gives up after --timeout with exit 1.
+# Skipped (77) when the command was built without the network layer. Every step is bounded by
+# `timeout`. $1 is the sightline binary.
+set -u
+SL="$1"
+. "$(dirname "$0")/lib/common.sh"
+
+if "$SL" vis-server 2>&1 | grep -q "without the network layer"; then
+    echo "built without the network layer (SL_NET): skipped"
+    exit 77
+fi
+
+expect 0 "$SL" vis-server --help
+has "--method SPEC" "$tmp/out"
+expect 0 "$SL" vis-client --help
+has "--stall" "$tmp/out"
+expect 2 "$SL" vis-server city:tiny --port 0
+has "needs SCENE, --method SPEC and --port N" "$tmp/err"
+expect 2 "$SL" vis-client --walk 10
+expect 2 "$SL" vis-client --port 1 city:tiny
+has "exactly one of --path FILE, --walk N, --drive N" "$tmp/err"
+expect 1 "$SL" vis-server city:tiny --method nosuchmethod --port 0
+has "nosuchmethod" "$tmp/err"
+
+# start_server LOG ARGS...: a server in the background on a free port; sets $pid and $port
+start_server() {
+    local log=$1
+    shift
+    rm -f "$tmp/port"
+    timeout 120 "$SL" vis-server "$@" --port 0 --port-file "$tmp/port" >"$log" 2>&1 &
+    pid=$!
+    for _ in $(seq 200); do
+        [ -s "$tmp/port" ] && break
+        kill -0 "$pid" 2>/dev/null || { cat "$log"; fail "vis-server $* exited before listening"; }
+        sleep 0.05
+    done
+    port=$(cat "$tmp/port")
+    [ -n "$port" ] && [ "$port" -gt 0 ] || fail "no port in $tmp/port"
+}
+
+stop_server() { # stop_server LOG: SIGTERM, exit 0, statistics printed
+    kill -TERM "$pid"
+    wait "$pid" || { cat "$1"; fail "vis-server did not exit 0 on SIGTERM"; }
+    has "^vis-server: .* clients" "$1"
+}
+
+start_server "$tmp/server1.log" city:tiny --method cullmap
+has "listening on 127.0.0.1 port $port" "$tmp/server1.log"
+expect 0 timeout 60 "$SL" vis-client city:tiny --port "$port" --walk 45 --check
+has "45 frames" "$tmp/out"
+has "0 mismatches" "$tmp/out"
+expect 0 timeout 60 "$SL" vis-client city:tiny --port "$port" --drive 60 --stall --check --json
+has '"mismatches":0' "$tmp/out"
+has '"frames_with_invalid_set":0' "$tmp/out"
+has '"sets_checked":60' "$tmp/out"
+# four clients at once, each on its own walk
+for s in 1 2 3 4; do
+    timeout 60 "$SL" vis-client city:tiny --port "$port" --walk 40 --seed "$s" --stall --check >"$tmp/c$s.out" 2>&1 &
+    cpids[$s]=$!
+done
+for s in 1 2 3 4; do
+    wait "${cpids[$s]}" || { cat "$tmp/c$s.out"; fail "client $s failed"; }
+    has "0 mismatches" "$tmp/c$s.out"
+done
+stop_server "$tmp/server1.log"
+has "0 protocol errors" "$tmp/server1.log"
+
+# pvs: cell sets from one cache
+expect 0 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
+expect 0 "$SL" pvs build city:tiny --along "$tmp/walk.txt" --threads 1 -o "$tmp/walk.slpvs"
+start_server "$tmp/server2.log" city:tiny --method "pvs:file=$tmp/walk.slpvs"
+for s in 1 2; do
+    timeout 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/walk.txt" --stall --check --json >"$tmp/p$s.out" 2>&1 &
+    cpids[$s]=$!
+done
+for s in 1 2; do
+    wait "${cpids[$s]}" || { cat "$tmp/p$s.out"; fail "pvs client $s failed"; }
+    has '"mismatches":0' "$tmp/p$s.out"
+done
+stop_server "$tmp/server2.log"
+hits=$(sed -n 's/.*cache \([0-9]*\) hits.*/\1/p' "$tmp/server2.log")
+[ -n "$hits" ] && [ "$hits" -gt 0 ] || fail "no cache hits with two clients on one walk: $(cat "$tmp/server2.log")"
+
+# no server: the client gives up after --timeout
+expect 1 timeout 30 "$SL" vis-client city:tiny --port "$port" --walk 5 --timeout 1
+has "no server at 127.0.0.1 port $port" "$tmp/err"
+echo "vis_server: ok"
