@@ -412,7 +412,6 @@ int main(int argc, char **argv)
     }
     close(pipe_port[0]);
     close(pipe_res[1]);
-    uint64_t rss0 = rss_bytes();
     sl_vis_server_options so = {.method = o.method, .workers = o.workers, .no_reuse = o.no_reuse,
                                 .max_clients = n + 16};
     sl_vis_server s;
@@ -497,7 +496,6 @@ int main(int argc, char **argv)
                "clients: %u; client errors: %u%s%s\n", wrong, checked, starved, errors, first_error[0] ? ": " : "",
                first_error);
     }
-    (void)rss0;
     sl_scene_destroy(scene);
     return wrong || errors ? 1 : 0;
 }

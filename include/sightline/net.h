@@ -95,8 +95,8 @@ typedef struct sl_vis_server_options {
                                     is dropped for a newer */
     bool no_reuse;               /* never answer from a cached region set */
     uint32_t socket_buffer;      /* bytes of each client socket's kernel send buffer (SO_SNDBUF;
-                                    0: the system's): less kernel queueing in front of a slow
-                                    reader, so it gets fresher sets */
+                                    0: the system's; at most 2^30): less kernel queueing in front
+                                    of a slow reader, so it gets fresher sets */
     uint64_t cache_bytes;        /* region-set cache, bytes (default 64 MiB) */
     sl_scene_accel accel;        /* shared acceleration (NULL: the server makes one) */
     const sl_allocator *alloc;   /* NULL: the default allocator */
@@ -104,7 +104,7 @@ typedef struct sl_vis_server_options {
 
 typedef struct sl_vis_server_stats {
     uint32_t clients;              /* connected now */
-    uint64_t clients_total;        /* accepted since start */
+    uint64_t clients_total;        /* connections accepted since start (refused ones included) */
     uint64_t clients_refused;      /* beyond max_clients */
     uint64_t views;                /* viewpoints received */
     uint64_t views_coalesced;      /* replaced by a newer one before a worker took them */

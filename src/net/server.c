@@ -904,6 +904,9 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_rate_hz %u: at most 10000", rate);
     if (queue > 64)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: queue_sets %u: at most 64", queue);
+    if (o->socket_buffer > (1u << 30))
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: socket_buffer %u: at most 2^30 bytes",
+                        o->socket_buffer);
     if (sl_scene_object_count(scene) > SLVP_OBJECTS_MAX)
         return net_fail(err, SL_ERROR_LIMIT, "vis server: %u objects, the protocol takes at most %u",
                         sl_scene_object_count(scene), SLVP_OBJECTS_MAX);
