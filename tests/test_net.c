@@ -519,7 +519,8 @@ static void test_server_pvs_reuse(void **state)
     (void)state;
     write_pvs();
     char spec[300];
-    snprintf(spec, sizeof spec, "pvs:file=%s", g_pvs_path);
+    /* the house grammar: options after the name, separated by colons */
+    snprintf(spec, sizeof spec, "pvs:file=%s:aggressive=false", g_pvs_path);
     sl_error err;
     sl_vis_server s = NULL;
     sl_vis_server_options o = {.method = spec, .workers = 2};
@@ -787,6 +788,9 @@ static void test_bad_options(void **state)
     assert_int_equal(sl_vis_server_create(g_scene, &o, &s, &err), SL_ERROR_INVALID_ARGUMENT);
     o = (sl_vis_server_options){.method = "pvs"};
     assert_int_not_equal(sl_vis_server_create(g_scene, &o, &s, &err), SL_OK);
+    o = (sl_vis_server_options){.method = "cullmap:nosuchkey=1"};
+    assert_int_equal(sl_vis_server_create(g_scene, &o, &s, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "nosuchkey"));
     sl_vis_client c = NULL;
     sl_vis_client_options co = {.port = 0};
     assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_ERROR_INVALID_ARGUMENT);

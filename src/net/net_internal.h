@@ -41,8 +41,10 @@ static inline double net_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* Split "NAME[:OPTIONS]" into name (size bytes) and a pointer to the options ("" when none). */
-sl_status net_split_spec(const char *spec, char *name, size_t size, const char **options, sl_error *err);
+/* Split "NAME[:key=value[:key=value...]]" into name (size bytes) and the options as the cullers
+ * take them ("key=value,key=value"; "" when none), into options (options_size bytes). */
+sl_status net_split_spec(const char *spec, char *name, size_t size, char *options, size_t options_size,
+                         sl_error *err);
 
 /* The value of file= in an options string (false when absent or longer than size - 1). */
 bool net_spec_file(const char *opts, char *out, size_t size);

@@ -47,21 +47,27 @@ sl_status net_fail(sl_error *err, sl_status st, const char *fmt, ...)
     return st;
 }
 
-sl_status net_split_spec(const char *spec, char *name, size_t size, const char **options, sl_error *err)
+sl_status net_split_spec(const char *spec, char *name, size_t size, char *options, size_t options_size, sl_error *err)
 {
     if (!spec || !*spec)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "method spec: empty (NAME[:OPTIONS], e.g. cullmap or pvs:file=X.slpvs)");
     const char *colon = strchr(spec, ':');
     size_t n = colon ? (size_t)(colon - spec) : strlen(spec);
     if (n == 0 || n >= size)
-        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "method spec '%s': bad method name", spec);
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "method spec '%.200s': bad method name", spec);
     memcpy(name, spec, n);
     name[n] = 0;
-    *options = colon ? colon + 1 : "";
+    /* the house grammar NAME[:key=value[:key=value...]]: the options' colons separate them */
+    const char *o = colon ? colon + 1 : "";
+    size_t k = strlen(o);
+    if (k >= options_size)
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "method spec '%.200s...': options longer than %zu characters",
+                        spec, options_size - 1);
+    for (size_t i = 0; i <= k; i++)
+        options[i] = o[i] == ':' ? ',' : o[i];
     return SL_OK;
 }
 
-/* The value of key file= in an options string (separators: commas and white space). */
 bool net_spec_file(const char *opts, char *out, size_t size)
 {
     const char *p = opts;
@@ -103,9 +109,8 @@ sl_status net_reference_create(sl_scene scene, const char *spec, bool reuse, sl_
     *out = NULL;
     if (!scene)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis reference: no scene");
-    char name[64];
-    const char *opts;
-    sl_status st = net_split_spec(spec, name, sizeof name, &opts, err);
+    char name[64], opts[4096];
+    sl_status st = net_split_spec(spec, name, sizeof name, opts, sizeof opts, err);
     if (st != SL_OK)
         return st;
     const sl_allocator *a = alloc ? alloc : sl_default_allocator();

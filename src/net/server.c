@@ -938,9 +938,8 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
         s->owns_accel = true;
     }
     /* the method's PVS, opened once for every worker (cursors are per worker) */
-    char name[64];
-    const char *opts;
-    if ((st = net_split_spec(o->method, name, sizeof name, &opts, err)) != SL_OK)
+    char name[64], opts[SLVP_METHOD_MAX + 1];
+    if ((st = net_split_spec(o->method, name, sizeof name, opts, sizeof opts, err)) != SL_OK)
         goto fail;
     if (!o->no_reuse && strcmp(name, "pvs") == 0) {
         char file[4096];
