@@ -14,6 +14,7 @@
 
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <uv.h>
 
@@ -50,7 +51,7 @@ struct sl_vis_client_t {
     /* shared with the caller's threads */
     pthread_mutex_t mu;
     pthread_cond_t cv;
-    bool stopping;
+    atomic_bool stopping;     /* written under mu; the loop also reads it without */
     uint32_t next_seq;
     slvp_view latest;
     bool latest_unsent;

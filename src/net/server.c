@@ -125,7 +125,7 @@ struct sl_vis_server_t {
     pthread_cond_t cv;
     client *jobs_head, *jobs_tail;
     client *done_head;             /* workers -> loop (LIFO; order does not matter) */
-    bool stopping;
+    atomic_bool stopping;          /* written under mu; read without it by the loop (on_connection) */
     worker *workers;
     /* cache */
     pthread_mutex_t cache_mu;
