@@ -19,7 +19,7 @@
  * This layer is optional (libsightline_net, CMake SL_NET=AUTO/ON/OFF, built when libuv is found).
  *
  * Thread safety: sl_vis_server_* calls may come from any thread (one at a time per call of
- * create/destroy; sl_vis_server_port and sl_vis_server_stats from any number at once). On a
+ * create/destroy; sl_vis_server_port and sl_vis_server_get_stats from any number at once). On a
  * client, sl_vis_client_send_view, sl_vis_client_wait, sl_vis_client_acquire and
  * sl_vis_client_get_stats may be called from any thread, concurrently with each other; the ids that
  * sl_vis_client_acquire returns stay valid until the next sl_vis_client_acquire or destroy.
