@@ -19,10 +19,14 @@ if "$SL" vis-server 2>&1 | grep -q "without the network layer"; then
     exit 77
 fi
 
-expect 0 "$SL" vis-server --help
+expect 0 "$SL" vis-server --help --no-such-option
 has "--method SPEC" "$tmp/out"
-expect 0 "$SL" vis-client --help
+expect 0 "$SL" vis-client -h
 has "--stall" "$tmp/out"
+expect 2 "$SL" vis-server --no-such-option
+has "unknown option --no-such-option" "$tmp/err"
+expect 2 "$SL" vis-client --stal
+has "did you mean --stall" "$tmp/err"
 expect 2 "$SL" vis-server city:tiny --port 0
 has "needs SCENE, --method SPEC and --port N" "$tmp/err"
 expect 2 "$SL" vis-client --walk 10
