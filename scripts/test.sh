@@ -28,7 +28,7 @@ if [ "${1:-}" = "--tsan" ]; then
   [ -e "$archer" ] && export OMP_TOOL_LIBRARIES="$archer" ARCHER_OPTIONS=verbose=0
   export SL_SANITIZED=1
   # the tests whose threads share a BVH, a scene, an oracle or a rasterizer (README, "ThreadSanitizer")
-  tests='^(test_bvh|test_oracle|test_raster|test_pvs_build|test_portal|test_domain|test_near_wall|test_bench|test_embree_scene|test_gvs|test_shared_accel|test_backend)$'
+  tests='^(test_bvh|test_oracle|test_raster|test_pvs_build|test_portal|test_domain|test_near_wall|test_bench|test_embree_scene|test_gvs|test_shared_accel|test_backend|test_net)$'
 fi
 cmake -S . -B "$dir" "${flags[@]}" >/dev/null
 if [ -n "$tests" ]; then
