@@ -33,7 +33,8 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline demo [--preset small] [--seed N] [--out DIR] [--frames N] [--quick] [--json]\n\n"
+            "usage: sightline demo [--preset small] [--seed N] [--out DIR] [--frames N] [--quick]\n"
+            "                     [--methods LIST] [--json]\n\n"
             "Generate the default city, run a street-level walkthrough (%u frames at %g fps: a 1.4 m/s walk\n"
             "sampled every %.2f m) and %u random flyover views with every registered culling method (one\n"
             "that cannot run with its default options is named as not run; the pvs culler gets a PVS baked\n"
@@ -59,6 +60,7 @@ static void usage(FILE *out)
             "examples:\n"
             "  sightline demo\n"
             "  sightline demo --preset tiny --quick --out /tmp/demo\n"
+          "  sightline demo --preset tiny --quick --methods vfc,hzb:res=culling,pvs --out /tmp/demo\n"
             "  sightline demo --preset vienna --frames 300 --out vienna-demo\n",
             DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, CLI_PVS_ALONG_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
@@ -626,7 +628,7 @@ int sl_cmd_demo(int argc, char **argv)
     const char *cmd = argv[0];
     cli_args a;
     cli_args_init(&a, argc, argv);
-    const char *name, *val, *preset_name = "small", *out_dir = "demo-out";
+    const char *name, *val, *preset_name = "small", *out_dir = "demo-out", *methods_text = NULL;
     uint64_t seed = 1;
     uint32_t frames = 0, width = 1024, height = 768;
     bool quick = false, has_frames = false;
@@ -649,6 +651,8 @@ int sl_cmd_demo(int argc, char **argv)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &height);
         } else if (!strcmp(name, "quick")) {
             quick = true;
+        } else if (!strcmp(name, "methods")) {
+            methods_text = cli_value(&a, name, val);
         } else {
             cli_unknown(&a, name);
         }
@@ -694,12 +698,38 @@ int sl_cmd_demo(int argc, char **argv)
     }
     cli_progress_done(&ps);
 
-    /* every registered method that runs with its default options; the others are named */
+    /* every registered method that runs with its default options (the others are named), or the
+     * methods of --methods; pvs without a file gets the walk's PVS, baked below */
     sl_bench_method_spec specs[SL_BENCH_MAX_METHODS];
     sl_bench_skip skipped[SL_BENCH_MAX_METHODS];
-    uint32_t nskipped = 0;
-    uint32_t nm = sl_bench_registered_methods(specs, SL_BENCH_MAX_METHODS, skipped, SL_BENCH_MAX_METHODS, &nskipped);
-    nskipped = TOOL_MIN(nskipped, SL_BENCH_MAX_METHODS);
+    uint32_t nskipped = 0, nm = 0;
+    int pvs_listed = -1; /* --methods: the index of a pvs to bake for, -1: none */
+    char method_buf[4096], pvs_options[4600];
+    if (!methods_text) {
+        nm = sl_bench_registered_methods(specs, SL_BENCH_MAX_METHODS, skipped, SL_BENCH_MAX_METHODS, &nskipped);
+        nskipped = TOOL_MIN(nskipped, SL_BENCH_MAX_METHODS);
+    } else {
+        int n = cli_method_list(cmd, methods_text, method_buf, sizeof method_buf, specs, SL_BENCH_MAX_METHODS);
+        for (int k = 0; k < n; k++) {
+            const char *o = specs[k].options;
+            bool has_file = o && (!strncmp(o, "file=", 5) || strstr(o, ",file="));
+            if (!strcmp(specs[k].name, "pvs") && !has_file) {
+                pvs_listed = k;
+                continue; /* its other options are checked once the file is baked */
+            }
+            if (sl_cull_method_check_options(specs[k].name, o, &err) != SL_OK) {
+                cli_error(cmd, "--methods: %s", err.message);
+                n = -1;
+                break;
+            }
+        }
+        if (n < 0) {
+            sl_scene_destroy(scene);
+            cli_outdir_abort(&od);
+            return 2;
+        }
+        nm = (uint32_t)n;
+    }
 
     sl_path walk = NULL, fly = NULL;
     sl_bench benches[2] = {NULL, NULL};
@@ -723,7 +753,7 @@ int sl_cmd_demo(int argc, char **argv)
     cli_pvs_along dp;
     char pvs_note[1024] = "";
     memset(&dp, 0, sizeof dp);
-    if (!status) {
+    if (!status && (!methods_text || pvs_listed >= 0)) {
         if (!json && !quiet)
             fprintf(stderr, "sightline demo: baking the PVS of the street cells along the walk (%s)...\n",
                     CLI_PVS_ALONG_METHOD);
@@ -732,7 +762,21 @@ int sl_cmd_demo(int argc, char **argv)
             status = cli_fail(cmd, &err);
         cli_progress_done(&ps);
     }
-    if (!status && dp.options[0] && nm < SL_BENCH_MAX_METHODS) {
+    if (!status && pvs_listed >= 0) {
+        /* --methods named pvs: the baked file plus the options given */
+        const char *given = specs[pvs_listed].options;
+        snprintf(pvs_options, sizeof pvs_options, "%s%s%s", dp.options, given ? "," : "", given ? given : "");
+        if (!dp.options[0]) {
+            cli_error(cmd, "--methods: pvs cannot run: %s", dp.why[0] ? dp.why : "no PVS was baked");
+            status = 1;
+        } else if (sl_cull_method_check_options("pvs", pvs_options, &err) != SL_OK) {
+            cli_error(cmd, "--methods: %s", err.message);
+            status = 2;
+        } else {
+            specs[pvs_listed].options = pvs_options;
+        }
+    }
+    if (!status && dp.options[0] && !methods_text && nm < SL_BENCH_MAX_METHODS) {
         specs[nm++] = (sl_bench_method_spec){"pvs", dp.options};
         /* it runs after all: take it off the list of methods not run */
         uint32_t k = 0;

@@ -128,4 +128,24 @@ has '"report":' "$tmp/out"
 # an output folder the pvs culler cannot name (a comma): pvs is reported as not run
 expect 0 "$SL" demo --preset tiny --quick --frames 2 --out "$tmp/a,b" --quiet
 has "Not run: pvs" "$tmp/a,b/report.md"
+# --methods: only the listed methods run, with their options; pvs without file= gets the walk's PVS
+expect 0 "$SL" demo --preset tiny --quick --frames 3 --methods vfc,hzb:res=culling,pvs --out "$tmp/m" --quiet
+has "| hzb | conservative-at-resolution |" "$tmp/m/summary.md"
+has "| vfc | conservative |" "$tmp/m/summary.md"
+has "| pvs | conservative |" "$tmp/m/summary.md"
+[ "$(grep -cE '^\| [a-z+-]+ \| (conservative|aggressive)' "$tmp/m/summary.md")" -eq 6 ] || fail "--methods ran other methods than the three listed"
+hasnt "| cullmap |" "$tmp/m/summary.md"
+grep -q "res=culling" "$tmp/m/report.html" || fail "the report does not show hzb's option"
+expect 0 "$SL" demo --preset tiny --quick --frames 2 --methods lazygrid --out "$tmp/m1" --quiet
+[ ! -e "$tmp/m1/walk.slpvs" ] || fail "a PVS was baked although pvs was not listed"
+expect 2 "$SL" demo --preset tiny --quick --methods vfc,hzbb --out "$tmp/m2"
+has "did you mean hzb" "$tmp/err"
+[ ! -e "$tmp/m2" ] || fail "a bad --methods left an output folder"
+expect 2 "$SL" demo --preset tiny --quick --methods hzb:bogus=1 --out "$tmp/m3"
+has "unknown option 'bogus'" "$tmp/err"
+expect 2 "$SL" demo --preset tiny --quick --methods pvs:bogus=1 --out "$tmp/m4"
+has "pvs: unknown option 'bogus'" "$tmp/err"
+[ ! -e "$tmp/m4" ] || fail "a bad pvs option left an output folder"
+expect 2 "$SL" demo --preset tiny --quick --methods vfc,vfc --out "$tmp/m5"
+has "listed twice" "$tmp/err"
 echo "PASS"
