@@ -29,6 +29,8 @@
 #define DEMO_FLY_VIEWS 24
 #define QUICK_WALK_FRAMES 40
 #define QUICK_FLY_VIEWS 4
+/* the map thumbnails' longer side in pixels: twice the report grid's 170 px column, for dense screens */
+#define DEMO_THUMB_SIZE 340
 
 static void usage(FILE *out)
 {
@@ -262,10 +264,10 @@ enum { COL_FRAMES, COL_OBJECTS, COL_TRIANGLES, COL_VISIBLE, COL_OVER, COL_MISSED
 static const char *const col_names[COL_COUNT] = {"frames", "objects drawn", "triangles drawn", "exact visible",
                                                  "over-estimation", "missed objects", "missed pixels",
                                                  "cull ms median", "p95", "max"};
-/* whether a column is ranked, and among which methods: the drawn counts and the over-estimation
- * only among those that missed nothing (dropping objects is not a way to be tight) */
-static const bool col_ranked[COL_COUNT] = {false, true, true, false, true, true, true, true, true, true};
-static const bool col_needs_no_miss[COL_COUNT] = {false, true, true, false, true, false, false, false, false, false};
+/* the library's ranked column of each (-1: not ranked): sl_bench_best_columns says which is best */
+static const int col_rank[COL_COUNT] = {-1, SL_BENCH_COL_OBJECTS, SL_BENCH_COL_TRIANGLES, -1, SL_BENCH_COL_OVERESTIMATION,
+                                        SL_BENCH_COL_MISSED_OBJECTS, SL_BENCH_COL_MISSED_PIXELS, SL_BENCH_COL_MS_MEDIAN,
+                                        SL_BENCH_COL_MS_P95, SL_BENCH_COL_MS_MAX};
 
 static double col_value(const sl_bench_summary *s, int c)
 {
@@ -296,9 +298,10 @@ static void col_text(char *buf, size_t n, const sl_bench_summary *s, int c)
     }
 }
 
-/* The results table of one bench in HTML (Markdown comes from sl_bench_print_summary): the best
- * cell of every ranked column has class "best" (all of them on a tie; none when every method
- * ties), a conservative method's misses class "bad", the recommended methods a note. */
+/* The results table of one bench in HTML (Markdown comes from sl_bench_print_summary, which
+ * prints the same best cells in bold): the best cell of every ranked column (sl_bench_best_columns:
+ * all of them on a tie, none when every method ties) has class "best", a conservative method's
+ * misses class "bad", the recommended methods a note. */
 static void html_summary(report *r, sl_bench b)
 {
     uint32_t nm = sl_bench_method_count(b);
@@ -313,27 +316,7 @@ static void html_summary(report *r, sl_bench b)
     for (uint32_t mi = 0; mi < nm; mi++)
         ok[mi] = sl_bench_method(b, mi, &info[mi], NULL) == SL_OK && sl_bench_summarize(b, mi, &sum[mi], NULL) == SL_OK &&
                  sum[mi].frames > 0;
-    /* the best printed value of each ranked column, and whether some method differs from it */
-    double best[COL_COUNT];
-    bool spread[COL_COUNT];
     char cell[64];
-    for (int c = 0; c < COL_COUNT; c++) {
-        best[c] = INFINITY;
-        spread[c] = false;
-        double first = NAN;
-        for (uint32_t mi = 0; mi < nm && col_ranked[c]; mi++) {
-            if (!ok[mi] || (col_needs_no_miss[c] && sum[mi].missed_objects_total))
-                continue;
-            col_text(cell, sizeof cell, &sum[mi], c);
-            double v = strtod(cell, NULL); /* grouped numbers parse up to the first comma: compare the values */
-            v = c == COL_OBJECTS || c == COL_TRIANGLES ? round(col_value(&sum[mi], c)) : v;
-            if (isnan(first))
-                first = v;
-            else if (v != first)
-                spread[c] = true;
-            best[c] = fmin(best[c], v);
-        }
-    }
     sl_bench_recommendation rec;
     if (sl_bench_recommend(b, &rec, NULL) != SL_OK)
         rec.fastest = rec.tightest = -1;
@@ -353,11 +336,10 @@ static void html_summary(report *r, sl_bench b)
         if ((int32_t)mi == rec.tightest)
             put(&r->html, "<span class=\"pick\">&#9733; tightest pick</span>");
         put(&r->html, "</td><td class=\"l\">%s</td>", sl_cull_guarantee_name(info[mi].guarantee));
+        uint32_t best = sl_bench_best_columns(b, mi);
         for (int c = 0; c < COL_COUNT; c++) {
             col_text(cell, sizeof cell, s, c);
-            double v = c == COL_OBJECTS || c == COL_TRIANGLES ? round(col_value(s, c)) : strtod(cell, NULL);
-            bool is_best = col_ranked[c] && spread[c] && v == best[c] &&
-                           !(col_needs_no_miss[c] && s->missed_objects_total);
+            bool is_best = col_rank[c] >= 0 && ((best >> col_rank[c]) & 1u);
             const char *cls = (c == COL_MISSED || c == COL_MISSED_PX) && bad ? " class=\"bad\""
                               : is_best                                     ? " class=\"best\""
                                                                             : "";
@@ -469,6 +451,9 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
         put(&r->html, "</h3>\n");
         html_summary(r, benches[bi]);
     }
+    put(&r->md, "The best value of each ranked column is in bold: the fewest objects and triangles drawn and the "
+                "least over-estimation among the methods that missed nothing, the fewest missed objects and pixels, "
+                "the shortest cull times (every tie; a column where all methods tie has none).\n\n");
     if (!ferror(sl_output_stream(r->md)))
         sl_bench_print_summary(benches, nb, sl_output_stream(r->md));
 
@@ -542,12 +527,13 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
             sl_bench_method_info info;
             if (sl_bench_method(benches[bi], mi, &info, NULL) != SL_OK || info.external)
                 continue;
-            char file[256];
+            char file[256], thumb[256];
             snprintf(file, sizeof file, "%s-map-%s.png", sl_bench_label(benches[bi]), info.name);
+            snprintf(thumb, sizeof thumb, "%s-map-%s-thumb.png", sl_bench_label(benches[bi]), info.name);
             /* thumbnails: HTML inside Markdown, which the common viewers render */
-            put(&r->md, "<a href=\"%s\"><img src=\"%s\" width=\"170\" alt=\"%s\" title=\"%s\"></a>\n", file, file,
+            put(&r->md, "<a href=\"%s\"><img src=\"%s\" width=\"170\" alt=\"%s\" title=\"%s\"></a>\n", file, thumb,
                 info.name, info.name);
-            put(&r->html, "<figure><a href=\"%s\"><img loading=\"lazy\" src=\"%s\" alt=\"", file, file);
+            put(&r->html, "<figure><a href=\"%s\"><img loading=\"lazy\" src=\"%s\" alt=\"", file, thumb);
             put_html(&r->html, info.name);
             put(&r->html, " map\"></a><figcaption>");
             put_html(&r->html, info.name);
@@ -825,6 +811,7 @@ int sl_cmd_demo(int argc, char **argv)
         sl_bench_map_options mo;
         memset(&mo, 0, sizeof mo);
         mo.camera = sl_path_camera(views, 0);
+        mo.thumb_size = DEMO_THUMB_SIZE;
         snprintf(path, sizeof path, "%s/%s-map-", work, set_label);
         if (st == SL_OK)
             st = sl_bench_write_maps(benches[k], &mo, path, NULL, &err);
