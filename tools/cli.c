@@ -842,3 +842,28 @@ int cli_method_list(const char *cmd, const char *text, char *buf, size_t buf_siz
     }
     return n;
 }
+
+void cli_drop_not_applicable(const char *cmd, sl_scene scene, const char *label, sl_bench_method_spec *run,
+                             uint32_t *n, sl_bench_skip *skipped, uint32_t *nskipped, uint32_t max, bool quiet)
+{
+    uint32_t kept = 0;
+    for (uint32_t i = 0; i < *n; i++) {
+        bool ok = true;
+        char why[400];
+        sl_error err;
+        if (sl_cull_method_applicable(run[i].name, run[i].options, scene, &ok, why, sizeof why, &err) != SL_OK)
+            ok = true;
+        if (ok) {
+            run[kept++] = run[i];
+            continue;
+        }
+        if (!quiet)
+            cli_error(cmd, "not running %s on %s: not applicable: %s", run[i].name, label, why);
+        if (*nskipped < max) {
+            skipped[*nskipped].name = run[i].name;
+            snprintf(skipped[*nskipped].reason, sizeof skipped[0].reason, "%.80s: not applicable: %.390s", label, why);
+            (*nskipped)++;
+        }
+    }
+    *n = kept;
+}

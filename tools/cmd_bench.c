@@ -828,6 +828,13 @@ int sl_cmd_bench(int argc, char **argv)
                 break;
             }
         }
+        cli_drop_not_applicable(cmd, s, label, run, &nrun, skipped, &nskipped, SL_BENCH_MAX_METHODS, g.quiet || g.json);
+        if (!nrun) {
+            cli_error(cmd, "no method to run on %s: every one named is not applicable to it", label);
+            sl_path_destroy(views);
+            status = 2;
+            break;
+        }
         sl_bench_options bo = sl_bench_default_options();
         bo.width = g.width;
         bo.height = g.height;

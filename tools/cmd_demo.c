@@ -782,8 +782,15 @@ int sl_cmd_demo(int argc, char **argv)
             if (!strcmp(skipped[i].name, "pvs"))
                 snprintf(skipped[i].reason, sizeof skipped[i].reason, "%s", dp.why);
     }
+    /* a generated city has what every method needs; a method that cannot work on it is named, not run */
+    uint32_t first_na = nskipped;
+    cli_drop_not_applicable(cmd, scene, label, specs, &nm, skipped, &nskipped, SL_BENCH_MAX_METHODS, true);
     for (uint32_t i = 0; i < nskipped && !json && !status; i++)
         fprintf(stderr, "sightline demo: not running %s: %s\n", skipped[i].name, skipped[i].reason);
+    if (!status && !nm) {
+        cli_error(cmd, "no method to run: %s", nskipped > first_na ? skipped[first_na].reason : "none listed");
+        status = 2;
+    }
     static const char *set_names[2] = {"walk", "flyover"};
     for (uint32_t k = 0; k < 2 && !status; k++) {
         char set_label[160];
