@@ -124,6 +124,8 @@ typedef struct sl_synth_stats {
                                      they cover: growing towards the surface adds more) */
     double volume_fraction;       /* covered_volume / closed_volume */
     double seconds, cpu_seconds;  /* wall time; CPU time of the calling thread */
+    uint32_t t_junctions;         /* triangles split where another vertex lay on their open edge
+                                     (a T-junction), before the closedness test. Appended */
 } sl_synth_stats;
 
 /* Default options (all zero: everything chosen from the scene). */
