@@ -616,6 +616,44 @@ static void test_bad_input(void **state)
     assert_null(s);
 }
 
+/* Street lines crossing without a shared vertex are joined where they cross; lines with no
+ * highway field in a layer without one are all streets; widths by class or the width tag. */
+static void test_crossing_streets(void **state)
+{
+    (void)state;
+    write_file(path_in("cross.geojson"),
+               "{\"type\":\"FeatureCollection\",\"features\":[\n"
+               "{\"type\":\"Feature\",\"properties\":{\"highway\":\"primary\"},\"geometry\":{\"type\":\"LineString\","
+               "\"coordinates\":[[16.3700,48.2100],[16.3720,48.2100]]}},\n"
+               "{\"type\":\"Feature\",\"properties\":{\"highway\":\"service\",\"width\":\"4.5\"},\"geometry\":"
+               "{\"type\":\"LineString\",\"coordinates\":[[16.3710,48.2090],[16.3710,48.2110]]}},\n"
+               "{\"type\":\"Feature\",\"properties\":{\"waterway\":\"canal\"},\"geometry\":{\"type\":\"LineString\","
+               "\"coordinates\":[[16.3700,48.2095],[16.3720,48.2095]]}}\n"
+               "]}\n");
+    sl_gis_stats st;
+    sl_scene s = import_ok(path_in("cross.geojson"), NULL, &st);
+    assert_int_equal(st.buildings, 0);
+    assert_int_equal(st.streets, 2);
+    assert_int_equal(st.other, 1);
+    const sl_street_node *nodes;
+    const sl_street_edge *edges;
+    uint32_t nn, ne;
+    sl_scene_street_graph(s, &nodes, &nn, &edges, &ne);
+    assert_int_equal(nn, 5);
+    assert_int_equal(ne, 4);
+    uint32_t deg[5] = {0};
+    for (uint32_t e = 0; e < ne; e++) {
+        deg[edges[e].a]++, deg[edges[e].b]++;
+        bool avenue = (edges[e].flags & SL_STREET_AVENUE) != 0;
+        assert_float_equal(edges[e].width, avenue ? 12 : 4.5, 1e-6);
+    }
+    uint32_t crossings = 0;
+    for (uint32_t v = 0; v < nn; v++)
+        crossings += deg[v] == 4;
+    assert_int_equal(crossings, 1);
+    sl_scene_destroy(s);
+}
+
 /* The same file twice gives the same scene, byte for byte. */
 static void test_deterministic(void **state)
 {
@@ -642,7 +680,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_geojson_city), cmocka_unit_test(test_shapefile_utm), cmocka_unit_test(test_unknown_crs),
         cmocka_unit_test(test_osm_xml),      cmocka_unit_test(test_citygml),       cmocka_unit_test(test_city_is_a_scene),
-        cmocka_unit_test(test_bad_input),    cmocka_unit_test(test_deterministic),
+        cmocka_unit_test(test_bad_input),    cmocka_unit_test(test_crossing_streets), cmocka_unit_test(test_deterministic),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

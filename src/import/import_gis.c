@@ -148,14 +148,14 @@ typedef struct gis {
     /* mesh under construction */
     sl_array pos, idx;     /* float x3, uint32 */
     /* streets */
-    sl_array seg_pts;      /* node_key, two per segment (a, b) */
-    sl_array seg_info;     /* street_seg */
+    sl_array seg_info;     /* street_seg: every segment of every street line */
     sl_aabb bounds;        /* of everything emitted */
     double *ring;          /* scratch for GEOS ring coordinates */
     size_t ring_cap;
 } gis;
 
 typedef struct street_seg {
+    double ax, ay, bx, by;
     float width;
     uint32_t flags;
 } street_seg;
@@ -1273,10 +1273,8 @@ static bool street_line(gis *s, const feat *f, OGRGeometryH g)
         }
         for (int k = 0; k < 4; k++)
             sl_aabb_grow(&s->bounds, (sl_vec3){q[2 * k], q[2 * k + 1], 0});
-        node_key pk[2] = {{(int64_t)llround(ax * 100), (int64_t)llround(ay * 100), (float)ax, (float)ay, 0},
-                          {(int64_t)llround(bx * 100), (int64_t)llround(by * 100), (float)bx, (float)by, 0}};
-        street_seg sg = {(float)w, f->street_flags};
-        if (!sl_array_push(s->a, &s->seg_pts, sizeof pk[0], pk, 2) || !sl_array_push(s->a, &s->seg_info, sizeof sg, &sg, 1))
+        street_seg sg = {ax, ay, bx, by, (float)w, f->street_flags};
+        if (!sl_array_push(s->a, &s->seg_info, sizeof sg, &sg, 1))
             return false;
         s->st->street_segments++;
     }
@@ -1293,22 +1291,117 @@ static int cmp_node(const void *a, const void *b)
     return 0;
 }
 
+/* Noding: street lines that cross without a shared vertex (common outside OpenStreetMap) are
+ * split where they cross (GEOSNode), so that the graph joins them there; each piece takes the
+ * width and flags of the segment it lies on (found through an STR tree). */
+typedef struct seg_query {
+    const street_seg *in;
+    double mx, my, best;
+    size_t best_i;
+} seg_query;
+
+static void on_seg_candidate(void *item, void *user)
+{
+    seg_query *q = user;
+    size_t i = (size_t)(uintptr_t)item - 1;
+    const street_seg *g = &q->in[i];
+    double dx = g->bx - g->ax, dy = g->by - g->ay, l2 = dx * dx + dy * dy;
+    double t = l2 > 0 ? ((q->mx - g->ax) * dx + (q->my - g->ay) * dy) / l2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double d = hypot(g->ax + t * dx - q->mx, g->ay + t * dy - q->my);
+    if (d < q->best || (d == q->best && i < q->best_i))
+        q->best = d, q->best_i = i;
+}
+
+static bool node_streets(gis *s, sl_array *out)
+{
+    GEOSContextHandle_t h = s->g.h;
+    size_t ns = s->seg_info.count;
+    const street_seg *in = s->seg_info.data;
+    GEOSGeometry **lines = sl_calloc(s->a, ns, sizeof(GEOSGeometry *));
+    if (!lines)
+        return false;
+    bool ok = true;
+    for (size_t i = 0; i < ns && ok; i++) {
+        GEOSCoordSequence *cs = GEOSCoordSeq_create_r(h, 2, 2);
+        ok = cs && GEOSCoordSeq_setXY_r(h, cs, 0, in[i].ax, in[i].ay) && GEOSCoordSeq_setXY_r(h, cs, 1, in[i].bx, in[i].by);
+        if (ok)
+            ok = (lines[i] = GEOSGeom_createLineString_r(h, cs)) != NULL;
+        else if (cs)
+            GEOSCoordSeq_destroy_r(h, cs);
+    }
+    GEOSGeometry *coll = ok ? GEOSGeom_createCollection_r(h, GEOS_MULTILINESTRING, lines, (unsigned)ns) : NULL;
+    if (!coll)
+        for (size_t i = 0; i < ns; i++)
+            if (lines[i])
+                GEOSGeom_destroy_r(h, lines[i]);
+    sl_free(s->a, lines, ns * sizeof(GEOSGeometry *));
+    GEOSGeometry *noded = coll ? GEOSNode_r(h, coll) : NULL;
+    GEOSSTRtree *tree = noded ? GEOSSTRtree_create_r(h, 10) : NULL;
+    ok = tree != NULL;
+    for (size_t i = 0; i < ns && ok; i++)
+        GEOSSTRtree_insert_r(h, tree, GEOSGetGeometryN_r(h, coll, (int)i), (void *)(uintptr_t)(i + 1));
+    int np = ok ? GEOSGetNumGeometries_r(h, noded) : 0;
+    for (int k = 0; k < np && ok; k++) {
+        const GEOSGeometry *piece = GEOSGetGeometryN_r(h, noded, k);
+        const GEOSCoordSequence *cs = piece ? GEOSGeom_getCoordSeq_r(h, piece) : NULL;
+        unsigned n = 0;
+        if (!cs || !GEOSCoordSeq_getSize_r(h, cs, &n))
+            continue;
+        for (unsigned v = 0; v + 1 < n && ok; v++) {
+            double ax, ay, bx, by;
+            if (!GEOSCoordSeq_getXY_r(h, cs, v, &ax, &ay) || !GEOSCoordSeq_getXY_r(h, cs, v + 1, &bx, &by))
+                continue;
+            seg_query q = {in, 0.5 * (ax + bx), 0.5 * (ay + by), INFINITY, 0};
+            GEOSGeometry *pt = GEOSGeom_createPointFromXY_r(h, q.mx, q.my);
+            if (!pt) {
+                ok = false;
+                break;
+            }
+            GEOSSTRtree_query_r(h, tree, pt, on_seg_candidate, &q);
+            GEOSGeom_destroy_r(h, pt);
+            street_seg sg = {ax, ay, bx, by, isfinite(q.best) ? in[q.best_i].width : 6.0f,
+                             isfinite(q.best) ? in[q.best_i].flags : 0u};
+            ok = sl_array_push(s->a, out, sizeof sg, &sg, 1) != NULL;
+        }
+    }
+    if (tree)
+        GEOSSTRtree_destroy_r(h, tree);
+    if (noded)
+        GEOSGeom_destroy_r(h, noded);
+    if (coll)
+        GEOSGeom_destroy_r(h, coll);
+    return ok;
+}
+
+static node_key key_of(double x, double y)
+{
+    return (node_key){(int64_t)llround(x * 100), (int64_t)llround(y * 100), (float)x, (float)y, 0};
+}
+
 /* The graph: segment ends within a centimetre are one node. */
 static sl_status street_graph(gis *s)
 {
-    size_t ns = s->seg_info.count;
-    if (!ns)
+    if (!s->seg_info.count)
         return SL_OK;
-    node_key *pts = s->seg_pts.data;
-    node_key *sorted = sl_alloc(s->a, 2 * ns * sizeof(node_key));
-    sl_street_node *nodes = sl_alloc(s->a, 2 * ns * sizeof(sl_street_node));
-    sl_street_edge *edges = sl_alloc(s->a, ns * sizeof(sl_street_edge));
+    sl_array noded = {0};
+    if (!node_streets(s, &noded)) {
+        sl_array_free(s->a, &noded, sizeof(street_seg));
+        return sl_fail(s->err, SL_ERROR_INTERNAL, "%s: GEOS could not node the streets: %s", s->path,
+                       s->g.message[0] ? s->g.message : "out of memory");
+    }
+    size_t ns = noded.count;
+    const street_seg *info = noded.data;
+    node_key *sorted = sl_alloc(s->a, 2 * ns * sizeof(node_key) + 1);
+    sl_street_node *nodes = sl_alloc(s->a, 2 * ns * sizeof(sl_street_node) + 1);
+    sl_street_edge *edges = sl_alloc(s->a, ns * sizeof(sl_street_edge) + 1);
     sl_status st = SL_OK;
     if (!sorted || !nodes || !edges) {
         st = oom(s);
         goto done;
     }
-    memcpy(sorted, pts, 2 * ns * sizeof(node_key));
+    for (size_t i = 0; i < ns; i++)
+        sorted[2 * i] = key_of(info[i].ax, info[i].ay), sorted[2 * i + 1] = key_of(info[i].bx, info[i].by);
     qsort(sorted, 2 * ns, sizeof(node_key), cmp_node);
     uint32_t nn = 0;
     for (size_t i = 0; i < 2 * ns; i++) {
@@ -1319,11 +1412,11 @@ static sl_status street_graph(gis *s)
         sorted[i].id = nn;
         nodes[nn++] = (sl_street_node){sorted[i].x, sorted[i].y};
     }
-    const street_seg *info = s->seg_info.data;
     uint32_t ne = 0;
     for (size_t i = 0; i < ns; i++) {
-        const node_key *a = bsearch(&pts[2 * i], sorted, 2 * ns, sizeof(node_key), cmp_node);
-        const node_key *b = bsearch(&pts[2 * i + 1], sorted, 2 * ns, sizeof(node_key), cmp_node);
+        node_key ka = key_of(info[i].ax, info[i].ay), kb = key_of(info[i].bx, info[i].by);
+        const node_key *a = bsearch(&ka, sorted, 2 * ns, sizeof(node_key), cmp_node);
+        const node_key *b = bsearch(&kb, sorted, 2 * ns, sizeof(node_key), cmp_node);
         if (!a || !b || a->id == b->id)
             continue;
         edges[ne++] = (sl_street_edge){a->id, b->id, info[i].width, info[i].flags};
@@ -1331,9 +1424,10 @@ static sl_status street_graph(gis *s)
     st = sl_scene_set_street_graph(s->scene, nodes, nn, edges, ne, s->err);
     s->st->street_nodes = nn;
 done:
-    sl_free(s->a, sorted, 2 * ns * sizeof(node_key));
-    sl_free(s->a, nodes, 2 * ns * sizeof(sl_street_node));
-    sl_free(s->a, edges, ns * sizeof(sl_street_edge));
+    sl_free(s->a, sorted, 2 * ns * sizeof(node_key) + 1);
+    sl_free(s->a, nodes, 2 * ns * sizeof(sl_street_node) + 1);
+    sl_free(s->a, edges, ns * sizeof(sl_street_edge) + 1);
+    sl_array_free(s->a, &noded, sizeof(street_seg));
     return st;
 }
 
@@ -1670,7 +1764,6 @@ done_geos:
         OSRRelease(s.local);
     sl_array_free(a, &s.pos, 3 * sizeof(float));
     sl_array_free(a, &s.idx, 3 * sizeof(uint32_t));
-    sl_array_free(a, &s.seg_pts, sizeof(node_key));
     sl_array_free(a, &s.seg_info, sizeof(street_seg));
     if (s.ring)
         sl_free(a, s.ring, s.ring_cap * sizeof(double));
