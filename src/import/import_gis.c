@@ -1739,7 +1739,7 @@ sl_status sl_import_gis(const char *path, const sl_gis_options *opt, const sl_al
         goto done_ds;
     st = run(&s);
     if (st == SL_OK && cap.last[0] && !s.st->first_warning[0])
-        snprintf(s.st->first_warning, sizeof s.st->first_warning, "GDAL: %s", cap.last);
+        snprintf(s.st->first_warning, sizeof s.st->first_warning, "GDAL: %.240s", cap.last);
 done_ds:
     GDALClose(s.ds);
 done_geos:
