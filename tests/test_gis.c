@@ -28,6 +28,7 @@
 #include "sightline/region.h"
 #include "sightline/slscene.h"
 #include "sightline/scene.h"
+#include "support/counting_alloc.h"
 #include "support/synth_check.h"
 
 #define LON0 16.37
@@ -672,6 +673,17 @@ static void test_deterministic(void **state)
     assert_int_equal(sl_scene_open(path_in("city.geojson"), NULL, NULL, &s, &err), SL_OK);
     assert_true(sl_scene_footprint_count(s) > 0);
     sl_scene_destroy(s);
+    /* every byte through the caller's allocator comes back, on success and on failure */
+    sl_test_counter c = {0};
+    sl_allocator ca = sl_test_counting_allocator(&c);
+    const char *files[] = {"city.geojson", "bad.geojson", "block.osm", "noprj.shp", "huge.geojson", "text.geojson"};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+        s = NULL;
+        if (sl_import_gis(path_in(files[i]), NULL, &ca, &s, NULL, &err) == SL_OK)
+            sl_scene_destroy(s);
+        assert_int_equal(c.live, 0);
+    }
+    assert_true(c.calls > 0);
     assert_true(sl_gis_path("x.GeoJSON") && sl_gis_path("a/b.osm.pbf") && sl_gis_path("c.shp") && !sl_gis_path("d.obj"));
 }
 
