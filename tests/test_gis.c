@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <pthread.h>
 #include <unistd.h>
 
 #include <gdal.h>
@@ -687,12 +688,57 @@ static void test_deterministic(void **state)
     assert_true(sl_gis_path("x.GeoJSON") && sl_gis_path("a/b.osm.pbf") && sl_gis_path("c.shp") && !sl_gis_path("d.obj"));
 }
 
+/* Two threads importing at once (GDAL's error handler is per thread, GEOS has a context per call)
+ * get the same scenes as one thread alone. */
+typedef struct job {
+    const char *in, *out;
+    sl_status st;
+    char message[512];
+} job;
+
+static void *import_job(void *user)
+{
+    job *j = user;
+    sl_scene s = NULL;
+    sl_error err = {0};
+    j->st = sl_import_gis(j->in, NULL, NULL, &s, NULL, &err);
+    if (j->st == SL_OK)
+        j->st = sl_scene_save(s, j->out, &err);
+    snprintf(j->message, sizeof j->message, "%s", err.message);
+    sl_scene_destroy(s);
+    return NULL;
+}
+
+static void test_threads(void **state)
+{
+    (void)state;
+    job jobs[4] = {{path_in("city.geojson"), path_in("t0.slscene"), SL_OK, ""},
+                   {path_in("block.osm"), path_in("t1.slscene"), SL_OK, ""},
+                   {path_in("city.geojson"), path_in("t2.slscene"), SL_OK, ""},
+                   {path_in("text.geojson"), path_in("t3.slscene"), SL_OK, ""}};
+    pthread_t t[4];
+    for (int i = 0; i < 4; i++)
+        assert_int_equal(pthread_create(&t[i], NULL, import_job, &jobs[i]), 0);
+    for (int i = 0; i < 4; i++)
+        assert_int_equal(pthread_join(t[i], NULL), 0);
+    assert_int_equal(jobs[0].st, SL_OK);
+    assert_int_equal(jobs[1].st, SL_OK);
+    assert_int_equal(jobs[2].st, SL_OK);
+    assert_int_equal(jobs[3].st, SL_ERROR_FORMAT);
+    assert_non_null(strstr(jobs[3].message, "text.geojson")); /* its own message, not another thread's */
+    char cmd[1200];
+    snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s' && cmp -s '%s' '%s'", path_in("t0.slscene"), path_in("t2.slscene"),
+             path_in("t0.slscene"), path_in("a.slscene"));
+    assert_int_equal(system(cmd), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_geojson_city), cmocka_unit_test(test_shapefile_utm), cmocka_unit_test(test_unknown_crs),
         cmocka_unit_test(test_osm_xml),      cmocka_unit_test(test_citygml),       cmocka_unit_test(test_city_is_a_scene),
         cmocka_unit_test(test_bad_input),    cmocka_unit_test(test_crossing_streets), cmocka_unit_test(test_deterministic),
+        cmocka_unit_test(test_threads),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
