@@ -906,11 +906,19 @@ static bool polygon_mesh(gis *s, const GEOSGeometry *poly, double base, double e
             bool inset = false;
             for (int tries = 0; tries < 4 && !inset; tries++, d *= 0.5)
                 inset = sl_inset_polygon(p, (uint32_t)n, d, q);
+            uint32_t *work = inset ? sl_alloc(s->a, (size_t)n * sizeof(uint32_t) * 4) : NULL;
+            if (inset && !work) {
+                sl_free(s->a, p, bytes);
+                return false;
+            }
+            /* the flat top must triangulate; if it does not, the roof is flat */
+            if (inset && !sl_ear_clip(q, (uint32_t)n, work, work + n)) {
+                sl_free(s->a, work, (size_t)n * sizeof(uint32_t) * 4);
+                work = NULL;
+                inset = false;
+            }
             if (inset) {
-                uint32_t *work = sl_alloc(s->a, (size_t)n * sizeof(uint32_t) * 4);
-                bool ok = work != NULL && ring_walls(s, s->ring, n, base, eave);
-                if (ok)
-                    ok = sl_ear_clip(q, (uint32_t)n, work, work + n);
+                bool ok = ring_walls(s, s->ring, n, base, eave);
                 for (int i = 0; i < n && ok; i++) {
                     int j = (i + 1) % n;
                     double quad[4][3] = {{p[i].x, p[i].y, eave}, {p[j].x, p[j].y, eave}, {q[j].x, q[j].y, top},
