@@ -35,7 +35,7 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline demo [--preset small] [--seed N] [--out DIR] [--frames N] [--quick]\n"
+            "usage: sightline demo [--preset small | --scene FILE] [--seed N] [--out DIR] [--frames N] [--quick]\n"
             "                     [--methods LIST] [--json]\n\n"
             "Generate the default city, run a street-level walkthrough (%u frames at %g fps: a 1.4 m/s walk\n"
             "sampled every %.2f m) and %u random flyover views with every registered culling method (one\n"
@@ -50,6 +50,10 @@ static void usage(FILE *out)
             "Takes well under a few minutes on 2 cores with the small city.\n\n"
             "options:\n"
             "  --preset P    city preset: tiny, small (default) or vienna (about 8M triangles: slow)\n"
+            "  --scene FILE  a scene of your own instead (a .slscene, a GIS file, any file `sightline\n"
+            "                import` reads) with a street network for the walk (docs/gis-import.md)\n"
+            "  --methods LIST  only these methods, NAME[:key=value...] comma-separated (the grammar of\n"
+            "                bench, render and view); pvs without file= runs on the walk's PVS\n"
             "  --seed N      city and walk seed (default 1)\n"
             "  --out DIR     report folder (default demo-out); files moved in only when all are written\n"
             "  --frames N    walkthrough frames (default %u; --quick: %u)\n"
@@ -62,7 +66,7 @@ static void usage(FILE *out)
             "examples:\n"
             "  sightline demo\n"
             "  sightline demo --preset tiny --quick --out /tmp/demo\n"
-          "  sightline demo --preset tiny --quick --methods vfc,hzb:res=culling,pvs --out /tmp/demo\n"
+            "  sightline demo --preset tiny --quick --methods vfc,hzb:res=culling,pvs --out /tmp/demo\n"
             "  sightline demo --preset vienna --frames 300 --out vienna-demo\n",
             DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, CLI_PVS_ALONG_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
@@ -366,7 +370,7 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
                               const sl_bench_skip *skipped, uint32_t nskipped, const char *pvs_note,
                               const char *frame_images[3], uint32_t frame_index, const char *shaded_images[2],
                               const char *shaded_note, uint64_t violations, const char *preset, uint64_t seed,
-                              double seconds)
+                              const char *scene_file, double seconds)
 {
     char text[2048], g1[48], g2[48], g3[48];
     sl_scene_stats ss;
@@ -381,12 +385,17 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
 
     /* summary: what ran, the verdict */
     put(&r->html, "<div id=\"summary\">\n");
+    char scene_what[1200];
+    if (scene_file)
+        snprintf(scene_what, sizeof scene_what, "the scene %.1000s (seed %llu", label, (unsigned long long)seed);
+    else
+        snprintf(scene_what, sizeof scene_what, "a procedurally generated city (preset %s, seed %llu", preset, (unsigned long long)seed);
     snprintf(text, sizeof text,
-             "%u culling methods ran on the same frames of a procedurally generated city (preset %s, seed %llu: "
+             "%u culling methods ran on the same frames of %s: "
              "a street-level walk and a few flyover views) and were judged against the exact point oracle, which "
              "rasterizes every triangle into an object-id buffer and reports which objects own a pixel. A "
              "conservative method must never drop a visible object. The run took %.1f s.",
-             nmethods, preset, (unsigned long long)seed, seconds);
+             nmethods, scene_what, seconds);
     put_para(r, text);
     if (violations) {
         snprintf(text, sizeof text,
@@ -598,11 +607,16 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     put_para(r, text);
 
     put_section(r, sections[8][0], sections[8][1]);
+    char arg[400];
+    if (scene_file)
+        snprintf(arg, sizeof arg, "%.300s", scene_file);
+    else
+        snprintf(arg, sizeof arg, "city:%s:%llu", preset, (unsigned long long)seed);
     snprintf(text, sizeof text,
-             "Replay the walk with more repeats per frame: sightline bench city:%s:%llu --path walk.txt --repeat 5. "
+             "Replay the walk with more repeats per frame: sightline bench %s --path walk.txt --repeat 5. "
              "Other views: --random street --count 200, or --random flyover. Render any frame: sightline render "
-             "city:%s:%llu --path walk.txt --frames 10:11. See docs/bench.md.",
-             preset, (unsigned long long)seed, preset, (unsigned long long)seed);
+             "%s --path walk.txt --frames 10:11. See docs/bench.md.",
+             arg, arg);
     put_para(r, text);
     put(&r->html, "<p><a href=\"#contents\">Back to the contents</a></p>\n</body></html>\n");
 }
@@ -614,7 +628,8 @@ int sl_cmd_demo(int argc, char **argv)
     const char *cmd = argv[0];
     cli_args a;
     cli_args_init(&a, argc, argv);
-    const char *name, *val, *preset_name = "small", *out_dir = "demo-out", *methods_text = NULL;
+    const char *name, *val, *preset_name = "small", *out_dir = "demo-out", *scene_file = NULL, *methods_text = NULL;
+    bool has_preset = false;
     uint64_t seed = 1;
     uint32_t frames = 0, width = 1024, height = 768;
     bool quick = false, has_frames = false;
@@ -625,6 +640,9 @@ int sl_cmd_demo(int argc, char **argv)
             cli_unknown(&a, NULL);
         } else if (!strcmp(name, "preset")) {
             preset_name = cli_value(&a, name, val);
+            has_preset = true;
+        } else if (!strcmp(name, "scene")) {
+            scene_file = cli_value(&a, name, val);
         } else if (!strcmp(name, "seed")) {
             cli_parse_u64(&a, name, cli_value(&a, name, val), &seed);
         } else if (!strcmp(name, "out")) {
@@ -652,6 +670,10 @@ int sl_cmd_demo(int argc, char **argv)
         cli_error(cmd, "--preset '%s' is not tiny, small or vienna", preset_name);
         return 2;
     }
+    if (scene_file && has_preset) {
+        cli_error(cmd, "--preset and --scene exclude each other");
+        return 2;
+    }
     if (has_frames && frames == 0) {
         cli_error(cmd, "--frames must be at least 1");
         return 2;
@@ -671,9 +693,14 @@ int sl_cmd_demo(int argc, char **argv)
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
     sl_error err;
-    char spec[96], label[128], path[4400];
-    snprintf(spec, sizeof spec, "city:%s:%llu", sl_city_preset_name(preset), (unsigned long long)seed);
-    if (!json && !quiet)
+    char spec[4200], label[128], path[4400];
+    if (scene_file)
+        snprintf(spec, sizeof spec, "%s", scene_file);
+    else
+        snprintf(spec, sizeof spec, "city:%s:%llu", sl_city_preset_name(preset), (unsigned long long)seed);
+    if (!json && !quiet && scene_file)
+        fprintf(stderr, "sightline demo: opening %s...\n", scene_file);
+    else if (!json && !quiet)
         fprintf(stderr, "sightline demo: generating the %s city (seed %llu)...\n", sl_city_preset_name(preset),
                 (unsigned long long)seed);
     sl_scene scene = NULL;
@@ -888,7 +915,8 @@ int sl_cmd_demo(int argc, char **argv)
             status = cli_fail(cmd, &err);
         } else {
             write_report_body(&r, scene, label, benches, nb, skipped, nskipped, pvs_note, frame_images, frame_index,
-                              shaded_images, shaded_note, violations, sl_city_preset_name(preset), seed, tool_now() - t0);
+                              shaded_images, shaded_note, violations, sl_city_preset_name(preset), seed,
+                              scene_file, tool_now() - t0);
             /* a write error makes the commit fail */
             sl_status s1 = sl_output_commit(r.md, &err);
             if (s1 != SL_OK) {
