@@ -20,7 +20,7 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t count, sl_shrink_mode mode, bool merge,
+sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t count, float vertical, bool merge,
                                     const sl_allocator *alloc, sl_occluder_levels_stats *stats, sl_error *err)
 {
     if (!scene || (count && !eps))
@@ -28,6 +28,9 @@ sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t c
     if (count == 0 || count > SL_OCCLUDER_LEVELS_MAX)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "occluder levels: %u levels, expected 1..%u", count,
                        SL_OCCLUDER_LEVELS_MAX);
+    if (!(vertical < 1e4f)) /* NaN too */
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "occluder levels: vertical tolerance %g is not below 10000 m",
+                       (double)vertical);
     alloc = sl_alloc_or_default(alloc);
     float sorted[SL_OCCLUDER_LEVELS_MAX];
     memcpy(sorted, eps, count * sizeof(float));
@@ -48,7 +51,8 @@ sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t c
     sl_status st = SL_OK;
     for (uint32_t l = 0; l < count && st == SL_OK; l++) {
         sl_shrunk sh = NULL;
-        st = sl_shrink_footprints(scene, sorted[l], mode, merge, alloc, &sh, err);
+        st = sl_shrink_footprints(scene, sorted[l], SL_SHRINK_CYLINDER, merge, alloc, &sh, err);
+        const float ez = vertical < 0 || vertical > sorted[l] ? sorted[l] : vertical;
         if (st != SL_OK)
             break;
         uint32_t n = sl_shrunk_count(sh);
@@ -63,11 +67,12 @@ sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t c
             sl_shrunk_polygon p = sl_shrunk_get(sh, i);
             uint32_t nv = p.ring_count ? p.rings[0] : 0;
             stats->holes_dropped[l] += p.ring_count > 1 ? p.ring_count - 1 : 0;
-            if (!(p.roof_z > p.base_z) || !sl_scene_polygon_ok(p.xy, nv)) {
+            float base = p.base_z + ez, roof = p.roof_z - ez;
+            if (!(roof > base) || !sl_scene_polygon_ok(p.xy, nv)) {
                 stats->pieces_dropped[l]++;
                 continue;
             }
-            fps[k++] = (sl_footprint_desc){.xy = p.xy, .vertex_count = nv, .base_z = p.base_z, .roof_z = p.roof_z,
+            fps[k++] = (sl_footprint_desc){.xy = p.xy, .vertex_count = nv, .base_z = base, .roof_z = roof,
                                            .object = p.object};
         }
         sl_shrink_stats ss;
@@ -76,7 +81,8 @@ sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t c
         stats->footprints[l] = k;
         stats->vanished[l] = ss.vanished;
         stats->seconds += ss.seconds;
-        st = sl_scene_add_occluder_level(scene, sorted[l], (uint32_t)mode, merge ? SL_OCCLUDER_LEVEL_MERGED : 0, fps, k,
+        stats->eps_z[l] = ez;
+        st = sl_scene_add_occluder_level(scene, sorted[l], ez, merge ? SL_OCCLUDER_LEVEL_MERGED : 0, fps, k,
                                          err);
         sl_free(alloc, fps, (n ? n : 1) * sizeof *fps);
         sl_shrunk_destroy(sh);

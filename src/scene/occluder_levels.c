@@ -31,7 +31,7 @@ sl_occluder_level_view sl_scene_occluder_level(sl_scene s, uint32_t level)
         return v;
     const sl_olevel_rec *r = &SL_AT(s->olevels, sl_olevel_rec, level);
     v.eps = r->eps;
-    v.mode = r->mode;
+    v.eps_z = r->eps_z;
     v.flags = r->flags;
     v.footprint_count = r->footprint_count;
     return v;
@@ -59,19 +59,19 @@ static const char *level_problem(const sl_olevel_rec *r, const sl_olevel_rec *pr
         return "eps must be finite and > 0";
     if (prev && !(r->eps > prev->eps))
         return "eps must be larger than the previous level's";
-    if (r->mode > 1)
-        return "mode must be 0 (cylinder) or 1 (ball)";
+    if (!isfinite(r->eps_z) || !(r->eps_z >= 0) || !(r->eps_z <= r->eps))
+        return "eps_z must be finite and in [0, eps]";
     if (r->flags & ~(uint32_t)SL_OCCLUDER_LEVEL_MERGED)
         return "unknown flag bits";
     return NULL;
 }
 
-sl_status sl_scene_add_occluder_level(sl_scene s, float eps, uint32_t mode, uint32_t flags,
+sl_status sl_scene_add_occluder_level(sl_scene s, float eps, float eps_z, uint32_t flags,
                                       const sl_footprint_desc *fps, uint32_t count, sl_error *err)
 {
     if (!s || (count && !fps))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_scene_add_occluder_level: NULL argument");
-    sl_olevel_rec rec = {eps, mode, flags, count};
+    sl_olevel_rec rec = {eps, eps_z, flags, count};
     const sl_olevel_rec *prev = s->olevels.count ? &SL_AT(s->olevels, sl_olevel_rec, s->olevels.count - 1) : NULL;
     const char *why = level_problem(&rec, prev);
     if (why)

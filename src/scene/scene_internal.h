@@ -40,8 +40,8 @@ typedef struct sl_footprint_rec {
 
 /* One shrunk occluder level: its footprints follow those of the levels before it in olevel_fps. */
 typedef struct sl_olevel_rec {
-    float eps;
-    uint32_t mode;              /* sl_shrink_mode */
+    float eps;                  /* horizontal */
+    float eps_z;                /* vertical, in [0, eps] */
     uint32_t flags;             /* SL_OCCLUDER_LEVEL_* */
     uint32_t footprint_count;
 } sl_olevel_rec;

@@ -84,7 +84,7 @@ SLS_FIELD(sl_footprint_rec, base_z, 8);
 SLS_FIELD(sl_footprint_rec, object, 16);
 SLS_FIELD(sl_footprint_rec, reserved, 20);
 SLS_LAYOUT(sl_olevel_rec, 16);
-SLS_FIELD(sl_olevel_rec, mode, 4);
+SLS_FIELD(sl_olevel_rec, eps_z, 4);
 SLS_FIELD(sl_olevel_rec, flags, 8);
 SLS_FIELD(sl_olevel_rec, footprint_count, 12);
 SLS_LAYOUT(sl_occluder_rec, 16);
