@@ -290,7 +290,7 @@ static sl_status post(instant_state *s, sl_error *err)
     s->st.updates++;
     s->job_async = s->have_thread;
     if (!s->have_thread) {
-        s->done = true;
+        set_flags(s, false, true);
         s->job_status = compute_set(s, &s->job, err);
         return s->job_status;
     }
@@ -322,12 +322,23 @@ static void wait_job(instant_state *s)
     pthread_mutex_unlock(&s->mu);
 }
 
+/* The thread's flags, under its mutex (the thread reads them on any wake-up). */
+static void set_flags(instant_state *s, bool posted, bool done)
+{
+    if (s->have_thread)
+        pthread_mutex_lock(&s->mu);
+    s->posted = posted;
+    s->done = done;
+    if (s->have_thread)
+        pthread_mutex_unlock(&s->mu);
+}
+
 /* The update in flight (finished) becomes the current set. */
 static sl_status adopt(instant_state *s, sl_error *err)
 {
     wait_job(s);
     s->in_flight = false;
-    s->posted = false;
+    set_flags(s, false, true);
     if (s->job_status != SL_OK) {
         if (err && s->job_async)
             *err = s->job_err;
@@ -544,7 +555,8 @@ static sl_status instant_scene_changed(void *state, sl_error *err)
     instant_state *s = state;
     if (s->in_flight)
         wait_job(s);
-    s->in_flight = s->posted = false;
+    s->in_flight = false;
+    set_flags(s, false, true);
     s->cur.valid = s->job.valid = false; /* the sets were computed for the old boxes */
     free_levels(s);
     return build_levels(s, err);
@@ -574,8 +586,7 @@ static sl_status compute_now(instant_state *s, const sl_view *v, sl_error *err)
     fill_job(s, v);
     s->st.updates++;
     s->in_flight = true;
-    s->done = true;
-    s->posted = false; /* the thread is idle: nothing is in flight */
+    set_flags(s, false, true); /* the thread is idle: nothing is in flight */
     s->job_async = false;
     s->job_status = compute_set(s, &s->job, err);
     return adopt(s, err);
