@@ -283,6 +283,17 @@ static void *worker(void *arg)
     return NULL;
 }
 
+/* The thread's flags, under its mutex (the thread reads them on any wake-up). */
+static void set_flags(instant_state *s, bool posted, bool done)
+{
+    if (s->have_thread)
+        pthread_mutex_lock(&s->mu);
+    s->posted = posted;
+    s->done = done;
+    if (s->have_thread)
+        pthread_mutex_unlock(&s->mu);
+}
+
 /* Post an update (s->job filled but for its ids); thread=false computes it now. */
 static sl_status post(instant_state *s, sl_error *err)
 {
@@ -320,17 +331,6 @@ static void wait_job(instant_state *s)
     while (s->posted && !s->done)
         pthread_cond_wait(&s->cv_done, &s->mu);
     pthread_mutex_unlock(&s->mu);
-}
-
-/* The thread's flags, under its mutex (the thread reads them on any wake-up). */
-static void set_flags(instant_state *s, bool posted, bool done)
-{
-    if (s->have_thread)
-        pthread_mutex_lock(&s->mu);
-    s->posted = posted;
-    s->done = done;
-    if (s->have_thread)
-        pthread_mutex_unlock(&s->mu);
 }
 
 /* The update in flight (finished) becomes the current set. */
