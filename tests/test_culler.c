@@ -7,6 +7,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "core/sl_core.h"
 #include "cull/culler_internal.h"
@@ -480,6 +481,80 @@ static void test_vfc_dynamic(void **state)
     sl_scene_destroy(s);
 }
 
+/* Applicability: a method that would cull only to the frustum on a scene is said to be so. */
+static void test_applicable(void **state)
+{
+    (void)state;
+    sl_error err;
+    char why[512];
+    bool ok = false;
+    /* the tiny city has everything: footprints, occluder objects */
+    sl_city_options co = sl_city_defaults(SL_CITY_TINY);
+    sl_scene city;
+    assert_int_equal(sl_gen_city(&co, NULL, &city, &err), SL_OK);
+    uint32_t n = sl_cull_method_count();
+    for (uint32_t i = 0; i < n; i++) {
+        sl_cull_method_desc d;
+        assert_int_equal(sl_cull_method_info(i, &d, &err), SL_OK);
+        if (!strcmp(d.name, "pvs"))
+            continue;
+        assert_int_equal(sl_cull_method_applicable(d.name, NULL, city, &ok, why, sizeof why, &err), SL_OK);
+        assert_true(ok);
+        assert_string_equal(why, "");
+    }
+    sl_scene_destroy(city);
+    /* boxes without any occluder flag: no 2.5D and no occlusion method applies; vfc, the query
+     * cullers and plp do */
+    sl_scene s;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_box_xf(s, (sl_vec3){0, 0, 0}, (sl_vec3){1, 1, 1}, 0, NULL);
+    uint32_t see = add_box_xf(s, (sl_vec3){3, 0, 0}, (sl_vec3){4, 1, 1}, SL_OBJECT_OCCLUDER | SL_OBJECT_SEE_THROUGH, NULL);
+    (void)see;
+    static const char *none[] = {"cullmap", "horizon", "dhorizon", "hzb", "lazygrid", "lazygrid-z", "busygrid", "hom",
+                                 "frusta"};
+    for (size_t i = 0; i < sizeof none / sizeof none[0]; i++) {
+        ok = true;
+        assert_int_equal(sl_cull_method_applicable(none[i], NULL, s, &ok, why, sizeof why, &err), SL_OK);
+        assert_false(ok);
+        assert_non_null(strstr(why, i < 3 ? "no building footprints" : "no occluders"));
+    }
+    static const char *all[] = {"vfc", "plp", "gl-stopwait", "chc", "chc++"};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) {
+        assert_int_equal(sl_cull_method_applicable(all[i], NULL, s, &ok, why, sizeof why, &err), SL_OK);
+        assert_true(ok);
+    }
+    /* all_objects=true lets the objects' own meshes occlude */
+    assert_int_equal(sl_cull_method_applicable("hzb", "all_objects=true", s, &ok, NULL, 0, &err), SL_OK);
+    assert_true(ok);
+    /* an occluder mesh is enough for the occlusion methods (a scene of its own: no flagged object) */
+    {
+        sl_scene o;
+        assert_int_equal(sl_scene_create(NULL, &o, &err), SL_OK);
+        uint32_t b = add_box_xf(o, (sl_vec3){0, 0, 0}, (sl_vec3){1, 1, 1}, 0, NULL);
+        assert_int_equal(sl_cull_method_applicable("hom", NULL, o, &ok, why, sizeof why, &err), SL_OK);
+        assert_false(ok);
+        assert_int_equal(sl_scene_add_occluder(o, sl_scene_object(o, b).mesh, NULL, b, &err), SL_OK);
+        assert_int_equal(sl_cull_method_applicable("hom", NULL, o, &ok, why, sizeof why, &err), SL_OK);
+        assert_true(ok);
+        assert_int_equal(sl_cull_method_applicable("dhorizon", NULL, o, &ok, why, sizeof why, &err), SL_OK);
+        assert_false(ok);
+        sl_scene_destroy(o);
+    }
+    /* one solid occluder object is enough for the occlusion methods, not for the 2.5D ones */
+    add_box_xf(s, (sl_vec3){0, 3, 0}, (sl_vec3){1, 4, 1}, SL_OBJECT_OCCLUDER, NULL);
+    assert_int_equal(sl_cull_method_applicable("lazygrid", NULL, s, &ok, why, sizeof why, &err), SL_OK);
+    assert_true(ok);
+    assert_int_equal(sl_cull_method_applicable("cullmap", NULL, s, &ok, why, 8, &err), SL_OK);
+    assert_false(ok);
+    assert_int_equal(strlen(why), 7); /* cut to the buffer */
+    /* errors: the method's and the options' */
+    assert_int_equal(sl_cull_method_applicable("nope", NULL, s, &ok, why, sizeof why, &err), SL_ERROR_NOT_FOUND);
+    assert_int_equal(sl_cull_method_applicable("hzb", "bogus=1", s, &ok, why, sizeof why, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_cull_method_applicable("pvs", NULL, s, &ok, why, sizeof why, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_cull_method_applicable("vfc", NULL, NULL, &ok, why, sizeof why, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_scene_destroy(s);
+}
+
 static void test_culler_errors(void **state)
 {
     (void)state;
@@ -535,6 +610,7 @@ int main(void)
         cmocka_unit_test(test_vfc_city),
         cmocka_unit_test(test_vfc_dynamic),
         cmocka_unit_test(test_culler_errors),
+        cmocka_unit_test(test_applicable),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

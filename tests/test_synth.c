@@ -145,6 +145,63 @@ static void test_cube(void **state)
     sl_scene_destroy(s);
 }
 
+/* A cube whose +x face is four quads (an exporter's bays) while the faces around it are single
+ * quads: the four midpoints of that face's edges lie inside the neighbours' edges (T-junctions),
+ * so the shell reads as open until they are split. Then it is closed and its boxes lie inside it
+ * (the checker splits T-junctions its own way). */
+static void test_t_junctions(void **state)
+{
+    (void)state;
+    static const float p[] = {
+        0, 0, 0, 10, 0, 0, 0, 10, 0, 10, 10, 0, 0, 0, 10, 10, 0, 10, 0, 10, 10, 10, 10, 10, /* 0..7: x, y, z bits */
+        10, 5, 0, 10, 10, 5, 10, 5, 10, 10, 0, 5, 10, 5, 5,                                   /* 8..12 on x = 10 */
+    };
+    /* quads as corner lists; each is made counter-clockwise seen from outside below */
+    static const uint32_t quads[][4] = {
+        {0, 2, 6, 4}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 6, 7, 5}, /* -x, -y, +y, -z, +z */
+        {1, 8, 12, 11}, {8, 3, 9, 12}, {12, 9, 7, 10}, {11, 12, 10, 5},       /* +x in four */
+    };
+    uint32_t idx[9 * 6], nt = 0;
+    for (size_t q = 0; q < 9; q++) {
+        const float *a = p + 3 * quads[q][0], *b = p + 3 * quads[q][1], *c = p + 3 * quads[q][2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        double out = n[0] * (a[0] + c[0] - 10) + n[1] * (a[1] + c[1] - 10) + n[2] * (a[2] + c[2] - 10);
+        uint32_t k[4] = {quads[q][0], quads[q][1], quads[q][2], quads[q][3]};
+        if (out < 0)
+            k[1] = quads[q][3], k[3] = quads[q][1];
+        uint32_t tri[6] = {k[0], k[1], k[2], k[0], k[2], k[3]};
+        memcpy(idx + 3 * nt, tri, sizeof tri);
+        nt += 2;
+    }
+    sl_scene s = new_scene();
+    uint32_t o = add_mesh_object(s, p, 13, idx, nt, NULL, 0);
+    sl_synth_stats st = synth(s, NULL);
+    print_message("T-junctions: %u triangles split, closed %u, %u boxes\n", st.t_junctions, st.closed, st.boxes);
+    assert_int_equal(st.t_junctions, 4); /* the four neighbour faces' triangles on the shared edges */
+    assert_int_equal(st.closed, 1);
+    assert_int_equal(st.open, 0);
+    assert_int_equal(st.partial, 0);
+    assert_true(st.boxes >= 1);
+    assert_true(fabs(st.closed_volume - 1000.0) < 1e-3);
+    sl_synth_check c = sl_synth_check_object(s, o, 5);
+    assert_int_equal(c.outside_points, 0);
+    assert_int_equal(c.vertices_inside, 0);
+    assert_true(c.box_volume > 0.9 * 1000.0);
+    sl_scene_destroy(s);
+    /* a vertex near an edge but off it by more than the tolerance is no T-junction: the shell stays
+     * open (a crack) and gets nothing */
+    float q[sizeof p / sizeof p[0]];
+    memcpy(q, p, sizeof q);
+    q[3 * 10] = 10.01f; /* the midpoint of the top edge of x = 10, 1 cm out (the bottom one may stay open: a base) */
+    s = new_scene();
+    add_mesh_object(s, q, 13, idx, nt, NULL, 0);
+    st = synth(s, NULL);
+    assert_int_equal(st.closed, 0);
+    assert_int_equal(st.boxes, 0);
+    sl_scene_destroy(s);
+}
+
 /* Non-convex and curved shapes, moved and rotated: every box inside. */
 static void test_inside_shapes(void **state)
 {
@@ -483,6 +540,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_cube),
+        cmocka_unit_test(test_t_junctions),
         cmocka_unit_test(test_inside_shapes),
         cmocka_unit_test(test_open_and_see_through),
         cmocka_unit_test(test_deterministic),

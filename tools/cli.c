@@ -2,6 +2,7 @@
 #include "cli.h"
 
 #include "tool.h"
+#include "sightline/cull.h"
 #include "sightline/import.h"
 
 #include <ctype.h>
@@ -796,4 +797,73 @@ bool cli_outdir_commit(const char *cmd, cli_outdir *od)
     closedir(d);
     cli_outdir_abort(od);
     return ok;
+}
+
+int cli_method_list(const char *cmd, const char *text, char *buf, size_t buf_size, sl_bench_method_spec *specs,
+                    uint32_t max)
+{
+    if (snprintf(buf, buf_size, "%s", text) >= (int)buf_size) {
+        cli_error(cmd, "--methods: list too long");
+        return -1;
+    }
+    int n = 0;
+    sl_error err;
+    for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        char *opts = strchr(tok, ':');
+        if (opts) {
+            *opts++ = 0;
+            for (char *c = opts; *c; c++)
+                if (*c == ':')
+                    *c = ',';
+            if (!*opts) {
+                cli_error(cmd, "--methods: '%s:' has no options after the colon", tok);
+                return -1;
+            }
+        }
+        uint32_t index;
+        if (sl_cull_method_find(tok, &index, &err) != SL_OK) {
+            cli_error(cmd, "--methods: %s", err.message);
+            return -1;
+        }
+        for (int k = 0; k < n; k++)
+            if (!strcmp(specs[k].name, tok)) {
+                cli_error(cmd, "--methods: '%s' is listed twice", tok);
+                return -1;
+            }
+        if (n == (int)max) {
+            cli_error(cmd, "--methods: at most %u methods", max);
+            return -1;
+        }
+        specs[n++] = (sl_bench_method_spec){.name = tok, .options = opts};
+    }
+    if (!n) {
+        cli_error(cmd, "--methods: empty list");
+        return -1;
+    }
+    return n;
+}
+
+void cli_drop_not_applicable(const char *cmd, sl_scene scene, const char *label, sl_bench_method_spec *run,
+                             uint32_t *n, sl_bench_skip *skipped, uint32_t *nskipped, uint32_t max, bool quiet)
+{
+    uint32_t kept = 0;
+    for (uint32_t i = 0; i < *n; i++) {
+        bool ok = true;
+        char why[400];
+        sl_error err;
+        if (sl_cull_method_applicable(run[i].name, run[i].options, scene, &ok, why, sizeof why, &err) != SL_OK)
+            ok = true;
+        if (ok) {
+            run[kept++] = run[i];
+            continue;
+        }
+        if (!quiet)
+            cli_error(cmd, "not running %s on %s: not applicable: %s", run[i].name, label, why);
+        if (*nskipped < max) {
+            skipped[*nskipped].name = run[i].name;
+            snprintf(skipped[*nskipped].reason, sizeof skipped[0].reason, "%.80s: not applicable: %.390s", label, why);
+            (*nskipped)++;
+        }
+    }
+    *n = kept;
 }

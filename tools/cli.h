@@ -101,6 +101,22 @@ int cli_parse_done(const cli_args *a, const cli_common *c, void (*usage)(FILE *)
  * ("--word") that usage's text names: prints "sightline CMD: did you mean --X?" when one is close. */
 void cli_suggest_option(const char *cmd, const char *name, void (*usage)(FILE *));
 
+/* The method grammar of every command that takes methods: --methods NAME[:key=value[:key=value...]],...
+ * (a method's options colon-separated, since commas separate the methods). Parses `text` into
+ * specs: names and options point into buf, a copy of text (each method's colons turned into
+ * commas, the sl_culler_create form). Every name must be registered (a wrong one gets the close
+ * matches) and listed once, with no empty option list, at most max methods. Returns the count, or
+ * -1 after printing a usage error that names the method. Options are not checked here. */
+int cli_method_list(const char *cmd, const char *text, char *buf, size_t buf_size, sl_bench_method_spec *specs,
+                    uint32_t max);
+
+/* Take the methods of run[0..*n) that cannot cull more than the frustum on scene
+ * (sl_cull_method_applicable) out of it, each said on stderr unless quiet ("not running M on
+ * LABEL: not applicable: WHY") and added to skipped (at most max, *nskipped counts them) with the
+ * reason "LABEL: not applicable: WHY". A method whose options fail is left in (its culler says why). */
+void cli_drop_not_applicable(const char *cmd, sl_scene scene, const char *label, sl_bench_method_spec *run,
+                             uint32_t *n, sl_bench_skip *skipped, uint32_t *nskipped, uint32_t max, bool quiet);
+
 /* The action of a command that has actions (`sightline pvs build ...`, argv[1]): its index in
  * names[0..count), or -1 with *status set after printing the usage (to stdout for --help, -h or
  * help: 0; to stderr when there is no action: 2) or "unknown action 'X' (A, B or C; see sightline

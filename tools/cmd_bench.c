@@ -385,48 +385,16 @@ static int method_specs(const bench_args *g, const char *cmd, char *names, size_
             }
         }
     if (g->methods) {
-        if (snprintf(names, names_size, "%s", g->methods) >= (int)names_size) {
-            cli_error(cmd, "--methods: list too long");
+        if ((n = cli_method_list(cmd, g->methods, names, names_size, specs, SL_BENCH_MAX_METHODS)) < 0)
             return -1;
-        }
-        for (char *save = NULL, *tok = strtok_r(names, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-            /* NAME[:key=value[:key=value...]]: the options of one method, colon-separated here
-             * since the list itself is comma-separated */
-            char *inline_opts = strchr(tok, ':');
-            if (inline_opts) {
-                *inline_opts++ = 0;
-                for (char *c = inline_opts; *c; c++)
-                    if (*c == ':')
-                        *c = ',';
-                if (!*inline_opts) {
-                    cli_error(cmd, "--methods: '%s:' has no options after the colon", tok);
-                    return -1;
-                }
-            }
-            uint32_t index;
-            if (sl_cull_method_find(tok, &index, &err) != SL_OK) {
-                cli_error(cmd, "--methods: %s", err.message);
-                return -1;
-            }
-            for (int k = 0; k < n; k++)
-                if (!strcmp(specs[k].name, tok)) {
-                    cli_error(cmd, "--methods: '%s' is listed twice", tok);
-                    return -1;
-                }
-            if (n == (int)SL_BENCH_MAX_METHODS) {
-                cli_error(cmd, "--methods: at most %u methods", SL_BENCH_MAX_METHODS);
-                return -1;
-            }
-            if (inline_opts && options_for(g, tok)) {
+        for (int k = 0; k < n; k++) {
+            if (specs[k].options && options_for(g, specs[k].name)) {
                 cli_error(cmd, "--methods: options for '%s' are given twice (in --methods and in --method-options)",
-                          tok);
+                          specs[k].name);
                 return -1;
             }
-            specs[n++] = (sl_bench_method_spec){tok, inline_opts ? inline_opts : options_for(g, tok)};
-        }
-        if (!n) {
-            cli_error(cmd, "--methods: empty list");
-            return -1;
+            if (!specs[k].options)
+                specs[k].options = options_for(g, specs[k].name);
         }
     } else {
         uint32_t count = sl_cull_method_count();
@@ -859,6 +827,13 @@ int sl_cmd_bench(int argc, char **argv)
                     status = cli_fail(cmd, &err);
                 break;
             }
+        }
+        cli_drop_not_applicable(cmd, s, label, run, &nrun, skipped, &nskipped, SL_BENCH_MAX_METHODS, g.quiet || g.json);
+        if (!nrun) {
+            cli_error(cmd, "no method to run on %s: every one named is not applicable to it", label);
+            sl_path_destroy(views);
+            status = 2;
+            break;
         }
         sl_bench_options bo = sl_bench_default_options();
         bo.width = g.width;

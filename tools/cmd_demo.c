@@ -29,11 +29,14 @@
 #define DEMO_FLY_VIEWS 24
 #define QUICK_WALK_FRAMES 40
 #define QUICK_FLY_VIEWS 4
+/* the map thumbnails' longer side in pixels: twice the report grid's 170 px column, for dense screens */
+#define DEMO_THUMB_SIZE 340
 
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline demo [--preset small] [--seed N] [--out DIR] [--frames N] [--quick] [--json]\n\n"
+            "usage: sightline demo [--preset small | --scene FILE] [--seed N] [--out DIR] [--frames N] [--quick]\n"
+            "                     [--methods LIST] [--json]\n\n"
             "Generate the default city, run a street-level walkthrough (%u frames at %g fps: a 1.4 m/s walk\n"
             "sampled every %.2f m) and %u random flyover views with every registered culling method (one\n"
             "that cannot run with its default options is named as not run; the pvs culler gets a PVS baked\n"
@@ -47,6 +50,10 @@ static void usage(FILE *out)
             "Takes well under a few minutes on 2 cores with the small city.\n\n"
             "options:\n"
             "  --preset P    city preset: tiny, small (default) or vienna (about 8M triangles: slow)\n"
+            "  --scene FILE  a scene of your own instead (a .slscene, a GIS file, any file `sightline\n"
+            "                import` reads) with a street network for the walk (docs/gis-import.md)\n"
+            "  --methods LIST  only these methods, NAME[:key=value...] comma-separated (the grammar of\n"
+            "                bench, render and view); pvs without file= runs on the walk's PVS\n"
             "  --seed N      city and walk seed (default 1)\n"
             "  --out DIR     report folder (default demo-out); files moved in only when all are written\n"
             "  --frames N    walkthrough frames (default %u; --quick: %u)\n"
@@ -59,6 +66,7 @@ static void usage(FILE *out)
             "examples:\n"
             "  sightline demo\n"
             "  sightline demo --preset tiny --quick --out /tmp/demo\n"
+            "  sightline demo --preset tiny --quick --methods vfc,hzb:res=culling,pvs --out /tmp/demo\n"
             "  sightline demo --preset vienna --frames 300 --out vienna-demo\n",
             DEMO_WALK_FRAMES, (double)DEMO_WALK_FPS, 1.4 / DEMO_WALK_FPS, DEMO_FLY_VIEWS, CLI_PVS_ALONG_METHOD, DEMO_WALK_FRAMES,
             QUICK_WALK_FRAMES, QUICK_WALK_FRAMES, QUICK_FLY_VIEWS);
@@ -260,10 +268,10 @@ enum { COL_FRAMES, COL_OBJECTS, COL_TRIANGLES, COL_VISIBLE, COL_OVER, COL_MISSED
 static const char *const col_names[COL_COUNT] = {"frames", "objects drawn", "triangles drawn", "exact visible",
                                                  "over-estimation", "missed objects", "missed pixels",
                                                  "cull ms median", "p95", "max"};
-/* whether a column is ranked, and among which methods: the drawn counts and the over-estimation
- * only among those that missed nothing (dropping objects is not a way to be tight) */
-static const bool col_ranked[COL_COUNT] = {false, true, true, false, true, true, true, true, true, true};
-static const bool col_needs_no_miss[COL_COUNT] = {false, true, true, false, true, false, false, false, false, false};
+/* the library's ranked column of each (-1: not ranked): sl_bench_best_columns says which is best */
+static const int col_rank[COL_COUNT] = {-1, SL_BENCH_COL_OBJECTS, SL_BENCH_COL_TRIANGLES, -1, SL_BENCH_COL_OVERESTIMATION,
+                                        SL_BENCH_COL_MISSED_OBJECTS, SL_BENCH_COL_MISSED_PIXELS, SL_BENCH_COL_MS_MEDIAN,
+                                        SL_BENCH_COL_MS_P95, SL_BENCH_COL_MS_MAX};
 
 static double col_value(const sl_bench_summary *s, int c)
 {
@@ -294,9 +302,10 @@ static void col_text(char *buf, size_t n, const sl_bench_summary *s, int c)
     }
 }
 
-/* The results table of one bench in HTML (Markdown comes from sl_bench_print_summary): the best
- * cell of every ranked column has class "best" (all of them on a tie; none when every method
- * ties), a conservative method's misses class "bad", the recommended methods a note. */
+/* The results table of one bench in HTML (Markdown comes from sl_bench_print_summary, which
+ * prints the same best cells in bold): the best cell of every ranked column (sl_bench_best_columns:
+ * all of them on a tie, none when every method ties) has class "best", a conservative method's
+ * misses class "bad", the recommended methods a note. */
 static void html_summary(report *r, sl_bench b)
 {
     uint32_t nm = sl_bench_method_count(b);
@@ -311,27 +320,7 @@ static void html_summary(report *r, sl_bench b)
     for (uint32_t mi = 0; mi < nm; mi++)
         ok[mi] = sl_bench_method(b, mi, &info[mi], NULL) == SL_OK && sl_bench_summarize(b, mi, &sum[mi], NULL) == SL_OK &&
                  sum[mi].frames > 0;
-    /* the best printed value of each ranked column, and whether some method differs from it */
-    double best[COL_COUNT];
-    bool spread[COL_COUNT];
     char cell[64];
-    for (int c = 0; c < COL_COUNT; c++) {
-        best[c] = INFINITY;
-        spread[c] = false;
-        double first = NAN;
-        for (uint32_t mi = 0; mi < nm && col_ranked[c]; mi++) {
-            if (!ok[mi] || (col_needs_no_miss[c] && sum[mi].missed_objects_total))
-                continue;
-            col_text(cell, sizeof cell, &sum[mi], c);
-            double v = strtod(cell, NULL); /* grouped numbers parse up to the first comma: compare the values */
-            v = c == COL_OBJECTS || c == COL_TRIANGLES ? round(col_value(&sum[mi], c)) : v;
-            if (isnan(first))
-                first = v;
-            else if (v != first)
-                spread[c] = true;
-            best[c] = fmin(best[c], v);
-        }
-    }
     sl_bench_recommendation rec;
     if (sl_bench_recommend(b, &rec, NULL) != SL_OK)
         rec.fastest = rec.tightest = -1;
@@ -351,11 +340,10 @@ static void html_summary(report *r, sl_bench b)
         if ((int32_t)mi == rec.tightest)
             put(&r->html, "<span class=\"pick\">&#9733; tightest pick</span>");
         put(&r->html, "</td><td class=\"l\">%s</td>", sl_cull_guarantee_name(info[mi].guarantee));
+        uint32_t best = sl_bench_best_columns(b, mi);
         for (int c = 0; c < COL_COUNT; c++) {
             col_text(cell, sizeof cell, s, c);
-            double v = c == COL_OBJECTS || c == COL_TRIANGLES ? round(col_value(s, c)) : strtod(cell, NULL);
-            bool is_best = col_ranked[c] && spread[c] && v == best[c] &&
-                           !(col_needs_no_miss[c] && s->missed_objects_total);
+            bool is_best = col_rank[c] >= 0 && ((best >> col_rank[c]) & 1u);
             const char *cls = (c == COL_MISSED || c == COL_MISSED_PX) && bad ? " class=\"bad\""
                               : is_best                                     ? " class=\"best\""
                                                                             : "";
@@ -382,7 +370,7 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
                               const sl_bench_skip *skipped, uint32_t nskipped, const char *pvs_note,
                               const char *frame_images[3], uint32_t frame_index, const char *shaded_images[2],
                               const char *shaded_note, uint64_t violations, const char *preset, uint64_t seed,
-                              double seconds)
+                              const char *scene_file, double seconds)
 {
     char text[2048], g1[48], g2[48], g3[48];
     sl_scene_stats ss;
@@ -397,12 +385,17 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
 
     /* summary: what ran, the verdict */
     put(&r->html, "<div id=\"summary\">\n");
+    char scene_what[1200];
+    if (scene_file)
+        snprintf(scene_what, sizeof scene_what, "the scene %.1000s (seed %llu", label, (unsigned long long)seed);
+    else
+        snprintf(scene_what, sizeof scene_what, "a procedurally generated city (preset %s, seed %llu", preset, (unsigned long long)seed);
     snprintf(text, sizeof text,
-             "%u culling methods ran on the same frames of a procedurally generated city (preset %s, seed %llu: "
+             "%u culling methods ran on the same frames of %s: "
              "a street-level walk and a few flyover views) and were judged against the exact point oracle, which "
              "rasterizes every triangle into an object-id buffer and reports which objects own a pixel. A "
              "conservative method must never drop a visible object. The run took %.1f s.",
-             nmethods, preset, (unsigned long long)seed, seconds);
+             nmethods, scene_what, seconds);
     put_para(r, text);
     if (violations) {
         snprintf(text, sizeof text,
@@ -467,6 +460,9 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
         put(&r->html, "</h3>\n");
         html_summary(r, benches[bi]);
     }
+    put(&r->md, "The best value of each ranked column is in bold: the fewest objects and triangles drawn and the "
+                "least over-estimation among the methods that missed nothing, the fewest missed objects and pixels, "
+                "the shortest cull times (every tie; a column where all methods tie has none).\n\n");
     if (!ferror(sl_output_stream(r->md)))
         sl_bench_print_summary(benches, nb, sl_output_stream(r->md));
 
@@ -540,12 +536,13 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
             sl_bench_method_info info;
             if (sl_bench_method(benches[bi], mi, &info, NULL) != SL_OK || info.external)
                 continue;
-            char file[256];
+            char file[256], thumb[256];
             snprintf(file, sizeof file, "%s-map-%s.png", sl_bench_label(benches[bi]), info.name);
+            snprintf(thumb, sizeof thumb, "%s-map-%s-thumb.png", sl_bench_label(benches[bi]), info.name);
             /* thumbnails: HTML inside Markdown, which the common viewers render */
-            put(&r->md, "<a href=\"%s\"><img src=\"%s\" width=\"170\" alt=\"%s\" title=\"%s\"></a>\n", file, file,
+            put(&r->md, "<a href=\"%s\"><img src=\"%s\" width=\"170\" alt=\"%s\" title=\"%s\"></a>\n", file, thumb,
                 info.name, info.name);
-            put(&r->html, "<figure><a href=\"%s\"><img loading=\"lazy\" src=\"%s\" alt=\"", file, file);
+            put(&r->html, "<figure><a href=\"%s\"><img loading=\"lazy\" src=\"%s\" alt=\"", file, thumb);
             put_html(&r->html, info.name);
             put(&r->html, " map\"></a><figcaption>");
             put_html(&r->html, info.name);
@@ -610,11 +607,16 @@ static void write_report_body(report *r, sl_scene scene, const char *label, sl_b
     put_para(r, text);
 
     put_section(r, sections[8][0], sections[8][1]);
+    char arg[400];
+    if (scene_file)
+        snprintf(arg, sizeof arg, "%.300s", scene_file);
+    else
+        snprintf(arg, sizeof arg, "city:%s:%llu", preset, (unsigned long long)seed);
     snprintf(text, sizeof text,
-             "Replay the walk with more repeats per frame: sightline bench city:%s:%llu --path walk.txt --repeat 5. "
+             "Replay the walk with more repeats per frame: sightline bench %s --path walk.txt --repeat 5. "
              "Other views: --random street --count 200, or --random flyover. Render any frame: sightline render "
-             "city:%s:%llu --path walk.txt --frames 10:11. See docs/bench.md.",
-             preset, (unsigned long long)seed, preset, (unsigned long long)seed);
+             "%s --path walk.txt --frames 10:11. See docs/bench.md.",
+             arg, arg);
     put_para(r, text);
     put(&r->html, "<p><a href=\"#contents\">Back to the contents</a></p>\n</body></html>\n");
 }
@@ -626,7 +628,8 @@ int sl_cmd_demo(int argc, char **argv)
     const char *cmd = argv[0];
     cli_args a;
     cli_args_init(&a, argc, argv);
-    const char *name, *val, *preset_name = "small", *out_dir = "demo-out";
+    const char *name, *val, *preset_name = "small", *out_dir = "demo-out", *scene_file = NULL, *methods_text = NULL;
+    bool has_preset = false;
     uint64_t seed = 1;
     uint32_t frames = 0, width = 1024, height = 768;
     bool quick = false, has_frames = false;
@@ -637,6 +640,9 @@ int sl_cmd_demo(int argc, char **argv)
             cli_unknown(&a, NULL);
         } else if (!strcmp(name, "preset")) {
             preset_name = cli_value(&a, name, val);
+            has_preset = true;
+        } else if (!strcmp(name, "scene")) {
+            scene_file = cli_value(&a, name, val);
         } else if (!strcmp(name, "seed")) {
             cli_parse_u64(&a, name, cli_value(&a, name, val), &seed);
         } else if (!strcmp(name, "out")) {
@@ -649,6 +655,8 @@ int sl_cmd_demo(int argc, char **argv)
             cli_parse_u32(&a, name, cli_value(&a, name, val), &height);
         } else if (!strcmp(name, "quick")) {
             quick = true;
+        } else if (!strcmp(name, "methods")) {
+            methods_text = cli_value(&a, name, val);
         } else {
             cli_unknown(&a, name);
         }
@@ -660,6 +668,10 @@ int sl_cmd_demo(int argc, char **argv)
     sl_city_preset preset;
     if (sl_city_preset_from_name(preset_name, &preset, NULL) != SL_OK) {
         cli_error(cmd, "--preset '%s' is not tiny, small or vienna", preset_name);
+        return 2;
+    }
+    if (scene_file && has_preset) {
+        cli_error(cmd, "--preset and --scene exclude each other");
         return 2;
     }
     if (has_frames && frames == 0) {
@@ -681,9 +693,14 @@ int sl_cmd_demo(int argc, char **argv)
     cli_progress_state ps;
     sl_progress prog = cli_progress(&ps, quiet || json);
     sl_error err;
-    char spec[96], label[128], path[4400];
-    snprintf(spec, sizeof spec, "city:%s:%llu", sl_city_preset_name(preset), (unsigned long long)seed);
-    if (!json && !quiet)
+    char spec[4200], label[128], path[4400];
+    if (scene_file)
+        snprintf(spec, sizeof spec, "%s", scene_file);
+    else
+        snprintf(spec, sizeof spec, "city:%s:%llu", sl_city_preset_name(preset), (unsigned long long)seed);
+    if (!json && !quiet && scene_file)
+        fprintf(stderr, "sightline demo: opening %s...\n", scene_file);
+    else if (!json && !quiet)
         fprintf(stderr, "sightline demo: generating the %s city (seed %llu)...\n", sl_city_preset_name(preset),
                 (unsigned long long)seed);
     sl_scene scene = NULL;
@@ -694,12 +711,38 @@ int sl_cmd_demo(int argc, char **argv)
     }
     cli_progress_done(&ps);
 
-    /* every registered method that runs with its default options; the others are named */
+    /* every registered method that runs with its default options (the others are named), or the
+     * methods of --methods; pvs without a file gets the walk's PVS, baked below */
     sl_bench_method_spec specs[SL_BENCH_MAX_METHODS];
     sl_bench_skip skipped[SL_BENCH_MAX_METHODS];
-    uint32_t nskipped = 0;
-    uint32_t nm = sl_bench_registered_methods(specs, SL_BENCH_MAX_METHODS, skipped, SL_BENCH_MAX_METHODS, &nskipped);
-    nskipped = TOOL_MIN(nskipped, SL_BENCH_MAX_METHODS);
+    uint32_t nskipped = 0, nm = 0;
+    int pvs_listed = -1; /* --methods: the index of a pvs to bake for, -1: none */
+    char method_buf[4096], pvs_options[4600];
+    if (!methods_text) {
+        nm = sl_bench_registered_methods(specs, SL_BENCH_MAX_METHODS, skipped, SL_BENCH_MAX_METHODS, &nskipped);
+        nskipped = TOOL_MIN(nskipped, SL_BENCH_MAX_METHODS);
+    } else {
+        int n = cli_method_list(cmd, methods_text, method_buf, sizeof method_buf, specs, SL_BENCH_MAX_METHODS);
+        for (int k = 0; k < n; k++) {
+            const char *o = specs[k].options;
+            bool has_file = o && (!strncmp(o, "file=", 5) || strstr(o, ",file="));
+            if (!strcmp(specs[k].name, "pvs") && !has_file) {
+                pvs_listed = k;
+                continue; /* its other options are checked once the file is baked */
+            }
+            if (sl_cull_method_check_options(specs[k].name, o, &err) != SL_OK) {
+                cli_error(cmd, "--methods: %s", err.message);
+                n = -1;
+                break;
+            }
+        }
+        if (n < 0) {
+            sl_scene_destroy(scene);
+            cli_outdir_abort(&od);
+            return 2;
+        }
+        nm = (uint32_t)n;
+    }
 
     sl_path walk = NULL, fly = NULL;
     sl_bench benches[2] = {NULL, NULL};
@@ -723,7 +766,7 @@ int sl_cmd_demo(int argc, char **argv)
     cli_pvs_along dp;
     char pvs_note[1024] = "";
     memset(&dp, 0, sizeof dp);
-    if (!status) {
+    if (!status && (!methods_text || pvs_listed >= 0)) {
         if (!json && !quiet)
             fprintf(stderr, "sightline demo: baking the PVS of the street cells along the walk (%s)...\n",
                     CLI_PVS_ALONG_METHOD);
@@ -732,7 +775,21 @@ int sl_cmd_demo(int argc, char **argv)
             status = cli_fail(cmd, &err);
         cli_progress_done(&ps);
     }
-    if (!status && dp.options[0] && nm < SL_BENCH_MAX_METHODS) {
+    if (!status && pvs_listed >= 0) {
+        /* --methods named pvs: the baked file plus the options given */
+        const char *given = specs[pvs_listed].options;
+        snprintf(pvs_options, sizeof pvs_options, "%s%s%s", dp.options, given ? "," : "", given ? given : "");
+        if (!dp.options[0]) {
+            cli_error(cmd, "--methods: pvs cannot run: %s", dp.why[0] ? dp.why : "no PVS was baked");
+            status = 1;
+        } else if (sl_cull_method_check_options("pvs", pvs_options, &err) != SL_OK) {
+            cli_error(cmd, "--methods: %s", err.message);
+            status = 2;
+        } else {
+            specs[pvs_listed].options = pvs_options;
+        }
+    }
+    if (!status && dp.options[0] && !methods_text && nm < SL_BENCH_MAX_METHODS) {
         specs[nm++] = (sl_bench_method_spec){"pvs", dp.options};
         /* it runs after all: take it off the list of methods not run */
         uint32_t k = 0;
@@ -752,8 +809,15 @@ int sl_cmd_demo(int argc, char **argv)
             if (!strcmp(skipped[i].name, "pvs"))
                 snprintf(skipped[i].reason, sizeof skipped[i].reason, "%s", dp.why);
     }
+    /* a generated city has what every method needs; a method that cannot work on it is named, not run */
+    uint32_t first_na = nskipped;
+    cli_drop_not_applicable(cmd, scene, label, specs, &nm, skipped, &nskipped, SL_BENCH_MAX_METHODS, true);
     for (uint32_t i = 0; i < nskipped && !json && !status; i++)
         fprintf(stderr, "sightline demo: not running %s: %s\n", skipped[i].name, skipped[i].reason);
+    if (!status && !nm) {
+        cli_error(cmd, "no method to run: %s", nskipped > first_na ? skipped[first_na].reason : "none listed");
+        status = 2;
+    }
     static const char *set_names[2] = {"walk", "flyover"};
     for (uint32_t k = 0; k < 2 && !status; k++) {
         char set_label[160];
@@ -781,6 +845,7 @@ int sl_cmd_demo(int argc, char **argv)
         sl_bench_map_options mo;
         memset(&mo, 0, sizeof mo);
         mo.camera = sl_path_camera(views, 0);
+        mo.thumb_size = DEMO_THUMB_SIZE;
         snprintf(path, sizeof path, "%s/%s-map-", work, set_label);
         if (st == SL_OK)
             st = sl_bench_write_maps(benches[k], &mo, path, NULL, &err);
@@ -850,7 +915,8 @@ int sl_cmd_demo(int argc, char **argv)
             status = cli_fail(cmd, &err);
         } else {
             write_report_body(&r, scene, label, benches, nb, skipped, nskipped, pvs_note, frame_images, frame_index,
-                              shaded_images, shaded_note, violations, sl_city_preset_name(preset), seed, tool_now() - t0);
+                              shaded_images, shaded_note, violations, sl_city_preset_name(preset), seed,
+                              scene_file, tool_now() - t0);
             /* a write error makes the commit fail */
             sl_status s1 = sl_output_commit(r.md, &err);
             if (s1 != SL_OK) {

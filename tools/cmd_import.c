@@ -1,6 +1,6 @@
-/* `sightline import`: read any format assimp reads, or a Quake III .bsp / .pk3, and save it as a
- * .slscene. The extension chooses the importer: .bsp and .pk3 go to the Quake III reader, every
- * other file to assimp. */
+/* `sightline import`: read any format assimp reads, a Quake III .bsp / .pk3, or a GIS file, and
+ * save it as a .slscene. The extension chooses the importer: .bsp and .pk3 go to the Quake III
+ * reader, .geojson/.json/.shp/.osm/.pbf/.gml to the GIS importer, every other file to assimp. */
 #include "cli.h"
 
 #include "tool.h"
@@ -17,11 +17,14 @@ static void usage(FILE *out)
     fprintf(out,
             "usage: sightline import INPUT [-o OUT.slscene] [--map NAME] [--list-maps] [--scale S] [--up y|z]\n"
             "                        [--split N] [--bezier N] [--allow-external PATH] [--no-occluders]\n"
-            "                        [synthesis options] [--json] [--quiet]\n\n"
+            "                        [synthesis options] [GIS options] [--json] [--quiet]\n\n"
             "Import a 3D file into a Sightline scene (.slscene): OBJ, glTF 2.0 (.gltf/.glb), PLY, FBX,\n"
             "COLLADA, 3DS and every other format assimp reads, or a Quake III map (.bsp, or a .pk3\n"
             "archive). Each node with meshes becomes one object; meshes shared by several nodes stay\n"
-            "one instanced mesh. Coordinates become metres, Z up (docs/import-export.md).\n\n"
+            "one instanced mesh. Coordinates become metres, Z up (docs/import-export.md).\n"
+            "GIS files (GeoJSON .geojson/.json, Shapefile .shp, OpenStreetMap .osm/.pbf, GML/CityGML\n"
+            "  .gml) become a city: building footprints extruded to their heights, streets with their\n"
+            "  graph, flat ground, in a local metric frame (docs/gis-import.md).\n\n"
             "options:\n"
             "  -o, --output FILE  output .slscene (default: the input's name with .slscene, in the\n"
             "                     current directory; for a .pk3, the map's name)\n"
@@ -41,7 +44,19 @@ static void usage(FILE *out)
             CLI_SYNTH_HELP
             CLI_ALLOW_EXTERNAL_HELP
             "                     Without it, a reference leaving the model's folder (a '../' path,\n"
-            "                     an absolute path, a symlink pointing out) fails the import.\n"
+            "                     an absolute path, a symlink pointing out) fails the import.\n");
+    fprintf(out,
+            "GIS options:\n"
+            "  --height-attr LIST attribute names of a building's height, tried in order (default\n"
+            "                     height,building:height,measuredHeight,HEIGHT,Height)\n"
+            "  --levels-attr LIST attribute names of its storeys (default building:levels,levels,storeys)\n"
+            "  --default-height M height of a building with neither (default 10; a counted warning)\n"
+            "  --level-height M   metres per storey (default 3)\n"
+            "  --crs SRS          the file's CRS (\"EPSG:25832\", WKT, PROJ), replacing what it declares\n"
+            "  --metric           the coordinates are metres in a local frame (whatever CRS is declared)\n"
+            "  --layers LIST      read only these layers (comma-separated)\n"
+            "  --no-streets       lines are not streets     --no-ground   no ground tiles\n"
+            "  --max-extent M     drop features farther than M from the data's centre (default 50000)\n"
             "  --json             machine-readable summary on stdout\n"
             "  --quiet            no progress output\n"
             "  --help             this text\n\n"
@@ -49,7 +64,9 @@ static void usage(FILE *out)
             "  sightline import sponza.gltf --split 2000 -o sponza.slscene\n"
             "  sightline import building.obj --up z --scale 0.01\n"
             "  sightline import pak0.pk3 --list-maps\n"
-            "  sightline import pak0.pk3 --map q3dm17 --json\n");
+            "  sightline import pak0.pk3 --map q3dm17 --json\n"
+            "  sightline import district.osm.pbf -o district.slscene\n"
+            "  sightline import footprints.shp --crs EPSG:25832 --height-attr HOEHE\n");
 }
 
 /* Lowercase extension of the last path component, without the dot ("" if none). */
@@ -128,7 +145,40 @@ int sl_cmd_import(int argc, char **argv)
     sl_synth_options syo = sl_synth_defaults();
     cli_common com = {0};
     sl_import_options opt = sl_import_defaults();
+    sl_gis_options go = sl_gis_defaults();
+    bool gis_opt = false, other_opt = false;
     while (cli_next(&a, &name, &val)) {
+        bool is_gis = name != NULL; /* NULL: a positional argument */
+        if (!name) {
+        } else if (!strcmp(name, "height-attr")) {
+            go.height_fields = cli_value(&a, name, val);
+        } else if (!strcmp(name, "levels-attr")) {
+            go.levels_fields = cli_value(&a, name, val);
+        } else if (!strcmp(name, "default-height")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &go.default_height);
+        } else if (!strcmp(name, "level-height")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &go.level_height);
+        } else if (!strcmp(name, "max-extent")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &go.max_extent);
+        } else if (!strcmp(name, "crs")) {
+            go.crs = cli_value(&a, name, val);
+        } else if (!strcmp(name, "layers")) {
+            go.layers = cli_value(&a, name, val);
+        } else if (!strcmp(name, "metric")) {
+            go.metric = true;
+        } else if (!strcmp(name, "no-streets")) {
+            go.no_streets = true;
+        } else if (!strcmp(name, "no-ground")) {
+            go.no_ground = true;
+        } else {
+            is_gis = false;
+        }
+        if (is_gis) {
+            gis_opt = true;
+            continue;
+        }
+        if (name && (!strcmp(name, "scale") || !strcmp(name, "up") || !strcmp(name, "split") || !strcmp(name, "bezier")))
+            other_opt = true;
         if (cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_MAP | CLI_JSON | CLI_QUIET, &com)) {
         } else if (!strcmp(name, "list-maps")) {
             listing = true;
@@ -184,6 +234,16 @@ int sl_cmd_import(int argc, char **argv)
         cli_error(a.cmd, "--bezier applies to Quake III maps only");
         return 2;
     }
+    bool gis = sl_gis_path(input);
+    if (gis && (other_opt || map)) {
+        cli_error(a.cmd, "--scale, --up, --split, --bezier and --map do not apply to GIS files (see docs/gis-import.md)");
+        return 2;
+    }
+    if (!gis && gis_opt) {
+        cli_error(a.cmd, "the GIS options (--crs, --metric, --height-attr, ...) apply to GIS files only "
+                         "(.geojson, .json, .shp, .osm, .pbf, .gml)");
+        return 2;
+    }
     if (listing)
         return list_maps(a.cmd, input, json);
     opt.up_axis = up && !strcmp(up, "z") ? SL_UP_Z : SL_UP_Y;
@@ -205,7 +265,12 @@ int sl_cmd_import(int argc, char **argv)
     sl_error err;
     sl_scene scene;
     double t0 = tool_now();
-    sl_status st = q3 ? sl_import_q3bsp(input, map, &opt, NULL, &scene, &err) : sl_import_assimp(input, &opt, NULL, &scene, &err);
+    sl_gis_stats gs;
+    memset(&gs, 0, sizeof gs);
+    go.progress = opt.progress;
+    sl_status st = gis  ? sl_import_gis(input, &go, NULL, &scene, &gs, &err)
+                   : q3 ? sl_import_q3bsp(input, map, &opt, NULL, &scene, &err)
+                        : sl_import_assimp(input, &opt, NULL, &scene, &err);
     double t1 = tool_now();
     cli_progress_done(&ps);
     if (st != SL_OK)
@@ -232,15 +297,26 @@ int sl_cmd_import(int argc, char **argv)
         fprintf(stderr, "%s: warning: textures not kept: %s outside the model's folder or invalid, %s embedded (not supported); first: %s\n",
                 a.cmd, dropped ? dropped : "0", embedded ? embedded : "0",
                 sl_scene_meta(scene, "assimp.textures_dropped.first") ? sl_scene_meta(scene, "assimp.textures_dropped.first") : "?");
+    uint32_t gis_warnings = gs.default_height + gs.bad_height + gs.unclosed_rings + gs.repaired + gs.dropped_invalid +
+                            gs.dropped_far + gs.dropped_small + gs.dropped_transform;
+    if (gis && gis_warnings) {
+        char w[320];
+        fprintf(stderr,
+                "%s: warning: %u GIS problems: %u default heights, %u unusable heights, %u unclosed rings, %u repaired "
+                "polygons, %u dropped (invalid), %u dropped (too far), %u polygons dropped (too small), %u dropped "
+                "(reprojection); first: %s\n",
+                a.cmd, gis_warnings, gs.default_height, gs.bad_height, gs.unclosed_rings, gs.repaired, gs.dropped_invalid,
+                gs.dropped_far, gs.dropped_small, gs.dropped_transform, sl_escape_text(gs.first_warning, SIZE_MAX, w, sizeof w));
+    }
     struct stat fs;
     uint64_t bytes = stat(output, &fs) == 0 ? (uint64_t)fs.st_size : 0;
-    const char *format = sl_scene_meta(scene, q3 ? "importer" : "assimp.format");
+    const char *format = sl_scene_meta(scene, gis ? "gis.driver" : q3 ? "importer" : "assimp.format");
     if (json) {
         cli_json j;
         cli_json_begin(&j, stdout);
         cli_json_string(&j, "input", input);
         cli_json_string(&j, "output", output);
-        cli_json_string(&j, "importer", q3 ? "quake3" : "assimp");
+        cli_json_string(&j, "importer", gis ? "gis" : q3 ? "quake3" : "assimp");
         cli_json_string(&j, "format", format);
         cli_json_uint(&j, "objects", s.object_count);
         cli_json_uint(&j, "meshes", s.mesh_count);
@@ -256,6 +332,33 @@ int sl_cmd_import(int argc, char **argv)
         cli_json_array_begin(&j, "bounds_max");
         cli_json_double(&j, NULL, s.bounds.max.x), cli_json_double(&j, NULL, s.bounds.max.y), cli_json_double(&j, NULL, s.bounds.max.z);
         cli_json_array_end(&j);
+        if (gis) {
+            cli_json_object_begin(&j, "gis");
+            cli_json_string(&j, "crs", gs.crs);
+            cli_json_string(&j, "frame", sl_scene_meta(scene, "gis.frame"));
+            cli_json_uint(&j, "layers", gs.layers);
+            cli_json_uint(&j, "features", gs.features);
+            cli_json_uint(&j, "buildings", gs.buildings);
+            cli_json_uint(&j, "building_parts", gs.building_parts);
+            cli_json_uint(&j, "footprints", gs.footprints);
+            cli_json_uint(&j, "streets", gs.streets);
+            cli_json_uint(&j, "street_segments", gs.street_segments);
+            cli_json_uint(&j, "street_nodes", gs.street_nodes);
+            cli_json_uint(&j, "ground_tiles", gs.ground_tiles);
+            cli_json_uint(&j, "other_features", gs.other);
+            cli_json_uint(&j, "default_height", gs.default_height);
+            cli_json_uint(&j, "bad_height", gs.bad_height);
+            cli_json_uint(&j, "unclosed_rings", gs.unclosed_rings);
+            cli_json_uint(&j, "repaired", gs.repaired);
+            cli_json_uint(&j, "dropped_invalid", gs.dropped_invalid);
+            cli_json_uint(&j, "dropped_far", gs.dropped_far);
+            cli_json_uint(&j, "dropped_small", gs.dropped_small);
+            cli_json_uint(&j, "dropped_transform", gs.dropped_transform);
+            cli_json_uint(&j, "warnings", gis_warnings);
+            if (gs.first_warning[0])
+                cli_json_string(&j, "first_warning", gs.first_warning);
+            cli_json_object_end(&j);
+        }
         if (s.has_bsp) {
             cli_json_uint(&j, "bsp_leaves", s.bsp_leaf_count);
             cli_json_uint(&j, "bsp_clusters", s.bsp_cluster_count);
@@ -282,6 +385,13 @@ int sl_cmd_import(int argc, char **argv)
                    s.uv_mesh_count);
         if (s.has_bsp)
             printf("  bsp            %u leaves, %u clusters\n", s.bsp_leaf_count, s.bsp_cluster_count);
+        if (gis) {
+            printf("  crs            %s -> %s\n", gs.crs, sl_scene_meta(scene, "gis.frame"));
+            printf("  buildings      %u (%u polygons, %u footprints) of %u features in %u layers\n", gs.buildings,
+                   gs.building_parts, gs.footprints, gs.features, gs.layers);
+            printf("  streets        %u (%u segments, %u graph nodes), %u ground tiles\n", gs.streets, gs.street_segments,
+                   gs.street_nodes, gs.ground_tiles);
+        }
         if (synth)
             cli_synth_print(&ss);
         else

@@ -3,13 +3,15 @@
 #include "cli.h"
 
 #include "sightline/cull.h"
+#include "sightline/import.h"
+#include "sightline/scene.h"
 
 #include <string.h>
 
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline methods [NAME...] [--long] [--json]\n\n"
+            "usage: sightline methods [NAME...] [--long] [--scene SCENE [--map NAME]] [--json]\n\n"
             "List the registered culling methods. By default a short table: name, guarantee\n"
             "(conservative: never drops a visible object, held to the oracle with zero tolerance;\n"
             "conservative-at-resolution: the same at the resolution it culls at; aggressive: may drop\n"
@@ -19,12 +21,18 @@ static void usage(FILE *out)
             "options:\n"
             "  NAME...   only these methods, in full (an unknown name is a usage error, exit status 2)\n"
             "  --long    every method in full\n"
+            "  --scene SCENE  also say, per method, whether it applies to SCENE (a file or city:PRESET):\n"
+            "            \"not applicable\" with the reason when the scene lacks what the method culls with\n"
+            "            (footprints for the 2.5D methods, occluders for the occlusion methods; bench and\n"
+            "            demo do not run those), \"needs options\" when it cannot run with its defaults\n"
+            "  --map NAME     the map of a .pk3 given as --scene\n"
             "  --json    machine-readable output on stdout (always in full)\n"
             "  --help    this text\n\n"
             "examples:\n"
             "  sightline methods\n"
             "  sightline methods hzb\n"
-            "  sightline methods vfc --json\n");
+            "  sightline methods vfc --json\n"
+            "  sightline methods --scene model.slscene\n");
 }
 
 /* Print an options help text indented, one option per line. */
@@ -40,6 +48,9 @@ static void print_indented(const char *text, const char *indent)
     }
 }
 
+static int list(const char *cmd, const char *const *only, uint32_t only_count, bool full, bool json, sl_scene scene,
+                const char *label);
+
 int sl_cmd_methods(int argc, char **argv)
 {
     cli_args a;
@@ -49,8 +60,13 @@ int sl_cmd_methods(int argc, char **argv)
     const char *only[64];
     uint32_t only_count = 0;
     cli_common com = {0};
+    const char *scene_spec = NULL;
+    cli_import imp = {0};
     while (cli_next(&a, &name, &val)) {
-        if (cli_common_option(&a, name, val, CLI_JSON, &com)) {
+        if (cli_common_option(&a, name, val, CLI_JSON | CLI_MAP, &com)) {
+        } else if (name && !strcmp(name, "scene")) {
+            scene_spec = cli_value(&a, name, val);
+        } else if (name && cli_import_option(&a, name, val, &imp)) {
         } else if (name && !strcmp(name, "long")) {
             full = true;
         } else if (!name) {
@@ -67,13 +83,50 @@ int sl_cmd_methods(int argc, char **argv)
     int parsed = cli_parse_done(&a, &com, usage);
     if (parsed >= 0)
         return parsed;
+    if (com.map && !scene_spec) {
+        cli_error(argv[0], "--map needs --scene");
+        return 2;
+    }
     sl_error err;
+    sl_scene scene = NULL;
+    char label[256] = "";
+    if (scene_spec) {
+        sl_import_options io = sl_import_defaults();
+        cli_import_apply(&imp, &io);
+        if (cli_open_scene(scene_spec, com.map, &io, NULL, &scene, label, sizeof label, &err) != SL_OK)
+            return cli_fail(argv[0], &err);
+    }
+    int rc = list(argv[0], only, only_count, full, json, scene, label);
+    sl_scene_destroy(scene);
+    return rc;
+}
+
+/* Whether method d applies to scene with its default options: 1 yes, 0 not applicable (why), -1
+ * needs options (why: the method's message). */
+static int applies(const sl_cull_method_desc *d, sl_scene scene, char *why, size_t why_size)
+{
+    bool ok = true;
+    sl_error err;
+    if (sl_cull_method_applicable(d->name, NULL, scene, &ok, why, why_size, &err) != SL_OK) {
+        snprintf(why, why_size, "%s", err.message);
+        return -1;
+    }
+    return ok ? 1 : 0;
+}
+
+static const char *applies_word(int a) { return a > 0 ? "yes" : a == 0 ? "not applicable" : "needs options"; }
+
+static int list(const char *cmd, const char *const *only, uint32_t only_count, bool full, bool json, sl_scene scene,
+                const char *label)
+{
+    sl_error err;
+    char why[512];
     uint32_t idx[64];
     uint32_t count = 0;
     if (only_count) {
         for (uint32_t i = 0; i < only_count; i++)
             if (sl_cull_method_find(only[i], &idx[count++], &err) != SL_OK) {
-                cli_error(argv[0], "%s", err.message);
+                cli_error(cmd, "%s", err.message);
                 return 2;
             }
     } else {
@@ -83,14 +136,30 @@ int sl_cmd_methods(int argc, char **argv)
     }
     if (!json && !full && !only_count) {
         /* the short table */
-        printf("%-12s %-33s %s\n", "method", "guarantee", "suits");
+        if (scene)
+            printf("%-12s %-33s %-15s %s\n", "method", "guarantee", "applies", "suits");
+        else
+            printf("%-12s %-33s %s\n", "method", "guarantee", "suits");
         for (uint32_t i = 0; i < count; i++) {
             sl_cull_method_desc d;
             if (sl_cull_method_info(idx[i], &d, &err) != SL_OK)
-                return cli_fail(argv[0], &err);
+                return cli_fail(cmd, &err);
             char g[64];
             snprintf(g, sizeof g, "%s%s", sl_cull_guarantee_name(d.guarantee), d.res_culling ? " (res=culling: @res)" : "");
-            printf("%-12s %-33s %s\n", d.name, g, d.suits[0] ? d.suits : "-");
+            if (scene)
+                printf("%-12s %-33s %-15s %s\n", d.name, g, applies_word(applies(&d, scene, why, sizeof why)),
+                       d.suits[0] ? d.suits : "-");
+            else
+                printf("%-12s %-33s %s\n", d.name, g, d.suits[0] ? d.suits : "-");
+        }
+        if (scene) {
+            printf("\nOn %s:\n", label);
+            for (uint32_t i = 0; i < count; i++) {
+                sl_cull_method_desc d;
+                int ap = sl_cull_method_info(idx[i], &d, &err) == SL_OK ? applies(&d, scene, why, sizeof why) : 1;
+                if (ap <= 0)
+                    printf("  %s: %s: %s\n", d.name, applies_word(ap), why);
+            }
         }
         printf("\n@res: conservative at the resolution it culls at. What each does and its options: sightline "
                "methods NAME, or --long; choosing one: README, \"Choosing a method\".\n");
@@ -104,7 +173,7 @@ int sl_cmd_methods(int argc, char **argv)
     for (uint32_t i = 0; i < count; i++) {
         sl_cull_method_desc d;
         if (sl_cull_method_info(idx[i], &d, &err) != SL_OK)
-            return cli_fail(argv[0], &err);
+            return cli_fail(cmd, &err);
         if (json) {
             cli_json_object_begin(&j, NULL);
             cli_json_string(&j, "name", d.name);
@@ -113,6 +182,12 @@ int sl_cmd_methods(int argc, char **argv)
                 cli_json_string(&j, "res_culling_guarantee", sl_cull_guarantee_name(SL_CONSERVATIVE_AT_RESOLUTION));
             cli_json_string(&j, "summary", d.summary);
             cli_json_string(&j, "suits", d.suits);
+            if (scene) {
+                int ap = applies(&d, scene, why, sizeof why);
+                cli_json_string(&j, "applies", ap > 0 ? "yes" : ap == 0 ? "not_applicable" : "needs_options");
+                if (ap <= 0)
+                    cli_json_string(&j, "why", why);
+            }
             cli_json_array_begin(&j, "options");
             const char *p = d.options_help;
             while (p && *p) {
@@ -133,6 +208,10 @@ int sl_cmd_methods(int argc, char **argv)
                    d.res_culling ? sl_cull_guarantee_name(SL_CONSERVATIVE_AT_RESOLUTION) : "", d.summary);
             if (d.suits[0])
                 printf("  suits: %s\n", d.suits);
+            if (scene) {
+                int ap = applies(&d, scene, why, sizeof why);
+                printf("  on %s: %s%s%s\n", label, applies_word(ap), ap > 0 ? "" : ": ", ap > 0 ? "" : why);
+            }
             if (d.options_help && d.options_help[0]) {
                 printf("  options:\n");
                 print_indented(d.options_help, "    ");

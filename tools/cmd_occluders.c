@@ -44,6 +44,9 @@ void cli_synth_print(const sl_synth_stats *s)
            "                 %u with their own occluders, %u dynamic); >= %.1f%% of the closed volume\n",
            s->boxes, s->occluder_meshes, s->objects_with_boxes, s->closed, s->open, s->see_through, s->native,
            s->dynamic, 100.0 * s->volume_fraction);
+    if (s->partial || s->t_junctions)
+        printf("                 %u of the closed with open parts left out; %u triangles split at T-junctions\n",
+               s->partial, s->t_junctions);
     if (s->dropped_by_budget)
         printf("                 %u boxes left out by the budget (--max-boxes)\n", s->dropped_by_budget);
     printf("  synthesis      %.3f s (%.3f s CPU), %llu voxels (%llu solid)\n", s->seconds, s->cpu_seconds,
@@ -59,6 +62,8 @@ void cli_synth_json(cli_json *j, const sl_synth_stats *s)
     cli_json_uint(j, "see_through", s->see_through);
     cli_json_uint(j, "native", s->native);
     cli_json_uint(j, "dynamic", s->dynamic);
+    cli_json_uint(j, "partial", s->partial);
+    cli_json_uint(j, "t_junctions", s->t_junctions);
     cli_json_uint(j, "objects_with_boxes", s->objects_with_boxes);
     cli_json_uint(j, "boxes", s->boxes);
     cli_json_uint(j, "meshes", s->occluder_meshes);

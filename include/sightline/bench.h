@@ -226,6 +226,27 @@ SL_API sl_status sl_bench_recommend(sl_bench bench, sl_bench_recommendation *out
 
 /* Summary of one method over all frames. */
 SL_API sl_status sl_bench_summarize(sl_bench bench, uint32_t method, sl_bench_summary *out, sl_error *err);
+/* The ranked columns of the summary table, for sl_bench_best_columns. */
+typedef enum sl_bench_column {
+    SL_BENCH_COL_OBJECTS,          /* objects drawn (mean per frame) */
+    SL_BENCH_COL_TRIANGLES,        /* triangles drawn (mean per frame) */
+    SL_BENCH_COL_OVERESTIMATION,   /* over-estimation (ratio of sums) */
+    SL_BENCH_COL_MISSED_OBJECTS,   /* missed objects (total) */
+    SL_BENCH_COL_MISSED_PIXELS,    /* missed pixels (total) */
+    SL_BENCH_COL_MS_MEDIAN,        /* cull ms, median over the frames */
+    SL_BENCH_COL_MS_P95,           /* cull ms, 95th percentile */
+    SL_BENCH_COL_MS_MAX,           /* cull ms, maximum */
+    SL_BENCH_COLUMN_COUNT
+} sl_bench_column;
+
+/* The columns in which `method` holds the best value of the bench's methods, as bits (1u << col):
+ * the fewest objects and triangles drawn and the least over-estimation among the methods that
+ * missed nothing (dropping objects is not a way to be tight), the fewest missed objects and pixels
+ * and the shortest cull times among all, each compared as the summary table prints it. Every tie
+ * counts; a column in which every method prints the same value has no best. Methods without a
+ * judged frame take no part. 0 for an unknown bench or method. The summary tables of
+ * sl_bench_print_summary and sl_bench_write_summary print these cells in bold. */
+SL_API uint32_t sl_bench_best_columns(sl_bench bench, uint32_t method);
 /* Total over every conservative method of the bench of missed objects (0 = the guarantee held). */
 SL_API uint64_t sl_bench_violations(sl_bench bench);
 
@@ -256,6 +277,9 @@ typedef struct sl_bench_map_options {
     sl_camera camera;         /* when !use_eye: visibility from this camera */
     uint32_t size;            /* pixels along the map's longer side, 16..8192 (0: 1024) */
     uint32_t cube_size;       /* cube face size for use_eye, 16..4096 (0: 512) */
+    /* also a thumbnail of each map at <prefix><method>-thumb.png, this many pixels along its
+     * longer side (each pixel the mean of the map's pixels it covers), 16..size; 0: none. Appended */
+    uint32_t thumb_size;
 } sl_bench_map_options;
 
 /* Counts of one method's top-down map. */

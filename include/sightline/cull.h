@@ -109,6 +109,16 @@ SL_API sl_status sl_cull_method_info(uint32_t index, sl_cull_method_desc *out, s
 SL_API sl_status sl_cull_method_find(const char *name, uint32_t *index, sl_error *err);
 /* Check an options string for a method without a scene (what sl_culler_create would reject). */
 SL_API sl_status sl_cull_method_check_options(const char *method, const char *options, sl_error *err);
+/* Whether `method` with `options` can cull more than the view frustum on `scene`: false, with the
+ * reason in why (at most why_size bytes, may be NULL), when the scene lacks what the method culls
+ * with — the 2.5D methods (cullmap, horizon, dhorizon) need building footprints; the occlusion
+ * methods (hzb, lazygrid, lazygrid-z, busygrid, hom, frusta) need footprints, SL_OBJECT_OCCLUDER
+ * objects that are not see-through, occluder meshes (sl_synth_occluders makes them for imported
+ * models) or all_objects=true. Such a culler still builds and returns the frustum's set; the bench,
+ * the demo and `sightline methods --scene` report it as "not applicable" instead of running it as
+ * vfc. Errors: the method's or options' (sl_cull_method_check_options). Thread-safe (reads the scene). */
+SL_API sl_status sl_cull_method_applicable(const char *method, const char *options, sl_scene scene, bool *applicable,
+                                           char *why, size_t why_size, sl_error *err);
 
 /* Create a culler of method `method` for a scene. options may be NULL or "" (defaults); alloc may
  * be NULL. Fails with SL_ERROR_NOT_FOUND for an unknown method and SL_ERROR_INVALID_ARGUMENT for

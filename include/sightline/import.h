@@ -87,6 +87,82 @@ SL_API sl_status sl_pk3_list_maps(const char *pk3_path, void (*fn)(void *user, c
 SL_API sl_status sl_export_assimp(sl_scene scene, const char *path, const char *format, sl_up_axis up_axis,
                                   sl_error *err);
 
+/* --- cities from GIS data (docs/gis-import.md) ---------------------------------------------- */
+
+/* Options of sl_import_gis. All zero (sl_gis_defaults) reads every layer with the default names. */
+typedef struct sl_gis_options {
+    /* Attribute names, comma-separated, tried in order; NULL: the defaults. A name is looked up as
+     * a field of the feature and, for OpenStreetMap data, among its other_tags. */
+    const char *height_fields;  /* total height in metres; NULL: "height,building:height,measuredHeight,HEIGHT,Height" */
+    const char *levels_fields;  /* storeys; NULL: "building:levels,levels,storeys" */
+    float default_height;       /* metres for a building with no usable height (a counted warning); 0: 10 */
+    float level_height;         /* metres per storey (levels × this); 0: 3 */
+    /* The source CRS, any text OGR's OSRSetFromUserInput takes ("EPSG:25832", a WKT or PROJ
+     * string), replacing what the file declares; NULL: the file's own. */
+    const char *crs;
+    /* true: the coordinates are metres in a local frame, whatever CRS the file declares (or when
+     * it declares none); they are only moved so that the data is centred on the origin. */
+    bool metric;
+    const char *layers;         /* comma-separated layer names to read; NULL: every layer */
+    bool no_streets;            /* true: lines are not read as streets */
+    bool no_ground;             /* true: no ground tiles */
+    /* metres from the centre of the data (the median of the features' centres) beyond which a
+     * feature is dropped as a counted warning; 0: 50 000 */
+    float max_extent;
+    /* polygons smaller than this (m^2, after cleaning) are dropped as a counted warning; 0: 1 */
+    float min_area;
+    uint32_t max_features;      /* more features than this fail with SL_ERROR_LIMIT; 0: 10 000 000 */
+    sl_progress progress;
+} sl_gis_options;
+
+/* What sl_import_gis read, made, repaired and dropped. Every count of a warning has an example in
+ * first_warning (the first one met, naming the layer and feature). */
+typedef struct sl_gis_stats {
+    uint32_t layers, features;        /* layers read, features met in them */
+    uint32_t buildings, building_parts; /* building objects made; polygons (after cleaning) in them */
+    uint32_t footprints;              /* 2.5D footprints added (a polygon with holes is cut in pieces) */
+    uint32_t streets, street_segments, street_nodes; /* street lines, their segments, graph nodes */
+    uint32_t ground_tiles;
+    uint32_t other;                   /* features that are neither (points, untagged lines, land use) */
+    /* warnings */
+    uint32_t default_height;          /* buildings given the default height (no height, no levels) */
+    uint32_t bad_height;              /* height or levels present but unusable (text, negative, NaN, > 2 km) */
+    uint32_t unclosed_rings;          /* rings that did not end where they began (closed here) */
+    uint32_t repaired;                /* polygons that were not valid (self-intersections, ...) and were made valid */
+    uint32_t dropped_invalid;         /* features dropped: NaN/infinite coordinates, too few points, no area */
+    uint32_t dropped_far;             /* features dropped: beyond max_extent */
+    uint32_t dropped_small;           /* polygons dropped: smaller than min_area */
+    uint32_t dropped_transform;       /* features dropped: the reprojection failed for them */
+    char first_warning[256];
+    char driver[32];                  /* the GDAL driver that read the file ("GeoJSON") */
+    char crs[128];                    /* the source CRS's name, or "metric (local)" */
+    double origin_lon, origin_lat;    /* centre of the local frame (NaN in metric mode) */
+    double seconds;                   /* wall time */
+} sl_gis_stats;
+
+/* Default options (all zero). */
+SL_API sl_gis_options sl_gis_defaults(void);
+
+/* Whether `path` names a file sl_import_gis takes by its extension (.geojson, .json, .shp, .osm,
+ * .pbf, .gml; case-insensitive). */
+SL_API bool sl_gis_path(const char *path);
+
+/* Import a city from GIS data through GDAL's OGR (GeoJSON, ESRI Shapefile, OpenStreetMap XML and
+ * PBF, GML/CityGML; the driver is chosen by the extension and only that driver may open it).
+ * Polygons become buildings: reprojected to a local metric frame (a transverse Mercator centred on
+ * the data, x east, y north, metres, z up), cleaned with GEOS (made valid, duplicate points
+ * dropped, holes kept), extruded from min_height to the height (height attribute, levels ×
+ * level_height, the z range of 3D geometry, or the default), one SL_KIND_BUILDING object each with
+ * its mesh (flat roof; a roof:height gives a sloped band to a flat top) and its 2.5D footprints
+ * inside it. Lines tagged highway (every line of a layer without such a field) become street
+ * polygons (each segment buffered by its width) and the street graph; flat ground tiles cover the
+ * data. Bad input fails with a message naming the file, the layer and the feature, or is a
+ * counted warning in stats (may be NULL). Deterministic. alloc may be NULL.
+ * Thread safety: may be called from several threads at once with distinct outputs (GDAL's error
+ * handler is set per thread). */
+SL_API sl_status sl_import_gis(const char *path, const sl_gis_options *opt, const sl_allocator *alloc, sl_scene *out,
+                               sl_gis_stats *stats, sl_error *err);
+
 /* --- occluder synthesis (docs/occluder-synthesis.md) ------------------------------------------ */
 
 /* Options of sl_synth_occluders. All zero (sl_synth_defaults) chooses every value from the scene. */
@@ -124,6 +200,8 @@ typedef struct sl_synth_stats {
                                      they cover: growing towards the surface adds more) */
     double volume_fraction;       /* covered_volume / closed_volume */
     double seconds, cpu_seconds;  /* wall time; CPU time of the calling thread */
+    uint32_t t_junctions;         /* triangles split where another vertex lay on their open edge
+                                     (a T-junction), before the closedness test. Appended */
 } sl_synth_stats;
 
 /* Default options (all zero: everything chosen from the scene). */

@@ -162,6 +162,34 @@ sl_status sl_cull_method_check_options(const char *method, const char *options, 
     return st;
 }
 
+sl_status sl_cull_method_applicable(const char *method, const char *options, sl_scene scene, bool *applicable,
+                                    char *why, size_t why_size, sl_error *err)
+{
+    if (!scene || !applicable)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_cull_method_applicable: scene and applicable must not be NULL");
+    *applicable = true;
+    if (why && why_size)
+        why[0] = 0;
+    uint32_t index;
+    sl_status st = sl_cull_method_find(method, &index, err);
+    if (st != SL_OK)
+        return st;
+    const sl_cull_method *m = sl_cull_registry_get(index);
+    sl_opts *opts = sl_alloc(NULL, sizeof *opts);
+    void *config = m->config_size ? sl_alloc(NULL, m->config_size) : NULL;
+    if (!opts || (m->config_size && !config))
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", m->name);
+    sl_cull_guarantee g;
+    if (st == SL_OK)
+        st = configure(m, options, config, opts, &g, err);
+    char local[2];
+    if (st == SL_OK && m->applicable)
+        *applicable = m->applicable(scene, config, why && why_size ? why : local, why && why_size ? why_size : sizeof local);
+    sl_free(NULL, config, m->config_size);
+    sl_free(NULL, opts, sizeof *opts);
+    return st;
+}
+
 /* ---- the culler ---- */
 
 sl_status sl_cull_object_bvh(sl_scene scene, const sl_cull_extras *x, uint32_t leaf_size, const sl_allocator *alloc,

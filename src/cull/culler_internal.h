@@ -70,6 +70,10 @@ typedef struct sl_cull_method {
     /* Objects moved: refit. NULL when the method keeps nothing that depends on object boxes. */
     sl_status (*scene_changed)(void *state, sl_error *err);
     void (*destroy)(void *state);
+    /* Whether the method culls more than the frustum on this scene (sl_cull_method_applicable):
+     * false with a reason (why, why_size bytes) when the scene lacks what it needs. config is the
+     * parsed options. NULL: applicable to every scene. */
+    bool (*applicable)(sl_scene scene, const void *config, char *why, size_t why_size);
 } sl_cull_method;
 
 /* The registry (registry.c). */

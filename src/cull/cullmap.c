@@ -685,6 +685,7 @@ const sl_cull_method sl_cull_method_cullmap = {
     .cull = cullmap_cull,
     .scene_changed = cullmap_scene_changed,
     .destroy = cullmap_destroy,
+    .applicable = sl_urban_applicable,
 };
 
 /* ===== the cull map as an image ==================================================================== */

@@ -175,4 +175,5 @@ const sl_cull_method sl_cull_method_dhorizon = {
     .cull = dhorizon_cull,
     .scene_changed = sl_urban_horizon_scene_changed,
     .destroy = sl_urban_horizon_destroy,
+    .applicable = sl_urban_applicable,
 };

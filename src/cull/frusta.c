@@ -438,4 +438,5 @@ const sl_cull_method sl_cull_method_frusta = {
     .cull = frusta_cull,
     .scene_changed = frusta_scene_changed,
     .destroy = frusta_destroy,
+    .applicable = sl_occ_applicable,
 };

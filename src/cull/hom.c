@@ -476,4 +476,5 @@ const sl_cull_method sl_cull_method_hom = {
     .cull = hom_cull,
     .scene_changed = hom_scene_changed,
     .destroy = hom_destroy,
+    .applicable = sl_occ_applicable,
 };

@@ -422,6 +422,7 @@ const sl_cull_method sl_cull_method_horizon = {
     .cull = horizon_cull,
     .scene_changed = horizon_scene_changed,
     .destroy = horizon_destroy,
+    .applicable = sl_urban_applicable,
 };
 
 /* For dhorizon.c: the same entry points. */

@@ -374,4 +374,5 @@ const sl_cull_method sl_cull_method_hzb = {
     .cull = hzb_cull,
     .scene_changed = hzb_scene_changed,
     .destroy = hzb_destroy,
+    .applicable = sl_occ_applicable,
 };

@@ -605,6 +605,7 @@ static sl_status lg_cull(void *state, const sl_view *view, uint32_t *out, uint32
         .cull = lg_cull,                                                                                               \
         .scene_changed = lg_scene_changed,                                                                             \
         .destroy = lg_destroy,                                                                                         \
+        .applicable = sl_occ_applicable,                                                                               \
     };
 
 LG_METHOD(lazygrid, "lazygrid", lazy_configure,

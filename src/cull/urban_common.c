@@ -1351,3 +1351,14 @@ uint32_t sl_urban_frustum_only(const sl_urban_scene *u, const sl_urban_view *v, 
         }
     return n;
 }
+
+bool sl_urban_applicable(sl_scene scene, const void *config, char *why, size_t why_size)
+{
+    (void)config;
+    if (sl_scene_footprint_count(scene))
+        return true;
+    snprintf(why, why_size,
+             "the scene has no building footprints (the 2.5D occluders a generated city has; imported models "
+             "have none): hzb or lazygrid cull with occluder meshes instead");
+    return false;
+}

@@ -112,6 +112,9 @@ sl_status sl_urban_scene_build(sl_scene scene, float cell, const sl_allocator *a
                                sl_error *err);
 /* Objects moved: update the grid, the per-cell heights, the pyramid and the footprints' validity. */
 sl_status sl_urban_scene_refresh(sl_urban_scene *u, sl_error *err);
+/* The `applicable` hook of the 2.5D methods (sl_cull_method_applicable): false, with why, when the
+ * scene has no building footprint (config unused). */
+bool sl_urban_applicable(sl_scene scene, const void *config, char *why, size_t why_size);
 void sl_urban_scene_free(sl_urban_scene *u);
 /* Report the objects that left the grid and meet the frustum (stamp: once per frame). */
 void sl_urban_add_outside(const sl_urban_scene *u, const sl_urban_view *v, uint32_t *stamp, uint32_t frame,

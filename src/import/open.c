@@ -1,5 +1,6 @@
 /* sl_scene_open: one entry point for every scene source, dispatched by file extension, so that
- * the CLI, the viewer and the benchmarks accept .slscene, Quake III maps and assimp formats alike.
+ * the CLI, the viewer and the benchmarks accept .slscene, Quake III maps, GIS files and assimp formats
+ * alike.
  * The extension decides (not the content): a file named .obj that holds something else fails in
  * assimp with assimp's message, which names the real problem better than a guess would. */
 #include "scene/scene_internal.h"
@@ -38,5 +39,7 @@ sl_status sl_scene_open_with(const char *path, const char *map, const sl_import_
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: a map name (\"%s\") only applies to .pk3 archives", path, map);
     if (strcasecmp(ext, ".slscene") == 0)
         return sl_scene_load(path, NULL, alloc, out, err);
+    if (sl_gis_path(path)) /* GeoJSON, Shapefile, OpenStreetMap, GML: the GIS importer's defaults */
+        return sl_import_gis(path, NULL, alloc, out, NULL, err);
     return sl_import_assimp(path, opt, alloc, out, err);
 }

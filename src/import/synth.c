@@ -55,6 +55,7 @@ typedef struct wmesh {
     uint32_t nv;
     uint32_t *t;     /* 3 per triangle, degenerate (repeated index) ones dropped */
     uint32_t nt;
+    size_t tcap;     /* triangles w->t has room for */
     dv3 lo, hi;      /* bounds */
 } wmesh;
 
@@ -99,7 +100,8 @@ static sl_status weld_object(ctx *c, sl_scene scene, uint32_t object, wmesh *w, 
     hslot *tab = sl_alloc(c->a, cap * sizeof *tab);
     uint32_t *remap = sl_alloc(c->a, (n ? n : 1) * sizeof *remap);
     w->v = sl_alloc(c->a, (n ? n : 1) * sizeof *w->v);
-    w->t = sl_alloc(c->a, (mv.triangle_count ? 3 * (size_t)mv.triangle_count : 3) * sizeof *w->t);
+    w->tcap = mv.triangle_count ? mv.triangle_count : 1;
+    w->t = sl_alloc(c->a, 3 * w->tcap * sizeof *w->t);
     if (!tab || !remap || !w->v || !w->t) {
         sl_free(c->a, tab, cap * sizeof *tab);
         sl_free(c->a, remap, (n ? n : 1) * sizeof *remap);
@@ -147,7 +149,7 @@ static void wmesh_free(ctx *c, sl_scene scene, uint32_t object, wmesh *w)
 {
     sl_mesh_view mv = sl_scene_mesh(scene, sl_scene_object(scene, object).mesh);
     sl_free(c->a, w->v, (mv.vertex_count ? mv.vertex_count : 1) * sizeof *w->v);
-    sl_free(c->a, w->t, (mv.triangle_count ? 3 * (size_t)mv.triangle_count : 3) * sizeof *w->t);
+    sl_free(c->a, w->t, 3 * w->tcap * sizeof *w->t);
 }
 
 /* ---- closedness ---- */
@@ -182,6 +184,162 @@ static uint32_t uf_find(uint32_t *parent, uint32_t x)
         x = parent[x];
     }
     return x;
+}
+
+/* T-junctions: a vertex of the mesh lying on another triangle's open edge, strictly between its
+ * ends (exporters split a façade into bays and floors whose corners meet a side wall's edge that is
+ * one segment): that edge is then used once on one side and in pieces on the other, and the
+ * surface reads as open. Each such triangle is split at those vertices into a fan (the same
+ * surface: every new vertex lies on the old edge within tol), until no edge used once has a vertex
+ * on it; the closedness test then sees the shell as it is. *split counts the triangles split.
+ * Returns 0, or -1 out of memory. */
+static int split_t_junctions(ctx *c, wmesh *w, double tol, uint32_t *split)
+{
+    *split = 0;
+    if (w->nt < 2 || w->nv < 4)
+        return 0;
+    /* a grid over the object's vertices: cells of about a 24th of its longest side */
+    double ext = fmax(w->hi.x - w->lo.x, fmax(w->hi.y - w->lo.y, w->hi.z - w->lo.z));
+    double cell = fmax(ext / 24, 8 * tol);
+    uint32_t gn[3];
+    double go[3] = {w->lo.x - tol, w->lo.y - tol, w->lo.z - tol};
+    double gext[3] = {w->hi.x - w->lo.x, w->hi.y - w->lo.y, w->hi.z - w->lo.z};
+    for (int k = 0; k < 3; k++)
+        gn[k] = (uint32_t)fmin(64, floor((gext[k] + 2 * tol) / cell) + 1);
+    size_t ncell = (size_t)gn[0] * gn[1] * gn[2];
+    uint32_t *cstart = sl_calloc(c->a, ncell + 1, sizeof *cstart), *cv = sl_alloc(c->a, (size_t)w->nv * sizeof *cv);
+    uint32_t *fill = sl_alloc(c->a, ncell * sizeof *fill);
+    hedge_t *e = NULL;
+    size_t ne_cap = 0, touched_n = 0;
+    uint8_t *touched = NULL;
+    int ret = -1;
+    if (!cstart || !cv || !fill)
+        goto done;
+#define CELL_OF(x, k) ((uint32_t)fmin(gn[k] - 1, fmax(0, floor(((x) - go[k]) / cell))))
+#define CELL_INDEX(p) (((size_t)CELL_OF((p)->z, 2) * gn[1] + CELL_OF((p)->y, 1)) * gn[0] + CELL_OF((p)->x, 0))
+    for (uint32_t v = 0; v < w->nv; v++)
+        cstart[CELL_INDEX(&w->v[v]) + 1]++;
+    for (size_t i = 0; i < ncell; i++)
+        cstart[i + 1] += cstart[i];
+    memcpy(fill, cstart, ncell * sizeof *fill);
+    for (uint32_t v = 0; v < w->nv; v++)
+        cv[fill[CELL_INDEX(&w->v[v])]++] = v;
+    /* each pass splits a triangle at one of its edges at most (one with T-junctions on two edges is
+     * finished in the next pass: the fan keeps its other edges) */
+    for (int pass = 0; pass < 8; pass++) {
+        size_t ne = 3 * (size_t)w->nt;
+        sl_free(c->a, touched, touched_n ? touched_n : 1);
+        touched_n = w->nt;
+        if (!(touched = sl_calloc(c->a, touched_n ? touched_n : 1, 1)))
+            goto done;
+        if (ne > ne_cap) {
+            sl_free(c->a, e, ne_cap * sizeof *e);
+            ne_cap = ne;
+            if (!(e = sl_alloc(c->a, ne_cap * sizeof *e)))
+                goto done;
+        }
+        for (uint32_t t = 0; t < w->nt; t++)
+            for (int k = 0; k < 3; k++)
+                e[3 * t + k] = (hedge_t){w->t[3 * t + k], w->t[3 * t + (k + 1) % 3], 3 * t + (uint32_t)k};
+        qsort(e, ne, sizeof *e, hedge_t_cmp);
+        uint32_t changed = 0;
+        for (size_t i = 0; i < ne;) {
+            size_t j = i + 1;
+            while (j < ne && SL_MIN(e[j].a, e[j].b) == SL_MIN(e[i].a, e[i].b) &&
+                   SL_MAX(e[j].a, e[j].b) == SL_MAX(e[i].a, e[i].b))
+                j++;
+            /* an edge (of the triangles e[i..j)): the vertices strictly inside it, ordered along it;
+             * each of its triangles is split there (an edge used twice may have a third surface's
+             * vertices on it: a cornice meeting the roof edge above façade bays) */
+            size_t first = i;
+            i = j;
+            uint32_t a = e[first].a, b = e[first].b;
+            dv3 pa = w->v[a], pb = w->v[b];
+            dv3 d = {pb.x - pa.x, pb.y - pa.y, pb.z - pa.z};
+            double len2 = d.x * d.x + d.y * d.y + d.z * d.z, len = sqrt(len2);
+            if (!(len > 4 * tol))
+                continue;
+            uint32_t lo[3], hi[3];
+            double elo[3] = {fmin(pa.x, pb.x), fmin(pa.y, pb.y), fmin(pa.z, pb.z)};
+            double ehi[3] = {fmax(pa.x, pb.x), fmax(pa.y, pb.y), fmax(pa.z, pb.z)};
+            for (int q = 0; q < 3; q++) {
+                lo[q] = CELL_OF(elo[q] - tol, q);
+                hi[q] = CELL_OF(ehi[q] + tol, q);
+            }
+            enum { MAXP = 64 };
+            uint32_t pv[MAXP];
+            double pt[MAXP];
+            uint32_t np = 0;
+            for (uint32_t z = lo[2]; z <= hi[2]; z++)
+                for (uint32_t y = lo[1]; y <= hi[1]; y++)
+                    for (uint32_t x = lo[0]; x <= hi[0]; x++) {
+                        size_t ci = ((size_t)z * gn[1] + y) * gn[0] + x;
+                        for (uint32_t q = cstart[ci]; q < cstart[ci + 1]; q++) {
+                            uint32_t v = cv[q];
+                            if (v == a || v == b)
+                                continue;
+                            dv3 r = {w->v[v].x - pa.x, w->v[v].y - pa.y, w->v[v].z - pa.z};
+                            double tt = (r.x * d.x + r.y * d.y + r.z * d.z) / len2;
+                            if (tt * len <= 2 * tol || (1 - tt) * len <= 2 * tol)
+                                continue;
+                            dv3 f = {r.x - tt * d.x, r.y - tt * d.y, r.z - tt * d.z};
+                            if (f.x * f.x + f.y * f.y + f.z * f.z > tol * tol || np == MAXP)
+                                continue;
+                            uint32_t at = np++;
+                            while (at && pt[at - 1] > tt) {
+                                pt[at] = pt[at - 1];
+                                pv[at] = pv[at - 1];
+                                at--;
+                            }
+                            pt[at] = tt;
+                            pv[at] = v;
+                        }
+                    }
+            if (!np)
+                continue;
+            for (size_t g = first; g < j; g++) {
+                uint32_t t = e[g].t / 3, k = e[g].t % 3, ga = e[g].a, gb = e[g].b, o = w->t[3 * t + (k + 2) % 3];
+                if (touched[t])
+                    continue; /* split at another edge in this pass: this one waits for the next */
+                bool apex = false; /* the triangle's own third vertex on the edge: degenerate, leave it */
+                for (uint32_t q = 0; q < np; q++)
+                    apex |= pv[q] == o;
+                if (apex)
+                    continue;
+                /* the fan ga, ..., gb around o in the triangle's own orientation (ga -> gb) */
+                if ((size_t)w->nt + np > w->tcap) {
+                    size_t cap = SL_MAX(2 * w->tcap, (size_t)w->nt + np);
+                    uint32_t *grown = sl_realloc(c->a, w->t, 3 * w->tcap * sizeof *grown, 3 * cap * sizeof *grown);
+                    if (!grown)
+                        goto done;
+                    w->t = grown;
+                    w->tcap = cap;
+                }
+                uint32_t prev = ga;
+                for (uint32_t q = 0; q <= np; q++) {
+                    uint32_t next = q < np ? pv[ga == a ? q : np - 1 - q] : gb;
+                    uint32_t *tri = q ? &w->t[3 * (size_t)w->nt++] : &w->t[3 * (size_t)t];
+                    tri[0] = prev, tri[1] = next, tri[2] = o;
+                    prev = next;
+                }
+                touched[t] = 1;
+                (*split)++;
+                changed++;
+            }
+        }
+        if (!changed)
+            break;
+    }
+#undef CELL_INDEX
+#undef CELL_OF
+    ret = 0;
+done:
+    sl_free(c->a, cstart, (ncell + 1) * sizeof *cstart);
+    sl_free(c->a, cv, (size_t)w->nv * sizeof *cv);
+    sl_free(c->a, fill, ncell * sizeof *fill);
+    sl_free(c->a, e, ne_cap * sizeof *e);
+    sl_free(c->a, touched, touched_n ? touched_n : 1);
+    return ret;
 }
 
 /* Peel loose parts off: a triangle with a border edge (used by it alone, not in the base plane)
@@ -271,7 +429,12 @@ done:
 static int keep_closed_parts(ctx *c, wmesh *w, double tol, uint32_t *dropped)
 {
     *dropped = 0;
-    uint32_t peeled = 0;
+    uint32_t peeled = 0, split = 0;
+    /* a quarter of the weld: with the weld's own move (sqrt(3) weld at most) the split surface stays
+     * within the 2 weld of the touched margin */
+    if (split_t_junctions(c, w, 0.25 * tol, &split) < 0)
+        return -1;
+    c->st->t_junctions += split;
     if (peel(c, w, tol, &peeled) < 0)
         return -1;
     if (w->nt < 4) {

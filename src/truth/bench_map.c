@@ -158,6 +158,43 @@ static sl_status method_kept(struct sl_bench_t *b, bench_method *m, const sl_ben
     return SL_OK;
 }
 
+/* A w x h RGB image scaled down to `size` pixels along its longer side, each pixel the mean of
+ * the source pixels its footprint covers (area weights, so thin lines fade instead of vanishing),
+ * written as PNG. */
+static sl_status write_thumbnail(const sl_allocator *a, const char *path, const uint8_t *rgb, uint32_t w, uint32_t h,
+                                 uint32_t size, sl_error *err)
+{
+    double scale = (double)size / SL_MAX(w, h);
+    uint32_t tw = SL_MAX(1u, (uint32_t)lround(w * scale)), th = SL_MAX(1u, (uint32_t)lround(h * scale));
+    size_t bytes = (size_t)tw * th * 3;
+    uint8_t *out = sl_alloc(a, bytes);
+    if (!out)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for the thumbnail", path);
+    double sx = (double)w / tw, sy = (double)h / th;
+    for (uint32_t ty = 0; ty < th; ty++) {
+        double y0 = ty * sy, y1 = y0 + sy;
+        for (uint32_t tx = 0; tx < tw; tx++) {
+            double x0 = tx * sx, x1 = x0 + sx, sum[3] = {0, 0, 0}, wsum = 0;
+            for (uint32_t y = (uint32_t)y0; y < h && y < y1; y++) {
+                double wy = fmin(y + 1.0, y1) - fmax((double)y, y0);
+                for (uint32_t x = (uint32_t)x0; x < w && x < x1; x++) {
+                    double wt = wy * (fmin(x + 1.0, x1) - fmax((double)x, x0));
+                    const uint8_t *p = rgb + ((size_t)y * w + x) * 3;
+                    for (int c = 0; c < 3; c++)
+                        sum[c] += wt * p[c];
+                    wsum += wt;
+                }
+            }
+            uint8_t *q = out + ((size_t)ty * tw + tx) * 3;
+            for (int c = 0; c < 3; c++)
+                q[c] = (uint8_t)lround(wsum > 0 ? sum[c] / wsum : 255);
+        }
+    }
+    sl_status st = sl_png_write(path, tw, th, 3, out, 0, err);
+    sl_free(a, out, bytes);
+    return st;
+}
+
 sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, const char *prefix,
                               sl_bench_map_counts *counts, sl_error *err)
 {
@@ -173,6 +210,9 @@ sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, co
     if (o.cube_size < 16 || o.cube_size > 4096)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_write_maps: cube size %u is outside 16..4096",
                        o.cube_size);
+    if (o.thumb_size && (o.thumb_size < 16 || o.thumb_size > o.size))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_write_maps: thumbnail size %u is outside 16..%u",
+                       o.thumb_size, o.size);
     if (o.use_eye && !sl_finite3(&o.eye.x))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_bench_write_maps: the eye is not finite");
     sl_camera cam = o.camera;
@@ -345,6 +385,10 @@ sl_status sl_bench_write_maps(sl_bench b, const sl_bench_map_options *opt_in, co
         draw_scale_bar(&canvas, ppm, NULL);
         snprintf(path, plen, "%s%s.png", prefix, m->name);
         st = sl_png_write(path, w, h, 3, rgb, 0, err);
+        if (st == SL_OK && o.thumb_size) {
+            snprintf(path, plen, "%s%s-thumb.png", prefix, m->name);
+            st = write_thumbnail(a, path, rgb, w, h, o.thumb_size, err);
+        }
         if (st != SL_OK)
             goto done;
         if (counts)

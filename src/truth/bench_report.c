@@ -387,6 +387,57 @@ static void query_line(struct sl_bench_t *b, FILE *fp)
         fprintf(fp, ".\n\n");
 }
 
+/* A ranked column's value as the summary table prints it (counts to the unit, over-estimation to
+ * two decimals, times as ms_text), so that two cells that read the same tie. */
+static double column_printed(const sl_bench_summary *s, int c)
+{
+    char t[32];
+    switch (c) {
+    case SL_BENCH_COL_OBJECTS: return round(s->objects_drawn_mean);
+    case SL_BENCH_COL_TRIANGLES: return round(s->triangles_drawn_mean);
+    case SL_BENCH_COL_OVERESTIMATION: snprintf(t, sizeof t, "%.2f", s->overestimation); break;
+    case SL_BENCH_COL_MISSED_OBJECTS: return (double)s->missed_objects_total;
+    case SL_BENCH_COL_MISSED_PIXELS: return (double)s->missed_pixels_total;
+    case SL_BENCH_COL_MS_MEDIAN: ms_text(t, sizeof t, s->cull_ms.median); break;
+    case SL_BENCH_COL_MS_P95: ms_text(t, sizeof t, s->cull_ms.p95); break;
+    default: ms_text(t, sizeof t, s->cull_ms.max); break;
+    }
+    return strtod(t, NULL);
+}
+
+/* The drawn counts and the over-estimation are ranked among the methods that missed nothing. */
+static bool column_needs_no_miss(int c)
+{
+    return c == SL_BENCH_COL_OBJECTS || c == SL_BENCH_COL_TRIANGLES || c == SL_BENCH_COL_OVERESTIMATION;
+}
+
+uint32_t sl_bench_best_columns(sl_bench b, uint32_t method)
+{
+    if (!b || method >= b->method_count)
+        return 0;
+    sl_bench_summary mine, s;
+    if (sl_bench_summarize(b, method, &mine, NULL) != SL_OK || !mine.frames)
+        return 0;
+    uint32_t mask = 0;
+    for (int c = 0; c < SL_BENCH_COLUMN_COUNT; c++) {
+        if (column_needs_no_miss(c) && mine.missed_objects_total)
+            continue;
+        double v = column_printed(&mine, c);
+        bool best = true, spread = false;
+        for (uint32_t mi = 0; mi < b->method_count && best; mi++) {
+            if (mi == method || sl_bench_summarize(b, mi, &s, NULL) != SL_OK || !s.frames ||
+                (column_needs_no_miss(c) && s.missed_objects_total))
+                continue;
+            double o = column_printed(&s, c);
+            spread |= o != v;
+            best = o >= v;
+        }
+        if (best && spread)
+            mask |= 1u << c;
+    }
+    return mask;
+}
+
 static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
 {
     for (uint32_t bi = 0; bi < count; bi++) {
@@ -453,14 +504,24 @@ static void summary_md(const sl_bench *benches, uint32_t count, FILE *fp)
                 continue;
             const bench_method *m = &b->methods[mi];
             bool violated = sl_cull_guarantee_keeps_visible(m->guarantee, true) && s.missed_objects_total;
-            char t1[32], t2[32], t3[32];
-            fprintf(fp, "| %s | %s | %u | %s | %s | %s | %.2f | %s%llu%s | %llu | %s | %s | %s |\n", m->name,
-                    sl_cull_guarantee_name(m->guarantee), s.frames, grouped(g1, sizeof g1, s.objects_drawn_mean),
-                    grouped(g2, sizeof g2, s.triangles_drawn_mean), grouped(g3, sizeof g3, s.visible_mean),
-                    s.overestimation, violated ? "**" : "", (unsigned long long)s.missed_objects_total,
-                    violated ? " VIOLATION**" : "", (unsigned long long)s.missed_pixels_total,
-                    ms_text(t1, sizeof t1, s.cull_ms.median), ms_text(t2, sizeof t2, s.cull_ms.p95),
-                    ms_text(t3, sizeof t3, s.cull_ms.max));
+            char t1[32], t2[32], t3[32], over[32], missed[48], mpx[32];
+            uint32_t best = sl_bench_best_columns(b, mi);
+#define B(col) ((best >> (col)) & 1u ? "**" : "")
+            snprintf(over, sizeof over, "%.2f", s.overestimation);
+            snprintf(missed, sizeof missed, "%llu", (unsigned long long)s.missed_objects_total);
+            snprintf(mpx, sizeof mpx, "%llu", (unsigned long long)s.missed_pixels_total);
+            fprintf(fp, "| %s | %s | %u | %s%s%s | %s%s%s | %s | %s%s%s | %s%s%s%s | %s%s%s | %s%s%s | %s%s%s | %s%s%s |\n",
+                    m->name, sl_cull_guarantee_name(m->guarantee), s.frames, B(SL_BENCH_COL_OBJECTS),
+                    grouped(g1, sizeof g1, s.objects_drawn_mean), B(SL_BENCH_COL_OBJECTS), B(SL_BENCH_COL_TRIANGLES),
+                    grouped(g2, sizeof g2, s.triangles_drawn_mean), B(SL_BENCH_COL_TRIANGLES),
+                    grouped(g3, sizeof g3, s.visible_mean), B(SL_BENCH_COL_OVERESTIMATION), over,
+                    B(SL_BENCH_COL_OVERESTIMATION), violated ? "**" : B(SL_BENCH_COL_MISSED_OBJECTS), missed,
+                    violated ? " VIOLATION" : "", violated ? "**" : B(SL_BENCH_COL_MISSED_OBJECTS),
+                    B(SL_BENCH_COL_MISSED_PIXELS), mpx, B(SL_BENCH_COL_MISSED_PIXELS), B(SL_BENCH_COL_MS_MEDIAN),
+                    ms_text(t1, sizeof t1, s.cull_ms.median), B(SL_BENCH_COL_MS_MEDIAN), B(SL_BENCH_COL_MS_P95),
+                    ms_text(t2, sizeof t2, s.cull_ms.p95), B(SL_BENCH_COL_MS_P95), B(SL_BENCH_COL_MS_MAX),
+                    ms_text(t3, sizeof t3, s.cull_ms.max), B(SL_BENCH_COL_MS_MAX));
+#undef B
         }
         fprintf(fp, "\n");
         query_line(b, fp);
@@ -491,7 +552,8 @@ sl_status sl_bench_write_summary(const sl_bench *benches, uint32_t count, const 
             "show 0); over-estimation is the objects drawn over the exact visible objects, each summed over the frames "
             "(a ratio of sums); cull times are the per-frame medians of the repeats, summarised over the frames. "
             "Each scene ends with a recommendation: the fastest conservative method within a tightness bound and the "
-            "tightest within a time bound. Columns: docs/bench.md.\n\n");
+            "tightest within a time bound. The best value of each ranked column is in bold (sl_bench_best_columns). "
+            "Columns: docs/bench.md.\n\n");
     if (!f.failed) {
         summary_md(benches, count, f.fp);
         if (ferror(f.fp))

@@ -83,6 +83,9 @@ awk '/id="summary"/ { a = NR } /<h2 id="recommendation">/ { b = NR } /<nav class
 # the best value of the ranked columns highlighted (a legend says what), a star on the picks
 [ "$(grep -o 'class="best"' "$H" | wc -l)" -ge 4 ] || fail "fewer than 4 highlighted best cells"
 has 'best in its column' "$H"
+# and in report.md, in bold
+[ "$(grep -o '| \*\*[0-9][0-9.,]*\*\* ' "$tmp/d/report.md" | wc -l)" -ge 4 ] || fail "fewer than 4 bold best cells in report.md"
+has "The best value of each ranked column is in bold" "$tmp/d/report.md"
 has 'fastest pick' "$H"
 # over-estimation defined as the ratio of sums it is
 has 'a ratio of sums' "$H"
@@ -106,9 +109,16 @@ hasnt '>vfc</text>' "$tmp/d/city-tiny-1-walk-missed-pixels.svg"
 has '<div class="grid maps">' "$H"
 has 'id="map-key"' "$H"
 [ "$(sed -n '/id="map-key"/p' "$H" | grep -o 'class="sw"' | wc -l)" -ge 5 ] || fail "the map key has fewer than 5 colours"
-maps=$(find "$tmp/d" -maxdepth 1 -name '*-map-*.png' | wc -l)
-thumbs=$(grep -o '<a href="[^"]*-map-[^"]*\.png"><img loading="lazy"' "$H" | wc -l)
+maps=$(find "$tmp/d" -maxdepth 1 -name '*-map-*.png' ! -name '*-thumb.png' | wc -l)
+thumbs=$(grep -o '<a href="[^"]*-map-[^"]*\.png"><img loading="lazy" src="[^"]*-thumb\.png"' "$H" | wc -l)
 [ "$thumbs" -eq "$maps" ] || fail "$thumbs map thumbnails for $maps maps"
+# real thumbnails: 340 pixels along the longer side, beside each full map
+for m in $(find "$tmp/d" -maxdepth 1 -name '*-map-*.png' ! -name '*-thumb.png'); do
+    t="${m%.png}-thumb.png"
+    is_png "$t"
+    IFS=x read -r tw th <<<"$(png_size "$t")"
+    [ "$tw" -eq 340 ] || [ "$th" -eq 340 ] || fail "$t is ${tw}x$th, not 340 along its longer side"
+done
 # every map has its scale bar (black on white, lower left: a corner otherwise without black) and the
 # eye's frustum (its blue wedge) drawn in
 for m in "$tmp/d"/city-tiny-1-walk-map-vfc.png "$tmp/d"/city-tiny-1-flyover-map-hzb.png; do
@@ -128,4 +138,24 @@ has '"report":' "$tmp/out"
 # an output folder the pvs culler cannot name (a comma): pvs is reported as not run
 expect 0 "$SL" demo --preset tiny --quick --frames 2 --out "$tmp/a,b" --quiet
 has "Not run: pvs" "$tmp/a,b/report.md"
+# --methods: only the listed methods run, with their options; pvs without file= gets the walk's PVS
+expect 0 "$SL" demo --preset tiny --quick --frames 3 --methods vfc,hzb:res=culling,pvs --out "$tmp/m" --quiet
+has "| hzb | conservative-at-resolution |" "$tmp/m/summary.md"
+has "| vfc | conservative |" "$tmp/m/summary.md"
+has "| pvs | conservative |" "$tmp/m/summary.md"
+[ "$(grep -cE '^\| [a-z+-]+ \| (conservative|aggressive)' "$tmp/m/summary.md")" -eq 6 ] || fail "--methods ran other methods than the three listed"
+hasnt "| cullmap |" "$tmp/m/summary.md"
+grep -q "res=culling" "$tmp/m/report.html" || fail "the report does not show hzb's option"
+expect 0 "$SL" demo --preset tiny --quick --frames 2 --methods lazygrid --out "$tmp/m1" --quiet
+[ ! -e "$tmp/m1/walk.slpvs" ] || fail "a PVS was baked although pvs was not listed"
+expect 2 "$SL" demo --preset tiny --quick --methods vfc,hzbb --out "$tmp/m2"
+has "did you mean hzb" "$tmp/err"
+[ ! -e "$tmp/m2" ] || fail "a bad --methods left an output folder"
+expect 2 "$SL" demo --preset tiny --quick --methods hzb:bogus=1 --out "$tmp/m3"
+has "unknown option 'bogus'" "$tmp/err"
+expect 2 "$SL" demo --preset tiny --quick --methods pvs:bogus=1 --out "$tmp/m4"
+has "pvs: unknown option 'bogus'" "$tmp/err"
+[ ! -e "$tmp/m4" ] || fail "a bad pvs option left an output folder"
+expect 2 "$SL" demo --preset tiny --quick --methods vfc,vfc --out "$tmp/m5"
+has "listed twice" "$tmp/err"
 echo "PASS"

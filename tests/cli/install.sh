@@ -137,4 +137,79 @@ CM
 cmake -S "$tmp/rt" -B "$tmp/rt/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" >/dev/null
 cmake --build "$tmp/rt/build" >/dev/null
 "$tmp/rt/build/runtime_static" "$tmp/tiny.slscene" | grep -Eq '^vfc [1-9]' || fail "static run-time consumer failed"
+# the OpenGL renderer (when built): libsightline_render, sightline-render.pc and the CMake package
+# sightline_render; the consumer draws one frame headless where a GL context can be made
+if [ -e "$build/libsightline_render.so" ]; then
+    for f in "$libdir/libsightline_render.so" "$libdir/libsightline_render.a" "$libdir/pkgconfig/sightline-render.pc" \
+        "$libdir/cmake/sightline_render/sightline_renderConfig.cmake" "$tmp/prefix/include/sightline/render.h"; do
+        [ -e "$f" ] || fail "$f not installed"
+    done
+    cat > "$tmp/render.c" <<'C'
+#include <sightline/render.h>
+#include <sightline/slscene.h>
+#include <stdio.h>
+/* load a .slscene, draw one culled frame headless, print what was drawn; exit 3: no GL context */
+int main(int argc, char **argv)
+{
+    sl_scene s;
+    sl_error err;
+    if (argc < 2 || sl_scene_load(argv[1], NULL, NULL, &s, &err) != SL_OK)
+        return 1;
+    if (sl_renderer_probe(SL_GL_CONTEXT_AUTO, &err) != SL_OK) {
+        printf("no GL: %s\n", err.message);
+        return 3;
+    }
+    sl_renderer_options o;
+    sl_renderer_options_default(&o);
+    o.width = 160;
+    o.height = 120;
+    sl_renderer r;
+    sl_culler c;
+    if (sl_renderer_create(s, &o, NULL, &r, &err) != SL_OK || sl_culler_create("vfc", s, NULL, NULL, &c, &err) != SL_OK) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+    }
+    sl_camera cam = sl_camera_default();
+    sl_aabb b = sl_scene_bounds(s);
+    cam.position = (sl_vec3){(b.min.x + b.max.x) / 2, (b.min.y + b.max.y) / 2, b.min.z + 1.7f};
+    cam.width = 160;
+    cam.height = 120;
+    sl_view v;
+    sl_render_frame_stats st;
+    if (sl_view_from_camera(&cam, &v, &err) != SL_OK ||
+        sl_renderer_frame(r, c, &v, SL_RENDER_SHADED, NULL, NULL, &st, &err) != SL_OK) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+    }
+    printf("drew %u objects\n", st.objects_drawn);
+    sl_culler_destroy(c);
+    sl_renderer_destroy(r);
+    sl_scene_destroy(s);
+    return 0;
+}
+C
+    cc -std=gnu11 -Wall -Werror "$tmp/render.c" -o "$tmp/render_pc" $(pkg-config --cflags --libs sightline-render)
+    pkg-config --libs sightline-render | grep -q -- '-lsightline_render' || fail "sightline-render.pc gives no -lsightline_render"
+    mkdir -p "$tmp/rd"
+    cat > "$tmp/rd/CMakeLists.txt" <<'CM'
+cmake_minimum_required(VERSION 3.25)
+project(render_consumer C)
+find_package(sightline_render REQUIRED)
+add_executable(render_shared ../render.c)
+target_link_libraries(render_shared PRIVATE sightline::sightline_render)
+add_executable(render_static ../render.c)
+target_link_libraries(render_static PRIVATE sightline::sightline_render_static)
+CM
+    cmake -S "$tmp/rd" -B "$tmp/rd/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" >/dev/null
+    cmake --build "$tmp/rd/build" >/dev/null
+    for p in "$tmp/render_pc" "$tmp/rd/build/render_shared" "$tmp/rd/build/render_static"; do
+        rc=0
+        LD_LIBRARY_PATH="$libdir" "$p" "$tmp/tiny.slscene" > "$tmp/out" || rc=$?
+        if [ "$rc" -eq 3 ]; then
+            echo "renderer consumer $p: $(cat "$tmp/out") (built and linked; not drawn)"
+        else
+            [ "$rc" -eq 0 ] && grep -Eq '^drew [1-9][0-9]* objects' "$tmp/out" || fail "renderer consumer $p failed ($rc)"
+        fi
+    done
+fi
 echo "install: ok"

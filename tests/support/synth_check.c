@@ -81,6 +81,76 @@ static uint32_t root_of(uint32_t *par, uint32_t x)
         x = par[x] = par[par[x]];
     return x;
 }
+/* T-junctions, the checker's own way (brute force, independent of synth.c's): a triangle with
+ * mesh vertices strictly inside its edges (within tol of them) becomes a fan around its centroid
+ * over its boundary A, points on AB, B, points on BC, C, points on CA: the same plane, and every
+ * boundary piece an edge of its own. Returns the new triangle array (*nt updated); frees t. */
+static tri3 *split_t(tri3 *t, uint32_t *nt, double tol)
+{
+    uint32_t n = *nt, cap = n ? 2 * n : 1, out_n = 0;
+    tri3 *out = malloc(cap * sizeof *out);
+    assert_non_null(out);
+    for (uint32_t i = 0; i < n; i++) {
+        double ring[3 * 66][3];
+        uint32_t rn = 0;
+        for (int k = 0; k < 3; k++) {
+            const double *a = t[i].v[k], *b = t[i].v[(k + 1) % 3];
+            double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            double pt[64], pp[64][3];
+            uint32_t np = 0;
+            memcpy(ring[rn++], a, sizeof ring[0]);
+            for (uint32_t j = 0; j < n && len2 > 16 * tol * tol; j++)
+                for (int q = 0; q < 3; q++) {
+                    const double *v = t[j].v[q];
+                    double r[3] = {v[0] - a[0], v[1] - a[1], v[2] - a[2]};
+                    double u = (r[0] * d[0] + r[1] * d[1] + r[2] * d[2]) / len2, len = sqrt(len2);
+                    if (u * len <= 2 * tol || (1 - u) * len <= 2 * tol)
+                        continue;
+                    double f[3] = {r[0] - u * d[0], r[1] - u * d[1], r[2] - u * d[2]};
+                    if (f[0] * f[0] + f[1] * f[1] + f[2] * f[2] > tol * tol)
+                        continue;
+                    bool dup = false;
+                    for (uint32_t m = 0; m < np && !dup; m++)
+                        dup = fabs(pt[m] - u) * len <= tol;
+                    if (dup || np == 64)
+                        continue;
+                    uint32_t at = np++;
+                    while (at && pt[at - 1] > u) {
+                        pt[at] = pt[at - 1];
+                        memcpy(pp[at], pp[at - 1], sizeof pp[0]);
+                        at--;
+                    }
+                    pt[at] = u;
+                    memcpy(pp[at], v, sizeof pp[0]);
+                }
+            for (uint32_t m = 0; m < np; m++)
+                memcpy(ring[rn++], pp[m], sizeof ring[0]);
+        }
+        if (out_n + rn > cap) {
+            while (out_n + rn > cap)
+                cap *= 2;
+            out = realloc(out, cap * sizeof *out);
+            assert_non_null(out);
+        }
+        if (rn == 3) {
+            out[out_n++] = t[i];
+            continue;
+        }
+        double g[3];
+        for (int k = 0; k < 3; k++)
+            g[k] = (t[i].v[0][k] + t[i].v[1][k] + t[i].v[2][k]) / 3;
+        for (uint32_t m = 0; m < rn; m++) {
+            memcpy(out[out_n].v[0], g, sizeof g);
+            memcpy(out[out_n].v[1], ring[m], sizeof g);
+            memcpy(out[out_n].v[2], ring[(m + 1) % rn], sizeof g);
+            out_n++;
+        }
+    }
+    free(t);
+    *nt = out_n;
+    return out;
+}
+
 static uint32_t keep_closed(tri3 *t, uint32_t nt)
 {
     size_t nv = 3 * (size_t)nt;
@@ -207,7 +277,13 @@ sl_synth_check sl_synth_check_object(sl_scene s, uint32_t object, uint32_t n)
         vol += a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0]) + a[2] * (b[0] * d[1] - b[1] * d[0]);
     }
     c.mesh_volume = fabs(vol) / 6;
-    uint32_t nt = keep_closed(t, mv.triangle_count);
+    uint32_t nt = mv.triangle_count;
+    /* T-junctions split as the synthesis splits them (within a quarter of its default weld, 1e-6
+     * of the scene's diagonal: the vertices exporters put on an edge lie on it to float rounding) */
+    sl_aabb sb = sl_scene_bounds(s);
+    double dx = sb.max.x - sb.min.x, dy = sb.max.y - sb.min.y, dz = sb.max.z - sb.min.z;
+    t = split_t(t, &nt, 0.25e-6 * sqrt(dx * dx + dy * dy + dz * dz));
+    nt = keep_closed(t, nt);
     sl_rng rng;
     sl_rng_seed(&rng, 1234 + object, 5);
     for (uint32_t i = 0; i < sl_scene_occluder_count(s); i++) {

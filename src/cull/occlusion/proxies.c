@@ -2,6 +2,7 @@
  * faces, refresh on scene change, and whether a proxy may be used for a view (proxies.h). The
  * polygon geometry the prisms need is in core/polygon.c. */
 #include "proxies.h"
+#include "options.h"
 
 #include "core/polygon.h"
 
@@ -464,4 +465,21 @@ bool sl_occ_usable(const sl_occ_set *s, uint32_t proxy, const sl_occ_view *v)
     float dz = sl_occ_maxf(fabsf(box.min.z - v->eye.z), fabsf(box.max.z - v->eye.z));
     float dmax = sqrtf(dx * dx + dy * dy + dz * dz) * 1.0001f;
     return p->inset * v->focal >= SL_OCC_MIN_INSET_PX * dmax;
+}
+
+bool sl_occ_applicable(sl_scene scene, const void *config, char *why, size_t why_size)
+{
+    const sl_occ_common *c = config; /* every occlusion method's config starts with its sl_occ_common */
+    if (c->all_objects || sl_scene_footprint_count(scene) || sl_scene_occluder_count(scene))
+        return true;
+    const sl_object_rec *objects = sl_scene_objects(scene);
+    uint32_t n = sl_scene_object_count(scene);
+    for (uint32_t o = 0; o < n; o++)
+        if ((objects[o].flags & SL_OBJECT_OCCLUDER) && !(objects[o].flags & SL_OBJECT_SEE_THROUGH))
+            return true;
+    snprintf(why, why_size,
+             "the scene has no occluders (no building footprints, no occluder meshes, no object flagged as an "
+             "occluder): `sightline occluders` synthesises them for an imported model, or all_objects=true lets "
+             "every object's mesh occlude");
+    return false;
 }

@@ -97,6 +97,11 @@ typedef struct sl_occ_set {
 sl_status sl_occ_set_create(sl_scene scene, const sl_occ_options *opt, const sl_allocator *alloc, sl_occ_set **out,
                             sl_error *err);
 void sl_occ_set_destroy(sl_occ_set *s);
+/* The `applicable` hook of the occlusion methods (sl_cull_method_applicable): config is a method
+ * config whose first member is its sl_occ_common. False, with why, when the scene offers no
+ * occluder: no footprint, no occluder mesh, no non-see-through SL_OBJECT_OCCLUDER object, and
+ * all_objects is off. */
+bool sl_occ_applicable(sl_scene scene, const void *config, char *why, size_t why_size);
 /* Objects moved: a prism whose object's transform changed is disabled (the footprint no longer
  * describes it); MESH proxies follow their object by themselves. */
 void sl_occ_set_scene_changed(sl_occ_set *s);
