@@ -720,21 +720,15 @@ sl_status sl_instant_get_stats(sl_culler c, sl_instant_stats *out, sl_error *err
     return SL_OK;
 }
 
-/* Culls more than the frustum where there are footprints; only on stored levels is it the method
- * (without them every moving frame stalls: the bench and the demo leave it out and say why). */
+/* Culls more than the frustum where there are footprints (without stored levels too: on the
+ * scene's own footprints, eps 0, each moving frame computed in place). */
 static bool instant_applicable(sl_scene scene, const void *config, char *why, size_t why_size)
 {
     (void)config;
-    if (!sl_scene_footprint_count(scene)) {
-        snprintf(why, why_size, "the scene has no building footprints (the 2.5D occluders its base methods shrink)");
-        return false;
-    }
-    if (!sl_scene_occluder_level_count(scene)) {
-        snprintf(why, why_size, "the scene has no shrunk occluder levels: bake them with `sightline occluders SCENE "
-                                "--instant-levels 0.5,1,1.5,2,3 -o OUT.slscene`");
-        return false;
-    }
-    return true;
+    if (sl_scene_footprint_count(scene))
+        return true;
+    snprintf(why, why_size, "the scene has no building footprints (the 2.5D occluders its base methods shrink)");
+    return false;
 }
 
 const sl_cull_method sl_cull_method_instant = {
