@@ -491,8 +491,9 @@ static sl_status instant_create(sl_scene scene, const void *config, const sl_all
     s->cur.ids = sl_alloc(alloc, n * sizeof(uint32_t));
     s->job.ids = sl_alloc(alloc, n * sizeof(uint32_t));
     if (!s->levels || !s->face_ids || !s->stamp || !s->scratch || !s->cur.ids || !s->job.ids) {
+        uint32_t nobj = s->n;
         instant_destroy(s);
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "instant: out of memory for %u objects", s->n);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "instant: out of memory for %u objects", nobj);
     }
     if (s->level_count == 0) {
         /* no stored levels: the scene's own footprints, valid at the eye itself only (every moving
@@ -514,9 +515,10 @@ static sl_status instant_create(sl_scene scene, const void *config, const sl_all
                 size_t k = 0;
                 for (uint32_t i = 0; i < s->level_count && k + 16 < sizeof list; i++)
                     k += (size_t)snprintf(list + k, sizeof list - k, "%s%g", i ? "," : "", (double)s->levels[i].eps);
+                double want = s->cfg.eps;
                 instant_destroy(s);
                 return sl_fail(err, SL_ERROR_NOT_FOUND, "instant: eps=%g: no stored occluder level is that large "
-                               "(the scene's levels: %s)", (double)s->cfg.eps, list);
+                               "(the scene's levels: %s)", want, list);
             }
             s->fixed_level = l;
         } else if (s->cfg.clock == CLOCK_SIMULATED) {
