@@ -2,7 +2,7 @@
  *
  *   bench_frames [--preset tiny|small|vienna] [--frames N] [--every K] [--fps F] [--seed S]
  *                [--size WxH] [--methods LIST] [--pvs FILE] [--context auto|surfaceless|device]
- *                [--no-oracle] [--warmup N] [--csv FILE]
+ *                [--no-oracle] [--warmup N] [--csv FILE] [--instant-levels E1,E2,...]
  *
  * The bench's walk of a generated city (sl_path_generate, SL_PATH_WALK, fps F (30), seed S (1)),
  * N frames (default 1000) of which every K-th is rendered (default 1), at WxH (1280x720) on one
@@ -20,10 +20,13 @@
  * triangles drawn per frame, the ratio of vfc's mean frame time to its own (speed-up), the ratio of
  * its mean to oracle-set's, and misses: objects the oracle sees in a frame that the configuration
  * did not draw (a conservative culler must have none; a configuration declared aggressive reports
- * them). --csv writes one row per frame and configuration. */
+ * them). --csv writes one row per frame and configuration. --instant-levels bakes the city's shrunk
+ * occluder levels (sl_shrink_occluder_levels, eps_z 0.5 m) for the `instant` culler, which then also
+ * reports its updates: visibility ms and set size per update, stalls, frames at risk. */
 #include "sightline/cull.h"
 #include "sightline/gen.h"
 #include "sightline/path.h"
+#include "sightline/region.h"
 #include "sightline/render.h"
 #include "sightline/truth.h"
 #include "sightline/view.h"
@@ -113,7 +116,7 @@ static void usage(void)
 {
     fprintf(stderr, "usage: " PROG " [--preset tiny|small|vienna] [--frames N] [--every K] [--fps F] [--seed S]\n"
                     "       [--size WxH] [--methods LIST] [--pvs FILE] [--context auto|surfaceless|device]\n"
-                    "       [--no-oracle] [--warmup N] [--csv FILE]\n"
+                    "       [--no-oracle] [--warmup N] [--csv FILE] [--instant-levels E1,E2,...]\n"
                     "LIST: comma-separated name[:key=value...] (the cull methods, gpu-hiz, none, oracle-set);\n"
                     "default: none,vfc,hzb,cullmap,dhorizon,[pvs with --pvs],gl-stopwait,chc,chc++,gpu-hiz,oracle-set\n");
     exit(2);
@@ -121,7 +124,7 @@ static void usage(void)
 
 int main(int argc, char **argv)
 {
-    const char *preset = "vienna", *list = NULL, *pvs = NULL, *csv_path = NULL, *context = "auto";
+    const char *preset = "vienna", *list = NULL, *pvs = NULL, *csv_path = NULL, *context = "auto", *levels = NULL;
     uint32_t frames = 1000, every = 1, width = 1280, height = 720, warmup = 3;
     uint64_t seed = 1;
     float fps = 30;
@@ -154,6 +157,8 @@ int main(int argc, char **argv)
             warmup = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(a, "--csv") && more)
             csv_path = argv[++i];
+        else if (!strcmp(a, "--instant-levels") && more)
+            levels = argv[++i];
         else
             usage();
     }
@@ -208,6 +213,19 @@ int main(int argc, char **argv)
     if (sl_gen_city(&co, NULL, &scene, &err) != SL_OK)
         bench_die(PROG, "gen city", &err);
     t_gen = now_ms() - t_gen;
+    double t_levels = 0;
+    if (levels) {
+        float eps[SL_OCCLUDER_LEVELS_MAX];
+        uint32_t ne = 1;
+        for (const char *q = levels; *q; q++)
+            ne += *q == ',';
+        if (ne > SL_OCCLUDER_LEVELS_MAX || !sl_parse_floats(levels, eps, (int)ne))
+            usage();
+        t_levels = now_ms();
+        if (sl_shrink_occluder_levels(scene, eps, ne, 0.5f, false, NULL, NULL, &err) != SL_OK)
+            bench_die(PROG, "occluder levels", &err);
+        t_levels = now_ms() - t_levels;
+    }
     sl_path_options po = sl_path_options_default(SL_PATH_WALK);
     po.frames = frames;
     po.fps = fps;
@@ -399,6 +417,8 @@ int main(int argc, char **argv)
     printf("# machine: %s\n", machine);
     printf("# set-up: city %.0f ms, upload %.0f ms; oracle %.0f ms (untimed); configurations rotate per frame\n",
            t_gen, t_up, t_oracle);
+    if (levels)
+        printf("# instant occluder levels %s baked in %.0f ms (GEOS, untimed)\n", levels, t_levels);
     printf("%-24s %-10s %9s %9s %9s %9s %8s %8s %8s %8s %9s %11s %8s %8s %9s %9s\n", "config", "guarantee",
            "mean_ms", "median", "p95", "max", "cull", "draw", "wait", "queries", "objects", "triangles", "vs_vfc",
            "vs_orac", "misses", "gl_shown");
@@ -434,6 +454,19 @@ int main(int argc, char **argv)
            "the oracle sees, or a culler drawing through the renderer (query cullers, gpu-hiz: their guarantee is "
            "for the renderer's image) dropped one GL would draw; a miss GL does not show is a difference between "
            "the oracle's rasteriser and GL's (8 subpixel bits on llvmpipe, float depth ties), not a culling error\n");
+    for (uint32_t i = 0; i < nc; i++) {
+        sl_instant_stats is;
+        if (cfg[i].kind != CFG_CULLER || sl_instant_get_stats(cfg[i].culler, &is, NULL) != SL_OK)
+            continue;
+        double u = is.adopted ? (double)is.adopted : 1;
+        printf("# %s: %llu updates adopted over %llu frames: visibility %.2f ms per update (wall, in its thread), "
+               "%.1f objects per update (%.1f KiB as 32-bit ids), eps %g m at the end, %llu stalls (%.1f ms), "
+               "%llu frames at risk, %llu updates short of a level\n",
+               cfg[i].spec, (unsigned long long)is.adopted, (unsigned long long)is.frames, is.vis_ms_total / u,
+               (double)is.set_size_total / u, 4.0 * (double)is.set_size_total / u / 1024.0, (double)is.eps_displayed,
+               (unsigned long long)is.stalls, is.stall_ms, (unsigned long long)is.frames_at_risk,
+               (unsigned long long)is.eps_short);
+    }
     int bad = 0;
     for (uint32_t i = 0; i < nc; i++)
         if (cfg[i].conservative && (cfg[i].gl_misses || (!cfg[i].gl_driven && cfg[i].misses)))

@@ -55,6 +55,16 @@ static void touch(sl_scene s)
     }
     for (uint32_t i = 0; i < st.footprint_count; i++)
         (void)sl_scene_footprint(s, i);
+    /* format 1.2: the shrunk occluder levels (their footprints' vertices are read) */
+    for (uint32_t l = 0; l < sl_scene_occluder_level_count(s); l++) {
+        sl_occluder_level_view lv = sl_scene_occluder_level(s, l);
+        for (uint32_t k = 0; k < lv.footprint_count; k++) {
+            sl_footprint_view f = sl_scene_occluder_level_footprint(s, l, k);
+            if (!f.xy || f.vertex_count < 3)
+                abort(); /* the reader let a bad level footprint through */
+            (void)(f.xy[0] + f.xy[2 * (size_t)f.vertex_count - 1]);
+        }
+    }
     (void)sl_scene_bsp_find_leaf(s, (sl_vec3){0, 0, 0});
     (void)sl_scene_ground_height(s, 1.5f, -2.5f);
 }

@@ -5,6 +5,7 @@
 
 #include "tool.h"
 #include "sightline/import.h"
+#include "sightline/region.h"
 #include "sightline/scene.h"
 #include "sightline/slscene.h"
 
@@ -82,22 +83,51 @@ static void usage(FILE *out)
     fprintf(out,
             "usage: sightline occluders SCENE -o OUT.slscene [--voxel M] [--min-box M] [--weld M]\n"
             "                           [--per-object N] [--max-boxes N] [--max-voxels N] [--no-expand]\n"
-            "                           [--json] [--quiet]\n\n"
+            "                           [--json] [--quiet]\n"
+            "       sightline occluders SCENE -o OUT.slscene --instant-levels E1,E2,...\n"
+            "                           [--instant-vertical Z] [--merge] [--json] [--quiet]\n\n"
             "Synthesise conservative occluders for a scene (any scene argument: a .slscene, a model\n"
             "file, city:PRESET) and save it: every static, opaque object without occluders of its own\n"
             "whose mesh is closed after welding gets boxes that lie strictly inside it (voxelised\n"
             "solid interior merged into boxes); open meshes get none. The occlusion methods (hzb,\n"
             "lazygrid, ...) then use them as the objects' occluders. `sightline import` does this by\n"
             "default (docs/occluder-synthesis.md).\n\n"
+            "With --instant-levels, no boxes are synthesised: the scene's building footprints are shrunk\n"
+            "(GEOS) by each eps in metres in plan, their roofs lowered and bases raised by Z, and stored\n"
+            "with the scene as occluder levels for the `instant` culler (.slscene 1.2; docs/instant.md):\n"
+            "a set computed at P on a level holds for every eye within eps of P in plan and Z in height.\n\n"
             "options:\n"
             "  -o, --output FILE  the scene with its occluders (.slscene; required)\n"
             CLI_SYNTH_HELP
+            "  --instant-levels L up to 16 distinct eps values in metres, comma-separated (e.g. 0.5,1,1.5,2,3)\n"
+            "  --instant-vertical Z  vertical tolerance in metres (default 0.5; at most each eps; 'ball': eps)\n"
+            "  --merge            erode touching footprints as one block (default: each alone, which keeps\n"
+            "                     the buildings behind a near one as occluders when the near one is left out)\n"
             "  --json             statistics as JSON on stdout\n"
             "  --quiet            no progress output\n"
             "  --help             this text\n\n"
             "examples:\n"
             "  sightline occluders house.slscene -o house-occ.slscene\n"
-            "  sightline occluders model.glb --voxel 0.1 --per-object 32 -o model.slscene --json\n");
+            "  sightline occluders model.glb --voxel 0.1 --per-object 32 -o model.slscene --json\n"
+            "  sightline occluders city:vienna --instant-levels 0.5,1,1.5,2,3 -o vienna-iv.slscene\n");
+}
+
+/* "0.5,1,1.5": up to SL_OCCLUDER_LEVELS_MAX comma-separated numbers. */
+static bool parse_levels(cli_args *a, const char *text, float *out, uint32_t *n)
+{
+    if (!text)
+        return false;
+    uint32_t k = 1;
+    for (const char *p = text; *p; p++)
+        k += *p == ',';
+    if (k > SL_OCCLUDER_LEVELS_MAX || !sl_parse_floats(text, out, (int)k)) {
+        cli_error(a->cmd, "--instant-levels: expected 1..%u comma-separated numbers, got '%s'", SL_OCCLUDER_LEVELS_MAX,
+                  text);
+        a->error = true;
+        return false;
+    }
+    *n = k;
+    return true;
 }
 
 int sl_cmd_occluders(int argc, char **argv)
@@ -108,8 +138,24 @@ int sl_cmd_occluders(int argc, char **argv)
     cli_import imp = {0};
     sl_synth_options so = sl_synth_defaults();
     const char *name, *val;
+    float levels[SL_OCCLUDER_LEVELS_MAX];
+    uint32_t nlevels = 0;
+    bool merge = false;
+    float vertical = 0.5f;
     while (cli_next(&a, &name, &val)) {
         if (cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_JSON | CLI_QUIET, &com)) {
+        } else if (!strcmp(name, "instant-levels")) {
+            parse_levels(&a, cli_value(&a, name, val), levels, &nlevels);
+        } else if (!strcmp(name, "merge")) {
+            merge = true;
+        } else if (!strcmp(name, "instant-vertical")) {
+            const char *m = cli_value(&a, name, val);
+            if (m && !strcmp(m, "ball"))
+                vertical = -1;
+            else if (m && cli_parse_float(&a, name, m, &vertical) && !(vertical >= 0 && vertical < 1e4f)) {
+                cli_error(a.cmd, "--instant-vertical: expected a number in [0, 10000) or 'ball', got '%s'", m);
+                a.error = true;
+            }
         } else if (cli_synth_option(&a, name, val, &so)) {
         } else if (!cli_import_option(&a, name, val, &imp)) {
             cli_unknown(&a, name);
@@ -138,6 +184,45 @@ int sl_cmd_occluders(int argc, char **argv)
     sl_scene scene;
     if (cli_open_scene(com.input, NULL, &io, NULL, &scene, NULL, 0, &err) != SL_OK)
         return cli_fail(a.cmd, &err);
+    if (nlevels) {
+        sl_occluder_levels_stats ls;
+        if (sl_shrink_occluder_levels(scene, levels, nlevels, vertical, merge, NULL, &ls, &err) != SL_OK ||
+            sl_scene_save(scene, com.output, &err) != SL_OK) {
+            sl_scene_destroy(scene);
+            return cli_fail(a.cmd, &err);
+        }
+        if (com.json) {
+            cli_json j;
+            cli_json_begin(&j, stdout);
+            cli_json_string(&j, "input", com.input);
+            cli_json_string(&j, "output", com.output);
+            cli_json_uint(&j, "footprints", sl_scene_footprint_count(scene));
+            cli_json_bool(&j, "merge", merge);
+            cli_json_array_begin(&j, "levels");
+            for (uint32_t l = 0; l < ls.levels; l++) {
+                cli_json_object_begin(&j, NULL);
+                cli_json_double(&j, "eps", ls.eps[l]);
+                cli_json_double(&j, "eps_z", ls.eps_z[l]);
+                cli_json_uint(&j, "footprints", ls.footprints[l]);
+                cli_json_uint(&j, "vanished", ls.vanished[l]);
+                cli_json_uint(&j, "pieces_dropped", ls.pieces_dropped[l]);
+                cli_json_uint(&j, "holes_dropped", ls.holes_dropped[l]);
+                cli_json_object_end(&j);
+            }
+            cli_json_array_end(&j);
+            cli_json_double(&j, "seconds", ls.seconds);
+            cli_json_end(&j);
+        } else {
+            printf("%s -> %s\n", com.input, com.output);
+            printf("  footprints     %u, shrunk%s in %.2f s\n", sl_scene_footprint_count(scene),
+                   merge ? " (touching ones merged)" : "", ls.seconds);
+            for (uint32_t l = 0; l < ls.levels; l++)
+                printf("  level eps %-5g eps_z %-5g %u footprints (%u vanished, %u pieces and %u courtyards dropped)\n",
+                       (double)ls.eps[l], (double)ls.eps_z[l], ls.footprints[l], ls.vanished[l], ls.pieces_dropped[l], ls.holes_dropped[l]);
+        }
+        sl_scene_destroy(scene);
+        return 0;
+    }
     uint32_t before = sl_scene_occluder_count(scene);
     sl_synth_stats st;
     if (sl_synth_occluders(scene, &so, NULL, &st, &err) != SL_OK || sl_scene_save(scene, com.output, &err) != SL_OK) {

@@ -175,6 +175,32 @@ SL_API const char *sl_culler_method(sl_culler culler);
 /* The effective options, defaults included, as "key=value,key=value" (for reports). */
 SL_API const char *sl_culler_options(sl_culler culler);
 
+/* ---- Instant Visibility (the `instant` method, docs/instant.md) ----
+ * What an `instant` culler has done since its creation: updates (visibility computations) and
+ * their times and sizes, stalls (late=stall: frames that waited for a set valid at the displayed
+ * eye) and frames at risk (late=continue: frames displayed with a set computed too far away). */
+typedef struct sl_instant_stats {
+    uint64_t frames;            /* cull calls */
+    uint64_t updates;           /* visibility updates started (posted or computed in place) */
+    uint64_t adopted;           /* updates that became the displayed set */
+    uint64_t startups;          /* frames without any set (the first, after scene_changed) */
+    uint64_t stalls;            /* late=stall: frames that waited */
+    uint64_t frames_at_risk;    /* late=continue: frames whose eye was outside the set's eps-ball */
+    uint64_t eps_short;         /* adaptive eps: updates for which no stored level was large enough */
+    double stall_ms;            /* time stalled: simulated ms (clock=simulated) or wall ms */
+    double sim_wait_ms;         /* clock=simulated: wall ms the caller waited for a thread behind the clock */
+    double vis_ms_last, vis_ms_total; /* wall time of the updates adopted */
+    uint64_t set_size_total;    /* objects in the adopted sets, summed */
+    uint32_t set_size_last;
+    uint32_t levels;            /* stored occluder levels of the scene (0: its own footprints, eps 0) */
+    float eps_last;             /* eps of the last adopted set */
+    float eps_displayed;        /* eps of the set displayed by the last frame */
+    bool stalled_now, at_risk_now; /* the last frame stalled / was at risk */
+    double clock_ms;            /* the frame clock of the last frame (simulated or wall ms) */
+} sl_instant_stats;
+/* SL_ERROR_INVALID_ARGUMENT when c is not an `instant` culler. Same thread rules as sl_culler_stats. */
+SL_API sl_status sl_instant_get_stats(sl_culler c, sl_instant_stats *out, sl_error *err);
+
 /* ---- occlusion recordings (debugging the occlusion framework) ----
  * A culler of the occlusion framework created with record=FILE writes frame debug_frame's
  * occluder batches and queries to FILE (docs/occlusion.md). A replay re-runs them on the

@@ -184,6 +184,31 @@ SL_API sl_shrunk_polygon sl_shrunk_get(sl_shrunk shrunk, uint32_t index);
 SL_API uint32_t sl_shrunk_vanished(sl_shrunk shrunk, const uint32_t **footprints);
 SL_API void sl_shrunk_get_stats(sl_shrunk shrunk, sl_shrink_stats *out);
 
+/* Shrunk occluder levels stored with the scene (Instant Visibility, docs/instant.md): for each eps
+ * (1..SL_OCCLUDER_LEVELS_MAX distinct values in (0, 10000] m, any order) the footprints eroded in
+ * plan by sl_shrink_footprints(eps, SL_SHRINK_CYLINDER, merge) become a level of the scene
+ * (sl_scene_add_occluder_level, scene.h): each piece's outer ring, its roof lowered and its base
+ * raised by eps_z = min(vertical, eps) (vertical < 0: eps, the ball). The level then hides from P
+ * only what the originals hide from every point within eps of P in plan and eps_z in height (the
+ * proof of Theorem 3 with the displacement split in its horizontal and vertical parts). A merged
+ * piece's courtyard walls are not used, and pieces the polygon rules refuse or that lose their
+ * height are dropped: all conservative. Replaces the scene's levels; on failure the scene has
+ * none. Full library only (GEOS). stats may be NULL. */
+#define SL_OCCLUDER_LEVELS_MAX 16u
+typedef struct sl_occluder_levels_stats {
+    uint32_t levels;
+    float eps[SL_OCCLUDER_LEVELS_MAX];            /* ascending */
+    float eps_z[SL_OCCLUDER_LEVELS_MAX];          /* the vertical tolerance of each */
+    uint32_t footprints[SL_OCCLUDER_LEVELS_MAX];  /* footprints of each level */
+    uint32_t vanished[SL_OCCLUDER_LEVELS_MAX];    /* scene footprints with nothing left */
+    uint32_t pieces_dropped[SL_OCCLUDER_LEVELS_MAX];
+    uint32_t holes_dropped[SL_OCCLUDER_LEVELS_MAX];
+    double seconds;
+} sl_occluder_levels_stats;
+SL_API sl_status sl_shrink_occluder_levels(sl_scene scene, const float *eps, uint32_t count, float vertical,
+                                           bool merge, const sl_allocator *alloc, sl_occluder_levels_stats *stats,
+                                           sl_error *err);
+
 /* 2.5D: erode a height field (nx*ny samples, row-major, spacing `cell`, read as bilinear) by eps:
  * out (nx*ny) is a bilinear field nowhere above the eroded one — with CYLINDER the minimum over the
  * horizontal eps-disk, with BALL that minimum lowered by eps. out may not alias heights. */

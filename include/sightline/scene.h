@@ -342,6 +342,39 @@ SL_API bool sl_texture_path_check(const char *path, const char **why);
  * file system; safe to call concurrently. */
 SL_API sl_status sl_scene_texture_path(sl_scene scene, uint32_t material, char *buf, size_t cap, sl_error *err);
 
+/* --- shrunk occluder levels (Instant Visibility, docs/instant.md) --------------------------------
+ * A scene may carry a few "levels": its footprints eroded ahead of time by a fixed eps (Wonka's
+ * thesis ch. 7, baked by sl_shrink_occluder_levels in region.h, which needs GEOS), so that a
+ * run-time culler (`instant`) runs a point method on occluders shrunk by eps without GEOS. A level
+ * is a list of footprints (simple CCW polygons with base and roof, like sl_scene_footprint) that
+ * replace the scene's footprints for that culler: each footprint lies at least eps inside the original
+ * one in plan, its roof lowered and its base raised by eps_z, so that it hides from P only what the
+ * originals hide from every point within eps of P horizontally and eps_z vertically. Levels are kept
+ * in strictly ascending eps and stored in .slscene 1.2 (sections OLVL, OLFP, OLXY; a scene without
+ * levels is written as 1.1, byte for byte as before). */
+typedef struct sl_occluder_level_view {
+    float eps;                  /* horizontal, metres, > 0 */
+    float eps_z;                /* vertical, metres, in [0, eps] */
+    uint32_t flags;             /* SL_OCCLUDER_LEVEL_* */
+    uint32_t footprint_count;
+} sl_occluder_level_view;
+enum {
+    SL_OCCLUDER_LEVEL_MERGED = 1u << 0 /* touching footprints were eroded as one block */
+};
+/* Add a level (the footprints are copied and validated as sl_scene_add_footprint does). eps must
+ * be finite, > 0 and larger than every level's already there; eps_z in [0, eps]; flags only the
+ * bits above. SL_ERROR_INVALID_ARGUMENT naming the footprint and the reason otherwise (nothing
+ * added). */
+SL_API sl_status sl_scene_add_occluder_level(sl_scene scene, float eps, float eps_z, uint32_t flags,
+                                             const sl_footprint_desc *footprints, uint32_t count, sl_error *err);
+/* Remove every level. */
+SL_API void sl_scene_clear_occluder_levels(sl_scene scene);
+SL_API uint32_t sl_scene_occluder_level_count(sl_scene scene);
+/* Level `level` (a zeroed view beyond the count). */
+SL_API sl_occluder_level_view sl_scene_occluder_level(sl_scene scene, uint32_t level);
+/* Footprint `index` of a level (a zeroed view beyond the counts); borrowed like sl_scene_footprint. */
+SL_API sl_footprint_view sl_scene_occluder_level_footprint(sl_scene scene, uint32_t level, uint32_t index);
+
 /* World bounds of all objects. */
 SL_API sl_aabb sl_scene_bounds(sl_scene scene);
 SL_API void sl_scene_get_stats(sl_scene scene, sl_scene_stats *out);

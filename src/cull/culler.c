@@ -447,6 +447,11 @@ sl_status sl_culler_cull_view(sl_culler c, const sl_view *view_in, uint32_t *out
     return SL_OK;
 }
 
+void *sl_culler_state_of(sl_culler c, const sl_cull_method *m)
+{
+    return c && c->method == m ? c->state : NULL;
+}
+
 void sl_culler_stats(sl_culler c, sl_cull_stats *out)
 {
     if (!out)

@@ -89,6 +89,10 @@ SL_API sl_status sl_culler_create_from_method(const sl_cull_method *method, sl_s
                                        const sl_culler_params *params, const sl_allocator *alloc, sl_culler *out,
                                        sl_error *err);
 
+/* The state of culler c when its method is m, else NULL (a method's own public calls, such as
+ * sl_instant_get_stats, reach their state through it). */
+void *sl_culler_state_of(sl_culler c, const sl_cull_method *m);
+
 /* ---- helpers for methods ---- */
 
 /* Milliseconds between two sl_now() readings. */

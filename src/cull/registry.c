@@ -21,7 +21,8 @@
     X(cplp)                     \
     X(stopwait)                 \
     X(chc)                      \
-    X(chcpp)
+    X(chcpp)                    \
+    X(instant)
 
 #define SL_DECLARE_METHOD(name) extern const sl_cull_method sl_cull_method_##name;
 SL_CULL_METHODS(SL_DECLARE_METHOD)

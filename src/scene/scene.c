@@ -69,6 +69,7 @@ void sl_scene_destroy(sl_scene s)
     sl_array_free(a, &s->uvs, sizeof(float));
     sl_array_free(a, &s->mesh_uvs, 1);
     sl_scene_names_free(s);
+    sl_scene_levels_free(s);
     sl_strfree(a, s->base_dir);
     sl_file_unmap(&s->mapping);
     sl_free(a, s, sizeof *s);
@@ -295,9 +296,24 @@ static bool polygon_is_simple(const float *xy, uint32_t n, uint32_t *bad_i, uint
     return true;
 }
 
+bool sl_scene_polygon_ok(const float *xy, uint32_t n)
+{
+    if (!xy)
+        return false;
+    if (n >= 2 && xy[0] == xy[2 * (n - 1)] && xy[1] == xy[2 * (n - 1) + 1])
+        n--;
+    if (n < 3)
+        return false;
+    for (uint32_t i = 0; i < n; i++)
+        if (!isfinite(xy[2 * i]) || !isfinite(xy[2 * i + 1]))
+            return false;
+    uint32_t bi, bj;
+    return fabs(polygon_area(xy, n)) > 1e-9 && polygon_is_simple(xy, n, &bi, &bj);
+}
+
 /* Validate a polygon and append it CCW to an xy array. */
-static sl_status push_polygon(struct sl_scene_t *s, sl_array *xy_arr, const float *xy, uint32_t n, const char *what,
-                              uint32_t *first, uint32_t *count, sl_error *err)
+sl_status sl_scene_push_polygon(struct sl_scene_t *s, sl_array *xy_arr, const float *xy, uint32_t n, const char *what,
+                                uint32_t *first, uint32_t *count, sl_error *err)
 {
     if (!xy)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "%s: NULL vertices", what);
@@ -346,7 +362,7 @@ sl_status sl_scene_add_footprint(sl_scene s, const sl_footprint_desc *d, uint32_
     if (!sl_array_reserve(A(s), &s->footprints, sizeof(sl_footprint_rec), 1))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", what);
     sl_footprint_rec rec = {0, 0, d->base_z, d->roof_z, d->object, 0};
-    sl_status st = push_polygon(s, &s->footprint_xy, d->xy, d->vertex_count, what, &rec.first_vertex, &rec.vertex_count, err);
+    sl_status st = sl_scene_push_polygon(s, &s->footprint_xy, d->xy, d->vertex_count, what, &rec.first_vertex, &rec.vertex_count, err);
     if (st != SL_OK)
         return st;
     sl_array_push(A(s), &s->footprints, sizeof rec, &rec, 1);
@@ -615,7 +631,7 @@ sl_status sl_scene_add_street_polygon(sl_scene s, const float *xy, uint32_t n, s
     if (!sl_array_reserve(A(s), &s->street_polys, sizeof(sl_polygon_rec), 1))
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", what);
     sl_polygon_rec rec;
-    sl_status st = push_polygon(s, &s->street_xy, xy, n, what, &rec.first_vertex, &rec.vertex_count, err);
+    sl_status st = sl_scene_push_polygon(s, &s->street_xy, xy, n, what, &rec.first_vertex, &rec.vertex_count, err);
     if (st != SL_OK)
         return st;
     sl_array_push(A(s), &s->street_polys, sizeof rec, &rec, 1);

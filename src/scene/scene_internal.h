@@ -38,6 +38,14 @@ typedef struct sl_footprint_rec {
     uint32_t reserved;
 } sl_footprint_rec;
 
+/* One shrunk occluder level: its footprints follow those of the levels before it in olevel_fps. */
+typedef struct sl_olevel_rec {
+    float eps;                  /* horizontal */
+    float eps_z;                /* vertical, in [0, eps] */
+    uint32_t flags;             /* SL_OCCLUDER_LEVEL_* */
+    uint32_t footprint_count;
+} sl_olevel_rec;
+
 typedef struct sl_occluder_rec {
     uint32_t mesh;
     uint32_t transform;         /* index into transforms, or SL_NONE */
@@ -113,6 +121,12 @@ struct sl_scene_t {
     sl_array object_name_off;   /* uint32 per object: where its name starts in the text (derived, not stored) */
     char *base_dir;             /* folder texture paths are relative to (owned), or NULL */
 
+    /* shrunk occluder levels (occluder_levels.c; .slscene 1.2 OLVL, OLFP, OLXY) */
+    sl_array olevels;           /* sl_olevel_rec, ascending eps */
+    sl_array olevel_fps;        /* sl_footprint_rec, the levels' footprints one level after another */
+    sl_array olevel_xy;         /* float pairs */
+    sl_array olevel_first;      /* uint32 per level: its first footprint (derived, not stored) */
+
     /* backing file mapping of a loaded .slscene (NULL when built in memory) */
     sl_mapping mapping;
 };
@@ -148,6 +162,16 @@ void sl_scene_update_object_bounds(struct sl_scene_t *s, uint32_t object);
  * object/footprint/occluder references, BSP child/leaf/cluster indices. Names the offending
  * element in err. */
 sl_status sl_scene_validate(const struct sl_scene_t *s, sl_error *err);
+
+/* Whether sl_scene_push_polygon would accept the polygon (the bakers drop what it would refuse). */
+bool sl_scene_polygon_ok(const float *xy, uint32_t n);
+/* Validate a polygon and append it CCW to an xy array (the footprint rules: >= 3 vertices, finite,
+ * non-zero area, simple; a repeated closing vertex dropped). */
+sl_status sl_scene_push_polygon(struct sl_scene_t *s, sl_array *xy_arr, const float *xy, uint32_t n, const char *what,
+                                uint32_t *first, uint32_t *count, sl_error *err);
+/* Occluder levels (occluder_levels.c): release; check and index the arrays a reader filled. */
+void sl_scene_levels_free(struct sl_scene_t *s);
+sl_status sl_scene_levels_load(struct sl_scene_t *s, sl_error *err);
 
 /* Recompute all mesh bounds and object bounds (after a load). */
 void sl_scene_recompute_bounds(struct sl_scene_t *s);

@@ -34,7 +34,8 @@
 #endif
 
 #define SLS_MAJOR 1u
-#define SLS_MINOR 1u /* 1.1: materials, object materials, UVs (1.0 files still load) */
+#define SLS_MINOR 2u /* 1.1: materials, object materials, UVs; 1.2: shrunk occluder levels (1.0 files still load) */
+#define SLS_MINOR_NO_LEVELS 1u /* a scene without occluder levels is written as 1.1, byte for byte as before */
 #define SLS_HEADER_SIZE 64u
 #define SLS_ENTRY_SIZE 48u
 #define SLS_ALIGN 64u
@@ -82,6 +83,10 @@ SLS_LAYOUT(sl_footprint_rec, 24);
 SLS_FIELD(sl_footprint_rec, base_z, 8);
 SLS_FIELD(sl_footprint_rec, object, 16);
 SLS_FIELD(sl_footprint_rec, reserved, 20);
+SLS_LAYOUT(sl_olevel_rec, 16);
+SLS_FIELD(sl_olevel_rec, eps_z, 4);
+SLS_FIELD(sl_olevel_rec, flags, 8);
+SLS_FIELD(sl_olevel_rec, footprint_count, 12);
 SLS_LAYOUT(sl_occluder_rec, 16);
 SLS_FIELD(sl_occluder_rec, object, 8);
 SLS_FIELD(sl_occluder_rec, reserved, 12);
@@ -124,7 +129,8 @@ typedef enum sec_need {
     N_OPTIONAL, /* absent means empty */
     N_TERRAIN,  /* present exactly when the header has the terrain flag */
     N_BSP_HEAD, /* present exactly when the header has the BSP flag */
-    N_BSP       /* optional, and only with the BSP flag */
+    N_BSP,      /* optional, and only with the BSP flag */
+    N_LEVELS    /* the occluder levels: all three present (OLVL with at least one level) or none */
 } sec_need;
 
 typedef struct sec_def {
@@ -178,6 +184,10 @@ static const sec_def k_defs[] = {
     {"MUVS", 1, ARR(mesh_uvs), K_ARRAY, N_OPTIONAL, ID_MAX, "mesh uv flags", 1},
     {"ONAM", sizeof(uint32_t), ARR(object_name_len), K_ARRAY, N_OPTIONAL, ID_MAX, "object name lengths", 1},
     {"NAMT", 1, ARR(object_name_text), K_ARRAY, N_OPTIONAL, UINT32_MAX, "object names", 1},
+    /* 1.2, written only when the scene has occluder levels */
+    {"OLVL", sizeof(sl_olevel_rec), ARR(olevels), K_ARRAY, N_LEVELS, 4096, "occluder levels", 2},
+    {"OLFP", sizeof(sl_footprint_rec), ARR(olevel_fps), K_ARRAY, N_LEVELS, ID_MAX, "occluder level footprints", 2},
+    {"OLXY", sizeof(float), ARR(olevel_xy), K_ARRAY, N_LEVELS, XY_MAX, "occluder level footprint vertices", 2},
 };
 #define SLS_NDEFS SL_COUNTOF(k_defs)
 
@@ -270,7 +280,8 @@ static sl_status save_to(sl_scene s, const char *path, int fd, sl_error *err)
     sl_status st = SL_OK;
     for (size_t i = 0; i < SLS_NDEFS && st == SL_OK; i++) {
         const sec_def *d = &k_defs[i];
-        if ((d->need == N_TERRAIN && !s->has_terrain) || ((d->need == N_BSP || d->need == N_BSP_HEAD) && !s->has_bsp))
+        if ((d->need == N_TERRAIN && !s->has_terrain) || ((d->need == N_BSP || d->need == N_BSP_HEAD) && !s->has_bsp) ||
+            (d->need == N_LEVELS && !s->olevels.count))
             continue;
         out_sec *o = &secs[n++];
         o->def = d;
@@ -333,7 +344,8 @@ static sl_status save_to(sl_scene s, const char *path, int fd, sl_error *err)
         cs[i].data = secs[i].data;
         cs[i].size = secs[i].size;
     }
-    st = sl_container_write(a, path, fd, k_magic, SLS_MAJOR, SLS_MINOR, flags, SLS_HASH_SEED, cs, n, err);
+    uint32_t minor = s->olevels.count ? SLS_MINOR : SLS_MINOR_NO_LEVELS;
+    st = sl_container_write(a, path, fd, k_magic, SLS_MAJOR, minor, flags, SLS_HASH_SEED, cs, n, err);
     free_out(a, secs, n);
     return st;
 }
@@ -764,6 +776,24 @@ static sl_status read_table(reader *r, sls_entry **out_ents, uint32_t *out_count
             why = "present but the header has no terrain flag";
         else if (present && (def->need == N_BSP || def->need == N_BSP_HEAD) && !bsp)
             why = "present but the header has no bsp flag";
+        else if (def->need == N_LEVELS) {
+            bool all = true, none = true;
+            for (size_t d2 = 0; d2 < SLS_NDEFS; d2++) {
+                if (k_defs[d2].need != N_LEVELS)
+                    continue;
+                bool here = false;
+                for (uint32_t i = 0; i < count; i++)
+                    if (ents[i].def == &k_defs[d2]) {
+                        here = true;
+                        if (d2 == d && memcmp(def->tag, "OLVL", 4) == 0 && ents[i].count == 0)
+                            why = "present but holds no level (a scene without levels has no level sections)";
+                    }
+                all &= here;
+                none &= !here;
+            }
+            if (!all && !none)
+                why = "the occluder level sections OLVL, OLFP and OLXY come together or not at all";
+        }
         if (why) {
             st = sl_fail(r->err, SL_ERROR_FORMAT, "%s: section '%s' (%s): %s", r->name, def->tag, def->what, why);
             goto done;
@@ -826,6 +856,8 @@ static sl_status load(reader *r, sl_mapping *map, sl_scene *out)
     if (st == SL_OK && (st = sl_scene_names_load(s, r->err)) != SL_OK)
         sl_error_prefix(r->err, "%s", r->name);
     if (st == SL_OK && (st = sl_scene_validate(s, r->err)) != SL_OK)
+        sl_error_prefix(r->err, "%s", r->name);
+    if (st == SL_OK && (st = sl_scene_levels_load(s, r->err)) != SL_OK)
         sl_error_prefix(r->err, "%s", r->name);
     if (st == SL_OK)
         st = check_semantics(r, s);
