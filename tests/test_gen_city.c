@@ -501,8 +501,22 @@ static void test_grid_pinned(void **state)
 
 static void expect_invalid(const sl_city_options *o, sl_status want, const char *needle);
 
-/* No two building footprints overlap (they may share walls): no vertex strictly inside the other,
- * no proper crossing of edges, and neither's centroid (when inside itself) inside the other. */
+/* Some edge midpoint of a lies strictly inside b (catches an edge cutting through b between two
+ * points on b's boundary, which neither vertices nor proper crossings show). */
+static bool midpoint_inside(const float *a, uint32_t na, const float *b, uint32_t nb, double tol)
+{
+    for (uint32_t i = 0; i < na; i++) {
+        const float *p = a + 2 * i, *q = a + 2 * ((i + 1) % na);
+        float m[2] = {0.5f * (p[0] + q[0]), 0.5f * (p[1] + q[1])};
+        if (strictly_inside(b, nb, m, tol))
+            return true;
+    }
+    return false;
+}
+
+/* No two building footprints overlap (they may share walls): no vertex or edge midpoint strictly
+ * inside the other, no proper crossing of edges, and neither's centroid (when inside itself)
+ * inside the other. */
 static void check_buildings_disjoint(sl_scene s)
 {
     uint32_t nf = sl_scene_footprint_count(s);
@@ -526,6 +540,8 @@ static void check_buildings_disjoint(sl_scene s)
             sl_footprint_view b = sl_scene_footprint(s, g);
             bool cb = strictly_inside(b.xy, b.vertex_count, ctr[g], 0.01);
             if (polygons_overlap(a.xy, a.vertex_count, b.xy, b.vertex_count, 0.01) ||
+                midpoint_inside(a.xy, a.vertex_count, b.xy, b.vertex_count, 0.01) ||
+                midpoint_inside(b.xy, b.vertex_count, a.xy, a.vertex_count, 0.01) ||
                 (ca && strictly_inside(b.xy, b.vertex_count, ctr[f], 0.01)) ||
                 (cb && strictly_inside(a.xy, a.vertex_count, ctr[g], 0.01)))
                 fail_msg("footprints %u and %u (objects %u, %u) overlap", f, g, a.object, b.object);
