@@ -1095,6 +1095,9 @@ static void test_cli(void **state)
     assert_int_equal(access(pa, R_OK), 0);
     /* the oldtown style and the stats */
     assert_int_equal(run("%s gen city --preset tiny --style baroque --dry-run 2> /dev/null", sl), 2);
+    /* the scene spec city:oldtown-small[:SEED] */
+    assert_int_equal(run("%s info city:oldtown-small:4 > /dev/null", sl), 0);
+    assert_int_equal(run("%s info city:oldtown-big 2> /dev/null", sl), 1);
     assert_int_equal(run("%s gen city --preset oldtown-small --stats --dry-run --json --quiet > %s/o.json", sl, dir), 0);
     snprintf(pa, sizeof pa, "%s/o.json", dir);
     json = slurp(pa, &n);
