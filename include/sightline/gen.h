@@ -5,7 +5,9 @@
  * varied width, straight avenues, a few dropped segments), perimeter blocks split into lots with
  * one building per lot (convex, L- and U-shaped footprints around courtyards), some towers,
  * parks and squares, and a river with wide open banks and a few bridges so that long views exist
- * beside the mostly occluded street views. Optional smooth terrain relief.
+ * beside the mostly occluded street views. Optional smooth terrain relief. That is the style
+ * `grid`; the style `oldtown` (sl_city_style below) makes a historic centre on the same machinery,
+ * with curved streets, T-junctions and short sight lines.
  *
  * What goes into the scene (see docs/city-generator.md):
  *  - one BUILDING object (flag OCCLUDER) per building, its mesh in world coordinates, and its
