@@ -1,6 +1,6 @@
 /* Benchmark of PVS baking on the generated cities (BENCHMARKS.md, "From-region visibility").
  *
- *   bench_pvs_bake [--preset tiny|small|vienna] [--cell-size M] [--method NAME] [--options K=V,...]
+ *   bench_pvs_bake [--preset tiny|small|vienna|oldtown|oldtown-small] [--cell-size M] [--method NAME] [--options K=V,...]
  *                  [--sample N] [--threads T] [--verify N] [--face F] [--full OUT.slpvs] [--seed S]
  *
  * Street view cells of the city (max edge --cell-size), then either
@@ -10,6 +10,7 @@
  *    size (the sampled sets delta-coded and zstd-compressed in blocks of 32, scaled to all cells);
  *    --verify N holds the first N sampled cells to the region oracle (face size --face) and
  *    reports missed objects (must be 0 for a conservative method) and the over-estimation;
+ *  - --oracle-only: no bake, the region oracle's visible fraction on the --sample cells (face --face);
  *  - --full OUT: the whole bake on T threads (sl_pvs_build), with its real time and file size.
  * The machine: `nproc` and the CPU model are printed with the results. */
 #include "core/sl_core.h"
@@ -39,6 +40,7 @@ int main(int argc, char **argv)
     const char *preset = "small", *method = "sample", *options = NULL, *full = NULL;
     float cell_size = 12;
     uint32_t sample = 200, threads = 2, verify = 0, face = 256;
+    bool oracle_only = false;
     uint64_t seed = 1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -62,9 +64,11 @@ int main(int argc, char **argv)
             full = v, i++;
         else if (!strcmp(a, "--seed") && v)
             seed = strtoull(v, NULL, 10), i++;
+        else if (!strcmp(a, "--oracle-only"))
+            oracle_only = true;
         else {
             fprintf(stderr, "usage: %s [--preset P] [--cell-size M] [--method M] [--options O] [--sample N] "
-                            "[--threads T] [--verify N] [--face F] [--full OUT] [--seed S]\n",
+                            "[--threads T] [--verify N] [--face F] [--full OUT] [--seed S] [--oracle-only]\n",
                     argv[0]);
             return 2;
         }
@@ -135,6 +139,39 @@ int main(int argc, char **argv)
             uint32_t j = i + sl_rng_below(&r, nc - i), t = pick[i];
             pick[i] = pick[j];
             pick[j] = t;
+        }
+        if (oracle_only) {
+            /* no bake: the region oracle's visible set on the sampled cells (a lower bound of the
+             * exact from-region set, so 1 - its fraction bounds what any conservative method culls) */
+            sl_region_oracle_options oo = {0};
+            oo.face_size = face;
+            oo.seed = seed;
+            sl_region_oracle ro;
+            if (sl_region_oracle_create(scene, &oo, NULL, &ro, &err) != SL_OK) {
+                fprintf(stderr, "%s\n", err.message);
+                return 1;
+            }
+            double o0 = sl_now(), frac = 0, fmax = 0;
+            uint64_t total = 0;
+            for (uint32_t i = 0; i < sample; i++) {
+                sl_region_visibility v;
+                if (sl_region_oracle_cell(ro, cells, pick[i], &v, &err) != SL_OK) {
+                    fprintf(stderr, "%s\n", err.message);
+                    return 1;
+                }
+                double f = (double)v.visible_count / no;
+                frac += f, fmax = f > fmax ? f : fmax;
+                total += v.visible_count;
+            }
+            printf("region oracle only on %u random cells (seed %llu, face %u, %.1f s): mean visible %.1f objects, "
+                   "mean visible fraction %.4f%% (max %.4f%%), so at most %.4f%% culled on average\n",
+                   sample, (unsigned long long)seed, face, sl_now() - o0, (double)total / sample, 100 * frac / sample,
+                   100 * fmax, 100 * (1 - frac / sample));
+            sl_region_oracle_destroy(ro);
+            free(pick);
+            sl_viewcells_destroy(cells);
+            sl_scene_destroy(scene);
+            return 0;
         }
         sl_pvs_build_options bo;
         memset(&bo, 0, sizeof bo);
@@ -243,9 +280,10 @@ int main(int argc, char **argv)
                 added += v.added_last_tenth;
             }
             printf("region oracle on %u cells (face %u, %.1f s): %llu missed objects; oracle %.1f, PVS %.1f objects "
-                   "per cell (over-estimation %.2fx); %.2f objects first seen in the last 10%% of samples\n",
+                   "per cell (over-estimation %.2fx); %.2f objects first seen in the last 10%% of samples; oracle "
+                   "visible fraction %.4f%%\n",
                    verify, face, sl_now() - o0, (unsigned long long)miss, (double)ov / verify, (double)pv / verify,
-                   ov ? (double)pv / ov : 0, (double)added / verify);
+                   ov ? (double)pv / ov : 0, (double)added / verify, 100.0 * (double)ov / verify / no);
             /* where the over-estimation lies: objects per cell by kind, PVS against the oracle */
             printf("per kind, objects per cell (PVS / oracle):");
             for (uint32_t kd = 0; kd < SL_KIND_COUNT; kd++)

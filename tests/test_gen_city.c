@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "sightline/gen.h"
+#include "sightline/region.h"
 #include "sightline/slscene.h"
 #include "scene/scene_internal.h"
 
@@ -459,6 +460,230 @@ static void test_determinism(void **state)
     sl_scene_destroy(c);
 }
 
+/* The grid style's output is pinned: these hashes were taken before the oldtown style existed
+ * (scene arrays byte for byte, metadata included), so any change to the grid generator shows
+ * here. Hashes of float arrays pin this platform's libm as well (x86-64, glibc). */
+static void test_grid_pinned(void **state)
+{
+    (void)state;
+    static const struct {
+        sl_city_preset preset;
+        bool terrain;
+        uint32_t detail; /* 99: the preset's */
+        uint64_t hash;
+    } pins[] = {
+        {SL_CITY_TINY, false, 99, 0x487b7f90c7749377ull},
+        {SL_CITY_TINY, true, 4, 0x04619cf6eed6b98full},
+        {SL_CITY_SMALL, false, 99, 0xc32f3a046c820a94ull},
+        {SL_CITY_SMALL, true, 99, 0xfc549ddbc15d20fcull},
+        {SL_CITY_VIENNA, false, 99, 0x8e731a8b26751e78ull},
+    };
+    int bad = 0;
+    for (size_t k = 0; k < sizeof pins / sizeof pins[0]; k++) {
+        if (pins[k].preset == SL_CITY_VIENNA && sanitized())
+            continue; /* 1.5 s in a release build, minutes under the sanitizers */
+        sl_city_options o = sl_city_defaults(pins[k].preset);
+        o.terrain = pins[k].terrain;
+        if (pins[k].detail != 99)
+            o.detail = pins[k].detail;
+        sl_scene s = gen(&o);
+        uint64_t h = scene_hash(s);
+        if (h != pins[k].hash)
+            print_error("pin %zu (%s): scene hash 0x%016llxull, pinned 0x%016llxull\n", k,
+                        sl_city_preset_name(pins[k].preset), (unsigned long long)h, (unsigned long long)pins[k].hash);
+        bad += h != pins[k].hash;
+        sl_scene_destroy(s);
+    }
+    assert_int_equal(bad, 0);
+}
+
+/* ---- the oldtown style ---- */
+
+static void expect_invalid(const sl_city_options *o, sl_status want, const char *needle);
+
+/* Some edge midpoint of a lies strictly inside b (catches an edge cutting through b between two
+ * points on b's boundary, which neither vertices nor proper crossings show). */
+static bool midpoint_inside(const float *a, uint32_t na, const float *b, uint32_t nb, double tol)
+{
+    for (uint32_t i = 0; i < na; i++) {
+        const float *p = a + 2 * i, *q = a + 2 * ((i + 1) % na);
+        float m[2] = {0.5f * (p[0] + q[0]), 0.5f * (p[1] + q[1])};
+        if (strictly_inside(b, nb, m, tol))
+            return true;
+    }
+    return false;
+}
+
+/* No two building footprints overlap (they may share walls): no vertex or edge midpoint strictly
+ * inside the other, no proper crossing of edges, and neither's centroid (when inside itself)
+ * inside the other. */
+static void check_buildings_disjoint(sl_scene s)
+{
+    uint32_t nf = sl_scene_footprint_count(s);
+    float(*box)[4] = malloc(sizeof(float[4]) * (nf ? nf : 1));
+    float(*ctr)[2] = malloc(sizeof(float[2]) * (nf ? nf : 1));
+    assert_true(box && ctr);
+    for (uint32_t f = 0; f < nf; f++) {
+        sl_footprint_view v = sl_scene_footprint(s, f);
+        poly_box(v.xy, v.vertex_count, box[f]);
+        double cx = 0, cy = 0;
+        for (uint32_t k = 0; k < v.vertex_count; k++)
+            cx += v.xy[2 * k], cy += v.xy[2 * k + 1];
+        ctr[f][0] = (float)(cx / v.vertex_count), ctr[f][1] = (float)(cy / v.vertex_count);
+    }
+    for (uint32_t f = 0; f < nf; f++) {
+        sl_footprint_view a = sl_scene_footprint(s, f);
+        bool ca = strictly_inside(a.xy, a.vertex_count, ctr[f], 0.01);
+        for (uint32_t g = f + 1; g < nf; g++) {
+            if (!boxes_overlap(box[f], box[g], 0.01f))
+                continue;
+            sl_footprint_view b = sl_scene_footprint(s, g);
+            bool cb = strictly_inside(b.xy, b.vertex_count, ctr[g], 0.01);
+            if (polygons_overlap(a.xy, a.vertex_count, b.xy, b.vertex_count, 0.01) ||
+                midpoint_inside(a.xy, a.vertex_count, b.xy, b.vertex_count, 0.01) ||
+                midpoint_inside(b.xy, b.vertex_count, a.xy, a.vertex_count, 0.01) ||
+                (ca && strictly_inside(b.xy, b.vertex_count, ctr[f], 0.01)) ||
+                (cb && strictly_inside(a.xy, a.vertex_count, ctr[g], 0.01)))
+                fail_msg("footprints %u and %u (objects %u, %u) overlap", f, g, a.object, b.object);
+        }
+    }
+    free(box);
+    free(ctr);
+}
+
+static double rel(double a, double b) { return fabs(a - b) / fabs(b); }
+
+static void test_oldtown(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_city_preset p;
+    assert_int_equal(sl_city_preset_from_name("oldtown", &p, &err), SL_OK);
+    assert_int_equal(p, SL_CITY_OLDTOWN);
+    assert_int_equal(sl_city_preset_from_name("oldtown-small", &p, &err), SL_OK);
+    assert_int_equal(p, SL_CITY_OLDTOWN_SMALL);
+    assert_string_equal(sl_city_preset_name(SL_CITY_OLDTOWN_SMALL), "oldtown-small");
+    sl_city_style style;
+    assert_int_equal(sl_city_style_from_name("oldtown", &style, &err), SL_OK);
+    assert_int_equal(style, SL_CITY_STYLE_OLDTOWN);
+    assert_int_equal(sl_city_style_from_name("grid", &style, &err), SL_OK);
+    assert_int_equal(style, SL_CITY_STYLE_GRID);
+    assert_int_equal(sl_city_style_from_name("baroque", &style, &err), SL_ERROR_NOT_FOUND);
+    assert_non_null(strstr(err.message, "baroque"));
+    assert_string_equal(sl_city_style_name((sl_city_style)9), "unknown");
+
+    /* the oldtown presets: the extents of their grid counterparts, validated, style recorded */
+    sl_city_options ov = sl_city_defaults(SL_CITY_OLDTOWN), v = sl_city_defaults(SL_CITY_VIENNA);
+    sl_city_options o = sl_city_defaults(SL_CITY_OLDTOWN_SMALL), g = sl_city_defaults(SL_CITY_SMALL);
+    assert_int_equal(ov.style, SL_CITY_STYLE_OLDTOWN);
+    assert_int_equal(v.style, SL_CITY_STYLE_GRID);
+    assert_true(ov.extent_x == v.extent_x && ov.extent_y == v.extent_y);
+    assert_true(o.extent_x == g.extent_x && o.extent_y == g.extent_y);
+    assert_int_equal(sl_city_options_validate(&ov, &err), SL_OK);
+    assert_int_equal(sl_city_options_validate(&o, &err), SL_OK);
+
+    sl_scene a = gen(&o), b = gen(&o);
+    /* deterministic: the same options give the same bytes; another seed another city */
+    assert_true(scene_hash(a) == scene_hash(b));
+    assert_true(views_hash(a) == views_hash(b));
+    sl_city_options o2 = o;
+    o2.seed = 2;
+    sl_scene c = gen(&o2);
+    assert_true(scene_hash(a) != scene_hash(c));
+    assert_string_equal(sl_scene_meta(a, "city.style"), "oldtown");
+    assert_string_equal(sl_scene_meta(a, "preset"), "oldtown-small");
+    assert_string_equal(sl_scene_meta(a, "city.river"), "no");
+
+    /* a proper city: footprints, extent, clear streets, one connected street graph, and no two
+     * buildings on top of each other */
+    check_city(a, &o, true);
+    check_buildings_disjoint(a);
+    check_city(c, &o2, true);
+    check_buildings_disjoint(c);
+
+    /* comparable with the grid city of the same extent (within 10%), with much shorter sight
+     * lines along its streets */
+    sl_scene grid = gen(&g);
+    sl_city_stats so, sg;
+    assert_int_equal(sl_city_measure(a, &so, &err), SL_OK);
+    assert_int_equal(sl_city_measure(grid, &sg, &err), SL_OK);
+    print_message("oldtown-small vs small: objects %u / %u, mean height %.2f / %.2f m, street fraction %.4f / %.4f, "
+                  "sight lines mean %.0f / %.0f m, p90 %.0f / %.0f m\n",
+                  so.object_count, sg.object_count, so.mean_building_height, sg.mean_building_height, so.street_fraction,
+                  sg.street_fraction, so.sight_mean, sg.sight_mean, so.sight_p90, sg.sight_p90);
+    assert_true(so.extent_x == sg.extent_x && so.extent_y == sg.extent_y);
+    assert_true(rel(so.object_count, sg.object_count) <= 0.10);
+    assert_true(rel(so.mean_building_height, sg.mean_building_height) <= 0.10);
+    assert_true(rel(so.street_fraction, sg.street_fraction) <= 0.10);
+    assert_int_equal(so.building_count, sl_scene_footprint_count(a));
+    assert_true(so.sight_rays > 100);
+    assert_true(so.sight_mean < 0.6 * sg.sight_mean);
+    assert_true(so.sight_p90 < 0.6 * sg.sight_p90);
+    /* the measure itself: street length of the graph, a street fraction in (0,1) */
+    assert_true(so.street_length > 1000 && so.street_fraction > 0.2 && so.street_fraction < 0.8);
+
+    /* view cells come from its street space as from the grid's */
+    sl_viewcell_options vo = {0};
+    vo.max_edge = 12;
+    sl_viewcells cells;
+    if (sl_viewcells_from_streets(a, &vo, &cells, &err) != SL_OK)
+        fail_msg("view cells: %s", err.message);
+    sl_viewcells_stats vs;
+    sl_viewcells_get_stats(cells, &vs);
+    print_message("oldtown-small: %u view cells over %.0f m² (street area %.0f m²)\n", sl_viewcells_count(cells), vs.area,
+                  so.street_area);
+    assert_true(sl_viewcells_count(cells) > 1000);
+    assert_true(fabs(vs.area - so.street_area) < 0.02 * so.street_area);
+    sl_viewcells_destroy(cells);
+
+    sl_scene_destroy(a);
+    sl_scene_destroy(b);
+    sl_scene_destroy(c);
+    sl_scene_destroy(grid);
+}
+
+static void test_oldtown_options(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_city_options o = sl_city_defaults(SL_CITY_OLDTOWN_SMALL);
+    o.meander = 0.5f * o.block_size_min;
+    expect_invalid(&o, SL_ERROR_INVALID_ARGUMENT, "meander");
+    o = sl_city_defaults(SL_CITY_OLDTOWN_SMALL);
+    o.meander_wavelength = 10;
+    expect_invalid(&o, SL_ERROR_INVALID_ARGUMENT, "meander_wavelength");
+    o = sl_city_defaults(SL_CITY_OLDTOWN_SMALL);
+    o.district = 1;
+    expect_invalid(&o, SL_ERROR_INVALID_ARGUMENT, "district");
+    o = sl_city_defaults(SL_CITY_OLDTOWN_SMALL);
+    o.style = (sl_city_style)5;
+    expect_invalid(&o, SL_ERROR_INVALID_ARGUMENT, "style");
+    /* the grid ignores the district; meander 0 is the grid presets' value */
+    o = sl_city_defaults(SL_CITY_TINY);
+    o.district = 0;
+    assert_int_equal(sl_city_options_validate(&o, &err), SL_OK);
+    /* the style on a grid preset's options, terrain and full detail, several seeds: valid cities */
+    for (int k = 0; k < (sanitized() ? 2 : 6); k++) {
+        sl_city_options t = sl_city_defaults(SL_CITY_TINY);
+        t.style = SL_CITY_STYLE_OLDTOWN;
+        t.meander = 8, t.district = 3, t.extent_x = 400, t.extent_y = 360;
+        t.seed = 500 + (uint64_t)k;
+        t.terrain = k & 1, t.detail = k == 0 ? 4 : 2;
+        sl_scene s = gen(&t);
+        check_city(s, &t, true);
+        check_buildings_disjoint(s);
+        sl_scene_destroy(s);
+    }
+    /* sl_city_measure refuses what is not a city */
+    sl_city_stats cs;
+    assert_int_equal(sl_city_measure(NULL, &cs, &err), SL_ERROR_INVALID_ARGUMENT);
+    sl_scene empty;
+    assert_int_equal(sl_scene_create(NULL, &empty, &err), SL_OK);
+    assert_int_equal(sl_city_measure(empty, &cs, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "not a city"));
+    sl_scene_destroy(empty);
+}
+
 static void test_detail_levels(void **state)
 {
     (void)state;
@@ -868,6 +1093,36 @@ static void test_cli(void **state)
     assert_int_equal(run("cd %s && %s gen city --preset tiny --seed 3 --quiet > /dev/null", dir, sl), 0);
     snprintf(pa, sizeof pa, "%s/city-tiny-3.slscene", dir);
     assert_int_equal(access(pa, R_OK), 0);
+    /* the oldtown style and the stats */
+    assert_int_equal(run("%s gen city --preset tiny --style baroque --dry-run 2> /dev/null", sl), 2);
+    /* the scene spec city:oldtown-small[:SEED] */
+    assert_int_equal(run("%s info city:oldtown-small:4 > /dev/null", sl), 0);
+    assert_int_equal(run("%s info city:oldtown-big 2> /dev/null", sl), 1);
+    assert_int_equal(run("%s gen city --preset oldtown-small --stats --dry-run --json --quiet > %s/o.json", sl, dir), 0);
+    snprintf(pa, sizeof pa, "%s/o.json", dir);
+    json = slurp(pa, &n);
+    assert_non_null(json);
+    assert_non_null(strstr(json, "\"style\":\"oldtown\""));
+    assert_non_null(strstr(json, "\"street_fraction\":"));
+    assert_non_null(strstr(json, "\"sight_mean\":"));
+    free(json);
+    assert_int_equal(run("%s gen city --preset tiny --style oldtown --district 3 --meander 6 --stats --quiet -o %s/t.slscene "
+                         "> %s/t.txt", sl, dir, dir),
+                     0);
+    snprintf(pa, sizeof pa, "%s/t.txt", dir);
+    text = slurp(pa, &n);
+    assert_non_null(text);
+    assert_non_null(strstr(text, "style oldtown"));
+    assert_non_null(strstr(text, "street area"));
+    free(text);
+    snprintf(pa, sizeof pa, "%s/t.slscene", dir);
+    if (sl_scene_load(pa, NULL, NULL, &loaded, &err) != SL_OK)
+        fail_msg("loading the generated file: %s", err.message);
+    assert_string_equal(sl_scene_meta(loaded, "city.style"), "oldtown");
+    sl_city_stats cs;
+    assert_int_equal(sl_city_measure(loaded, &cs, &err), SL_OK);
+    assert_true(cs.extent_x == 300 && cs.extent_y == 260);
+    sl_scene_destroy(loaded);
     /* no partial output when the target cannot be written */
     assert_int_equal(run("%s gen city --preset tiny -o %s/missing/x.slscene --quiet 2> /dev/null", sl, dir), 1);
     assert_int_equal(run("rm -rf %s", dir), 0);
@@ -877,7 +1132,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_presets),       cmocka_unit_test(test_tiny),        cmocka_unit_test(test_metadata),
-        cmocka_unit_test(test_determinism),   cmocka_unit_test(test_detail_levels), cmocka_unit_test(test_terrain),
+        cmocka_unit_test(test_determinism),   cmocka_unit_test(test_grid_pinned),   cmocka_unit_test(test_oldtown), cmocka_unit_test(test_oldtown_options),   cmocka_unit_test(test_detail_levels), cmocka_unit_test(test_terrain),
         cmocka_unit_test(test_variants),      cmocka_unit_test(test_many_seeds),  cmocka_unit_test(test_no_bridges),
         cmocka_unit_test(test_validation),    cmocka_unit_test(test_cancel),      cmocka_unit_test(test_allocator),
         cmocka_unit_test(test_cli),

@@ -238,8 +238,8 @@ sl_status cli_outdir_show_bench(sl_bench bench, const char *stage, const char *o
 
 /* ---- scenes named on a command line ---- */
 /* Open the scene a command line names (`bench`, `render`, `demo`): "city:PRESET[:SEED]"
- * generates a city (sl_gen_city with the preset's defaults, tiny|small|vienna, seed 1 by default);
- * anything else is a file read by sl_scene_open_with (opt may be NULL; map: the map inside a
+ * generates a city (sl_gen_city with the preset's defaults, tiny|small|vienna|oldtown|oldtown-small,
+ * seed 1 by default); anything else is a file read by sl_scene_open_with (opt may be NULL; map: the map inside a
  * .pk3, else NULL). label (label_size bytes, may be NULL) receives a short name for reports made
  * of [A-Za-z0-9._-]: "city-small-1", or the file's base name without its extension (and "-MAP").
  * progress (may be NULL) reports city generation. tools/scene_spec.c. */

@@ -18,18 +18,28 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-            "usage: sightline gen city [--preset tiny|small|vienna] [--seed N] [-o|--output FILE.slscene]\n"
+            "usage: sightline gen city [--preset NAME] [--style grid|oldtown] [--seed N] [-o|--output FILE.slscene]\n"
             "                          [--detail 0-4] [--terrain|--no-terrain] [--relief M] [--cars N] ...\n"
-            "                          [--json] [--quiet]\n\n"
+            "                          [--stats] [--json] [--quiet]\n\n"
             "Generate a procedural city (irregular street lattice, perimeter blocks of buildings with\n"
             "façade detail, parks, squares, a river with quays and bridges, cars, trees, street lamps,\n"
             "optional terrain), save it and print a summary. The same options give the same file.\n\n"
             "presets (defaults for every option below):\n"
             "  tiny     300 x 260 m, a dozen blocks, < 50k triangles (tests)\n"
             "  small    800 x 750 m, about 130 blocks, about 0.6M triangles\n"
-            "  vienna   3000 x 2700 m, about 2,000 blocks, about 8M triangles (default)\n\n"
+            "  vienna   3000 x 2700 m, about 2,000 blocks, about 8M triangles (default)\n"
+            "  oldtown  3000 x 2700 m, style oldtown with the vienna densities and heights\n"
+            "  oldtown-small  800 x 750 m, style oldtown (tests)\n\n"
+            "styles:\n"
+            "  grid     the street lattice with straight avenues and a river (tiny, small, vienna)\n"
+            "  oldtown  a historic centre: meandering streets, T-junctions in a brick pattern per\n"
+            "           district, deep merged blocks, more squares, no avenues, no river\n\n");
+    fprintf(out,
             "options:\n"
-            "  --preset NAME         tiny, small or vienna (default vienna)\n"
+            "  --preset NAME         tiny, small, vienna, oldtown or oldtown-small (default vienna)\n"
+            "  --style NAME          grid or oldtown (default: the preset's)\n"
+            "  --stats               also print sl_city_measure's figures (extent, objects, mean building\n"
+            "                        height, street-area fraction, sight lines along the streets)\n"
             "  --seed N              random seed (default 1)\n"
             "  -o, --output FILE     output .slscene (default city-<preset>-<seed>.slscene)\n"
             "  --dry-run             generate and summarise, write nothing\n"
@@ -42,6 +52,9 @@ static void usage(FILE *out)
             "  --avenue-width M      width of avenues and quays\n"
             "  --avenue-spacing M    distance between straight avenues (0: none)\n"
             "  --street-removal F    probability of dropping a minor street segment (0..0.5)\n"
+            "  --meander M           amplitude of the streets' sine meander (0..0.3 block-min)\n"
+            "  --meander-wavelength M  its wavelength along a street (100..5000)\n"
+            "  --district N          oldtown: district size in cells of the brick pattern (2..64)\n"
             "  --parks F             share of cells that are parks\n"
             "  --squares F           share of cells that are paved squares\n"
             "  --towers F            share of cells that hold a tower\n"
@@ -66,6 +79,7 @@ static void usage(FILE *out)
             "  --help                this text\n\n"
             "examples:\n"
             "  sightline gen city --preset vienna --seed 1\n"
+            "  sightline gen city --preset oldtown --stats --dry-run\n"
             "  sightline gen city --preset tiny --detail 4 --terrain -o tiny.slscene --json\n"
             "  sightline gen city --preset small --extent 1200x1000 --cars 40 --no-river -o small.slscene\n");
 }
@@ -103,11 +117,12 @@ static const float_opt float_opts[] = {
     FOPT("bank-width", bank_width),        FOPT("bridge-spacing", bridge_spacing), FOPT("height-min", height_min),
     FOPT("height-max", height_max),        FOPT("tower-min", tower_height_min), FOPT("tower-max", tower_height_max),
     FOPT("cars", cars_per_km),             FOPT("trees", trees_per_ha),         FOPT("street-trees", street_tree_spacing),
-    FOPT("lamps", lamp_spacing),           FOPT("relief", relief),
+    FOPT("lamps", lamp_spacing),           FOPT("relief", relief),              FOPT("meander", meander),
+    FOPT("meander-wavelength", meander_wavelength),
 };
 
 static void print_summary(const char *cmd, const sl_city_options *o, sl_scene s, const char *output, double t_gen,
-                          double t_save, uint64_t file_bytes, bool json)
+                          double t_save, uint64_t file_bytes, bool json, const sl_city_stats *cs)
 {
     (void)cmd;
     sl_scene_stats st;
@@ -119,6 +134,7 @@ static void print_summary(const char *cmd, const sl_city_options *o, sl_scene s,
         cli_json_begin(&j, stdout);
         cli_json_string(&j, "generator", "city");
         cli_json_string(&j, "preset", sl_city_preset_name(o->preset));
+        cli_json_string(&j, "style", sl_city_style_name(o->style));
         cli_json_uint(&j, "seed", o->seed);
         cli_json_string(&j, "output", output);
         cli_json_uint(&j, "detail", o->detail);
@@ -159,12 +175,25 @@ static void print_summary(const char *cmd, const sl_city_options *o, sl_scene s,
         cli_json_double(&j, "seconds_save", t_save);
         cli_json_uint(&j, "file_bytes", file_bytes);
         cli_json_uint(&j, "peak_rss_bytes", peak);
+        if (cs) {
+            cli_json_object_begin(&j, "stats");
+            cli_json_uint(&j, "objects", cs->object_count);
+            cli_json_uint(&j, "buildings", cs->building_count);
+            cli_json_double(&j, "mean_building_height", cs->mean_building_height);
+            cli_json_double(&j, "street_area", cs->street_area);
+            cli_json_double(&j, "street_fraction", cs->street_fraction);
+            cli_json_double(&j, "street_length", cs->street_length);
+            cli_json_double(&j, "sight_mean", cs->sight_mean);
+            cli_json_double(&j, "sight_p90", cs->sight_p90);
+            cli_json_uint(&j, "sight_rays", cs->sight_rays);
+            cli_json_object_end(&j);
+        }
         cli_json_end(&j);
         return;
     }
     char b1[32], b2[32], b3[32];
-    printf("city %s, seed %" PRIu64 ", detail %u%s%s\n", sl_city_preset_name(o->preset), o->seed, o->detail,
-           o->river ? ", river" : "", st.has_terrain ? ", terrain" : "");
+    printf("city %s, style %s, seed %" PRIu64 ", detail %u%s%s\n", sl_city_preset_name(o->preset),
+           sl_city_style_name(o->style), o->seed, o->detail, o->river ? ", river" : "", st.has_terrain ? ", terrain" : "");
     printf("  objects        %u (meshes %u), %s blocks, %s buildings\n", st.object_count, st.mesh_count,
            blocks ? blocks : "?", buildings ? buildings : "?");
     printf("  triangles      %llu instanced, %llu stored (vertices %llu)\n", (unsigned long long)st.instanced_triangle_count,
@@ -186,6 +215,14 @@ static void print_summary(const char *cmd, const sl_city_options *o, sl_scene s,
         printf("  output         none (--dry-run), generated in %.2f s\n", t_gen);
     printf("  memory         %s in the scene, %s peak resident\n", cli_bytes(st.memory_bytes, b2, sizeof b2),
            cli_bytes(peak, b3, sizeof b3));
+    if (cs) {
+        printf("  stats          extent %.0f x %.0f m, %u objects, %u buildings, mean building height %.2f m\n",
+               cs->extent_x, cs->extent_y, cs->object_count, cs->building_count, cs->mean_building_height);
+        printf("                 street area %.0f m² (%.2f%% of the extent), street graph %.1f km\n",
+               cs->street_area, 100.0 * cs->street_fraction, cs->street_length * 1e-3);
+        printf("                 sight lines along the streets: mean %.0f m, 90th percentile %.0f m (%u rays)\n",
+               cs->sight_mean, cs->sight_p90, cs->sight_rays);
+    }
 }
 
 int sl_cmd_gen(int argc, char **argv)
@@ -228,7 +265,7 @@ int sl_cmd_gen(int argc, char **argv)
     cli_args_init(&a, argc - 1, argv + 1);
     a.cmd = cmd;
     const char *name, *val;
-    bool dry_run = false;
+    bool dry_run = false, stats = false;
     cli_common com = {0};
     while (cli_next(&a, &name, &val)) {
         if (cli_common_option(&a, name, val, CLI_OUTPUT | CLI_JSON | CLI_QUIET, &com))
@@ -243,6 +280,17 @@ int sl_cmd_gen(int argc, char **argv)
             cli_parse_u64(&a, name, cli_value(&a, name, val), &o.seed);
         } else if (!strcmp(name, "dry-run")) {
             dry_run = true;
+        } else if (!strcmp(name, "stats")) {
+            stats = true;
+        } else if (!strcmp(name, "style")) {
+            const char *v = cli_value(&a, name, val);
+            sl_error serr;
+            if (v && sl_city_style_from_name(v, &o.style, &serr) != SL_OK) {
+                cli_error(cmd, "%s", serr.message);
+                return 2;
+            }
+        } else if (!strcmp(name, "district")) {
+            cli_parse_u32(&a, name, cli_value(&a, name, val), &o.district);
         } else if (!strcmp(name, "extent")) {
             parse_extent(&a, cli_value(&a, name, val), &o);
         } else if (!strcmp(name, "detail")) {
@@ -303,7 +351,12 @@ int sl_cmd_gen(int argc, char **argv)
         if (stat(output, &sb) == 0)
             bytes = (uint64_t)sb.st_size;
     }
-    print_summary(cmd, &o, scene, output, t_gen, t_save, bytes, json);
+    sl_city_stats cs;
+    if (stats && (st = sl_city_measure(scene, &cs, &err)) != SL_OK) {
+        sl_scene_destroy(scene);
+        return cli_fail(cmd, &err);
+    }
+    print_summary(cmd, &o, scene, output, t_gen, t_save, bytes, json, stats ? &cs : NULL);
     sl_scene_destroy(scene);
     return 0;
 }

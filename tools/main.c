@@ -5,7 +5,7 @@
 #include <string.h>
 
 static const sl_command commands[] = {
-    {"gen", sl_cmd_gen, "generate a procedural scene (gen city --preset tiny|small|vienna)"},
+    {"gen", sl_cmd_gen, "generate a procedural scene (gen city --preset tiny|small|vienna|oldtown|oldtown-small)"},
     {"import", sl_cmd_import, "import OBJ/glTF/PLY/FBX/... (assimp) or Quake III .bsp/.pk3 into .slscene"},
     {"occluders", sl_cmd_occluders, "synthesise conservative occluders (boxes inside closed meshes) for a scene"},
     {"info", sl_cmd_info, "counts, bounds, memory and per-kind statistics of a scene"},

@@ -40,7 +40,7 @@ static sl_status open_city(const char *spec, const char *map, const sl_progress 
     sl_city_preset preset;
     if (sl_city_preset_from_name(preset_name, &preset, NULL) != SL_OK)
         return tool_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                         "scene '%s': unknown city preset '%s' (use city:tiny, city:small or city:vienna, "
+                         "scene '%s': unknown city preset '%s' (use city:tiny, city:small, city:vienna, city:oldtown or city:oldtown-small, "
                          "optionally :SEED)", spec, preset_name);
     if (map)
         return tool_fail(err, SL_ERROR_INVALID_ARGUMENT, "scene '%s': a map name only applies to .pk3 archives", spec);

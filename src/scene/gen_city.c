@@ -6,7 +6,25 @@
 
 #include <inttypes.h>
 
-static const char *const preset_names[] = {"tiny", "small", "vienna"};
+static const char *const preset_names[] = {"tiny", "small", "vienna", "oldtown", "oldtown-small"};
+static const char *const style_names[] = {"grid", "oldtown"};
+
+const char *sl_city_style_name(sl_city_style s)
+{
+    return (unsigned)s < SL_COUNTOF(style_names) ? style_names[s] : "unknown";
+}
+
+sl_status sl_city_style_from_name(const char *name, sl_city_style *out, sl_error *err)
+{
+    if (!name || !out)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_city_style_from_name: NULL argument");
+    for (size_t k = 0; k < SL_COUNTOF(style_names); k++)
+        if (!strcmp(name, style_names[k])) {
+            *out = (sl_city_style)k;
+            return SL_OK;
+        }
+    return sl_fail(err, SL_ERROR_NOT_FOUND, "unknown city style '%s' (expected grid or oldtown)", name);
+}
 
 const char *sl_city_preset_name(sl_city_preset p)
 {
@@ -22,7 +40,7 @@ sl_status sl_city_preset_from_name(const char *name, sl_city_preset *out, sl_err
             *out = (sl_city_preset)k;
             return SL_OK;
         }
-    return sl_fail(err, SL_ERROR_NOT_FOUND, "unknown city preset '%s' (expected tiny, small or vienna)", name);
+    return sl_fail(err, SL_ERROR_NOT_FOUND, "unknown city preset '%s' (expected tiny, small, vienna, oldtown or oldtown-small)", name);
 }
 
 sl_city_options sl_city_defaults(sl_city_preset p)
@@ -46,7 +64,8 @@ sl_city_options sl_city_defaults(sl_city_preset p)
     o.detail = 2;
     o.cars_per_km = 20, o.trees_per_ha = 60, o.street_tree_spacing = 12, o.lamp_spacing = 30;
     o.terrain = false, o.relief = 20;
-    if (p == SL_CITY_SMALL) {
+    o.meander_wavelength = 300, o.district = 6;
+    if (p == SL_CITY_SMALL || p == SL_CITY_OLDTOWN_SMALL) {
         o.preset = SL_CITY_SMALL;
         o.extent_x = 800, o.extent_y = 750;
         o.block_size_min = 50, o.block_size_max = 70;
@@ -72,6 +91,32 @@ sl_city_options sl_city_defaults(sl_city_preset p)
         o.detail = 3;
         o.cars_per_km = 25, o.trees_per_ha = 80, o.lamp_spacing = 28;
         o.relief = 40;
+    }
+    if (p == SL_CITY_OLDTOWN || p == SL_CITY_OLDTOWN_SMALL) {
+        /* the vienna (or small) densities, heights and detail on an old-town street layout:
+         * no avenues and no river (their long open views are what the style removes), curved
+         * streets, a brick pattern of T-junctions per district, more squares */
+        if (p == SL_CITY_OLDTOWN) {
+            sl_city_options v = sl_city_defaults(SL_CITY_VIENNA);
+            o = v;
+        }
+        o.preset = p;
+        o.style = SL_CITY_STYLE_OLDTOWN;
+        o.river = false;
+        o.avenue_spacing = 0;
+        o.jitter = 0.15f;
+        o.meander = 12, o.meander_wavelength = 280, o.district = 6;
+        o.street_width_min = 11, o.street_width_max = 17, o.avenue_width = 17;
+        o.park_fraction = 0.04f, o.square_fraction = 0.10f, o.tower_fraction = 0.02f;
+        /* no avenues or banks, so no street trees: denser lamps and cars keep the object count
+         * near vienna's (sl_city_measure; test_gen_city checks within 10%) */
+        o.street_tree_spacing = 0, o.lamp_spacing = 20, o.cars_per_km = 30;
+        if (p == SL_CITY_OLDTOWN_SMALL) {
+            /* the small grid's river and avenues take a larger share of its extent */
+            o.street_width_min = 12, o.street_width_max = 18, o.avenue_width = 18;
+            o.park_fraction = 0.06f, o.square_fraction = 0.12f;
+            o.lamp_spacing = 16, o.cars_per_km = 35;
+        }
     }
     return o;
 }
@@ -114,6 +159,14 @@ sl_status sl_city_options_validate(const sl_city_options *o, sl_error *err)
     CHECK_RANGE(avenue_width, o->street_width_min, 80);
     CHECK_ZERO_OR(avenue_spacing, 100, 20000);
     CHECK_RANGE(street_removal, 0, 0.5);
+    if ((unsigned)o->style >= SL_COUNTOF(style_names))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "city option style = %d: unknown style", (int)o->style);
+    CHECK_RANGE(meander, 0, 0.3 * o->block_size_min);
+    if (o->meander > 0)
+        CHECK_RANGE(meander_wavelength, 100, 5000);
+    if (o->style == SL_CITY_STYLE_OLDTOWN && (o->district < 2 || o->district > 64))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "city option district = %u: must be between 2 and 64",
+                       o->district);
     CHECK_RANGE(park_fraction, 0, 1);
     CHECK_RANGE(square_fraction, 0, 1);
     CHECK_RANGE(tower_fraction, 0, 1);
@@ -152,7 +205,10 @@ sl_status sl_city_options_validate(const sl_city_options *o, sl_error *err)
                        (double)o->block_size_min, o->river ? " plus the river row of " : "",
                        o->river ? "river_width + 2 bank_width + avenue_width" : "");
     double sides = 0.5 * ((double)SL_MAX(o->street_width_max, o->avenue_width) + o->street_width_max);
-    double buildable = o->block_size_min * (1.0 - 2.0 * o->jitter) - (o->river ? 0.1 * o->block_size_min : 0.0) - sides;
+    /* the meander's phase drifts by at most GC_MEANDER_DRIFT between neighbouring lines, so they
+     * differ by at most 2 sin(drift/2) x meander */
+    double buildable = o->block_size_min * (1.0 - 2.0 * o->jitter) - (o->river ? 0.1 * o->block_size_min : 0.0) - sides -
+                       2.0 * sin(0.5 * GC_MEANDER_DRIFT) * o->meander;
     if (buildable < 8)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
                        "city options: streets of %g and %g m leave %.1f m of block between lattice lines %g m "
@@ -204,6 +260,8 @@ static sl_status metadata(gc_city *c)
     if ((st = sl_scene_set_meta(c->scene, "generator", "sightline city", c->err)) != SL_OK ||
         (st = sl_scene_set_meta(c->scene, "preset", sl_city_preset_name(o->preset), c->err)) != SL_OK ||
         (st = set_meta_u(c, "seed", o->seed)) != SL_OK ||
+        (o->style != SL_CITY_STYLE_GRID &&
+         (st = sl_scene_set_meta(c->scene, "city.style", sl_city_style_name(o->style), c->err)) != SL_OK) ||
         (st = sl_scene_set_meta(c->scene, "extent", buf, c->err)) != SL_OK ||
         (st = set_meta_u(c, "city.detail", o->detail)) != SL_OK ||
         (st = set_meta_u(c, "city.blocks", c->n_blocks)) != SL_OK ||

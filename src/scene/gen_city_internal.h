@@ -39,6 +39,7 @@
 #define GC_LEDGE 0.15         /* string course protrusion */
 #define GC_MAX_POLY 16        /* vertices of a building footprint */
 #define GC_PI 3.14159265358979323846
+#define GC_MEANDER_DRIFT 0.5  /* oldtown: largest phase change of the meander between neighbouring lines */
 
 /* ---- vectors: the core kit (core/dvec3.h: sl_dvec2, sl_d2_*, sl_dvec3, sl_d3_*) ---- */
 
@@ -176,7 +177,7 @@ static inline gc_cell *gc_cellp(gc_city *c, int i, int j) { return &c->cell[(siz
 void gc_rng(const gc_city *c, uint32_t purpose, uint32_t a, uint32_t b, sl_rng *out);
 enum {
     GC_RNG_SPACING = 1, GC_RNG_NODE, GC_RNG_LINE, GC_RNG_REMOVE, GC_RNG_CELL, GC_RNG_BLOCK, GC_RNG_BUILDING,
-    GC_RNG_TREE, GC_RNG_LAMP, GC_RNG_CAR, GC_RNG_TERRAIN, GC_RNG_RIVER
+    GC_RNG_TREE, GC_RNG_LAMP, GC_RNG_CAR, GC_RNG_TERRAIN, GC_RNG_RIVER, GC_RNG_MEANDER, GC_RNG_DISTRICT
 };
 
 /* The edge on side k of cell (i,j), and whether that side lies on the extent border. */

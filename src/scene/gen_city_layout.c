@@ -260,6 +260,30 @@ sl_status gc_layout(gc_city *c)
         lambda = W * sl_rng_range(&r, 0.5f, 0.9f);
         phase = sl_rng_range(&r, 0.0f, (float)(2 * GC_PI));
     }
+    /* the meander (oldtown; none in the grid presets): line j of one direction is moved across
+     * itself by meander * sin(2 pi s / wavelength + phase_j), s the position along the line; the
+     * phase drifts by at most GC_MEANDER_DRIFT from one line to the next, so neighbouring lines
+     * bend together and the blocks between them vary in depth by a few metres */
+    double *hphase = NULL, *vphase = NULL;
+    if (o->meander > 0) {
+        hphase = sl_calloc(a, (size_t)ny + 1, sizeof(double));
+        vphase = sl_calloc(a, (size_t)nx + 1, sizeof(double));
+        if (!hphase || !vphase) {
+            sl_free(a, hphase, ((size_t)ny + 1) * sizeof(double));
+            sl_free(a, vphase, ((size_t)nx + 1) * sizeof(double));
+            st = sl_fail(c->err, SL_ERROR_OUT_OF_MEMORY, "city: out of memory for a %d x %d lattice", nx, ny);
+            goto done;
+        }
+        sl_rng r;
+        gc_rng(c, GC_RNG_MEANDER, 0, 0, &r);
+        hphase[0] = sl_rng_range(&r, 0.0f, (float)(2 * GC_PI));
+        for (int j = 1; j <= ny; j++)
+            hphase[j] = hphase[j - 1] + sl_rng_range(&r, -(float)GC_MEANDER_DRIFT, (float)GC_MEANDER_DRIFT);
+        gc_rng(c, GC_RNG_MEANDER, 1, 0, &r);
+        vphase[0] = sl_rng_range(&r, 0.0f, (float)(2 * GC_PI));
+        for (int i = 1; i <= nx; i++)
+            vphase[i] = vphase[i - 1] + sl_rng_range(&r, -(float)GC_MEANDER_DRIFT, (float)GC_MEANDER_DRIFT);
+    }
     for (int j = 0; j <= ny; j++) {
         double weight = 0;
         if (jr >= 0) {
@@ -276,8 +300,18 @@ sl_status gc_layout(gc_city *c)
             if (j > 0 && j < ny && !c->hline_avenue[j])
                 y += o->jitter * SL_MIN(Y[j] - Y[j - 1], Y[j + 1] - Y[j]) * jy;
             y += weight * amp * sin(2 * GC_PI * (X[i] - c->x0) / lambda + phase);
+            if (o->meander > 0) {
+                if (i > 0 && i < nx)
+                    x += o->meander * sin(2 * GC_PI * (Y[j] - c->y0) / o->meander_wavelength + vphase[i]);
+                if (j > 0 && j < ny)
+                    y += o->meander * sin(2 * GC_PI * (X[i] - c->x0) / o->meander_wavelength + hphase[j]);
+            }
             c->node[(size_t)j * (nx + 1) + i] = sl_d2(x, y);
         }
+    }
+    if (o->meander > 0) {
+        sl_free(a, hphase, ((size_t)ny + 1) * sizeof(double));
+        sl_free(a, vphase, ((size_t)nx + 1) * sizeof(double));
     }
 
     /* edges */
@@ -318,6 +352,38 @@ sl_status gc_layout(gc_city *c)
         for (int i = 0; i <= nx; i++)
             if (gc_vedge(c, i, j)->flags & GC_EDGE_STREET)
                 deg[(size_t)j * (nx + 1) + i]++, deg[(size_t)(j + 1) * (nx + 1) + i]++;
+    if (o->style == SL_CITY_STYLE_OLDTOWN) {
+        /* the brick pattern: the lattice is cut into districts of `district` x `district` cells;
+         * in each, one direction (drawn per district) loses every other segment, staggered from
+         * row to row, so streets of that direction end in T-junctions after one block. The same
+         * rules as for dropped segments below keep the network connected without dead ends. */
+        int nd = (int)o->district;
+        for (int pass = 0; pass < 2; pass++) {
+            bool horizontal = pass == 0;
+            int ni = horizontal ? nx : nx + 1, nj = horizontal ? ny + 1 : ny;
+            for (int j = 0; j < nj; j++)
+                for (int i = 0; i < ni; i++) {
+                    gc_edge *e = horizontal ? gc_hedge(c, i, j) : gc_vedge(c, i, j);
+                    if (!(e->flags & GC_EDGE_STREET) || (e->flags & (GC_EDGE_AVENUE | GC_EDGE_BRIDGE)) || !((i + j) & 1))
+                        continue;
+                    sl_rng r;
+                    gc_rng(c, GC_RNG_DISTRICT, (uint32_t)(i / nd), (uint32_t)(j / nd), &r);
+                    if ((sl_rng_float(&r) < 0.5f) != horizontal)
+                        continue;
+                    size_t na = (size_t)j * (nx + 1) + i, nb = horizontal ? na + 1 : na + (size_t)(nx + 1);
+                    int ca = horizontal ? (j - 1) * nx + i : j * nx + i - 1, cb = j * nx + i;
+                    if (deg[na] < 4 || deg[nb] < 4)
+                        continue;
+                    int ra = uf_find(uf, ca), rb = uf_find(uf, cb);
+                    if (ra == rb)
+                        continue;
+                    uf[ra] = (uint32_t)rb;
+                    deg[na]--, deg[nb]--;
+                    e->flags = 0;
+                    e->width = 0;
+                }
+        }
+    }
     if (o->street_removal > 0) {
         for (int pass = 0; pass < 2; pass++) {
             bool horizontal = pass == 0;
