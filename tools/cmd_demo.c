@@ -49,7 +49,7 @@ static void usage(FILE *out)
             "frames.csv / frames.json and the walk's path file (walk.txt) to replay with `sightline bench`.\n"
             "Takes well under a few minutes on 2 cores with the small city.\n\n"
             "options:\n"
-            "  --preset P    city preset: tiny, small (default) or vienna (about 8M triangles: slow)\n"
+            "  --preset P    city preset: tiny, small (default), vienna (about 8M triangles: slow), oldtown-small, oldtown\n"
             "  --scene FILE  a scene of your own instead (a .slscene, a GIS file, any file `sightline\n"
             "                import` reads) with a street network for the walk (docs/gis-import.md)\n"
             "  --methods LIST  only these methods, NAME[:key=value...] comma-separated (the grammar of\n"
@@ -667,7 +667,7 @@ int sl_cmd_demo(int argc, char **argv)
     bool json = com.json, quiet = com.quiet;
     sl_city_preset preset;
     if (sl_city_preset_from_name(preset_name, &preset, NULL) != SL_OK) {
-        cli_error(cmd, "--preset '%s' is not tiny, small or vienna", preset_name);
+        cli_error(cmd, "--preset '%s' is not tiny, small, vienna, oldtown or oldtown-small", preset_name);
         return 2;
     }
     if (scene_file && has_preset) {

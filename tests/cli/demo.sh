@@ -15,7 +15,7 @@ has "examples:" "$tmp/out"
 expect 2 "$SL" demo --bogus
 has "unknown option --bogus" "$tmp/err"
 expect 2 "$SL" demo --preset huge
-has "not tiny, small or vienna" "$tmp/err"
+has "not tiny, small, vienna, oldtown or oldtown-small" "$tmp/err"
 expect 2 "$SL" demo --frames 0
 expect 2 "$SL" demo extra-argument
 
