@@ -46,7 +46,7 @@
 #include <stdlib.h>
 
 #define VOL_LEVELS 12      /* pyramid levels at most (blocks of 2048 voxels a side) */
-#define VOL_MAXPLANES 80   /* umbra planes: <= 8 cell vertices x (6 silhouette + 3 face planes) */
+#define VOL_MAXPLANES 128  /* umbra planes: <= 8 cell vertices x (6 silhouette + 3 face planes) */
 #define VOL_TOL 1e-4       /* a block is inside the umbra when its corners are this far inside */
 
 typedef struct vol_config {
@@ -54,6 +54,7 @@ typedef struct vol_config {
     uint32_t max_voxels;  /* millions */
     float margin;         /* blockers shrink by this much (metres) before their umbra is built */
     bool extend;          /* grow blockers into opaque and hidden voxels (occluder fusion) */
+    bool extend_away;     /* into hidden voxels also in the directions pointing away from the cell */
     bool meshes;          /* closed meshes as solids (besides footprints and BSP solid space) */
 } vol_config;
 
@@ -94,8 +95,9 @@ static inline size_t vidx(const uint32_t n[3], uint32_t i, uint32_t j, uint32_t 
 static inline bool hidden_at(const vol_worker *w, uint32_t i, uint32_t j, uint32_t k)
 {
     const vol_shared *s = w->sh;
-    for (uint32_t l = 0; l < s->levels; l++, i >>= 1, j >>= 1, k >>= 1)
-        if (w->hidden[s->loff[l] + vidx(s->ln[l], i, j, k)])
+    /* top down: hidden voxels are mostly hidden by a coarse block */
+    for (uint32_t l = s->levels; l-- > 0;)
+        if (w->hidden[s->loff[l] + vidx(s->ln[l], i >> l, j >> l, k >> l)])
             return true;
     return false;
 }
@@ -232,10 +234,12 @@ static bool umbra_planes(double lo[3], double hi[3], const double (*cv)[3], int 
     return true;
 }
 
-/* Flag the blocks of node (l, i, j, k) that lie inside the umbra. Returns whether the node is
- * hidden afterwards (so that parents whose children all are can be flagged too). */
-static bool mark_node(vol_worker *w, const vol_planes *u, uint32_t l, uint32_t i, uint32_t j, uint32_t k,
-                      uint64_t *work)
+/* Flag the blocks of node (l, i, j, k) that lie inside the umbra. `active` holds the planes the
+ * node is not yet known to be inside (a parent wholly inside a plane has children wholly inside
+ * it). Returns whether the node is hidden afterwards (so that a parent whose children all are is
+ * flagged too). */
+static bool mark_node(vol_worker *w, const vol_planes *u, const uint64_t active[2], uint32_t l, uint32_t i,
+                      uint32_t j, uint32_t k, uint64_t *work)
 {
     vol_shared *s = w->sh;
     uint8_t *flag = &w->hidden[s->loff[l] + vidx(s->ln[l], i, j, k)];
@@ -253,31 +257,33 @@ static bool mark_node(vol_worker *w, const vol_planes *u, uint32_t l, uint32_t i
     }
     double ctr[3] = {(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2};
     double hx[3] = {(hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, (hi[2] - lo[2]) / 2};
-    bool all_in = true;
-    for (int q = 0; q < u->n; q++) {
-        const double *p = u->p[q];
-        double val = p[0] * ctr[0] + p[1] * ctr[1] + p[2] * ctr[2] + p[3];
-        double r = fabs(p[0]) * hx[0] + fabs(p[1]) * hx[1] + fabs(p[2]) * hx[2];
-        if (val - r > 0)
-            return false; /* wholly outside this plane: nothing here is in the umbra */
-        if (val + r > -VOL_TOL)
-            all_in = false;
-    }
-    if (all_in) {
+    uint64_t still[2] = {0, 0};
+    for (int wd = 0; wd < 2; wd++)
+        for (uint64_t m = active[wd]; m; m &= m - 1) {
+            int q = 64 * wd + __builtin_ctzll(m);
+            const double *p = u->p[q];
+            double val = p[0] * ctr[0] + p[1] * ctr[1] + p[2] * ctr[2] + p[3];
+            double r = fabs(p[0]) * hx[0] + fabs(p[1]) * hx[1] + fabs(p[2]) * hx[2];
+            if (val - r > 0)
+                return false; /* wholly outside this plane: nothing here is in the umbra */
+            if (val + r > -VOL_TOL)
+                still[wd] |= m & -m;
+        }
+    if (!still[0] && !still[1]) {
         *flag = 1;
         return true;
     }
     if (l == 0)
         return false;
-    uint32_t m = l - 1;
+    uint32_t mm = l - 1;
     bool all = true;
     for (uint32_t dk = 0; dk < 2; dk++)
         for (uint32_t dj = 0; dj < 2; dj++)
             for (uint32_t di = 0; di < 2; di++) {
                 uint32_t ci = 2 * i + di, cj = 2 * j + dj, ck = 2 * k + dk;
-                if (ci >= s->ln[m][0] || cj >= s->ln[m][1] || ck >= s->ln[m][2])
+                if (ci >= s->ln[mm][0] || cj >= s->ln[mm][1] || ck >= s->ln[mm][2])
                     continue;
-                if (!mark_node(w, u, m, ci, cj, ck, work))
+                if (!mark_node(w, u, still, mm, ci, cj, ck, work))
                     all = false;
             }
     if (all)
@@ -287,27 +293,38 @@ static bool mark_node(vol_worker *w, const vol_planes *u, uint32_t l, uint32_t i
 
 /* ---- blocker extension ---- */
 
-static bool layer_blocks(const vol_worker *w, const uint32_t lo[3], const uint32_t hi[3])
+/* Whether every voxel of the layer [lo, hi) is opaque, or (with `hidden`) opaque or hidden. */
+static bool layer_blocks(const vol_worker *w, const uint32_t lo[3], const uint32_t hi[3], bool hidden)
 {
     const vol_shared *s = w->sh;
+    if (hidden && range_hidden(w, lo, hi))
+        return true;
     for (uint32_t k = lo[2]; k < hi[2]; k++)
         for (uint32_t j = lo[1]; j < hi[1]; j++)
             for (uint32_t i = lo[0]; i < hi[0]; i++)
-                if (!s->solid[vidx(s->n, i, j, k)] && !hidden_at(w, i, j, k))
+                if (!s->solid[vidx(s->n, i, j, k)] && (!hidden || !hidden_at(w, i, j, k)))
                     return false;
     return true;
 }
 
 /* Grow [lo, hi) one layer at a time in the six directions in turn while the layer is opaque or
  * hidden. */
-static void extend(const vol_worker *w, uint32_t lo[3], uint32_t hi[3])
+static void extend(const vol_worker *w, uint32_t lo[3], uint32_t hi[3], const double cb_lo[3], const double cb_hi[3])
 {
     const vol_shared *s = w->sh;
+    /* directions pointing away from the cell (the cell wholly on the other side) grow through
+     * opaque voxels only unless `away`: the deep hidden space behind adds little and costs most */
+    bool away[6];
+    for (int a = 0; a < 3; a++) {
+        away[2 * a] = cb_lo[a] >= s->org[a] + hi[a] * s->side;
+        away[2 * a + 1] = cb_hi[a] <= s->org[a] + lo[a] * s->side;
+    }
     bool grew = true;
     while (grew) {
         grew = false;
         for (int f = 0; f < 6; f++) {
             int a = f >> 1;
+
             uint32_t llo[3] = {lo[0], lo[1], lo[2]}, lhi[3] = {hi[0], hi[1], hi[2]};
             if (f & 1) {
                 if (hi[a] >= s->n[a])
@@ -320,7 +337,7 @@ static void extend(const vol_worker *w, uint32_t lo[3], uint32_t hi[3])
                 llo[a] = lo[a] - 1;
                 lhi[a] = lo[a];
             }
-            if (layer_blocks(w, llo, lhi)) {
+            if (layer_blocks(w, llo, lhi, !away[f] || s->cfg.extend_away)) {
                 if (f & 1)
                     hi[a]++;
                 else
@@ -786,6 +803,7 @@ static sl_status vol_configure(sl_opts *o, void *config, sl_error *err)
         (st = sl_opts_u32(o, "max_voxels", 8, 1, 512, &c->max_voxels, err)) != SL_OK ||
         (st = sl_opts_float(o, "margin", 0.001f, 1e-5f, 1, &c->margin, err)) != SL_OK ||
         (st = sl_opts_bool(o, "extend", true, &c->extend, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "away", true, &c->extend_away, err)) != SL_OK ||
         (st = sl_opts_bool(o, "meshes", true, &c->meshes, err)) != SL_OK)
         return st;
     return SL_OK;
@@ -1018,7 +1036,7 @@ static sl_status vol_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
         if (range_hidden(w, lo, hi))
             continue; /* an occluded blocker is not used */
         if (s->cfg.extend)
-            extend(w, lo, hi);
+            extend(w, lo, hi, cb_lo, cb_hi);
         double blo[3], bhi[3];
         for (int a = 0; a < 3; a++) {
             blo[a] = s->org[a] + lo[a] * s->side + s->cfg.margin;
@@ -1026,7 +1044,8 @@ static sl_status vol_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
         }
         if (!umbra_planes(blo, bhi, (const double(*)[3])cv, ncv, &u))
             continue;
-        mark_node(w, &u, s->levels - 1, 0, 0, 0, &work);
+        uint64_t all[2] = {u.n >= 64 ? ~0ull : (1ull << u.n) - 1, u.n <= 64 ? 0 : u.n >= 128 ? ~0ull : (1ull << (u.n - 64)) - 1};
+        mark_node(w, &u, all, s->levels - 1, 0, 0, 0, &work);
         used++;
     }
     const sl_aabb *ob = sl_scene_object_bounds_array(s->scene);
@@ -1078,6 +1097,8 @@ const sl_pvs_method sl_pvs_method_volumetric = {
         "max_voxels=INT (default 8): millions of voxels the grid may have\n"
         "margin=FLOAT (default 0.001): metres each blocker shrinks by before its shaft is built\n"
         "extend=BOOL (default true): grow blockers into opaque and hidden voxels (occluder fusion)\n"
+        "away=BOOL (default true): extend into hidden voxels also in the directions pointing away from the cell "
+        "(into opaque ones always)\n"
         "meshes=BOOL (default true): closed meshes of occluder objects and 3D occluders are solid too\n",
     .guarantee = SL_CONSERVATIVE,
     .config_size = sizeof(vol_config),
