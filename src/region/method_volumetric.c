@@ -42,7 +42,6 @@
 #include "pvs_internal.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 
 #define VOL_LEVELS 12      /* pyramid levels at most (blocks of 2048 voxels a side) */
@@ -76,7 +75,6 @@ typedef struct vol_shared {
     uint32_t ln[VOL_LEVELS][3]; /* dims per level */
     size_t loff[VOL_LEVELS + 1];
     uint32_t nobj;
-    uint64_t solid_count;
 } vol_shared;
 
 typedef struct vol_worker {
@@ -625,8 +623,10 @@ static sl_status mesh_closed(const sl_allocator *a, const float *pos, uint32_t n
     return st;
 }
 
-/* One closed mesh in world space: the voxels sl_shrink_mesh_voxels finds solid (eps 0, half our
- * side) cover; a voxel of ours is solid when those disjoint boxes fill it. */
+/* One closed mesh in world space: sl_shrink_mesh_voxels (eps 0) gives the voxels of its own grid
+ * that lie wholly inside (corners inside by ray parity, no triangle crossing); a voxel of ours is
+ * solid when those disjoint boxes fill it (their volumes inside it add up to its volume, to 1e-6
+ * of it). */
 static sl_status solid_mesh(vol_shared *s, sl_mesh_view mv, const sl_affine *xf, double *cover, sl_error *err)
 {
     const sl_allocator *a = &s->a;
@@ -649,9 +649,15 @@ static sl_status solid_mesh(vol_shared *s, sl_mesh_view mv, const sl_affine *xf,
         /* only meshes large enough to hold a whole voxel */
         float ex = fminf(fminf(mv.bounds.max.x - mv.bounds.min.x, mv.bounds.max.y - mv.bounds.min.y),
                          mv.bounds.max.z - mv.bounds.min.z);
-        if (xf || ex >= (float)s->side)
-            st = sl_shrink_mesh_voxels(pos, mv.vertex_count, mv.indices, mv.triangle_count, (float)(s->side / 2), 0,
+        if (xf || ex >= (float)s->side) {
+            /* a quarter of our side (half where that grid would be too large): its voxels lie
+             * on the mesh's bounds, ours need not, so ours are covered a finer voxel inside */
+            st = sl_shrink_mesh_voxels(pos, mv.vertex_count, mv.indices, mv.triangle_count, (float)(s->side / 4), 0,
                                        a, &boxes, &nb, err);
+            if (st == SL_ERROR_LIMIT)
+                st = sl_shrink_mesh_voxels(pos, mv.vertex_count, mv.indices, mv.triangle_count,
+                                           (float)(s->side / 2), 0, a, &boxes, &nb, err);
+        }
     }
     sl_free(a, pos, (size_t)mv.vertex_count * 3 * sizeof *pos);
     if (st != SL_OK)
@@ -739,7 +745,6 @@ static sl_status make_seeds(vol_shared *s, sl_error *err)
                 size_t v = vidx(n, i, j, k);
                 if (!s->solid[v] || used[v])
                     continue;
-                s->solid_count++;
                 uint32_t i1 = i + 1, j1 = j + 1, k1 = k + 1;
                 while (i1 < n[0] && s->solid[vidx(n, i1, j, k)] && !used[vidx(n, i1, j, k)])
                     i1++;
@@ -934,9 +939,6 @@ static sl_status vol_prepare(sl_scene scene, sl_viewcells cells, const void *con
         vol_release(s);
         return st;
     }
-    if (getenv("SL_VOL_DEBUG"))
-        fprintf(stderr, "volumetric: voxel %.3f m, grid %u x %u x %u, %llu seeds... solid boxes %u\n", s->side, s->n[0],
-                s->n[1], s->n[2], (unsigned long long)s->solid_count, s->nseeds);
     *shared = s;
     return SL_OK;
 }
@@ -1028,7 +1030,6 @@ static sl_status vol_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
     }
     qsort(w->ord, s->nseeds, sizeof *w->ord, cmp_ord);
     uint64_t work = 0;
-    uint32_t used = 0;
     vol_planes u;
     for (uint32_t q = 0; q < s->nseeds; q++) {
         const vol_box *bx = &s->seeds[w->ord[q].id];
@@ -1046,7 +1047,7 @@ static sl_status vol_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
             continue;
         uint64_t all[2] = {u.n >= 64 ? ~0ull : (1ull << u.n) - 1, u.n <= 64 ? 0 : u.n >= 128 ? ~0ull : (1ull << (u.n - 64)) - 1};
         mark_node(w, &u, all, s->levels - 1, 0, 0, 0, &work);
-        used++;
+
     }
     const sl_aabb *ob = sl_scene_object_bounds_array(s->scene);
     uint32_t n = 0;
@@ -1076,8 +1077,7 @@ static sl_status vol_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
     }
     out->count = n;
     out->work = work;
-    if (getenv("SL_VOL_DEBUG"))
-        fprintf(stderr, "cell %u: used %u blockers, %llu nodes, %u objects\n", cell, used, (unsigned long long)work, n);
+
     return SL_OK;
 }
 
