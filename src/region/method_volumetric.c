@@ -25,7 +25,8 @@
  *     inside U when its eight corners are, and outside when all of them are outside one of those
  *     planes. Blocks inside U are flagged hidden, coarsest first.
  *  3. An object is in the set unless every voxel its box meets is hidden (or its box leaves the
- *     grid).
+ *     grid). On a Quake III map the objects no BSP leaf lists (brush models: doors, platforms,
+ *     which move) are in every set, as with `portal`.
  *
  * Why conservative. HIDDEN(P): every segment from the cell to P passes through the interior of
  * solid matter. Opaque voxels are solid. If P is in U, the segment vP (v in the cell) passes
@@ -75,6 +76,7 @@ typedef struct vol_shared {
     uint32_t ln[VOL_LEVELS][3]; /* dims per level */
     size_t loff[VOL_LEVELS + 1];
     uint32_t nobj;
+    uint8_t *always;      /* nobj, or NULL: objects in every set (brush models of a BSP) */
 } vol_shared;
 
 typedef struct vol_worker {
@@ -821,6 +823,8 @@ static void vol_release(void *p)
         return;
     sl_allocator a = s->a;
     sl_free(&a, s->solid, s->nvox);
+    if (s->always)
+        sl_free(&a, s->always, s->nobj ? s->nobj : 1);
     sl_free(&a, s->seeds, (s->nseeds ? s->nseeds : 1) * sizeof *s->seeds);
     sl_free(&a, s, sizeof *s);
 }
@@ -933,6 +937,20 @@ static sl_status vol_prepare(sl_scene scene, sl_viewcells cells, const void *con
     sl_status st = solid_bsp(s, err);
     if (st == SL_OK && cfg->meshes)
         st = solid_meshes(s, err);
+    /* a Quake III map: the objects no leaf lists are its brush models (doors, platforms), which
+     * move; like `portal`, keep them in every set */
+    sl_bsp_view bv;
+    if (st == SL_OK && sl_scene_bsp(scene, &bv) && bv.node_count > 0) {
+        s->always = sl_alloc(alloc, s->nobj ? s->nobj : 1);
+        if (!s->always)
+            st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "volumetric: out of memory");
+        else {
+            memset(s->always, 1, s->nobj ? s->nobj : 1);
+            for (uint32_t k = 0; k < bv.leaf_object_count; k++)
+                if (bv.leaf_objects[k] < s->nobj)
+                    s->always[bv.leaf_objects[k]] = 0;
+        }
+    }
     if (st == SL_OK)
         st = make_seeds(s, err);
     if (st != SL_OK) {
@@ -1053,7 +1071,7 @@ static sl_status vol_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
     uint32_t n = 0;
     for (uint32_t id = 0; id < s->nobj; id++) {
         double lo[3] = {ob[id].min.x, ob[id].min.y, ob[id].min.z}, hi[3] = {ob[id].max.x, ob[id].max.y, ob[id].max.z};
-        bool visible = false;
+        bool visible = s->always && s->always[id];
         uint32_t r0[3], r1[3];
         for (int a = 0; a < 3 && !visible; a++) {
             double f0 = (lo[a] - s->org[a]) / s->side, f1 = (hi[a] - s->org[a]) / s->side;
