@@ -659,6 +659,11 @@ static sl_status solid_mesh(vol_shared *s, sl_mesh_view mv, const sl_affine *xf,
             if (st == SL_ERROR_LIMIT)
                 st = sl_shrink_mesh_voxels(pos, mv.vertex_count, mv.indices, mv.triangle_count,
                                            (float)(s->side / 2), 0, a, &boxes, &nb, err);
+            if (st == SL_ERROR_LIMIT) { /* still too fine for that mesh: it is not used (conservative) */
+                st = SL_OK;
+                boxes = NULL;
+                nb = 0;
+            }
         }
     }
     sl_free(a, pos, (size_t)mv.vertex_count * 3 * sizeof *pos);
@@ -690,7 +695,8 @@ static sl_status solid_mesh(vol_shared *s, sl_mesh_view mv, const sl_affine *xf,
                     cover[vidx(s->n, i, j, k)] += ov;
                 }
     }
-    sl_shrink_boxes_free(a, boxes, nb);
+    if (boxes)
+        sl_shrink_boxes_free(a, boxes, nb);
     if (nb == 0)
         return SL_OK;
     for (uint32_t k = touched_lo[2]; k < touched_hi[2]; k++)
