@@ -49,6 +49,7 @@
 #include "pvs_internal.h"
 
 #include "geos_util.h"
+#include "sightline/region.h"
 #include "scene/scene_internal.h"
 
 #include <float.h>
@@ -61,6 +62,7 @@ typedef struct xp_config {
     uint32_t planes; /* at most this many planes per direction */
     uint32_t res;    /* pixels along the longer side of a plane's window */
     float spread;    /* a plane's window reaches spread * distance sideways and up/down */
+    bool merge;      /* also the level pieces of touching footprints, as convex occluders */
 } xp_config;
 
 typedef struct xp_piece {
@@ -114,7 +116,10 @@ static const char g_help[] =
     "growth=FLOAT (default 2): each further plane lies this many times as far from the cell\n"
     "planes=1..32 (default 12): at most this many planes per direction (they stop past the scene)\n"
     "res=16..4096 (default 768): pixels along the longer side of a plane's window (square pixels)\n"
-    "spread=0.5..8 (default 1.5): a plane's window reaches spread times its distance beyond the cell's sides\n";
+    "spread=0.5..8 (default 1.5): a plane's window reaches spread times its distance beyond the cell's sides\n"
+    "merge=BOOL (default true): footprints that touch also form level pieces (for every roof height h, the "
+    "union of the members at least h high), split into convex occluders, so that a row of buildings sharing "
+    "walls occludes as one block\n";
 
 static sl_status xp_configure(sl_opts *o, void *config, sl_error *err)
 {
@@ -124,7 +129,8 @@ static sl_status xp_configure(sl_opts *o, void *config, sl_error *err)
         (st = sl_opts_float(o, "growth", 2.0f, 1.05f, 100.0f, &c->growth, err)) != SL_OK ||
         (st = sl_opts_u32(o, "planes", 12, 1, 32, &c->planes, err)) != SL_OK ||
         (st = sl_opts_u32(o, "res", 768, 16, 4096, &c->res, err)) != SL_OK ||
-        (st = sl_opts_float(o, "spread", 1.5f, 0.5f, 8.0f, &c->spread, err)) != SL_OK)
+        (st = sl_opts_float(o, "spread", 1.5f, 0.5f, 8.0f, &c->spread, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "merge", true, &c->merge, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -206,6 +212,188 @@ static bool add_triangle(void *user, const GEOSGeometry *poly)
     return add_piece(b, t, 3);
 }
 
+/* Triangles (counter-clockwise) of a polygon, collected for merging. */
+typedef struct tri_list {
+    sl_geos *g;
+    const sl_allocator *a;
+    sl_array tris; /* double[6] */
+    double *buf;
+    size_t cap;
+    bool oom;
+} tri_list;
+
+static bool collect_triangle(void *user, const GEOSGeometry *poly)
+{
+    tri_list *t = user;
+    const GEOSGeometry *ring = GEOSGetExteriorRing_r(t->g->h, poly);
+    int n = ring ? sl_geos_ring_coords(t->g, ring, t->a, &t->buf, &t->cap) : -1;
+    if (n < 0) {
+        t->oom = true;
+        return false;
+    }
+    if (n != 3)
+        return true;
+    double v[6];
+    memcpy(v, t->buf, sizeof v);
+    double o = orient(v, v + 2, v + 4);
+    if (o == 0)
+        return true;
+    if (o < 0) {
+        double x = v[2], y = v[3];
+        v[2] = v[4], v[3] = v[5], v[4] = x, v[5] = y;
+    }
+    if (!sl_array_push(t->a, &t->tris, sizeof v, v, 1))
+        t->oom = true;
+    return !t->oom;
+}
+
+#define MERGE_MAXV 32 /* vertices of a merged convex piece */
+
+/* Union of convex CCW polygons p and q when they share an edge (exactly: both come from one
+ * triangulation) and the union is convex; collinear vertices are dropped. */
+static bool merge_convex(const double *p, uint32_t np, const double *q, uint32_t nq, double *out, uint32_t *nout)
+{
+    for (uint32_t i = 0; i < np; i++) {
+        const double *a = p + 2 * i, *b = p + 2 * ((i + 1) % np);
+        for (uint32_t j = 0; j < nq; j++) {
+            const double *c = q + 2 * j, *d = q + 2 * ((j + 1) % nq);
+            if (!(a[0] == d[0] && a[1] == d[1] && b[0] == c[0] && b[1] == c[1]))
+                continue;
+            double tmp[4 * MERGE_MAXV];
+            uint32_t n = 0;
+            for (uint32_t k = 0; k < np; k++) {
+                const double *v = p + 2 * ((i + 1 + k) % np);
+                tmp[2 * n] = v[0], tmp[2 * n + 1] = v[1], n++;
+            }
+            for (uint32_t k = 2; k < nq; k++) {
+                const double *v = q + 2 * ((j + k) % nq);
+                tmp[2 * n] = v[0], tmp[2 * n + 1] = v[1], n++;
+            }
+            /* convex with collinear vertices dropped */
+            uint32_t m = 0;
+            for (uint32_t k = 0; k < n; k++) {
+                const double *u = tmp + 2 * ((k + n - 1) % n), *v = tmp + 2 * k, *x = tmp + 2 * ((k + 1) % n);
+                double o = orient(u, v, x);
+                if (o < 0)
+                    return false;
+                if (o > 0) {
+                    if (m >= MERGE_MAXV)
+                        return false;
+                    out[2 * m] = v[0], out[2 * m + 1] = v[1], m++;
+                }
+            }
+            *nout = m;
+            return m >= 3;
+        }
+    }
+    return false;
+}
+
+/* A polygon with holes (rings as sl_shrunk gives them) as GEOS geometry; NULL on failure. */
+static GEOSGeometry *polygon_with_holes(sl_geos *g, const float *xy, uint32_t nrings, const uint32_t *rings)
+{
+    GEOSGeometry *lr[64];
+    if (nrings == 0 || nrings > 64)
+        return NULL;
+    uint32_t first = 0, made = 0;
+    for (uint32_t r = 0; r < nrings; r++) {
+        uint32_t n = rings[r];
+        GEOSCoordSequence *cs = n >= 3 ? GEOSCoordSeq_create_r(g->h, n + 1, 2) : NULL;
+        bool ok = cs != NULL;
+        for (uint32_t i = 0; ok && i <= n; i++) {
+            uint32_t k = first + i % n;
+            ok = GEOSCoordSeq_setXY_r(g->h, cs, i, xy[2 * k], xy[2 * k + 1]) != 0;
+        }
+        if (!ok && cs)
+            GEOSCoordSeq_destroy_r(g->h, cs);
+        lr[r] = ok ? GEOSGeom_createLinearRing_r(g->h, cs) : NULL;
+        if (!lr[r])
+            break;
+        made++;
+        first += n;
+    }
+    if (made < nrings) {
+        for (uint32_t r = 0; r < made; r++)
+            GEOSGeom_destroy_r(g->h, lr[r]);
+        return NULL;
+    }
+    GEOSGeometry *poly = GEOSGeom_createPolygon_r(g->h, lr[0], nrings > 1 ? lr + 1 : NULL, nrings - 1);
+    if (!poly)
+        for (uint32_t r = 0; r < nrings; r++)
+            GEOSGeom_destroy_r(g->h, lr[r]);
+    return poly;
+}
+
+/* Convex pieces of a polygon (GEOS triangulation, triangles merged greedily while the union stays
+ * convex) appended as occluders from base to roof. */
+static sl_status add_convex_pieces(xp_shared *s, sl_geos *g, GEOSGeometry *poly, double base, double roof,
+                                   sl_array *pieces, sl_array *xy, sl_error *err)
+{
+    GEOSGeometry *tris = GEOSConstrainedDelaunayTriangulation_r(g->h, poly);
+    if (!tris)
+        return sl_fail(err, SL_ERROR_INTERNAL, "extproj: GEOS could not triangulate an occluder: %s", g->message);
+    tri_list tl = {.g = g, .a = &s->a};
+    sl_geos_each_polygon(g, tris, collect_triangle, &tl);
+    GEOSGeom_destroy_r(g->h, tris);
+    sl_free(&s->a, tl.buf, tl.cap * sizeof(double));
+    uint32_t nt = (uint32_t)tl.tris.count;
+    double *slot = tl.oom ? NULL : sl_alloc(&s->a, ((size_t)nt + 1) * 2 * MERGE_MAXV * sizeof(double));
+    uint32_t *cnt = tl.oom ? NULL : sl_calloc(&s->a, (size_t)nt + 1, sizeof(uint32_t));
+    xp_build b = {.s = s, .pieces = pieces, .xy = xy, .base = base, .roof = roof, .g = g};
+    if (slot && cnt) {
+        for (uint32_t t = 0; t < nt; t++) {
+            memcpy(slot + (size_t)t * 2 * MERGE_MAXV, (double *)tl.tris.data + 6 * (size_t)t, 6 * sizeof(double));
+            cnt[t] = 3;
+        }
+        double tmp[2 * MERGE_MAXV];
+        for (bool merged = true; merged;) {
+            merged = false;
+            for (uint32_t i = 0; i < nt; i++)
+                for (uint32_t j = i + 1; cnt[i] && j < nt; j++) {
+                    uint32_t n;
+                    if (cnt[j] && merge_convex(slot + (size_t)i * 2 * MERGE_MAXV, cnt[i],
+                                               slot + (size_t)j * 2 * MERGE_MAXV, cnt[j], tmp, &n)) {
+                        memcpy(slot + (size_t)i * 2 * MERGE_MAXV, tmp, 2 * (size_t)n * sizeof(double));
+                        cnt[i] = n, cnt[j] = 0, merged = true;
+                    }
+                }
+        }
+        for (uint32_t t = 0; t < nt && !b.oom; t++)
+            if (cnt[t])
+                add_piece(&b, slot + (size_t)t * 2 * MERGE_MAXV, cnt[t]);
+    }
+    bool oom = tl.oom || !slot || !cnt || b.oom;
+    sl_free(&s->a, slot, slot ? ((size_t)nt + 1) * 2 * MERGE_MAXV * sizeof(double) : 0);
+    sl_free(&s->a, cnt, cnt ? ((size_t)nt + 1) * sizeof(uint32_t) : 0);
+    sl_array_free(&s->a, &tl.tris, 6 * sizeof(double));
+    return oom ? sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "extproj: out of memory") : SL_OK;
+}
+
+/* The level pieces of groups of touching footprints (sl_shrink_footprints with eps 0 and merge:
+ * for every roof height h of a group, the union of its members at least h high, from the highest
+ * of their bases to h), as convex occluders. A lone footprint is already an occluder of its own. */
+static sl_status add_merged(xp_shared *s, sl_geos *g, sl_array *pieces, sl_array *xy, sl_error *err)
+{
+    sl_shrunk sh;
+    sl_status st = sl_shrink_footprints(s->scene, 0.0f, SL_SHRINK_CYLINDER, true, &s->a, &sh, err);
+    if (st != SL_OK)
+        return st;
+    for (uint32_t i = 0; i < sl_shrunk_count(sh) && st == SL_OK; i++) {
+        sl_shrunk_polygon sp = sl_shrunk_get(sh, i);
+        if (sp.object != SL_NONE)
+            continue;
+        GEOSGeometry *poly = polygon_with_holes(g, sp.xy, sp.ring_count, sp.rings);
+        if (!poly) {
+            st = sl_fail(err, SL_ERROR_INTERNAL, "extproj: GEOS could not build merged occluder %u: %s", i, g->message);
+            break;
+        }
+        st = add_convex_pieces(s, g, poly, sp.base_z, sp.roof_z, pieces, xy, err);
+        GEOSGeom_destroy_r(g->h, poly);
+    }
+    sl_shrunk_destroy(sh);
+    return st;
+}
+
 static sl_status add_footprint(xp_shared *s, sl_geos *g, uint32_t f, sl_array *pieces, sl_array *xy, sl_error *err)
 {
     sl_footprint_view fp = sl_scene_footprint(s->scene, f);
@@ -267,6 +455,8 @@ static sl_status xp_prepare(sl_scene scene, sl_viewcells cells, const void *conf
     sl_status st = SL_OK;
     for (uint32_t f = 0; f < sl_scene_footprint_count(scene) && st == SL_OK; f++)
         st = add_footprint(s, &g, f, &pieces, &xy, err);
+    if (st == SL_OK && s->cfg.merge)
+        st = add_merged(s, &g, &pieces, &xy, err);
     sl_geos_finish(&g);
     s->npiece = (uint32_t)pieces.count;
     s->nxy = xy.count;
@@ -592,16 +782,39 @@ static void build_pyramid(float *pyr, grid *g)
     g->levels = l + 1;
 }
 
-/* Whether every pixel of [i0, i1] x [j0, j1] (inside the grid) holds a depth below `near`. */
+/* Whether every pixel of [i0, i1] x [j0, j1] (inside the grid) holds a depth below `near`: the
+ * pyramid's cells over the rectangle, from a coarse level down; a cell below `near` settles its
+ * pixels, another is opened (at level 0 it fails). Exact: the same answer as reading every pixel. */
+static bool cell_hidden(const float *pyr, const grid *g, uint32_t l, int32_t ci, int32_t cj, int32_t i0, int32_t i1,
+                        int32_t j0, int32_t j1, float near)
+{
+    if (pyr[g->off[l] + (size_t)cj * (size_t)g->lw[l] + (size_t)ci] < near)
+        return true;
+    if (l == 0)
+        return false;
+    for (int32_t dj = 0; dj < 2; dj++)
+        for (int32_t di = 0; di < 2; di++) {
+            int32_t x = 2 * ci + di, y = 2 * cj + dj;
+            /* the child's pixels: [x << (l-1), ((x+1) << (l-1)) - 1] */
+            if (x >= g->lw[l - 1] || y >= g->lh[l - 1])
+                continue;
+            if ((((x + 1) << (l - 1)) - 1) < i0 || (x << (l - 1)) > i1 || (((y + 1) << (l - 1)) - 1) < j0 ||
+                (y << (l - 1)) > j1)
+                continue;
+            if (!cell_hidden(pyr, g, l - 1, x, y, i0, i1, j0, j1, near))
+                return false;
+        }
+    return true;
+}
+
 static bool rect_hidden(const float *pyr, const grid *g, int32_t i0, int32_t i1, int32_t j0, int32_t j1, float near)
 {
     uint32_t l = 0;
-    while (l + 1 < g->levels && ((i1 >> l) - (i0 >> l) > 3 || (j1 >> l) - (j0 >> l) > 3))
+    while (l + 1 < g->levels && ((i1 >> l) - (i0 >> l) > 1 || (j1 >> l) - (j0 >> l) > 1))
         l++;
-    const float *m = pyr + g->off[l];
     for (int32_t j = j0 >> l; j <= j1 >> l; j++)
         for (int32_t i = i0 >> l; i <= i1 >> l; i++)
-            if (!(m[(size_t)j * (size_t)g->lw[l] + (size_t)i] < near))
+            if (!cell_hidden(pyr, g, l, i, j, i0, i1, j0, j1, near))
                 return false;
     return true;
 }
