@@ -63,7 +63,10 @@ typedef struct xp_config {
     uint32_t res;    /* pixels along the longer side of a plane's window */
     float spread;    /* a plane's window reaches spread * distance sideways and up/down */
     bool merge;      /* also the level pieces of touching footprints, as convex occluders */
+    uint32_t dirs;   /* directions of the planes: 4 (the axes) or 8 (and the diagonals) */
 } xp_config;
+
+#define MAX_DIRS 8
 
 typedef struct xp_piece {
     uint32_t first, count; /* vertices in xy, counter-clockwise, convex */
@@ -84,6 +87,10 @@ typedef struct xp_shared {
     uint32_t nobj;
     const sl_aabb *bounds;
     double scene_lo[2], scene_hi[2]; /* xy box of pieces and objects */
+    double zlo, zhi;                  /* the objects' lowest and highest z */
+    double dir[MAX_DIRS][2];          /* the planes' normals (unit, horizontal) */
+    double *prange;                   /* per direction and piece: least and greatest delta */
+    double dir_end[MAX_DIRS];         /* per direction: the greatest delta of the scene */
 } xp_shared;
 
 /* A piece's extended projection onto the current plane. */
@@ -117,7 +124,8 @@ static const char g_help[] =
     "planes=1..32 (default 12): at most this many planes per direction (they stop past the scene)\n"
     "res=16..4096 (default 768): pixels along the longer side of a plane's window (square pixels)\n"
     "spread=0.5..8 (default 1.5): a plane's window reaches spread times its distance beyond the cell's sides\n"
-    "merge=BOOL (default true): footprints that touch also form level pieces (for every roof height h, the "
+    "dirs=4|8 (default 8): plane directions, the four horizontal axes or also the four diagonals\n"
+    "merge=BOOL (default false): footprints that touch also form level pieces (for every roof height h, the "
     "union of the members at least h high), split into convex occluders, so that a row of buildings sharing "
     "walls occludes as one block\n";
 
@@ -130,8 +138,11 @@ static sl_status xp_configure(sl_opts *o, void *config, sl_error *err)
         (st = sl_opts_u32(o, "planes", 12, 1, 32, &c->planes, err)) != SL_OK ||
         (st = sl_opts_u32(o, "res", 768, 16, 4096, &c->res, err)) != SL_OK ||
         (st = sl_opts_float(o, "spread", 1.5f, 0.5f, 8.0f, &c->spread, err)) != SL_OK ||
-        (st = sl_opts_bool(o, "merge", true, &c->merge, err)) != SL_OK)
+        (st = sl_opts_bool(o, "merge", false, &c->merge, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "dirs", 8, 4, 8, &c->dirs, err)) != SL_OK)
         return st;
+    if (c->dirs != 4 && c->dirs != 8)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "extproj: dirs must be 4 or 8 (got %u)", c->dirs);
     return SL_OK;
 }
 
@@ -142,6 +153,7 @@ static void xp_release(void *p)
         return;
     sl_free(&s->a, s->pieces, ((size_t)s->npiece + 1) * sizeof(xp_piece));
     sl_free(&s->a, s->xy, (s->nxy + 1) * sizeof(double));
+    sl_free(&s->a, s->prange, s->prange ? 2 * (size_t)MAX_DIRS * ((size_t)s->npiece + 1) * sizeof(double) : 0);
     sl_free(&s->a, s, sizeof *s);
 }
 
@@ -481,10 +493,44 @@ static sl_status xp_prepare(sl_scene scene, sl_viewcells cells, const void *conf
             s->scene_lo[k] = fmin(s->scene_lo[k], s->pieces[i].lo[k]);
             s->scene_hi[k] = fmax(s->scene_hi[k], s->pieces[i].hi[k]);
         }
+    s->zlo = s->nobj ? DBL_MAX : 0, s->zhi = s->nobj ? -DBL_MAX : 0;
     for (uint32_t o = 0; o < s->nobj; o++) {
         const sl_aabb *b = &s->bounds[o];
+        s->zlo = fmin(s->zlo, b->min.z), s->zhi = fmax(s->zhi, b->max.z);
         s->scene_lo[0] = fmin(s->scene_lo[0], b->min.x), s->scene_hi[0] = fmax(s->scene_hi[0], b->max.x);
         s->scene_lo[1] = fmin(s->scene_lo[1], b->min.y), s->scene_hi[1] = fmax(s->scene_hi[1], b->max.y);
+    }
+    /* the directions; a normal on an axis is exact (the slabs then cut exactly on the plane) */
+    for (uint32_t k = 0; k < s->cfg.dirs; k++) {
+        static const double axis[8][2] = {{1, 0}, {0, 1}, {-1, 0}, {0, -1}, {1, 1}, {-1, 1}, {-1, -1}, {1, -1}};
+        double l = sqrt(axis[k][0] * axis[k][0] + axis[k][1] * axis[k][1]);
+        s->dir[k][0] = axis[k][0] / l, s->dir[k][1] = axis[k][1] / l;
+    }
+    s->prange = sl_alloc(alloc, 2 * (size_t)MAX_DIRS * ((size_t)s->npiece + 1) * sizeof(double));
+    if (!s->prange) {
+        xp_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "extproj: out of memory");
+    }
+    for (uint32_t k = 0; k < s->cfg.dirs; k++) {
+        const double nx = s->dir[k][0], ny = s->dir[k][1];
+        double end = -DBL_MAX;
+        for (uint32_t i = 0; i < s->npiece; i++) {
+            const xp_piece *pc = &s->pieces[i];
+            double lo = DBL_MAX, hi = -DBL_MAX;
+            for (uint32_t v = 0; v < pc->count; v++) {
+                const double *q = s->xy + 2 * ((size_t)pc->first + v);
+                double dl = nx * q[0] + ny * q[1];
+                lo = fmin(lo, dl), hi = fmax(hi, dl);
+            }
+            s->prange[2 * ((size_t)k * s->npiece + i)] = lo;
+            s->prange[2 * ((size_t)k * s->npiece + i) + 1] = hi;
+            end = fmax(end, hi);
+        }
+        for (uint32_t o = 0; o < s->nobj; o++) {
+            const sl_aabb *b = &s->bounds[o];
+            end = fmax(end, (nx > 0 ? nx * b->max.x : nx * b->min.x) + (ny > 0 ? ny * b->max.y : ny * b->min.y));
+        }
+        s->dir_end[k] = end;
     }
     *shared = s;
     return SL_OK;
@@ -547,12 +593,12 @@ static sl_status xp_worker_create(void *shared, void **out, sl_error *err)
 
 /* ---- geometry on a plane ---- */
 
-/* Keep the part of convex polygon p (n vertices, 2 doubles each) where sg * coordinate a lies in
+/* Keep the part of convex polygon p (n vertices, 2 doubles each) where delta = nx x + ny y lies in
  * [lo, hi]; into out; returns the vertex count (0: empty). */
-static uint32_t clip_slab(const double *p, uint32_t n, int a, double sg, double lo, double hi, double *tmp,
+static uint32_t clip_slab(const double *p, uint32_t n, double nx, double ny, double lo, double hi, double *tmp,
                           double *out)
 {
-    /* two passes of Sutherland-Hodgman: sg*x >= lo, then sg*x <= hi */
+    /* two passes of Sutherland-Hodgman: delta >= lo, then delta <= hi */
     const double *src = p;
     double *dst = tmp;
     uint32_t m = n;
@@ -560,8 +606,9 @@ static uint32_t clip_slab(const double *p, uint32_t n, int a, double sg, double 
         uint32_t k = 0;
         for (uint32_t i = 0; i < m; i++) {
             const double *c = src + 2 * i, *d = src + 2 * ((i + 1) % m);
-            double fc = pass == 0 ? sg * c[a] - lo : hi - sg * c[a];
-            double fd = pass == 0 ? sg * d[a] - lo : hi - sg * d[a];
+            double dc = nx * c[0] + ny * c[1], dd = nx * d[0] + ny * d[1];
+            double fc = pass == 0 ? dc - lo : hi - dc;
+            double fd = pass == 0 ? dd - lo : hi - dd;
             if (fc >= 0) {
                 dst[2 * k] = c[0], dst[2 * k + 1] = c[1];
                 k++;
@@ -570,8 +617,11 @@ static uint32_t clip_slab(const double *p, uint32_t n, int a, double sg, double 
                 double t = fc / (fc - fd);
                 dst[2 * k] = c[0] + t * (d[0] - c[0]);
                 dst[2 * k + 1] = c[1] + t * (d[1] - c[1]);
-                /* the cut lies exactly on the slab's plane (it may round off it by an ulp) */
-                dst[2 * k + a] = sg * (pass == 0 ? lo : hi);
+                /* on an axis the cut lies exactly on the slab's plane (not an ulp off it) */
+                if (ny == 0)
+                    dst[2 * k] = nx * (pass == 0 ? lo : hi);
+                else if (nx == 0)
+                    dst[2 * k + 1] = ny * (pass == 0 ? lo : hi);
                 k++;
             }
         }
@@ -652,10 +702,9 @@ static uint32_t clip_convex(const double *r, uint32_t n, const double *c, uint32
     return cnt;
 }
 
-/* The plane's frame: delta = sg * coordinate a; u = the other horizontal coordinate. */
+/* The plane's frame: delta = nx x + ny y along the normal, u = nx y - ny x across it. */
 typedef struct frame {
-    int a;
-    double sg;
+    double nx, ny;
     double d;                /* the plane: delta = d */
     double eye[MAX_EYES][3]; /* delta, u, z of the cell's vertices */
     uint32_t ne;
@@ -678,7 +727,7 @@ static uint32_t extended_projection(xp_worker *w, const frame *f, const double *
     for (uint32_t e = 0; e < f->ne; e++) {
         const double *eye = f->eye[e];
         for (uint32_t i = 0; i < n; i++) {
-            double dl = f->sg * v[2 * i + f->a], u = v[2 * i + 1 - f->a];
+            double dl = f->nx * v[2 * i] + f->ny * v[2 * i + 1], u = f->nx * v[2 * i + 1] - f->ny * v[2 * i];
             project(f, eye, dl, u, base, w->fp3 + 4 * i);
             project(f, eye, dl, u, roof, w->fp3 + 4 * i + 2);
         }
@@ -773,7 +822,7 @@ static void build_pyramid(float *pyr, grid *g)
                     for (int32_t di = 0; di < 2; di++) {
                         int32_t x = 2 * i + di, y = 2 * j + dj;
                         float v = (x < w && y < h) ? src[(size_t)y * (size_t)w + (size_t)x] : FLT_MAX;
-                        m = fmaxf(m, v);
+                        m = v > m ? v : m;
                     }
                 dst[(size_t)j * (size_t)nw + (size_t)i] = m;
             }
@@ -828,7 +877,7 @@ static int cmp_keyed(const void *x, const void *y)
 }
 
 /* One direction of one cell: planes at growing distance; objects proven hidden are marked. */
-static bool direction(xp_worker *w, frame *f, double delta_c, const double *cu, const double *cz, uint32_t *live,
+static bool direction(xp_worker *w, frame *f, uint32_t dir, double delta_c, const double *cu, const double *cz, uint32_t *live,
                       uint64_t *work)
 {
     xp_shared *s = w->sh;
@@ -839,31 +888,35 @@ static bool direction(xp_worker *w, frame *f, double delta_c, const double *cu, 
     uint32_t nc = 0;
     for (uint32_t i = 0; i < s->npiece; i++) {
         const xp_piece *pc = &s->pieces[i];
-        double pmin = f->sg > 0 ? pc->lo[f->a] : -pc->hi[f->a];
-        double pmax = f->sg > 0 ? pc->hi[f->a] : -pc->lo[f->a];
+        (void)pc;
+        double pmin = s->prange[2 * ((size_t)dir * s->npiece + i)], pmax = s->prange[2 * ((size_t)dir * s->npiece + i) + 1];
         if (pmax > lo)
             w->order[nc++] = (keyed){fmax(pmin, lo), i};
     }
     qsort(w->order, nc, sizeof(keyed), cmp_keyed);
-    const double scene_end = f->sg > 0 ? s->scene_hi[f->a] : -s->scene_lo[f->a];
+    const double scene_end = s->dir_end[dir];
     double dist = cfg->near;
     for (uint32_t k = 0; k < cfg->planes && *live > 0; k++, dist *= cfg->growth) {
         f->d = delta_c + dist;
         const bool last = f->d >= scene_end || k + 1 == cfg->planes;
         /* window limits */
-        double wl[2] = {cu[0] - cfg->spread * dist, cz[0] - cfg->spread * dist};
-        double wh[2] = {cu[1] + cfg->spread * dist, cz[1] + cfg->spread * dist};
+        /* window limits: sideways spread * dist beyond the cell; vertically also where the images of
+         * objects can lie when they are at most half as far as the plane (an image of an object
+         * beyond the plane lies between its heights and the eye's): a smaller window only keeps
+         * more objects */
+        double wl[2] = {cu[0] - cfg->spread * dist, fmax(cz[0] - cfg->spread * dist, s->zlo - (cz[1] - s->zlo))};
+        double wh[2] = {cu[1] + cfg->spread * dist, fmin(cz[1] + cfg->spread * dist, s->zhi + (s->zhi - cz[0]))};
         w->polys.count = 0;
         w->pts.count = 0;
         double bl[2] = {DBL_MAX, DBL_MAX}, bh[2] = {-DBL_MAX, -DBL_MAX};
         for (uint32_t q = 0; q < nc && w->order[q].k < f->d; q++) {
             const xp_piece *pc = &s->pieces[w->order[q].id];
-            uint32_t m = clip_slab(s->xy + 2 * (size_t)pc->first, pc->count, f->a, f->sg, lo, f->d, w->rb, w->fp);
+            uint32_t m = clip_slab(s->xy + 2 * (size_t)pc->first, pc->count, f->nx, f->ny, lo, f->d, w->rb, w->fp);
             if (m == 0)
                 continue;
             double far = -DBL_MAX;
             for (uint32_t i = 0; i < m; i++)
-                far = fmax(far, f->sg * w->fp[2 * i + f->a]);
+                far = fmax(far, f->nx * w->fp[2 * i] + f->ny * w->fp[2 * i + 1]);
             uint32_t n = extended_projection(w, f, w->fp, m, pc->base, pc->roof);
             (*work)++;
             if (n < 3)
@@ -915,19 +968,32 @@ static bool direction(xp_worker *w, frame *f, double delta_c, const double *cu, 
                     continue;
                 const sl_aabb *b = &s->bounds[o];
                 double bmin[3] = {b->min.x, b->min.y, b->min.z}, bmax[3] = {b->max.x, b->max.y, b->max.z};
-                double near = f->sg > 0 ? bmin[f->a] : -bmax[f->a];
+                /* the box's four vertical edges in the frame */
+                double cd[4], cuv[4], near = DBL_MAX, far = -DBL_MAX;
+                for (int c = 0; c < 4; c++) {
+                    double x = (c & 1) ? bmax[0] : bmin[0], y = (c & 2) ? bmax[1] : bmin[1];
+                    cd[c] = f->nx * x + f->ny * y, cuv[c] = f->nx * y - f->ny * x;
+                    near = fmin(near, cd[c]), far = fmax(far, cd[c]);
+                }
+                (void)far;
                 if (!(near >= lo))
                     continue;
+                /* the corners' images: for an eye E and a corner t, u' = E_u + (t_u - E_u) s and
+                 * z' = E_z + (t_z - E_z) s with s = (d - E_delta) / (t_delta - E_delta) */
+                const double tz[2] = {bmin[2], bmax[2]};
                 double rl[2] = {DBL_MAX, DBL_MAX}, rh[2] = {-DBL_MAX, -DBL_MAX};
-                for (uint32_t e = 0; e < f->ne; e++)
-                    for (int c = 0; c < 8; c++) {
-                        double x = (c & 1) ? bmax[0] : bmin[0], y = (c & 2) ? bmax[1] : bmin[1];
-                        double z = (c & 4) ? bmax[2] : bmin[2], pp[2];
-                        double dl = f->sg * (f->a == 0 ? x : y), u = f->a == 0 ? y : x;
-                        project(f, f->eye[e], dl, u, z, pp);
-                        rl[0] = fmin(rl[0], pp[0]), rh[0] = fmax(rh[0], pp[0]);
-                        rl[1] = fmin(rl[1], pp[1]), rh[1] = fmax(rh[1], pp[1]);
+                for (uint32_t e = 0; e < f->ne; e++) {
+                    const double *E = f->eye[e];
+                    for (int c = 0; c < 4; c++) {
+                        double sc = (f->d - E[0]) / (cd[c] - E[0]);
+                        double u = E[1] + (cuv[c] - E[1]) * sc;
+                        rl[0] = u < rl[0] ? u : rl[0], rh[0] = u > rh[0] ? u : rh[0];
+                        for (int h = 0; h < 2; h++) {
+                            double z = E[2] + (tz[h] - E[2]) * sc;
+                            rl[1] = z < rl[1] ? z : rl[1], rh[1] = z > rh[1] ? z : rh[1];
+                        }
                     }
+                }
                 double fi0 = floor((rl[0] - g.tol - g.u0) / g.px), fi1 = floor((rh[0] + g.tol - g.u0) / g.px);
                 double fj0 = floor((rl[1] - g.tol - g.z0) / g.px), fj1 = floor((rh[1] + g.tol - g.z0) / g.px);
                 if (!(fi0 >= 0 && fj0 >= 0 && fi1 < g.wd && fj1 < g.ht))
@@ -968,19 +1034,19 @@ static sl_status xp_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, s
     memset(w->hidden, 0, s->nobj);
     uint32_t live = s->nobj;
     uint64_t work = 0;
-    for (int dir = 0; dir < 4 && live > 0; dir++) {
-        frame f = {.a = dir >> 1, .sg = (dir & 1) ? -1.0 : 1.0, .ne = 2 * n};
+    for (uint32_t dir = 0; dir < s->cfg.dirs && live > 0; dir++) {
+        frame f = {.nx = s->dir[dir][0], .ny = s->dir[dir][1], .ne = 2 * n};
         double delta_c = -DBL_MAX, cu[2] = {DBL_MAX, -DBL_MAX}, cz[2] = {vc->z_min, vc->z_max};
         for (uint32_t i = 0; i < n; i++)
             for (int h = 0; h < 2; h++) {
                 double *e = f.eye[2 * i + (uint32_t)h];
-                e[0] = f.sg * xy[2 * i + f.a];
-                e[1] = xy[2 * i + 1 - f.a];
+                e[0] = f.nx * xy[2 * i] + f.ny * xy[2 * i + 1];
+                e[1] = f.nx * xy[2 * i + 1] - f.ny * xy[2 * i];
                 e[2] = h ? vc->z_max : vc->z_min;
                 delta_c = fmax(delta_c, e[0]);
                 cu[0] = fmin(cu[0], e[1]), cu[1] = fmax(cu[1], e[1]);
             }
-        if (!direction(w, &f, delta_c, cu, cz, &live, &work))
+        if (!direction(w, &f, dir, delta_c, cu, cz, &live, &work))
             return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "extproj: out of memory");
     }
     uint32_t m = 0;
