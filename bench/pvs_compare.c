@@ -2,13 +2,16 @@
  * methods, second round: extproj").
  *
  *   bench_pvs_compare [--preset tiny|small|vienna] [--cell-size M] [--methods a,b,c] [--sample N]
- *                     [--face F] [--seed S] [--no-verify]
+ *                     [--face F] [--seed S] [--no-verify] [--part K/N]
  *
  * N street cells chosen at random (the same cells as bench_pvs_bake with the same --seed and
  * --sample), each baked by every method on one thread (thread CPU time per cell: median and mean)
  * and judged by the region oracle once (face size F): per method the mean fraction culled, the
  * objects per cell, the over-estimation against the oracle and the missed objects (must be 0 for a
- * conservative method; each miss is printed). Methods take their default options. */
+ * conservative method; each miss is printed). Methods take their default options. Every cell's
+ * figures are printed as it is done ("CELL index cell oracle method count seconds misses ..."),
+ * so that --part K/N (only the sampled cells i with i % N == K: N processes share a sample) and
+ * an interrupted run still give every figure; the table covers the cells this process did. */
 #include "core/sl_core.h"
 #include "region/pvs_internal.h"
 #include "sightline/gen.h"
@@ -37,6 +40,7 @@ int main(int argc, char **argv)
     uint32_t sample = 200, face = 192;
     uint64_t seed = 1;
     bool verify = true;
+    uint32_t part_k = 0, part_n = 1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--preset") && v)
@@ -53,9 +57,12 @@ int main(int argc, char **argv)
             seed = strtoull(v, NULL, 10), i++;
         else if (!strcmp(a, "--no-verify"))
             verify = false;
+        else if (!strcmp(a, "--part") && v && sscanf(v, "%u/%u", &part_k, &part_n) == 2 && part_n > 0 &&
+                 part_k < part_n)
+            i++;
         else {
             fprintf(stderr, "usage: %s [--preset P] [--cell-size M] [--methods a,b,c] [--sample N] [--face F] "
-                            "[--seed S] [--no-verify]\n",
+                            "[--seed S] [--no-verify] [--part K/N]\n",
                     argv[0]);
             return 2;
         }
@@ -130,8 +137,11 @@ int main(int argc, char **argv)
         return 1;
     }
     uint64_t oracle_total = 0;
+    uint32_t done = 0;
     double o0 = sl_now();
     for (uint32_t i = 0; i < sample; i++) {
+        if (i % part_n != part_k)
+            continue;
         for (uint32_t m = 0; m < nm; m++) {
             sl_pvs_cell_result res = {sets[m], 0, 0};
             double c0 = thread_seconds();
@@ -139,14 +149,22 @@ int main(int argc, char **argv)
                 fprintf(stderr, "%s, cell %u: %s\n", name[m], pick[i], err.message);
                 return 1;
             }
-            secs[m][i] = thread_seconds() - c0;
+            secs[m][done] = thread_seconds() - c0;
             counts[m] = res.count;
             kept[m] += res.count;
             culled[m] += 1.0 - (double)res.count / no;
         }
-        if (!ro)
+        done++;
+        uint64_t cmiss[MAX_METHODS] = {0};
+        sl_region_visibility v = {0};
+        if (!ro) {
+            printf("CELL %u %u -", i, pick[i]);
+            for (uint32_t m = 0; m < nm; m++)
+                printf(" %s %u %.6f -", name[m], counts[m], secs[m][done - 1]);
+            printf("\n");
+            fflush(stdout);
             continue;
-        sl_region_visibility v;
+        }
         if (sl_region_oracle_cell(ro, cells, pick[i], &v, &err) != SL_OK) {
             fprintf(stderr, "%s\n", err.message);
             return 1;
@@ -158,12 +176,19 @@ int main(int argc, char **argv)
                     k++;
                 if (k >= counts[m] || sets[m][k] != v.visible[q]) {
                     miss[m]++;
+                    cmiss[m]++;
                     printf("MISS: %s cell %u object %u (%u pixels)\n", name[m], pick[i], v.visible[q],
                            v.max_pixels[q]);
                 }
             }
+        printf("CELL %u %u %u", i, pick[i], v.visible_count);
+        for (uint32_t m = 0; m < nm; m++)
+            printf(" %s %u %.6f %llu", name[m], counts[m], secs[m][done - 1], (unsigned long long)cmiss[m]);
+        printf("\n");
+        fflush(stdout);
     }
     double wall = sl_now() - o0;
+    sample = done;
     printf("| method | culled (mean) | objects per cell | over the oracle | CPU s per cell (median / mean) | "
            "prepare s | misses |\n|---|---|---|---|---|---|---|\n");
     for (uint32_t m = 0; m < nm; m++) {
