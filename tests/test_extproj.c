@@ -118,9 +118,9 @@ static void test_wall(void **state)
     add_building(s, -40, 10, 40, 12, 20);
     uint32_t t = add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
     assert_false(bake(s, vc, t, &seen));
-    /* a box between the cell and the wall projects inside the wall's extended projection but lies
-     * in front of it (the depth test): kept, and seen */
-    uint32_t front = add_box(s, -1, 5, 0, 1, 6, 1, SL_KIND_OTHER);
+    /* a box between the cell and the wall (a sign 3 m up) projects inside the wall's extended
+     * projection but lies in front of it (the depth test): kept, and seen */
+    uint32_t front = add_box(s, -1, 5, 3, 1, 6, 4, SL_KIND_OTHER);
     assert_true(bake(s, vc, front, &seen));
     assert_true(seen);
     sl_scene_destroy(s);
