@@ -9,12 +9,14 @@
  * and it lies behind them.
  *
  * Here, per view cell (PRISM or BOX: a convex polytope with 6 or 8 vertices V_i):
- *  - directions: the four horizontal axes (+x, -x, +y, -y); for one, delta(P) is the coordinate
- *    of P along it and the cell ends at delta_c = max_i delta(V_i). Planes delta = d_k, with
+ *  - directions: the four horizontal axes (+x, -x, +y, -y) and, with dirs=8, the four diagonals;
+ *    for one, delta(P) is the coordinate of P along its unit normal n and u the one across it, and
+ *    the cell ends at delta_c = max_i delta(V_i). Vertical planes delta = d_k, with
  *    d_k = delta_c + near * growth^k (several planes per direction, the nearest just behind the
  *    street's facades), up to the scene's end;
  *  - occluders: the building footprints (convex ones as they are, the others as the triangles of
- *    their GEOS triangulation) as prisms [base_z, roof_z], each clipped to the slab
+ *    their GEOS triangulation; with merge=true also the level pieces of touching footprints cut
+ *    into convex pieces) as prisms [base_z, roof_z], each clipped to the slab
  *    delta_c + margin <= delta <= d_k (the paper slices occluders that cross the plane); a part of
  *    a solid occluder is a solid occluder;
  *  - the extended projection of a convex occluder O onto the plane is the intersection over the
@@ -40,10 +42,11 @@
  *    delta(t): o lies between E and t, inside a solid occluder.
  * The depth test is the paper's conservative one (occluder's far depth against the occludee's
  * near depth), per pixel. The tests read a max pyramid of the depth map (a coarser cell holds the
- * greatest depth of its pixels, so reading it can only keep more objects).
+ * greatest depth of its pixels), descending into the cells that fail: the answer of reading every
+ * pixel, faster.
  *
  * Not done (docs/pvs.md, "extproj"): the occlusion sweep and the reprojection of an aggregated
- * occlusion onto another plane, planes other than the four vertical axis-aligned ones, the
+ * occlusion onto another plane, planes placed per occluder (here fixed distances per direction), the
  * ground and terrain as occluders, occluders other than footprints (BSP brushes, meshes).
  * Scope: PRISM and BOX cells of scenes with building footprints. */
 #include "pvs_internal.h"
