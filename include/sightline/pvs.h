@@ -7,6 +7,9 @@
  *    conservative for 2.5D scenes (building footprints as occluders);
  *  - "adjustable": the adjustable (angular) shrinking of Koldas's thesis (chapter 4):
  *    conservative, visible sets valid in an eps-disk around a point, cells covered by disks;
+ *  - "extproj": extended projections (Durand et al., SIGGRAPH 2000): occluders and objects
+ *    projected from the whole cell onto planes and fused in an extended depth map; conservative
+ *    for 2.5D scenes (building footprints as occluders);
  *  - "mappvs": a Quake III map's own cluster PVS stored as a Sightline PVS (aggressive: it is
  *    whatever the map's compiler produced), for verification and comparison;
  *  - a method is one file in src/region and one line in the method registry (guided visibility

@@ -12,7 +12,8 @@
     X(mappvs) \
     X(portal) \
     X(gvs) \
-    X(volumetric)
+    X(volumetric) \
+    X(extproj)
 
 #define SL_DECLARE_PVS_METHOD(name) extern const sl_pvs_method sl_pvs_method_##name;
 SL_PVS_METHODS(SL_DECLARE_PVS_METHOD)
