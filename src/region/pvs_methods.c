@@ -11,7 +11,8 @@
     X(adjustable)         \
     X(mappvs) \
     X(portal) \
-    X(gvs)
+    X(gvs) \
+    X(virtual)
 
 #define SL_DECLARE_PVS_METHOD(name) extern const sl_pvs_method sl_pvs_method_##name;
 SL_PVS_METHODS(SL_DECLARE_PVS_METHOD)
