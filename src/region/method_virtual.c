@@ -64,6 +64,10 @@
 #include <math.h>
 #include <stdlib.h>
 
+/* fmin and fmax are library calls at -O2 (their NaN rules); no NaN reaches these */
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
 typedef struct virt_config {
     float radius;     /* metres around the cell: pieces taking part */
     uint32_t seeds;   /* seed pieces per cell */
@@ -73,6 +77,7 @@ typedef struct virt_config {
     uint32_t refine;  /* halvings of an interval that is not proved hidden */
     float min_len;    /* metres: shorter hidden runs are not kept */
     uint32_t keep;    /* 0: every virtual occluder; N: the first N of the greedy decimation */
+    bool fuse;        /* also cull against the union of the virtual occluders */
 } virt_config;
 
 typedef struct vpiece {
@@ -135,6 +140,7 @@ typedef struct virt_worker {
     sl_array inside;  /* ivl: stretches of L inside pieces */
     sl_array ivls;    /* ivl: the cover sweep */
     sl_array runs;    /* ivl: hidden stretches of the current line */
+    sl_array segs;    /* double[4]: virtual occluders in an object's frame (fuse) */
     uint8_t *culled;  /* per object */
     uint32_t *order;  /* virtual occluders in test order */
     size_t order_cap;
@@ -152,7 +158,9 @@ static const char g_help[] =
     "refine=0..8 (default 3): halvings of an interval not proved hidden\n"
     "min_len=FLOAT (default 1): metres, shortest virtual occluder kept\n"
     "keep=0..65535 (default 0): 0 uses the whole dense set; N the first N virtual occluders of the greedy "
-    "decimation (figure 6 of the paper, weight = objects culled)\n";
+    "decimation (figure 6 of the paper, weight = objects culled)\n"
+    "fuse=BOOL (default true): an object in no single virtual occluder's umbra is also culled when every sight "
+    "line from the cell to it crosses one of them (their umbrae fused the same way; not in the paper)\n";
 
 static sl_status virt_configure(sl_opts *o, void *config, sl_error *err)
 {
@@ -165,7 +173,8 @@ static sl_status virt_configure(sl_opts *o, void *config, sl_error *err)
         (st = sl_opts_float(o, "step", 2.0f, 0.01f, 1000.0f, &c->step, err)) != SL_OK ||
         (st = sl_opts_u32(o, "refine", 3, 0, 8, &c->refine, err)) != SL_OK ||
         (st = sl_opts_float(o, "min_len", 1.0f, 0.0f, 1000.0f, &c->min_len, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "keep", 0, 0, 65535, &c->keep, err)) != SL_OK)
+        (st = sl_opts_u32(o, "keep", 0, 0, 65535, &c->keep, err)) != SL_OK ||
+        (st = sl_opts_bool(o, "fuse", true, &c->fuse, err)) != SL_OK)
         return st;
     return SL_OK;
 }
@@ -187,8 +196,8 @@ static bool push_piece(virt_shared *s, sl_array *pieces, sl_array *xy, const dou
 {
     vpiece pc = {(uint32_t)(xy->count / 2), n, base, roof, INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (uint32_t i = 0; i < n; i++) {
-        pc.x0 = fmin(pc.x0, v[2 * i]), pc.x1 = fmax(pc.x1, v[2 * i]);
-        pc.y0 = fmin(pc.y0, v[2 * i + 1]), pc.y1 = fmax(pc.y1, v[2 * i + 1]);
+        pc.x0 = dmin(pc.x0, v[2 * i]), pc.x1 = dmax(pc.x1, v[2 * i]);
+        pc.y0 = dmin(pc.y0, v[2 * i + 1]), pc.y1 = dmax(pc.y1, v[2 * i + 1]);
     }
     return sl_array_push(&s->a, xy, sizeof(double), v, 2 * (size_t)n) && sl_array_push(&s->a, pieces, sizeof pc, &pc, 1);
 }
@@ -330,6 +339,7 @@ static void virt_worker_destroy(void *p)
     sl_array_free(&s->a, &w->inside, sizeof(ivl));
     sl_array_free(&s->a, &w->ivls, sizeof(ivl));
     sl_array_free(&s->a, &w->runs, sizeof(ivl));
+    sl_array_free(&s->a, &w->segs, 4 * sizeof(double));
     sl_free(&s->a, w->culled, no);
     sl_free(&s->a, w->order, w->order_cap * sizeof(uint32_t));
     sl_free(&s->a, w->list, w->list_cap * sizeof(uint32_t));
@@ -380,6 +390,14 @@ static int cmp_ivl(const void *a, const void *b)
     return x->hi < y->hi ? -1 : x->hi > y->hi;
 }
 
+static int cmp_obst(const void *a, const void *b)
+{
+    const vobst *x = a, *y = b;
+    if (x->x0 != y->x0)
+        return x->x0 < y->x0 ? -1 : 1;
+    return x->first < y->first ? -1 : x->first > y->first;
+}
+
 /* ---- the hidden stretches of a line ---- */
 
 typedef struct line_ctx {
@@ -411,25 +429,28 @@ static bool interval_hidden(virt_worker *w, const line_ctx *c, double s0, double
     double cvx0 = INFINITY, cvx1 = -INFINITY;
     for (int i = 0; i < 4; i++) {
         double a = gq(L->vx[i], L->vy[i], c->ya, s0), b = gq(L->vx[i], L->vy[i], c->ya, s1);
-        dlo = fmin(dlo, fmin(a, b)), dhi = fmax(dhi, fmax(a, b));
-        cvx0 = fmin(cvx0, L->vx[i]), cvx1 = fmax(cvx1, L->vx[i]);
+        dlo = dmin(dlo, dmin(a, b)), dhi = dmax(dhi, dmax(a, b));
+        cvx0 = dmin(cvx0, L->vx[i]), cvx1 = dmax(cvx1, L->vx[i]);
     }
     w->ivls.count = 0;
+    const double reach_hi = dmax(s1, cvx1);
     for (size_t k = 0; k < c->nob; k++) {
         const vobst *o = &c->ob[k];
+        if (o->x0 > reach_hi)
+            break; /* sorted by x0 */
         /* speed only: the lines from [s0, s1] to the cell at heights y in [o->y0, o->y1] lie at x
          * between the lerps of the ends; a piece left out only keeps more points visible */
-        double f0 = o->y0 / L->a_far, f1 = fmin(1.0, o->y1 / L->a_near);
-        double lx = fmin(fmin(s0 + (cvx0 - s0) * f0, s0 + (cvx0 - s0) * f1), fmin(s1 + (cvx0 - s1) * f0, s1 + (cvx0 - s1) * f1));
-        double hx = fmax(fmax(s0 + (cvx1 - s0) * f0, s0 + (cvx1 - s0) * f1), fmax(s1 + (cvx1 - s1) * f0, s1 + (cvx1 - s1) * f1));
+        double f0 = o->y0 / L->a_far, f1 = dmin(1.0, o->y1 / L->a_near);
+        double lx = dmin(dmin(s0 + (cvx0 - s0) * f0, s0 + (cvx0 - s0) * f1), dmin(s1 + (cvx0 - s1) * f0, s1 + (cvx0 - s1) * f1));
+        double hx = dmax(dmax(s0 + (cvx1 - s0) * f0, s0 + (cvx1 - s0) * f1), dmax(s1 + (cvx1 - s1) * f0, s1 + (cvx1 - s1) * f1));
         if (o->x1 < lx || o->x0 > hx)
             continue;
         const double *v = c->buf + 2 * (size_t)o->first;
         double lo = INFINITY, hi = -INFINITY;
         for (uint32_t j = 0; j < o->count; j++) {
             double a = gq(v[2 * j], v[2 * j + 1], c->ya, s0), b = gq(v[2 * j], v[2 * j + 1], c->ya, s1);
-            lo = fmin(lo, fmax(a, b));
-            hi = fmax(hi, fmin(a, b));
+            lo = dmin(lo, dmax(a, b));
+            hi = dmax(hi, dmin(a, b));
         }
         /* a margin of rounding: the interval is only ever made smaller */
         double m = 1e-9 * (1 + fabs(lo) + fabs(hi));
@@ -449,7 +470,7 @@ static bool interval_hidden(virt_worker *w, const line_ctx *c, double s0, double
     for (size_t i = 0; i < n && reach < dhi; i++) {
         if (iv[i].lo > reach)
             return false;
-        reach = fmax(reach, iv[i].hi);
+        reach = dmax(reach, iv[i].hi);
     }
     return reach >= dhi;
 }
@@ -493,7 +514,7 @@ static bool line_occluders(virt_worker *w, uint32_t li, uint32_t nn, double h, d
             double dx = v[2 * i] - L->ox, dy = v[2 * i + 1] - L->oy;
             px[i] = dx * L->tx + dy * L->ty;
             py[i] = dx * L->nx + dy * L->ny;
-            ymin = fmin(ymin, py[i]), ymax = fmax(ymax, py[i]);
+            ymin = dmin(ymin, py[i]), ymax = dmax(ymax, py[i]);
         }
         if (ymax <= delta || ymin >= L->a_near)
             continue;
@@ -519,14 +540,15 @@ static bool line_occluders(virt_worker *w, uint32_t li, uint32_t nn, double h, d
             return false;
         for (uint32_t i = 0; i < m; i++) {
             dst[2 * i] = rx[i], dst[2 * i + 1] = ry[i];
-            o.x0 = fmin(o.x0, rx[i]), o.x1 = fmax(o.x1, rx[i]);
-            o.y0 = fmin(o.y0, ry[i]), o.y1 = fmax(o.y1, ry[i]);
+            o.x0 = dmin(o.x0, rx[i]), o.x1 = dmax(o.x1, rx[i]);
+            o.y0 = dmin(o.y0, ry[i]), o.y1 = dmax(o.y1, ry[i]);
         }
         if (!sl_array_push(&s->a, &w->obst, sizeof o, &o, 1))
             return false;
     }
     if (w->obst.count == 0 && w->inside.count == 0)
         return true;
+    qsort(w->obst.data, w->obst.count, sizeof(vobst), cmp_obst);
     line_ctx c = {L, L->a_far + 1.0, delta, w->obst.data, w->obst.count, w->obuf.data, w->inside.data,
                   w->inside.count};
     /* the window: the stretch of L within radius of the cell's centre */
@@ -552,26 +574,37 @@ static bool line_occluders(virt_worker *w, uint32_t li, uint32_t nn, double h, d
     return true;
 }
 
-/* Is the box b culled by virtual occluder vo for the cell (z range zlo..zhi)? */
-static bool vo_culls(const virt_worker *w, const vocc *vo, const sl_aabb *b, uint32_t nv, double zlo, double zhi)
+/* May virtual occluder vo hide (part of) box b from the cell (z range zlo..zhi)? The box wholly
+ * beyond the occluder's line and the height conditions of the file's comment. The box's corners in
+ * the line's frame go to bx, by. */
+static bool vo_usable(const virt_worker *w, const vocc *vo, const sl_aabb *b, double zlo, double zhi, double *bx,
+                      double *by)
 {
     const vline *L = &((const vline *)w->lines.data)[vo->line];
     const double cx[4] = {b->min.x, b->max.x, b->max.x, b->min.x}, cy[4] = {b->min.y, b->min.y, b->max.y, b->max.y};
-    double bx[4], by[4], bmin = INFINITY;
+    double bmin = INFINITY;
     for (int j = 0; j < 4; j++) {
         double dx = cx[j] - L->ox, dy = cy[j] - L->oy;
         by[j] = dx * L->nx + dy * L->ny;
         if (!(by[j] < 0))
             return false;
         bx[j] = dx * L->tx + dy * L->ty;
-        bmin = fmin(bmin, -by[j]);
+        bmin = dmin(bmin, -by[j]);
     }
     /* heights: the sight lines cross L between the bounds of the file's comment */
     double tmax = L->a_far / (L->a_far + bmin);
-    double top = zhi + fmax(0.0, (double)b->max.z - zhi) * tmax;
-    double low = zlo + fmin(0.0, (double)b->min.z - zlo) * tmax;
-    if (!(top <= vo->h) || !(low >= vo->bmax))
+    double top = zhi + dmax(0.0, (double)b->max.z - zhi) * tmax;
+    double low = zlo + dmin(0.0, (double)b->min.z - zlo) * tmax;
+    return top <= vo->h && low >= vo->bmax;
+}
+
+/* Is the box b culled by virtual occluder vo alone (its umbra holds the box)? */
+static bool vo_culls(const virt_worker *w, const vocc *vo, const sl_aabb *b, uint32_t nv, double zlo, double zhi)
+{
+    double bx[4], by[4];
+    if (!vo_usable(w, vo, b, zlo, zhi, bx, by))
         return false;
+    const vline *L = &((const vline *)w->lines.data)[vo->line];
     /* every segment from the cell to the box crosses L within [s0, s1]: the extremes of the crossing
      * points are at vertex pairs */
     for (uint32_t i = 0; i < nv; i++) {
@@ -581,6 +614,181 @@ static bool vo_culls(const virt_worker *w, const vocc *vo, const sl_aabb *b, uin
             if (!(x >= vo->s0 && x <= vo->s1))
                 return false;
         }
+    }
+    return true;
+}
+
+/* ---- fuse: the union of the virtual occluders ----
+ * Frame of a separating line between the cell and the box: X along it, Y towards the cell (the box
+ * in Y <= yb1, the cell in Y >= yv0 > yb1). A sight line is parametrised by w, where it crosses
+ * Y = yw (beyond the box) and u, where it crosses Y = yu (beyond the cell); a point (qx, qy) lies on
+ * it when u = g_q(w), as for the hidden points of a line. Every usable occluder, clipped to the
+ * strip yb1 <= Y <= yv0, blocks the lines through it there: a crossing point in the strip lies
+ * between the eye and the box, it is hidden from the cell at the occluder's slice, and the occluder's
+ * height conditions hold for the box. The box is culled when, for every w, the lines meeting both
+ * the cell and the box are covered by the occluders' u-intervals (the same bounds over intervals of
+ * w as along a line). */
+typedef struct fuse_ctx {
+    double vx[4], vy[4], bx[4], by[4];
+    uint32_t nv;
+    double ya;
+    const double *seg;
+    size_t nseg;
+} fuse_ctx;
+
+static bool fuse_piece(virt_worker *w, const fuse_ctx *c, double w0, double w1, uint32_t depth)
+{
+    double lv = INFINITY, hv = -INFINITY, lb = INFINITY, hb = -INFINITY;
+    for (uint32_t i = 0; i < c->nv; i++) {
+        double a = gq(c->vx[i], c->vy[i], c->ya, w0), b = gq(c->vx[i], c->vy[i], c->ya, w1);
+        lv = dmin(lv, dmin(a, b)), hv = dmax(hv, dmax(a, b));
+    }
+    for (int j = 0; j < 4; j++) {
+        double a = gq(c->bx[j], c->by[j], c->ya, w0), b = gq(c->bx[j], c->by[j], c->ya, w1);
+        lb = dmin(lb, dmin(a, b)), hb = dmax(hb, dmax(a, b));
+    }
+    double dlo = dmax(lv, lb), dhi = dmin(hv, hb);
+    bool covered = dlo > dhi; /* no sight line here */
+    if (!covered) {
+        w->ivls.count = 0;
+        for (size_t k = 0; k < c->nseg; k++) {
+            const double *q = c->seg + 4 * k;
+            double a0 = gq(q[0], q[1], c->ya, w0), a1 = gq(q[0], q[1], c->ya, w1);
+            double b0 = gq(q[2], q[3], c->ya, w0), b1 = gq(q[2], q[3], c->ya, w1);
+            double lo = dmin(dmax(a0, a1), dmax(b0, b1)), hi = dmax(dmin(a0, a1), dmin(b0, b1));
+            double m = 1e-9 * (1 + fabs(lo) + fabs(hi));
+            lo += m, hi -= m;
+            if (!(lo <= hi) || hi < dlo || lo > dhi)
+                continue;
+            ivl iv = {lo, hi};
+            if (!sl_array_push(&w->sh->a, &w->ivls, sizeof iv, &iv, 1))
+                return false;
+        }
+        ivl *iv = w->ivls.data;
+        size_t n = w->ivls.count;
+        if (n) {
+            qsort(iv, n, sizeof *iv, cmp_ivl);
+            double reach = dlo;
+            for (size_t i = 0; i < n && reach < dhi && iv[i].lo <= reach; i++)
+                reach = dmax(reach, iv[i].hi);
+            covered = reach >= dhi;
+        }
+    }
+    if (covered || depth == 0)
+        return covered;
+    double mid = 0.5 * (w0 + w1);
+    return fuse_piece(w, c, w0, mid, depth - 1) && fuse_piece(w, c, mid, w1, depth - 1);
+}
+
+/* Is box b hidden from the cell (poly, nv vertices) by the union of the occluders order[0..nuse)? */
+static bool union_culls(virt_worker *w, const sl_aabb *b, const double *poly, uint32_t nv, double zlo, double zhi,
+                        size_t nuse)
+{
+    virt_shared *s = w->sh;
+    const double cxs[4] = {b->min.x, b->max.x, b->max.x, b->min.x}, cys[4] = {b->min.y, b->min.y, b->max.y, b->max.y};
+    /* a separating direction N (from the box towards the cell): the centres' difference, else an
+     * edge normal of either (separating axes of two convex polygons) */
+    double cand[2 * 9];
+    uint32_t ncand = 0;
+    double pcx = 0, pcy = 0;
+    for (uint32_t i = 0; i < nv; i++)
+        pcx += poly[2 * i] / nv, pcy += poly[2 * i + 1] / nv;
+    cand[2 * ncand] = pcx - 0.5 * (b->min.x + b->max.x), cand[2 * ncand + 1] = pcy - 0.5 * (b->min.y + b->max.y), ncand++;
+    for (uint32_t i = 0; i < nv; i++) {
+        const double *p = poly + 2 * i, *q = poly + 2 * ((i + 1) % nv);
+        cand[2 * ncand] = -(q[1] - p[1]), cand[2 * ncand + 1] = q[0] - p[0], ncand++; /* inward of a CCW cell */
+    }
+    const double bn[4][2] = {{0, -1}, {1, 0}, {0, 1}, {-1, 0}};
+    for (int j = 0; j < 4; j++)
+        cand[2 * ncand] = bn[j][0], cand[2 * ncand + 1] = bn[j][1], ncand++;
+    double Nx = 0, Ny = 0, yv0 = 0, yv1 = 0, yb0 = 0, yb1 = 0;
+    bool found = false;
+    for (uint32_t k = 0; k < ncand && !found; k++) {
+        double l = sqrt(cand[2 * k] * cand[2 * k] + cand[2 * k + 1] * cand[2 * k + 1]);
+        if (!(l > 0))
+            continue;
+        Nx = cand[2 * k] / l, Ny = cand[2 * k + 1] / l;
+        yv0 = INFINITY, yv1 = -INFINITY, yb0 = INFINITY, yb1 = -INFINITY;
+        for (uint32_t i = 0; i < nv; i++) {
+            double y = poly[2 * i] * Nx + poly[2 * i + 1] * Ny;
+            yv0 = dmin(yv0, y), yv1 = dmax(yv1, y);
+        }
+        for (int j = 0; j < 4; j++) {
+            double y = cxs[j] * Nx + cys[j] * Ny;
+            yb0 = dmin(yb0, y), yb1 = dmax(yb1, y);
+        }
+        found = yv0 - yb1 > 1e-6;
+    }
+    if (!found)
+        return false;
+    const double Tx = -Ny, Ty = Nx, yw = yb0 - 1, yu = yv1 + 1;
+    fuse_ctx c = {.nv = nv, .ya = yu - yw};
+    for (uint32_t i = 0; i < nv; i++) {
+        c.vx[i] = poly[2 * i] * Tx + poly[2 * i + 1] * Ty;
+        c.vy[i] = poly[2 * i] * Nx + poly[2 * i + 1] * Ny - yw;
+    }
+    for (int j = 0; j < 4; j++) {
+        c.bx[j] = cxs[j] * Tx + cys[j] * Ty;
+        c.by[j] = cxs[j] * Nx + cys[j] * Ny - yw;
+    }
+    /* the usable occluders, clipped to the strip and to the lines' reach */
+    double xlo = INFINITY, xhi = -INFINITY;
+    for (uint32_t i = 0; i < nv; i++)
+        xlo = dmin(xlo, c.vx[i]), xhi = dmax(xhi, c.vx[i]);
+    for (int j = 0; j < 4; j++)
+        xlo = dmin(xlo, c.bx[j]), xhi = dmax(xhi, c.bx[j]);
+    w->segs.count = 0;
+    const vocc *vos = w->vos.data;
+    for (size_t i = 0; i < nuse; i++) {
+        const vocc *vo = &vos[w->order[i]];
+        double lx[4], ly[4];
+        if (!vo_usable(w, vo, b, zlo, zhi, lx, ly))
+            continue;
+        const vline *L = &((const vline *)w->lines.data)[vo->line];
+        double p0x = L->ox + L->tx * vo->s0, p0y = L->oy + L->ty * vo->s0;
+        double p1x = L->ox + L->tx * vo->s1, p1y = L->oy + L->ty * vo->s1;
+        double ax = p0x * Tx + p0y * Ty, ay = p0x * Nx + p0y * Ny, bx = p1x * Tx + p1y * Ty, by = p1x * Nx + p1y * Ny;
+        /* clip to yb1 <= Y <= yv0 (a shorter occluder only blocks fewer lines) */
+        double t0 = 0, t1 = 1, dy = by - ay;
+        if (dy == 0) {
+            if (ay < yb1 || ay > yv0)
+                continue;
+        } else {
+            double ta = (yb1 - ay) / dy, tb = (yv0 - ay) / dy;
+            if (ta > tb) {
+                double t = ta;
+                ta = tb, tb = t;
+            }
+            t0 = dmax(t0, ta), t1 = dmin(t1, tb);
+            if (!(t0 <= t1))
+                continue;
+        }
+        double q[4] = {ax + (bx - ax) * t0, ay + dy * t0, ax + (bx - ax) * t1, ay + dy * t1};
+        /* rounding of the clip: keep the ends inside the strip */
+        q[1] = dmin(dmax(q[1], yb1), yv0) - yw, q[3] = dmin(dmax(q[3], yb1), yv0) - yw;
+        if (dmax(q[0], q[2]) < xlo || dmin(q[0], q[2]) > xhi)
+            continue;
+        if (!sl_array_push(&s->a, &w->segs, 4 * sizeof(double), q, 1))
+            return false;
+    }
+    if (w->segs.count == 0)
+        return false;
+    c.seg = w->segs.data;
+    c.nseg = w->segs.count;
+    /* the w range of the sight lines: crossings of Y = yw by the lines through vertex pairs */
+    double wlo = INFINITY, whi = -INFINITY;
+    for (uint32_t i = 0; i < nv; i++)
+        for (int j = 0; j < 4; j++) {
+            double f = (0 - c.by[j]) / (c.vy[i] - c.by[j]);
+            double x = c.bx[j] + (c.vx[i] - c.bx[j]) * f;
+            wlo = dmin(wlo, x), whi = dmax(whi, x);
+        }
+    const uint32_t pieces = 8;
+    double dw = (whi - wlo) / pieces;
+    for (uint32_t k = 0; k < pieces; k++) {
+        double w0 = wlo + dw * k, w1 = k + 1 == pieces ? whi : wlo + dw * (k + 1);
+        if (!fuse_piece(w, &c, w0, w1, s->cfg.refine))
+            return false;
     }
     return true;
 }
@@ -613,7 +821,7 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
     const double R = cfg->radius;
     for (uint32_t k = 0; k < s->npiece; k++) {
         const vpiece *pc = &s->pieces[k];
-        double dx = fmax(0.0, fmax(pc->x0 - cx, cx - pc->x1)), dy = fmax(0.0, fmax(pc->y0 - cy, cy - pc->y1));
+        double dx = dmax(0.0, dmax(pc->x0 - cx, cx - pc->x1)), dy = dmax(0.0, dmax(pc->y0 - cy, cy - pc->y1));
         if (dx * dx + dy * dy > R * R || !(pc->roof > zhi))
             continue;
         /* a piece meeting the cell's box would cross the cell (cells are free space): left out */
@@ -629,7 +837,7 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
         for (uint32_t j = 1; j < pc->count && ok; j++) {
             double dx = v[2 * j] - cx, dy = v[2 * j + 1] - cy;
             double a = atan2(rx * dy - ry * dx, rx * dx + ry * dy);
-            amin = fmin(amin, a), amax = fmax(amax, a);
+            amin = dmin(amin, a), amax = dmax(amax, a);
         }
         if (!ok || !(amax - amin < M_PI))
             continue;
@@ -676,7 +884,7 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
                 continue;
             double depth = 0;
             for (uint32_t j = 0; j < pc->count; j++)
-                depth = fmax(depth, -((v[2 * j] - p[0]) * nx + (v[2 * j + 1] - p[1]) * ny));
+                depth = dmax(depth, -((v[2 * j] - p[0]) * nx + (v[2 * j + 1] - p[1]) * ny));
             for (uint32_t k = 0; k < cfg->depths; k++) {
                 double d = depth * (k + 0.5) / cfg->depths;
                 vline L = {p[0] - nx * d, p[1] - ny * d, tx, ty, nx, ny, {0}, {0}, INFINITY, -INFINITY};
@@ -685,9 +893,17 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
                     double ux = poly[2 * jj] - L.ox, uy = poly[2 * jj + 1] - L.oy;
                     L.vx[j] = ux * tx + uy * ty;
                     L.vy[j] = ux * nx + uy * ny;
-                    L.a_near = fmin(L.a_near, L.vy[j]), L.a_far = fmax(L.a_far, L.vy[j]);
+                    L.a_near = dmin(L.a_near, L.vy[j]), L.a_far = dmax(L.a_far, L.vy[j]);
                 }
                 if (!(L.a_near > 1e-3))
+                    continue;
+                /* a line already there (collinear facades of a row of buildings) is not scanned twice */
+                bool dup = false;
+                const vline *ls = w->lines.data;
+                for (size_t m = 0; m < w->lines.count && !dup; m++)
+                    dup = fabs(ls[m].tx * ty - ls[m].ty * tx) < 1e-6 && ls[m].tx * tx + ls[m].ty * ty > 0 &&
+                          fabs((L.ox - ls[m].ox) * nx + (L.oy - ls[m].oy) * ny) < 0.05;
+                if (dup)
                     continue;
                 if (!sl_array_push(&s->a, &w->lines, sizeof L, &L, 1))
                     return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "virtual: out of memory");
@@ -699,7 +915,7 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
         double bmax = -INFINITY;
         for (uint32_t i = 0; i < nn; i++)
             if (s->pieces[w->near[i]].roof >= slice[k])
-                bmax = fmax(bmax, s->pieces[w->near[i]].base);
+                bmax = dmax(bmax, s->pieces[w->near[i]].base);
         for (uint32_t li = 0; li < (uint32_t)w->lines.count; li++) {
             if (!line_occluders(w, li, nn, slice[k], bmax, cx, cy))
                 return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "virtual: out of memory");
@@ -758,6 +974,8 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
         bool hidden = false;
         for (size_t i = 0; i < nuse && !hidden; i++)
             hidden = vo_culls(w, &vos[w->order[i]], &s->bounds[o], nv, zlo, zhi);
+        if (!hidden && cfg->fuse)
+            hidden = union_culls(w, &s->bounds[o], poly, nv, zlo, zhi, nuse);
         if (!hidden)
             out->ids[n++] = o;
     }
