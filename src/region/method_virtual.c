@@ -73,7 +73,8 @@ typedef struct virt_config {
     uint32_t seeds;   /* seed pieces per cell */
     uint32_t slices;  /* height slices per cell */
     uint32_t depths;  /* lines per seed edge */
-    float step;       /* metres: first intervals along a line */
+    float step;       /* metres: first intervals along a line near the cell */
+    float growth;     /* farther along, intervals of this fraction of the distance */
     uint32_t refine;  /* halvings of an interval that is not proved hidden */
     float min_len;    /* metres: shorter hidden runs are not kept */
     uint32_t keep;    /* 0: every virtual occluder; N: the first N of the greedy decimation */
@@ -149,12 +150,14 @@ typedef struct virt_worker {
 } virt_worker;
 
 static const char g_help[] =
-    "radius=FLOAT (default 250): metres around the cell within which footprints take part\n"
-    "seeds=1..1024 (default 32): seed occluders per cell, by angle seen from the cell's centre (the paper's "
+    "radius=FLOAT (default 1000): metres around the cell within which footprints take part\n"
+    "seeds=1..1024 (default 128): seed occluders per cell, by angle seen from the cell's centre (the paper's "
     "solid-angle criterion)\n"
     "slices=1..16 (default 4): height slices per cell (section 3.1), chosen among the seeds' roof heights\n"
-    "depths=1..8 (default 3): candidate lines per facing edge of a seed, parallel to it inside the seed\n"
+    "depths=1..8 (default 1): candidate lines per facing edge of a seed, parallel to it: through the middle of the "
+    "seed, then 2, 4, ... times its depth behind the edge\n"
     "step=FLOAT (default 2): metres, first intervals along a line tested for being hidden\n"
+    "growth=0..1 (default 0.05): intervals along a line grow to this fraction of their distance from the cell\n"
     "refine=0..8 (default 3): halvings of an interval not proved hidden\n"
     "min_len=FLOAT (default 1): metres, shortest virtual occluder kept\n"
     "keep=0..65535 (default 0): 0 uses the whole dense set; N the first N virtual occluders of the greedy "
@@ -166,11 +169,12 @@ static sl_status virt_configure(sl_opts *o, void *config, sl_error *err)
 {
     virt_config *c = config;
     sl_status st;
-    if ((st = sl_opts_float(o, "radius", 250.0f, 1.0f, 100000.0f, &c->radius, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "seeds", 32, 1, 1024, &c->seeds, err)) != SL_OK ||
+    if ((st = sl_opts_float(o, "radius", 1000.0f, 1.0f, 100000.0f, &c->radius, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "seeds", 128, 1, 1024, &c->seeds, err)) != SL_OK ||
         (st = sl_opts_u32(o, "slices", 4, 1, 16, &c->slices, err)) != SL_OK ||
-        (st = sl_opts_u32(o, "depths", 3, 1, 8, &c->depths, err)) != SL_OK ||
+        (st = sl_opts_u32(o, "depths", 1, 1, 8, &c->depths, err)) != SL_OK ||
         (st = sl_opts_float(o, "step", 2.0f, 0.01f, 1000.0f, &c->step, err)) != SL_OK ||
+        (st = sl_opts_float(o, "growth", 0.05f, 0.0f, 1.0f, &c->growth, err)) != SL_OK ||
         (st = sl_opts_u32(o, "refine", 3, 0, 8, &c->refine, err)) != SL_OK ||
         (st = sl_opts_float(o, "min_len", 1.0f, 0.0f, 1000.0f, &c->min_len, err)) != SL_OK ||
         (st = sl_opts_u32(o, "keep", 0, 0, 65535, &c->keep, err)) != SL_OK ||
@@ -420,10 +424,17 @@ static inline double gq(double qx, double qy, double ya, double s)
 /* Is every point of [s0, s1] on L hidden from the cell (see the file's comment)? */
 static bool interval_hidden(virt_worker *w, const line_ctx *c, double s0, double s1)
 {
-    /* inside one piece: hidden by that piece itself */
-    for (size_t i = 0; i < c->ninside; i++)
-        if (c->inside[i].lo <= s0 && s1 <= c->inside[i].hi)
-            return true;
+    /* inside the pieces crossing L (merged stretches, sorted): hidden by the pieces themselves */
+    size_t lo_i = 0, hi_i = c->ninside;
+    while (lo_i < hi_i) {
+        size_t mid = (lo_i + hi_i) / 2;
+        if (c->inside[mid].hi < s1)
+            lo_i = mid + 1;
+        else
+            hi_i = mid;
+    }
+    if (lo_i < c->ninside && c->inside[lo_i].lo <= s0)
+        return true;
     const vline *L = c->L;
     double dlo = INFINITY, dhi = -INFINITY;
     double cvx0 = INFINITY, cvx1 = -INFINITY;
@@ -549,6 +560,19 @@ static bool line_occluders(virt_worker *w, uint32_t li, uint32_t nn, double h, d
     if (w->obst.count == 0 && w->inside.count == 0)
         return true;
     qsort(w->obst.data, w->obst.count, sizeof(vobst), cmp_obst);
+    /* the stretches inside pieces, merged where they overlap or touch: sorted, disjoint */
+    if (w->inside.count) {
+        ivl *in = w->inside.data;
+        qsort(in, w->inside.count, sizeof *in, cmp_ivl);
+        size_t m = 0;
+        for (size_t i = 1; i < w->inside.count; i++) {
+            if (in[i].lo <= in[m].hi)
+                in[m].hi = dmax(in[m].hi, in[i].hi);
+            else
+                in[++m] = in[i];
+        }
+        w->inside.count = m + 1;
+    }
     line_ctx c = {L, L->a_far + 1.0, delta, w->obst.data, w->obst.count, w->obuf.data, w->inside.data,
                   w->inside.count};
     /* the window: the stretch of L within radius of the cell's centre */
@@ -557,12 +581,24 @@ static bool line_occluders(virt_worker *w, uint32_t li, uint32_t nn, double h, d
     if (fabs(ccy) >= R)
         return true;
     double half = sqrt(R * R - ccy * ccy);
-    const double step = s->cfg.step;
-    double x0 = floor((ccx - half) / step) * step;
+    /* intervals of `step` near the cell, growing with the distance along L (by `growth` of it):
+     * far away a stretch is hidden or not over lengths that grow with the distance */
+    const double step = s->cfg.step, growth = s->cfg.growth;
     w->runs.count = 0;
-    for (double x = x0; x < ccx + half; x += step)
-        if (!scan(w, &c, x, x + step, s->cfg.refine))
+    double left = ccx;
+    while (left > ccx - half)
+        left -= dmax(step, growth * (ccx - left));
+    /* from the leftmost point, the same breakpoints back to ccx, then on to the right */
+    double x = left;
+    while (x < ccx + half) {
+        double d = fabs(x - ccx), len = dmax(step, growth * d);
+        double nx = x + len;
+        if (x < ccx && nx > ccx)
+            nx = ccx;
+        if (!scan(w, &c, x, nx, s->cfg.refine))
             return false;
+        x = nx;
+    }
     const ivl *r = w->runs.data;
     for (size_t i = 0; i < w->runs.count; i++) {
         if (!(r[i].hi - r[i].lo >= s->cfg.min_len))
@@ -886,7 +922,7 @@ static sl_status virt_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out,
             for (uint32_t j = 0; j < pc->count; j++)
                 depth = dmax(depth, -((v[2 * j] - p[0]) * nx + (v[2 * j + 1] - p[1]) * ny));
             for (uint32_t k = 0; k < cfg->depths; k++) {
-                double d = depth * (k + 0.5) / cfg->depths;
+                double d = k == 0 ? 0.5 * depth : depth * ldexp(1.0, (int)k);
                 vline L = {p[0] - nx * d, p[1] - ny * d, tx, ty, nx, ny, {0}, {0}, INFINITY, -INFINITY};
                 for (uint32_t j = 0; j < 4; j++) {
                     uint32_t jj = j < nv ? j : nv - 1;
