@@ -13,7 +13,8 @@
     X(portal) \
     X(gvs) \
     X(volumetric) \
-    X(extproj)
+    X(extproj) \
+    X(virtual)
 
 #define SL_DECLARE_PVS_METHOD(name) extern const sl_pvs_method sl_pvs_method_##name;
 SL_PVS_METHODS(SL_DECLARE_PVS_METHOD)
