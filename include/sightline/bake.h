@@ -179,6 +179,7 @@ typedef struct sl_pvs_update_stats {
     double prepare_seconds;     /* wall time of the method's preparation on the edited scene */
     double bake_seconds;        /* wall time of re-baking the affected cells */
     double cell_seconds;        /* sum over the re-baked cells of their compute time */
+    double probe_cpu_seconds, prepare_cpu_seconds, bake_cpu_seconds; /* the three phases' process CPU time */
     char method[32];
     char options[256];
 } sl_pvs_update_stats;

@@ -486,7 +486,7 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
     /* rule (b): the probe, on the cells (a) left */
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();
     threads = SL_MAX(1, SL_MIN(threads, (int)sl_thread_limit()));
-    double tp = sl_now();
+    double tp = sl_now(), tpc = cpu_now();
     if (s == SL_OK && weaken != 2 && c.zone.count) {
         void *probe = NULL;
         /* the probe's options: the file's for adjustable (its coarsest disks); adjustable's defaults
@@ -534,6 +534,7 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
             st.cells_by_probe += affected[cell] == 2;
     }
     st.probe_seconds = sl_now() - tp;
+    st.probe_cpu_seconds = cpu_now() - tpc;
     /* the bake: the copied sets stored, the affected cells baked */
     if (s == SL_OK) {
         sl_pvs_build_options bo;
@@ -544,9 +545,10 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
         bo.checkpoint = opt ? opt->checkpoint : NULL;
         bo.alloc = a;
         sl_bake b;
-        double tb = sl_now();
+        double tb = sl_now(), tbc = cpu_now();
         s = sl_bake_begin(&b, new_scene, cells, output, &bo, true, err);
         st.prepare_seconds = sl_now() - tb;
+        st.prepare_cpu_seconds = cpu_now() - tbc;
         uint32_t *todo = s == SL_OK ? sl_alloc(a, ((size_t)nc + 1) * sizeof *todo) : NULL;
         if (s == SL_OK && !todo)
             s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
@@ -580,7 +582,7 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
         memset(&ferr, 0, sizeof ferr);
         uint32_t baked = 0;
         double cell_seconds = 0;
-        double tr = sl_now();
+        double tr = sl_now(), trc = cpu_now();
         if (s == SL_OK && nt) {
 #pragma omp parallel num_threads(threads)
             {
@@ -631,6 +633,7 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
             }
         }
         st.bake_seconds = sl_now() - tr;
+        st.bake_cpu_seconds = cpu_now() - trc;
         st.cell_seconds = cell_seconds;
         if (s == SL_OK)
             s = sl_bake_finish(&b, output, &bo, err);
