@@ -1,7 +1,7 @@
 /* Benchmark of updating a bake after an edit (BENCHMARKS.md, "Updating a bake").
  *
  *   bench_pvs_update [--preset vienna] [--method adjustable] [--every K] [--edits N] [--threads T]
- *                    [--seed S] [--cell-size M] [--dir DIR]
+ *                    [--seed S] [--cell-size M] [--dir DIR] [--grow F] [--tower F]
  *
  * The city's street cells (max edge --cell-size), every K-th of them (the full vienna bake takes
  * about 41 CPU minutes: a regular subset spread over the whole city keeps the fractions unbiased),
@@ -65,7 +65,7 @@ int main(int argc, char **argv)
     const char *preset = "vienna", *method = "adjustable", *dir = "/tmp";
     uint32_t every = 40, edits = 3, threads = 2;
     uint64_t seed = 1;
-    float cell_size = 12;
+    float cell_size = 12, grow = 1, tower = 1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--preset") && v)
@@ -84,9 +84,13 @@ int main(int argc, char **argv)
             cell_size = strtof(v, NULL), i++;
         else if (!strcmp(a, "--dir") && v)
             dir = v, i++;
+        else if (!strcmp(a, "--grow") && v)
+            grow = strtof(v, NULL), i++;
+        else if (!strcmp(a, "--tower") && v)
+            tower = strtof(v, NULL), i++;
         else {
             fprintf(stderr, "usage: %s [--preset P] [--method M] [--every K] [--edits N] [--threads T] [--seed S] "
-                            "[--cell-size M] [--dir DIR]\n",
+                            "[--cell-size M] [--dir DIR] [--grow F] [--tower F]\n",
                     argv[0]);
             return 2;
         }
@@ -95,6 +99,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "--every >= 1, --edits 1..100\n");
         return 2;
     }
+    setvbuf(stdout, NULL, _IOLBF, 0); /* progress in a log file as it comes */
     sl_error err;
     sl_city_preset p;
     if (sl_city_preset_from_name(preset, &p, &err) != SL_OK) {
@@ -155,11 +160,15 @@ int main(int argc, char **argv)
     }
     double frac[100], ratio[100], proj[100];
     uint32_t done = 0, refused = 0, identical = 0;
-    printf("%-6s %-8s %-8s %-8s %-7s %-9s %-9s %-9s %-9s %-9s %-8s %-10s %s\n", "seed", "removed", "moved", "towers",
-           "zone", "affected", "cells%", "upd CPU", "probe", "prepare", "full CPU", "upd/full", "projected/full");
+    printf("edits: move up to 1 m, heights x[1, %g], new buildings x%g their host's height\n", (double)grow,
+           (double)tower);
+    printf("%-6s %-8s %-8s %-8s %-7s %-9s %-7s %-7s %-9s %-9s %-9s %-9s %-8s %-10s %s\n", "seed", "removed", "moved",
+           "added", "zone", "affected", "by set", "probe", "cells%", "upd CPU", "probe", "prepare", "full CPU", "upd/full", "projected/full");
     for (uint64_t s = seed; done < edits && s < seed + 4 * edits; s++) {
         sl_city_edit_options eo = sl_city_edit_defaults();
         eo.seed = s;
+        eo.grow = grow;
+        eo.tower = tower;
         sl_rng rng;
         sl_rng_seed(&rng, s, 77);
         /* a building drawn by the seed, well inside the city */
@@ -207,8 +216,9 @@ int main(int argc, char **argv)
         frac[done] = (double)us.cells_affected / us.cells;
         ratio[done] = ucpu / fcpu;
         proj[done] = upd_all / full_all;
-        printf("%-6llu %-8u %-8u %-8u %-7u %-9u %-9.2f %-9.2f %-9.2f %-9.2f %-8.2f %-10.4f %.4f%s\n",
+        printf("%-6llu %-8u %-8u %-8u %-7u %-9u %-7u %-7u %-9.2f %-9.2f %-9.2f %-9.2f %-8.2f %-10.4f %.4f%s\n",
                (unsigned long long)s, es.removed, es.moved, es.added, us.zone_footprints, us.cells_affected,
+               us.cells_by_set, us.cells_by_probe,
                100 * frac[done], ucpu, us.probe_cpu_seconds, us.prepare_cpu_seconds, fcpu, ratio[done], proj[done],
                same ? "" : "  FILES DIFFER");
         done++;

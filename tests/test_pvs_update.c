@@ -105,6 +105,10 @@ static bool one_edit(sl_scene olds, sl_viewcells cells, const char *method, cons
     sl_error err;
     sl_city_edit_options eo = sl_city_edit_defaults();
     eo.seed = seed;
+    if (seed % 2) { /* every other edit: taller, seen from farther */
+        eo.grow = 1.5f;
+        eo.tower = 2.0f;
+    }
     block_region(olds, (uint32_t)(seed * 2654435761u), eo.region);
     sl_scene news = NULL;
     sl_city_edit_stats es;
@@ -220,7 +224,7 @@ static void test_weakened(void **state)
     for (uint32_t weaken = 2; weaken >= 1; weaken--) {
         outcome o = {0};
         uint32_t differ = 0;
-        for (uint64_t seed = 1; seed < 12 && !differ; seed++) {
+        for (uint64_t seed = 1; seed < (weaken == 2 ? 12u : 5u) && !differ; seed++) {
             bool equal = true;
             if (one_edit(olds, cells, "adjustable", old_path, seed, weaken, &equal, &o) && !equal)
                 differ++;

@@ -198,16 +198,18 @@ static void usage_edit(FILE *out)
             "usage: sightline gen edit SCENE --region X0,Y0,X1,Y1 [--seed N] [-o OUT.slscene] [options]\n\n"
             "Copy SCENE (a .slscene or city:PRESET[:SEED]) with seeded random edits of the buildings (objects\n"
             "with a footprint) whose footprint box centre lies in the region: each one is removed, moved\n"
-            "(shifted towards the middle of its row of touching buildings and its height scaled by\n"
-            "0.8..1.5), given a tower (a new building inside it, twice as high) or kept. The edits\n"
+            "(shifted towards the middle of its row of touching buildings, its height scaled by 1..GROW),\n"
+            "given a new building inside it (TOWER times as high) or kept. The edits\n"
             "`sightline pvs update` is tested and measured on. The same inputs give the same file.\n\n"
             "options:\n"
             "  --region X0,Y0,X1,Y1  the region (metres)\n"
             "  --seed N          the draws (default 1)\n"
             "  --remove P        probability a building is removed (0.25)\n"
             "  --move P          ... moved (0.25)\n"
-            "  --add P           ... given a tower (0.2); the three sum to at most 1\n"
+            "  --add P           ... given a new building (0.2); the three sum to at most 1\n"
             "  --shift M         largest shift of a moved building (1 m)\n"
+            "  --grow F          a moved building's height is scaled by a factor in [1, F] (1)\n"
+            "  --tower F         a new building is F times as high as its host (1)\n"
             "  -o FILE           output (default edited.slscene)\n"
             "  --json            summary on stdout as JSON\n"
             "  --help            this text\n\n"
@@ -238,6 +240,10 @@ static int run_edit(int argc, char **argv, const char *cmd)
             cli_parse_float(&a, name, cli_value(&a, name, val), &eo.add);
         else if (!strcmp(name, "shift"))
             cli_parse_float(&a, name, cli_value(&a, name, val), &eo.shift);
+        else if (!strcmp(name, "grow"))
+            cli_parse_float(&a, name, cli_value(&a, name, val), &eo.grow);
+        else if (!strcmp(name, "tower"))
+            cli_parse_float(&a, name, cli_value(&a, name, val), &eo.tower);
         else
             cli_unknown(&a, name);
     }
@@ -278,7 +284,7 @@ static int run_edit(int argc, char **argv, const char *cmd)
         cli_json_uint(&j, "added", es.added);
         cli_json_end(&j);
     } else if (!com.quiet) {
-        printf("%s: %u buildings removed, %u moved, %u towers added\n", output, es.removed, es.moved, es.added);
+        printf("%s: %u buildings removed, %u moved, %u added\n", output, es.removed, es.moved, es.added);
     }
     return 0;
 }

@@ -1,8 +1,8 @@
 /* Seeded random edits of the buildings in a region of a scene (sl_city_edit, gen.h): the edits
  * `sightline pvs update` is tested and measured on. The scene is copied through the public API
  * with, for every building (an object with a footprint) whose footprint box centre lies in the
- * region, one draw: removed, moved (shifted towards the region's centre and its height scaled),
- * given a tower (a new building inside it), or kept. Same scene and options, same bytes. */
+ * region, one draw: removed, moved (shifted towards the middle of its row of touching buildings,
+ * its height optionally scaled), given a new building inside it, or kept. Same scene and options, same bytes. */
 #include "gen_city_internal.h"
 
 sl_city_edit_options sl_city_edit_defaults(void)
@@ -14,6 +14,8 @@ sl_city_edit_options sl_city_edit_defaults(void)
     o.move = 0.25f;
     o.add = 0.2f;
     o.shift = 1.0f;
+    o.grow = 1.0f;
+    o.tower = 1.0f;
     return o;
 }
 
@@ -113,6 +115,8 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         !(opt->region[1] <= opt->region[3]))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "city edit: shift must be 0..100 m and the region X0,Y0,X1,Y1 "
                                                        "with X0 <= X1 and Y0 <= Y1");
+    if (!(opt->grow >= 1 && opt->grow <= 10) || !(opt->tower >= 0.1f && opt->tower <= 10))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "city edit: grow must be 1..10 and tower 0.1..10");
     sl_bsp_view bv;
     if (sl_scene_bsp(scene, &bv) || sl_scene_occluder_count(scene) > 0)
         return sl_fail(err, SL_ERROR_UNSUPPORTED, "city edit: the scene has BSP data or mesh occluders; only 2.5D "
@@ -166,7 +170,7 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         if (cx < opt->region[0] || cx > opt->region[2] || cy < opt->region[1] || cy > opt->region[3])
             continue;
         float u = sl_rng_float(&rng);
-        float d = sl_rng_range(&rng, 0, opt->shift), s = sl_rng_range(&rng, 0.8f, 1.5f);
+        float d = sl_rng_range(&rng, 0, opt->shift), s = sl_rng_range(&rng, 1.0f, opt->grow);
         if (u < opt->remove) {
             what[o] = 1;
         } else if (u < opt->remove + opt->move) {
@@ -265,7 +269,7 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
             xy[2 * i] = (float)(cx + 0.5 * (v.xy[2 * i] - cx));
             xy[2 * i + 1] = (float)(cy + 0.5 * (v.xy[2 * i + 1] - cy));
         }
-        float roof = v.base_z + 2 * (v.roof_z - v.base_z);
+        float roof = v.base_z + opt->tower * (v.roof_z - v.base_z);
         uint32_t mesh, id;
         st = add_prism(dst, xy, v.vertex_count, v.base_z, roof, &mesh, err);
         sl_object_view ov = sl_scene_object(scene, o);
