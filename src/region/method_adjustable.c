@@ -1227,10 +1227,10 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
 
 /* ---- the probe (pvs_update.c): may a few boxes be seen from a cell past some occluders? ----
  *
- * The coarsest level of adj_cell alone (the same disks, radius, eye height and options), with the
- * pieces of the chosen footprints only and the given boxes as the only objects. A box the probe
- * hides is hidden from every point of the cell by those occluders (the level's disks cover the
- * cell and each disk's set is conservative for it). Leaving pieces out only lowers the horizon, so
+ * adj_cell's levels of disks (the same disks, radii, eye height and options), with the pieces of
+ * the chosen footprints only and the given boxes as the only objects, each level testing the boxes
+ * the coarser one could not hide. A box hidden at a level is hidden from every point of the cell
+ * by those occluders (the level's disks cover the cell and each disk's set is conservative for it). Leaving pieces out only lowers the horizon, so
  * the pieces are gathered from a bucket grid over the rectangle that holds the disks and every box:
  * a piece that can stand between a disk and a box lies in their convex hull, inside it. */
 
@@ -1383,31 +1383,37 @@ sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error
     const double extent = fmax((double)bb->max.x - bb->min.x, (double)bb->max.y - bb->min.y);
     while (top < (int)s->cfg.levels && s->cfg.eps * ldexp(1.0, top) * M_SQRT2 < extent)
         top++;
-    const double eps = s->cfg.eps * ldexp(1.0, top);
-    if (!level_centres(w, poly, n, bb, eps))
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
-    const double(*cen)[2] = w->centres.data;
-    const size_t ncen = w->centres.count;
-    double ox = 0, oy = 0, rc = 0;
-    for (size_t i = 0; i < ncen; i++)
-        ox += cen[i][0], oy += cen[i][1];
-    ox /= (double)ncen, oy /= (double)ncen;
-    for (size_t i = 0; i < ncen; i++)
-        rc = fmax(rc, len2(cen[i][0] - ox, cen[i][1] - oy));
-    rc = rc * (1 + 1e-9) + 1e-9;
-    /* the rectangle of the disks and the boxes, and the pieces of its buckets */
-    double x0 = ox - rc - eps, x1 = ox + rc + eps, y0 = oy - rc - eps, y1 = oy + rc + eps;
-    for (uint32_t o = 0; o < s->nobj; o++) {
-        x0 = fmin(x0, s->bounds[o].min.x), x1 = fmax(x1, s->bounds[o].max.x);
-        y0 = fmin(y0, s->bounds[o].min.y), y1 = fmax(y1, s->bounds[o].max.y);
-    }
-    if (++w->pstamp == 0) {
-        memset(w->pmark, 0, ((size_t)s->npiece + 1) * sizeof(uint32_t));
-        w->pstamp = 1;
-    }
-    uint32_t npin = 0, r[4];
-    probe_range(s, x0, y0, x1, y1, r); /* clamped: the border buckets hold everything beyond */
-    {
+    /* adj_cell's levels, coarse to fine, the boxes a level cannot hide going on to the next: a box
+     * hidden at one level (by all its disks, which cover the cell) is hidden from the whole cell */
+    uint32_t nc = s->nobj;
+    for (uint32_t o = 0; o < s->nobj; o++)
+        w->cand[o] = o;
+    for (int level = top; level >= 0 && nc > 0; level--) {
+        const double eps = s->cfg.eps * ldexp(1.0, level);
+        if (!level_centres(w, poly, n, bb, eps))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+        const double(*cen)[2] = w->centres.data;
+        const size_t ncen = w->centres.count;
+        double ox = 0, oy = 0, rc = 0;
+        for (size_t i = 0; i < ncen; i++)
+            ox += cen[i][0], oy += cen[i][1];
+        ox /= (double)ncen, oy /= (double)ncen;
+        for (size_t i = 0; i < ncen; i++)
+            rc = fmax(rc, len2(cen[i][0] - ox, cen[i][1] - oy));
+        rc = rc * (1 + 1e-9) + 1e-9;
+        /* the rectangle of the disks and the boxes, and the pieces of its buckets */
+        double x0 = ox - rc - eps, x1 = ox + rc + eps, y0 = oy - rc - eps, y1 = oy + rc + eps;
+        for (uint32_t q = 0; q < nc; q++) {
+            const sl_aabb *bx = &s->bounds[w->cand[q]];
+            x0 = fmin(x0, bx->min.x), x1 = fmax(x1, bx->max.x);
+            y0 = fmin(y0, bx->min.y), y1 = fmax(y1, bx->max.y);
+        }
+        if (++w->pstamp == 0) {
+            memset(w->pmark, 0, ((size_t)s->npiece + 1) * sizeof(uint32_t));
+            w->pstamp = 1;
+        }
+        uint32_t npin = 0, r[4];
+        probe_range(s, x0, y0, x1, y1, r); /* clamped: the border buckets hold everything beyond */
         for (uint32_t j = r[1]; j <= r[3]; j++)
             for (uint32_t i = r[0]; i <= r[2]; i++) {
                 size_t b = (size_t)j * s->gnx + i;
@@ -1419,23 +1425,26 @@ sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error
                     }
                 }
             }
+        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, w->pin, npin);
+        for (uint32_t q = 0; q < nc; q++)
+            w->visible[w->cand[q]] = 0;
+        for (size_t i = 0; i < ncen; i++) {
+            uint32_t nlive = 0;
+            for (uint32_t q = 0; q < nc; q++)
+                if (!w->visible[w->cand[q]])
+                    w->live[nlive++] = w->cand[q];
+            if (nlive == 0)
+                break;
+            if (!disk(w, cen[i][0], cen[i][1], vc->z_max, eps, nlive, npl))
+                return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+        }
+        uint32_t m = 0;
+        for (uint32_t q = 0; q < nc; q++)
+            if (w->visible[w->cand[q]])
+                w->cand[m++] = w->cand[q];
+        nc = m;
     }
-    for (uint32_t o = 0; o < s->nobj; o++)
-        w->cand[o] = o;
-    uint32_t npl = filter_pieces(w, ox, oy, rc, eps, s->nobj, w->pin, npin);
-    for (uint32_t o = 0; o < s->nobj; o++)
-        w->visible[o] = 0;
-    for (size_t i = 0; i < ncen; i++) {
-        for (uint32_t o = 0; o < s->nobj; o++)
-            w->live[o] = o;
-        if (!disk(w, cen[i][0], cen[i][1], vc->z_max, eps, s->nobj, npl))
-            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
-        for (uint32_t o = 0; o < s->nobj; o++)
-            if (w->visible[o]) {
-                *visible = true;
-                return SL_OK;
-            }
-    }
+    *visible = nc > 0;
     return SL_OK;
 }
 

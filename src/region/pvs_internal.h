@@ -56,9 +56,10 @@ sl_status sl_pvs_method_configure(const sl_pvs_method *m, const char *options, c
                                   char *effective, sl_error *err);
 
 /* ---- the probe of pvs_update.c (method_adjustable.c) ----
- * The coarsest level of adjustable's disks for a cell (the same disks and options), with the
- * pieces of the footprints f with use_footprint[f] as the only occluders and `boxes` as the only
- * objects: *visible is false when every box is hidden from the whole cell by those occluders
+ * adjustable's levels of disks for a cell (the same disks and options, coarse to fine, each level
+ * testing the boxes the coarser one kept), with the pieces of the footprints f with
+ * use_footprint[f] as the only occluders and `boxes` as the only objects: *visible is false when
+ * every box is hidden from the whole cell by those occluders
  * (conservatively: then no point of the cell sees any of them). options: adjustable's options
  * (NULL: defaults). The probe is read-only once made; a worker per thread. */
 sl_status sl_adj_probe_create(sl_scene scene, sl_viewcells cells, const char *options, const uint8_t *use_footprint,
