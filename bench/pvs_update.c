@@ -187,10 +187,13 @@ int main(int argc, char **argv)
         uo.threads = threads;
         sl_pvs_update_stats us;
         unlink(upd_path);
+        char ckpt[600];
+        snprintf(ckpt, sizeof ckpt, "%s.ckpt", upd_path);
+        unlink(ckpt); /* left by an interrupted run */
         double u0 = cpu_seconds();
         sl_status st = sl_pvs_update(old, olds, news, cells, upd_path, &uo, &us, &err);
         double ucpu = cpu_seconds() - u0;
-        if (st == SL_ERROR_INVALID_ARGUMENT) {
+        if (st == SL_ERROR_INVALID_ARGUMENT && strstr(err.message, "view cells differ")) {
             printf("%-6llu edit changes the view cells: refused (%s)\n", (unsigned long long)s, err.message);
             refused++;
             sl_scene_destroy(news);
