@@ -28,15 +28,15 @@ static sl_status copy_mesh(sl_scene src, sl_scene dst, uint32_t m, sl_error *err
 }
 
 /* A prism over polygon xy (n vertices, counter-clockwise) from base to roof: walls and a fan roof. */
-static sl_status add_prism(sl_scene dst, const float *xy, uint32_t n, float base, float roof, uint32_t *mesh,
-                           sl_error *err)
+static sl_status add_prism(const sl_allocator *a, sl_scene dst, const float *xy, uint32_t n, float base, float roof,
+                           uint32_t *mesh, sl_error *err)
 {
-    size_t nv = 4 * (size_t)n + n + 1;
-    float *p = malloc(nv * 3 * sizeof(float));
-    uint32_t *idx = malloc(((size_t)2 * n + n) * 3 * sizeof(uint32_t));
+    size_t nv = 4 * (size_t)n + n + 1, np = nv * 3 * sizeof(float), ni = ((size_t)2 * n + n) * 3 * sizeof(uint32_t);
+    float *p = sl_alloc(a, np);
+    uint32_t *idx = sl_alloc(a, ni);
     if (!p || !idx) {
-        free(p);
-        free(idx);
+        sl_free(a, p, np);
+        sl_free(a, idx, ni);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "city edit: out of memory");
     }
     uint32_t v = 0, t = 0;
@@ -66,8 +66,8 @@ static sl_status add_prism(sl_scene dst, const float *xy, uint32_t n, float base
     }
     sl_mesh_desc d = {.positions = p, .vertex_count = v, .indices = idx, .triangle_count = t};
     sl_status st = sl_scene_add_mesh(dst, &d, mesh, err);
-    free(p);
-    free(idx);
+    sl_free(a, p, np);
+    sl_free(a, idx, ni);
     return st;
 }
 
@@ -123,12 +123,23 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
                                                   "scenes (footprints) are edited");
     const uint32_t no = sl_scene_object_count(scene), nf = sl_scene_footprint_count(scene);
     /* per object: its footprint (buildings), the draw */
-    uint32_t *fp_of = malloc(((size_t)no + 1) * sizeof *fp_of);
-    uint8_t *what = calloc((size_t)no + 1, 1); /* 0 keep, 1 remove, 2 move, 3 tower */
-    uint32_t *new_id = malloc(((size_t)no + 1) * sizeof *new_id);
-    float *shift = calloc(3 * ((size_t)no + 1), sizeof *shift); /* dx, dy, height scale */
-    if (!fp_of || !what || !new_id || !shift) {
-        free(fp_of), free(what), free(new_id), free(shift);
+    const sl_allocator *a = sl_alloc_or_default(alloc);
+    const size_t no1 = (size_t)no + 1, nf1 = (size_t)nf + 1;
+    uint32_t *fp_of = sl_alloc(a, no1 * sizeof *fp_of);
+    uint8_t *what = sl_calloc(a, no1, 1); /* 0 keep, 1 remove, 2 move, 3 new building */
+    uint32_t *new_id = sl_alloc(a, no1 * sizeof *new_id);
+    float *shift = sl_calloc(a, 3 * no1, sizeof *shift); /* dx, dy, height scale */
+    float *box = sl_alloc(a, nf1 * 4 * sizeof *box);
+    uint32_t *gq = sl_alloc(a, nf1 * sizeof *gq);
+    uint8_t *gin = sl_calloc(a, nf1, 1);
+#define EDIT_FREE()                                                                                                    \
+    do {                                                                                                               \
+        sl_free(a, fp_of, no1 * sizeof *fp_of), sl_free(a, what, no1), sl_free(a, new_id, no1 * sizeof *new_id);      \
+        sl_free(a, shift, 3 * no1 * sizeof *shift), sl_free(a, box, nf1 * 4 * sizeof *box);                           \
+        sl_free(a, gq, nf1 * sizeof *gq), sl_free(a, gin, nf1);                                                        \
+    } while (0)
+    if (!fp_of || !what || !new_id || !shift || !box || !gq || !gin) {
+        EDIT_FREE();
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "city edit: out of memory");
     }
     for (uint32_t o = 0; o < no; o++)
@@ -139,13 +150,6 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
             fp_of[v.object] = f;
     }
     const float rcx = 0.5f * (opt->region[0] + opt->region[2]), rcy = 0.5f * (opt->region[1] + opt->region[3]);
-    float *box = malloc(((size_t)nf + 1) * 4 * sizeof *box);
-    uint32_t *gq = malloc(((size_t)nf + 1) * sizeof *gq);
-    uint8_t *gin = calloc((size_t)nf + 1, 1);
-    if (!box || !gq || !gin) {
-        free(fp_of), free(what), free(new_id), free(shift), free(box), free(gq), free(gin);
-        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "city edit: out of memory");
-    }
     for (uint32_t f = 0; f < nf; f++) {
         sl_footprint_view v = sl_scene_footprint(scene, f);
         float *b = box + 4 * (size_t)f;
@@ -233,7 +237,8 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         uint32_t o = v.object;
         if (o < no && what[o] == 1)
             continue;
-        float *xy = malloc(((size_t)v.vertex_count + 1) * 2 * sizeof(float));
+        const size_t nxy = ((size_t)v.vertex_count + 1) * 2 * sizeof(float);
+        float *xy = sl_alloc(a, nxy);
         if (!xy) {
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "city edit: out of memory");
             break;
@@ -248,7 +253,7 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         sl_footprint_desc d = {.xy = xy, .vertex_count = v.vertex_count, .base_z = v.base_z, .roof_z = roof,
                                .object = o < no ? new_id[o] : SL_NONE};
         st = sl_scene_add_footprint(dst, &d, NULL, err);
-        free(xy);
+        sl_free(a, xy, nxy);
     }
     /* the towers: inside their buildings (the footprint halved about its vertex centroid, which
      * stays within the footprint's box), twice as high, appended */
@@ -256,7 +261,8 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         if (what[o] != 3)
             continue;
         sl_footprint_view v = sl_scene_footprint(scene, fp_of[o]);
-        float *xy = malloc(((size_t)v.vertex_count + 1) * 2 * sizeof(float));
+        const size_t nxy = ((size_t)v.vertex_count + 1) * 2 * sizeof(float);
+        float *xy = sl_alloc(a, nxy);
         if (!xy) {
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "city edit: out of memory");
             break;
@@ -271,7 +277,7 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         }
         float roof = v.base_z + opt->tower * (v.roof_z - v.base_z);
         uint32_t mesh, id;
-        st = add_prism(dst, xy, v.vertex_count, v.base_z, roof, &mesh, err);
+        st = add_prism(a, dst, xy, v.vertex_count, v.base_z, roof, &mesh, err);
         sl_object_view ov = sl_scene_object(scene, o);
         sl_object_desc d = {.mesh = mesh, .color = ov.color, .kind = ov.kind, .flags = ov.flags};
         if (st == SL_OK)
@@ -280,7 +286,7 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
                                 .object = id};
         if (st == SL_OK)
             st = sl_scene_add_footprint(dst, &fd, NULL, err);
-        free(xy);
+        sl_free(a, xy, nxy);
         if (stats && st == SL_OK)
             stats->added++;
     }
@@ -304,7 +310,8 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
     }
     if (st == SL_OK && sl_scene_base_dir(scene))
         st = sl_scene_set_base_dir(dst, sl_scene_base_dir(scene), err);
-    free(fp_of), free(what), free(new_id), free(shift), free(box), free(gq), free(gin);
+    EDIT_FREE();
+#undef EDIT_FREE
     if (st != SL_OK) {
         sl_scene_destroy(dst);
         return st;
