@@ -204,7 +204,6 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         if (sl_scene_material(scene, k, &mat))
             st = sl_scene_add_material(dst, &mat, NULL, err);
     }
-    uint32_t nn = 0;
     for (uint32_t o = 0; st == SL_OK && o < no; o++) {
         new_id[o] = SL_NONE;
         if (what[o] == 1) {
@@ -230,7 +229,6 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         const char *name = sl_scene_object_name(scene, o);
         if (st == SL_OK && name && name[0])
             st = sl_scene_set_object_name(dst, new_id[o], name, err);
-        nn++;
     }
     for (uint32_t f = 0; st == SL_OK && f < nf; f++) {
         sl_footprint_view v = sl_scene_footprint(scene, f);
@@ -316,7 +314,6 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         sl_scene_destroy(dst);
         return st;
     }
-    (void)nn;
     *out = dst;
     return SL_OK;
 }
