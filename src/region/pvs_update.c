@@ -373,6 +373,10 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_update: arguments must not be NULL");
     const sl_allocator *a = sl_alloc_or_default(opt ? opt->alloc : NULL);
     uint32_t weaken = opt ? opt->weaken : 0;
+    /* the one thread limit (libgomp crashed when asked for 100000 threads) */
+    sl_status ts0 = sl_threads_check(opt ? opt->threads : 0, true, "pvs update", err);
+    if (ts0 != SL_OK)
+        return ts0;
     /* the file must be the old scene's bake, by a method the update knows */
     sl_status s = sl_pvs_check_scene(old, old_scene, err);
     if (s != SL_OK) {
@@ -429,13 +433,9 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
     s = diff_scenes(&c, close, weaken, &st, err);
     uint8_t *affected = NULL;
     uint32_t nc = info.cell_count;
-    uint32_t **newsets = NULL; /* per copied cell: its renumbered set */
-    uint32_t *newcounts = NULL;
     if (s == SL_OK) {
         affected = sl_calloc(a, (size_t)nc + 1, 1);
-        newsets = sl_calloc(a, (size_t)nc + 1, sizeof *newsets);
-        newcounts = sl_calloc(a, (size_t)nc + 1, sizeof *newcounts);
-        if (!affected || !newsets || !newcounts)
+        if (!affected)
             s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
     }
     /* rule (a): the old sets */
@@ -453,33 +453,7 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
             if (hit) {
                 affected[cell] = 1;
                 st.cells_by_set++;
-                continue;
             }
-            /* the renumbered set, kept for the copy (ascending: sorted when the order changed) */
-            uint32_t *set = sl_alloc(a, ((size_t)n + 1) * sizeof *set);
-            if (!set) {
-                s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
-                break;
-            }
-            uint32_t m = 0;
-            bool sorted = true;
-            for (uint32_t k = 0; k < n; k++) {
-                uint32_t id = c.obj_new_of_old[ids[k]];
-                if (id == SL_NONE)
-                    continue; /* removed: only with weaken 1 */
-                if (m && id < set[m - 1])
-                    sorted = false;
-                set[m++] = id;
-            }
-            if (!sorted)
-                for (uint32_t i = 1; i < m; i++) /* nearly sorted: insertion */
-                    for (uint32_t j = i; j > 0 && set[j] < set[j - 1]; j--) {
-                        uint32_t t = set[j];
-                        set[j] = set[j - 1];
-                        set[j - 1] = t;
-                    }
-            newsets[cell] = set;
-            newcounts[cell] = m;
         }
         sl_free(a, ids, ((size_t)c.nold + 1) * sizeof *ids);
     }
@@ -553,6 +527,10 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
         if (s == SL_OK && !todo)
             s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
         uint32_t nt = 0;
+        uint32_t *set = s == SL_OK ? sl_alloc(a, ((size_t)c.nold + 1) * sizeof *set) : NULL;
+        uint8_t *enc = s == SL_OK ? sl_alloc(a, ((size_t)c.nold + 1) * 5) : NULL;
+        if (s == SL_OK && (!set || !enc))
+            s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
         if (s == SL_OK && b.done_count)
             s = sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "pvs update: %s holds a checkpoint of an earlier bake", b.journal);
         for (uint32_t cell = 0; cell < nc && s == SL_OK; cell++) {
@@ -560,20 +538,32 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
                 todo[nt++] = cell;
                 continue;
             }
-            /* copied: in memory only (the journal is for the cells computed here) */
-            uint32_t n = newcounts[cell];
-            uint8_t stack[1024];
-            size_t cap = (size_t)n * 5;
-            uint8_t *buf = cap <= sizeof stack ? stack : sl_alloc(a, cap);
-            if (!buf) {
-                s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+            /* copied: the old set renumbered (sorted when the order changed), in memory only (the
+             * journal is for the cells computed here) */
+            uint32_t n = 0, m = 0;
+            if ((s = sl_pvs_cell_set(old, cell, set, c.nold, &n, err)) != SL_OK)
                 break;
+            bool sorted = true;
+            for (uint32_t k = 0; k < n; k++) {
+                uint32_t id = c.obj_new_of_old[set[k]];
+                if (id == SL_NONE)
+                    continue; /* removed: only with weaken 1 */
+                if (m && id < set[m - 1])
+                    sorted = false;
+                set[m++] = id; /* m <= k: in place */
             }
-            uint32_t size = (uint32_t)sl_pvs_encode(newsets[cell], n, buf);
-            s = sl_bake_store_encoded(&b, cell, buf, size, n, 0, false, err);
-            if (buf != stack)
-                sl_free(a, buf, cap);
+            if (!sorted)
+                for (uint32_t i = 1; i < m; i++) /* nearly sorted: insertion */
+                    for (uint32_t j = i; j > 0 && set[j] < set[j - 1]; j--) {
+                        uint32_t t = set[j];
+                        set[j] = set[j - 1];
+                        set[j - 1] = t;
+                    }
+            uint32_t size = (uint32_t)sl_pvs_encode(set, m, enc);
+            s = sl_bake_store_encoded(&b, cell, enc, size, m, 0, false, err);
         }
+        sl_free(a, set, ((size_t)c.nold + 1) * sizeof *set);
+        sl_free(a, enc, ((size_t)c.nold + 1) * 5);
         st.cells_affected = nt;
         const sl_progress *progress = opt ? &opt->progress : NULL;
         volatile int stop = 0;
@@ -643,12 +633,6 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
             sl_free(a, todo, ((size_t)nc + 1) * sizeof *todo);
         sl_bake_end(&b);
     }
-    if (newsets)
-        for (uint32_t cell = 0; cell < nc; cell++)
-            if (newsets[cell])
-                sl_free(a, newsets[cell], ((size_t)newcounts[cell] + 1) * sizeof(uint32_t));
-    sl_free(a, newsets, ((size_t)nc + 1) * sizeof *newsets);
-    sl_free(a, newcounts, ((size_t)nc + 1) * sizeof *newcounts);
     sl_free(a, affected, (size_t)nc + 1);
     ctx_free(&c);
     st.seconds = sl_now() - t0;
