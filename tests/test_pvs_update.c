@@ -330,6 +330,8 @@ static void test_city_edit(void **state)
     assert_int_not_equal(sl_pvs_scene_key(e1), sl_pvs_scene_key(s));
     assert_int_equal(sl_scene_object_count(e1), sl_scene_object_count(s) - a.removed + a.added);
     assert_int_equal(sl_scene_footprint_count(e1), sl_scene_footprint_count(s) - a.removed + a.added);
+    sl_scene_destroy(e2);
+    e2 = NULL;
     eo.remove = 0.8f;
     eo.add = 0.3f;
     assert_int_equal(sl_city_edit(s, &eo, NULL, &e2, &b, &err) == SL_ERROR_INVALID_ARGUMENT, 1);
