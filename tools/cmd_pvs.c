@@ -29,7 +29,9 @@ static void usage_main(FILE *out)
             "  info FILE.slpvs               header figures, cells, sizes, build metadata\n"
             "  query FILE.slpvs --point X,Y,Z | --cell N    the cell of a point and its visible set\n"
             "  verify FILE.slpvs [--scene SCENE --cells N]  checksums and sets; with a scene, zero misses\n"
-            "                                against the region oracle on N random cells\n\n"
+            "                                against the region oracle on N random cells\n"
+            "  update FILE.slpvs --old-scene OLD --scene EDITED [-o OUT.slpvs]   after an edit, re-bake only\n"
+            "                                the cells it can affect: the same bytes as a full bake of EDITED\n\n"
             "examples:\n"
             "  sightline pvs build city.slscene -o city.slpvs --method sample --options eps=1.5,cell=2\n"
             "  mpiexec -n 4 sightline pvs build city.slscene -o city.slpvs\n"
@@ -1082,10 +1084,154 @@ static int run_verify(int argc, char **argv)
     return rc;
 }
 
+/* ---- update ---- */
+
+static void usage_update(FILE *out)
+{
+    fprintf(out,
+            "usage: sightline pvs update FILE.slpvs --old-scene OLD --scene EDITED [-o OUT.slpvs] [options]\n\n"
+            "FILE.slpvs was baked for OLD; EDITED is OLD with objects and building footprints added, removed\n"
+            "or moved. Re-bake only the view cells the edit can affect, with the file's method and options,\n"
+            "and copy the other cells' sets: OUT.slpvs (default: FILE.slpvs, replaced) is byte-identical to\n"
+            "`sightline pvs build EDITED` with that method, those options and the same cell options.\n"
+            "A cell is re-baked when its old set holds a removed or moved object (or one touching the\n"
+            "edit, for methods that join touching footprints), or when the edited zone's boxes cannot be\n"
+            "shown hidden from the cell by the unchanged occluders alone (docs/pvs.md, \"Updating a bake\").\n\n"
+            "Refused (exit 1, nothing written): a FILE not baked for OLD; a method other than adjustable\n"
+            "and sample; an edit that changes the view cells (the streets, or footprints over them:\n"
+            "every set may change, so bake EDITED with pvs build), the terrain or the streets. The .slpvs\n"
+            "keeps no per-object record, so the old scene must be given.\n\n"
+            "options:\n"
+            "  --old-scene OLD   the scene FILE.slpvs was baked for (checked against its scene key)\n"
+            "  --scene EDITED    the edited scene (a .slscene or city:PRESET[:SEED] as for build)\n"
+            "  --cells KIND      streets (default) or grid: the view cells of EDITED, as pvs build makes them\n"
+            "  --cell-size M, --eye-min H, --eye-max H   as for pvs build (they must be the bake's)\n"
+            "  --threads N       OpenMP threads (default: all cores)\n"
+            "  --checkpoint F    journal of the re-baked cells (default OUT.slpvs.ckpt)\n"
+            "  --json            machine-readable summary on stdout\n"
+            "  --quiet           no progress bar\n"
+            "  --help            this text\n\n"
+            "example:\n"
+            "  sightline gen edit city.slscene --region 0,0,100,100 --seed 3 -o edited.slscene\n"
+            "  sightline pvs update city.slpvs --old-scene city.slscene --scene edited.slscene -o edited.slpvs\n");
+}
+
+static int run_update(int argc, char **argv)
+{
+    cli_args a;
+    cli_args_init(&a, argc, argv);
+    a.cmd = "pvs update";
+    const char *name, *val, *old_path = NULL, *new_path = NULL, *cells_kind = "streets";
+    cli_common com = {0};
+    sl_viewcell_options vo;
+    memset(&vo, 0, sizeof vo);
+    sl_pvs_update_options uo;
+    memset(&uo, 0, sizeof uo);
+    while (cli_next(&a, &name, &val)) {
+        if (cli_import_option(&a, name, val, &pvs_import) ||
+            cli_common_option(&a, name, val, CLI_INPUT | CLI_OUTPUT | CLI_JSON | CLI_QUIET, &com))
+            continue;
+        if (!strcmp(name, "old-scene"))
+            old_path = cli_value(&a, name, val);
+        else if (!strcmp(name, "scene"))
+            new_path = cli_value(&a, name, val);
+        else if (!strcmp(name, "cells"))
+            cells_kind = cli_value(&a, name, val);
+        else if (!strcmp(name, "cell-size"))
+            cli_parse_float(&a, name, cli_value(&a, name, val), &vo.max_edge);
+        else if (!strcmp(name, "eye-min"))
+            cli_parse_float(&a, name, cli_value(&a, name, val), &vo.eye_min);
+        else if (!strcmp(name, "eye-max"))
+            cli_parse_float(&a, name, cli_value(&a, name, val), &vo.eye_max);
+        else if (!strcmp(name, "threads"))
+            cli_parse_threads(&a, name, cli_value(&a, name, val), true, &uo.threads);
+        else if (!strcmp(name, "checkpoint"))
+            uo.checkpoint = cli_value(&a, name, val);
+        else
+            cli_unknown(&a, name);
+    }
+    int parsed = cli_parse_done(&a, &com, usage_update);
+    if (parsed >= 0)
+        return parsed;
+    const char *file = com.input, *output = com.output ? com.output : com.input;
+    if (!file || !old_path || !new_path) {
+        cli_error(a.cmd, "%s (see sightline pvs update --help)",
+                  !file ? "missing FILE.slpvs" : !old_path ? "missing --old-scene OLD" : "missing --scene EDITED");
+        return 2;
+    }
+    if (cells_kind && strcmp(cells_kind, "streets") && strcmp(cells_kind, "grid")) {
+        cli_error(a.cmd, "--cells: '%s' is not streets or grid (an update handles 2.5D street scenes)", cells_kind);
+        return 2;
+    }
+    const char *inputs[] = {old_path, new_path};
+    if (!cli_output_not_input(a.cmd, output, inputs, 2))
+        return 2;
+    sl_error err;
+    sl_pvs old = NULL;
+    if (sl_pvs_load(file, NULL, &old, &err) != SL_OK)
+        return cli_fail(a.cmd, &err);
+    sl_scene olds = NULL, news = NULL;
+    sl_viewcells cells = NULL;
+    sl_status st = load_scene(old_path, NULL, NULL, 1, &olds, &err);
+    if (st != SL_OK)
+        tool_error_prefix(&err, "--old-scene");
+    if (st == SL_OK && (st = load_scene(new_path, NULL, NULL, 1, &news, &err)) != SL_OK)
+        tool_error_prefix(&err, "--scene");
+    if (st == SL_OK)
+        st = !strcmp(cells_kind, "grid") ? sl_viewcells_grid(news, &vo, &cells, &err)
+                                         : sl_viewcells_from_streets(news, &vo, &cells, &err);
+    cli_progress_state ps;
+    sl_pvs_update_stats us;
+    memset(&us, 0, sizeof us);
+    if (st == SL_OK) {
+        uo.progress = com.json && !com.quiet ? cli_progress_json(&ps) : cli_progress(&ps, com.quiet || com.json);
+        st = sl_pvs_update(old, olds, news, cells, output, &uo, &us, &err);
+        cli_progress_done(&ps);
+    }
+    sl_viewcells_destroy(cells);
+    sl_scene_destroy(olds);
+    sl_scene_destroy(news);
+    sl_pvs_destroy(old);
+    if (st != SL_OK)
+        return cli_fail(a.cmd, &err);
+    if (com.json) {
+        cli_json j;
+        cli_json_begin(&j, stdout);
+        cli_json_string(&j, "file", output);
+        cli_json_string(&j, "method", us.method);
+        cli_json_string(&j, "options", us.options);
+        cli_json_uint(&j, "cells", us.cells);
+        cli_json_uint(&j, "cells_affected", us.cells_affected);
+        cli_json_uint(&j, "cells_by_set", us.cells_by_set);
+        cli_json_uint(&j, "cells_by_probe", us.cells_by_probe);
+        cli_json_uint(&j, "objects_removed", us.objects_removed);
+        cli_json_uint(&j, "objects_added", us.objects_added);
+        cli_json_uint(&j, "footprints_changed", us.footprints_changed);
+        cli_json_uint(&j, "zone_footprints", us.zone_footprints);
+        cli_json_bool(&j, "zone_closed", us.zone_closed);
+        cli_json_double(&j, "seconds", us.seconds);
+        cli_json_double(&j, "cpu_seconds", us.cpu_seconds);
+        cli_json_double(&j, "probe_seconds", us.probe_seconds);
+        cli_json_double(&j, "bake_seconds", us.bake_seconds);
+        cli_json_end(&j);
+    } else {
+        printf("%s: %u of %u cells re-baked (%.2f%%), method %s (%s)\n", output, us.cells_affected, us.cells,
+               us.cells ? 100.0 * us.cells_affected / us.cells : 0.0, us.method, us.options);
+        printf("  edit: %u objects without a match in the edited scene (removed or moved), %u new (added or "
+               "moved), %u footprints changed, zone of %u footprints\n",
+               us.objects_removed, us.objects_added, us.footprints_changed, us.zone_footprints);
+        printf("  re-baked because the old set held a changed object: %u; because the zone may be seen: %u\n",
+               us.cells_by_set, us.cells_by_probe);
+        printf("  %.2f s (%.2f s CPU): probe %.2f s, method preparation %.2f s, re-bake %.2f s\n", us.seconds,
+               us.cpu_seconds, us.probe_seconds, us.prepare_seconds, us.bake_seconds);
+    }
+    return 0;
+}
+
 int sl_cmd_pvs(int argc, char **argv)
 {
-    static const char *const actions[] = {"build", "info", "query", "verify"};
-    static int (*const run[])(int, char **) = {run_build, run_info, run_query, run_verify};
+    static const char *const actions[] = {"build", "info", "query", "verify", "update"};
+    static int (*const run[])(int, char **) = {run_build, run_info, run_query, run_verify, run_update};
     int status, k = cli_action(argc, argv, "pvs", usage_main, actions, (int)TOOL_COUNTOF(actions), &status);
     return k < 0 ? status : run[k](argc - 1, argv + 1);
 }

@@ -137,6 +137,60 @@ SL_API void sl_bake_worker_destroy(sl_bake_worker worker);
 SL_API sl_status sl_bake_worker_cell(sl_bake_worker worker, uint32_t cell, uint32_t *ids, uint32_t *count,
                                      sl_error *err);
 
+/* ---- updating a bake after an edit (docs/pvs.md, "Updating a bake") ---------------------------
+ * sl_pvs_update re-bakes only the cells an edit of the scene can affect and copies the other sets
+ * (renumbered) from the old file: the output is byte-identical to sl_pvs_build of the edited scene
+ * with the old file's method and options. The two scenes are matched by content (objects: mesh
+ * positions and indices, kind, flags, transform, box; footprints: polygon, heights, object); objects
+ * and footprints may be added, removed or moved. Refused with a message (nothing written): a file
+ * not baked for old_scene (SL_ERROR_INVALID_ARGUMENT), a method other than adjustable and sample
+ * (SL_ERROR_UNSUPPORTED), view cells that differ from the file's — `cells` are the edited scene's,
+ * made as the full bake would make them; an edit of the streets, or footprints put over them,
+ * changes them (SL_ERROR_INVALID_ARGUMENT) — and an edit of the terrain, the streets, the BSP or the
+ * mesh occluders (SL_ERROR_UNSUPPORTED). The re-baked cells are journalled as sl_pvs_build does
+ * (checkpoint: "<output>.ckpt" unless named; an existing one is refused). Thread safety: as
+ * sl_pvs_build; old is read by this call only (sl_pvs_cell_set). */
+typedef struct sl_pvs_update_options {
+    uint32_t threads;           /* OpenMP threads; 0: all the machine offers */
+    const char *checkpoint;     /* journal of the re-baked cells; NULL: "<output>.ckpt" */
+    sl_progress progress;       /* "re-baking cells", done/total of the affected cells */
+    const sl_allocator *alloc;  /* thread-safe */
+    uint32_t weaken;            /* testing only, makes the update WRONG: 1 leaves out rule (a) (old
+                                   sets holding a changed object), 2 the probe (rule b), 3 the
+                                   touching footprints of a closed zone; 0: the update */
+} sl_pvs_update_options;
+
+typedef struct sl_pvs_update_stats {
+    uint32_t cells;             /* cells in the file */
+    uint32_t cells_affected;    /* re-baked */
+    uint32_t cells_by_set;      /* of which rule (a): the old set holds a removed or zone object */
+    uint32_t cells_by_probe;    /* rule (b): the probe could not hide the zone */
+    uint32_t objects_old, objects_new;
+    uint32_t objects_removed;   /* old objects without a match (removed or moved) */
+    uint32_t objects_added;     /* new objects without a match (added or moved) */
+    uint32_t footprints_changed;/* footprints without a match, old and new */
+    uint32_t zone_footprints;   /* with the footprints touching them when zone_closed */
+    bool zone_closed;           /* the method joins touching footprints (sample's merge, adjustable's
+                                   fuse): the zone holds every footprint touching it, transitively */
+    uint32_t zone_boxes;        /* boxes the probe tests */
+    double seconds;             /* wall time of the whole update */
+    double cpu_seconds;         /* CPU time of the process (all threads) during the update */
+    double probe_seconds;       /* wall time of the probe */
+    double prepare_seconds;     /* wall time of the method's preparation on the edited scene */
+    double bake_seconds;        /* wall time of re-baking the affected cells */
+    double cell_seconds;        /* sum over the re-baked cells of their compute time */
+    double probe_cpu_seconds, prepare_cpu_seconds, bake_cpu_seconds; /* the three phases' process CPU time */
+    char method[32];
+    char options[256];
+} sl_pvs_update_stats;
+
+/* Update the bake `old` of old_scene for new_scene (same view cells) into output: the cells the
+ * edit can affect are re-baked, the others copied (the rules and errors above); stats (may be
+ * NULL) says what was done. */
+SL_API sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_viewcells cells,
+                               const char *output, const sl_pvs_update_options *opt, sl_pvs_update_stats *stats,
+                               sl_error *err);
+
 /* Encode an ascending id set as the .slpvs file does (varint gaps): at most 5 * count bytes into
  * out; returns the size. For sending sets between processes. */
 SL_API size_t sl_bake_encode_set(const uint32_t *ids, uint32_t count, uint8_t *out);

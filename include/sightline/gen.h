@@ -164,6 +164,34 @@ typedef struct sl_city_stats {
  * or street polygons (not a city). */
 SL_API sl_status sl_city_measure(sl_scene scene, sl_city_stats *out, sl_error *err);
 
+/* ---- random edits of a city's buildings (what `sightline pvs update` is tested and measured on) ----
+ * sl_city_edit copies `scene` into a new scene (*out, created with alloc) with, for every building
+ * (an object with a footprint) whose footprint box centre lies in region, one seeded draw: removed
+ * (with probability remove: the object and its footprint), moved (move: shifted by up to `shift`
+ * metres towards the middle of its row of touching buildings — a perimeter block's courtyard, away
+ * from the street — and its height scaled about its base by a factor drawn in [1, grow]), given a
+ * new building (add: appended, its footprint the building's halved about its vertex centroid, its
+ * height `tower` times the building's), or kept. Everything else (meshes, materials, the other
+ * objects in order, streets, terrain, metadata) is copied. Scenes with BSP data or mesh occluders
+ * are refused. Same scene and options, same result. */
+typedef struct sl_city_edit_options {
+    float region[4];            /* X0, Y0, X1, Y1 */
+    uint64_t seed;
+    float remove, move, add;    /* probabilities, sum <= 1 (defaults 0.25, 0.25, 0.2) */
+    float shift;                /* metres, 0..100 (default 1) */
+    float grow;                 /* 1..10 (default 1: a moved building keeps its height) */
+    float tower;                /* 0.1..10 (default 1: a new building as high as its host) */
+} sl_city_edit_options;
+
+typedef struct sl_city_edit_stats {
+    uint32_t removed, moved, added;
+} sl_city_edit_stats;
+
+/* Defaults (region all zero: set it). */
+SL_API sl_city_edit_options sl_city_edit_defaults(void);
+SL_API sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl_allocator *alloc,
+                              sl_scene *out, sl_city_edit_stats *stats, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif

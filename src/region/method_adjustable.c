@@ -48,6 +48,8 @@
 
 #define TWO_PI (2.0 * M_PI)
 
+extern const sl_pvs_method sl_pvs_method_adjustable;
+
 /* Length of (x, y): metres of a city, far from overflow, so no need for hypot's care (or cost). */
 static inline double len2(double x, double y) { return sqrt(x * x + y * y); }
 
@@ -87,6 +89,12 @@ typedef struct adj_shared {
     size_t touch_cap;
     double *edge_sc;   /* sin, cos of every bin edge's azimuth (bins + 1 pairs) */
     double log_split;  /* log(cfg.split) */
+    /* the probe only (sl_adj_probe_*): the boxes tested, and a bucket grid of the pieces */
+    sl_aabb *probe_boxes;
+    uint32_t gnx, gny;
+    double gx0, gy0, gcell;
+    uint32_t *gstart, *gitems; /* per bucket its pieces: gitems[gstart[b] .. gstart[b + 1]) */
+    size_t gcount;
 } adj_shared;
 
 /* A sort key: distance, then id (a total order: the result never depends on the sort). */
@@ -129,6 +137,8 @@ typedef struct adj_worker {
     double runv[4 * MAX_RUN];  /* the polyline of the run being chunked */
     double runa[2 * MAX_RUN];  /* its vertices' azimuths from C (lifted) */
     double segw[2 * MAX_RUN];  /* run_chunks: per segment, the band's azimuth slack */
+    uint32_t *pin, *pmark;     /* the probe (sl_adj_probe_*): gathered pieces, their marks */
+    uint32_t pstamp;
 } adj_worker;
 
 static const char g_help[] =
@@ -170,6 +180,9 @@ static void adj_release(void *p)
     sl_free(&s->a, s->touches, s->touch_cap * sizeof(touch));
     sl_free(&s->a, s->edge_sc, s->edge_sc ? 2 * ((size_t)s->cfg.bins + 1) * sizeof(double) : 0);
     sl_free(&s->a, s->xy, (s->nxy + 1) * sizeof(double));
+    sl_free(&s->a, s->probe_boxes, s->probe_boxes ? ((size_t)s->nobj + 1) * sizeof(sl_aabb) : 0);
+    sl_free(&s->a, s->gstart, s->gstart ? ((size_t)s->gnx * s->gny + 1) * sizeof(uint32_t) : 0);
+    sl_free(&s->a, s->gitems, s->gitems ? (s->gcount + 1) * sizeof(uint32_t) : 0);
     sl_free(&s->a, s, sizeof *s);
 }
 
@@ -486,10 +499,10 @@ oom:
     return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
 }
 
-static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
-                             uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
+/* The method's preparation over the footprints f with use[f] (all when use is NULL). */
+static sl_status adj_prepare_some(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
+                                  const uint8_t *use, void **shared, uint64_t *removed, sl_error *err)
 {
-    (void)threads; /* serial */
     adj_shared *s = sl_calloc(alloc, 1, sizeof *s);
     if (!s)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
@@ -517,7 +530,8 @@ static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *con
     sl_array pieces = {0}, xy = {0};
     sl_status st = SL_OK;
     for (uint32_t f = 0; f < sl_scene_footprint_count(scene) && st == SL_OK; f++)
-        st = decompose(s, &g, f, &pieces, &xy, err);
+        if (!use || use[f])
+            st = decompose(s, &g, f, &pieces, &xy, err);
     sl_geos_finish(&g);
     if (st != SL_OK) {
         sl_array_free(alloc, &pieces, sizeof(piece));
@@ -553,6 +567,13 @@ static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *con
     }
     *shared = s;
     return SL_OK;
+}
+
+static sl_status adj_prepare(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
+                             uint32_t threads, void **shared, uint64_t *removed, sl_error *err)
+{
+    (void)threads; /* serial */
+    return adj_prepare_some(scene, cells, config, alloc, NULL, shared, removed, err);
 }
 
 static inline bool kless(const keyed *a, const keyed *b) { return a->k < b->k || (a->k == b->k && a->id < b->id); }
@@ -625,6 +646,8 @@ static void adj_worker_destroy(void *p)
     sl_free(a, w->plist, np * sizeof(uint32_t));
     sl_free(a, w->need, NEED_BINS * sizeof(double));
     sl_array_free(a, &w->centres, 2 * sizeof(double));
+    sl_free(a, w->pin, w->pin ? np * sizeof(uint32_t) : 0);
+    sl_free(a, w->pmark, w->pmark ? np * sizeof(uint32_t) : 0);
     sl_free(a, w, sizeof *w);
 }
 
@@ -1051,7 +1074,8 @@ static void need_mark(double *need, double lo, double hi, double v)
  * farther. Both azimuth intervals are widened by what moving the eye rc can change them
  * (asin(rc / distance)), distances are moved by rc. This is a speed filter only: a piece left out
  * lowers the horizon, which can only make a disk's set larger, never smaller. */
-static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, double eps, uint32_t nc)
+static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, double eps, uint32_t nc,
+                              const uint32_t *pin, uint32_t npin)
 {
     adj_shared *s = w->sh;
     double *need = w->need, all = -INFINITY;
@@ -1072,7 +1096,9 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
         need_mark(need, lo - widen + TWO_PI, hi + widen + TWO_PI, reach);
     }
     uint32_t npl = 0;
-    for (uint32_t k = 0; k < s->npiece; k++) {
+    const uint32_t nk = pin ? npin : s->npiece;
+    for (uint32_t q = 0; q < nk; q++) {
+        const uint32_t k = pin ? pin[q] : q;
         const piece *pc = &s->pieces[k];
         const double *v = s->xy + 2 * (size_t)pc->first;
         double near = INFINITY;
@@ -1171,7 +1197,7 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
         for (size_t i = 0; i < ncen; i++)
             rc = fmax(rc, len2(cen[i][0] - ox, cen[i][1] - oy));
         rc = rc * (1 + 1e-9) + 1e-9;
-        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc);
+        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, NULL, 0);
         for (uint32_t i = 0; i < nc; i++)
             w->visible[w->cand[i]] = 0;
         for (size_t i = 0; i < ncen; i++) {
@@ -1195,6 +1221,230 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
     memcpy(out->ids, w->cand, (size_t)nc * sizeof(uint32_t));
     out->count = nc;
     out->work = work;
+    return SL_OK;
+}
+
+
+/* ---- the probe (pvs_update.c): may a few boxes be seen from a cell past some occluders? ----
+ *
+ * adj_cell's levels of disks (the same disks, radii, eye height and options), with the pieces of
+ * the chosen footprints only and the given boxes as the only objects, each level testing the boxes
+ * the coarser one could not hide. A box hidden at a level is hidden from every point of the cell
+ * by those occluders (the level's disks cover the cell and each disk's set is conservative for it). Leaving pieces out only lowers the horizon, so
+ * the pieces are gathered from a bucket grid over the rectangle that holds the disks and every box:
+ * a piece that can stand between a disk and a box lies in their convex hull, inside it. */
+
+#define PROBE_BUCKET 32.0
+
+/* Bucket b of the probe's grid holding the piece box's corner range: [i0, i1] x [j0, j1]. */
+static void probe_range(const adj_shared *s, double x0, double y0, double x1, double y1, uint32_t r[4])
+{
+    double f[4] = {floor((x0 - s->gx0) / s->gcell), floor((y0 - s->gy0) / s->gcell), floor((x1 - s->gx0) / s->gcell),
+                   floor((y1 - s->gy0) / s->gcell)};
+    double lim[4] = {s->gnx - 1.0, s->gny - 1.0, s->gnx - 1.0, s->gny - 1.0};
+    for (int k = 0; k < 4; k++)
+        r[k] = (uint32_t)fmin(lim[k], fmax(0.0, f[k]));
+}
+
+static sl_status probe_grid(adj_shared *s, sl_error *err)
+{
+    double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    for (size_t i = 0; i < s->nxy / 2; i++) {
+        x0 = fmin(x0, s->xy[2 * i]), x1 = fmax(x1, s->xy[2 * i]);
+        y0 = fmin(y0, s->xy[2 * i + 1]), y1 = fmax(y1, s->xy[2 * i + 1]);
+    }
+    if (s->npiece == 0)
+        x0 = y0 = 0, x1 = y1 = 1;
+    s->gx0 = x0, s->gy0 = y0;
+    s->gnx = (uint32_t)fmin(4096.0, floor((x1 - x0) / PROBE_BUCKET) + 1);
+    s->gny = (uint32_t)fmin(4096.0, floor((y1 - y0) / PROBE_BUCKET) + 1);
+    s->gcell = fmax(PROBE_BUCKET, fmax((x1 - x0) / s->gnx, (y1 - y0) / s->gny) * (1 + 1e-9));
+    const size_t nb = (size_t)s->gnx * s->gny;
+    s->gstart = sl_calloc(&s->a, nb + 1, sizeof(uint32_t));
+    uint32_t *fill = sl_calloc(&s->a, nb + 1, sizeof(uint32_t));
+    sl_status st = SL_OK;
+    if (!s->gstart || !fill)
+        st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+    for (int pass = 0; pass < 2 && st == SL_OK; pass++) {
+        for (uint32_t k = 0; k < s->npiece; k++) {
+            const piece *pc = &s->pieces[k];
+            const double *v = s->xy + 2 * (size_t)pc->first;
+            double px0 = INFINITY, px1 = -INFINITY, py0 = INFINITY, py1 = -INFINITY;
+            for (uint32_t i = 0; i < pc->count; i++) {
+                px0 = fmin(px0, v[2 * i]), px1 = fmax(px1, v[2 * i]);
+                py0 = fmin(py0, v[2 * i + 1]), py1 = fmax(py1, v[2 * i + 1]);
+            }
+            uint32_t r[4];
+            probe_range(s, px0, py0, px1, py1, r);
+            for (uint32_t j = r[1]; j <= r[3]; j++)
+                for (uint32_t i = r[0]; i <= r[2]; i++) {
+                    size_t b = (size_t)j * s->gnx + i;
+                    if (pass == 0)
+                        s->gstart[b + 1]++;
+                    else
+                        s->gitems[fill[b]++] = k;
+                }
+        }
+        if (pass == 0) {
+            for (size_t b = 0; b < nb; b++)
+                s->gstart[b + 1] += s->gstart[b];
+            s->gcount = s->gstart[nb];
+            s->gitems = sl_alloc(&s->a, (s->gcount + 1) * sizeof(uint32_t));
+            if (!s->gitems)
+                st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+            for (size_t b = 0; b < nb; b++)
+                fill[b] = s->gstart[b];
+        }
+    }
+    if (fill)
+        sl_free(&s->a, fill, (nb + 1) * sizeof(uint32_t));
+    return st;
+}
+
+sl_status sl_adj_probe_create(sl_scene scene, sl_viewcells cells, const char *options, const uint8_t *use_footprint,
+                              const sl_aabb *boxes, uint32_t nbox, const sl_allocator *alloc, void **out,
+                              sl_error *err)
+{
+    *out = NULL;
+    void *config = NULL;
+    sl_status st = sl_pvs_method_configure(&sl_pvs_method_adjustable, options, alloc, &config, NULL, err);
+    if (st != SL_OK)
+        return st;
+    void *sh = NULL;
+    uint64_t removed = 0;
+    st = adj_prepare_some(scene, cells, config, alloc, use_footprint, &sh, &removed, err);
+    sl_free(alloc, config, sizeof(adj_config));
+    if (st != SL_OK)
+        return st;
+    adj_shared *s = sh;
+    s->probe_boxes = sl_alloc(alloc, ((size_t)nbox + 1) * sizeof(sl_aabb));
+    if (!s->probe_boxes) {
+        adj_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+    }
+    if (nbox)
+        memcpy(s->probe_boxes, boxes, (size_t)nbox * sizeof(sl_aabb));
+    s->bounds = s->probe_boxes;
+    s->nobj = nbox;
+    if ((st = probe_grid(s, err)) != SL_OK) {
+        adj_release(s);
+        return st;
+    }
+    *out = s;
+    return SL_OK;
+}
+
+void sl_adj_probe_destroy(void *probe) { adj_release(probe); }
+
+sl_status sl_adj_probe_worker_create(void *probe, void **out, sl_error *err)
+{
+    *out = NULL;
+    adj_shared *s = probe;
+    void *wv = NULL;
+    sl_status st = adj_worker_create(s, &wv, err);
+    if (st != SL_OK)
+        return st;
+    adj_worker *w = wv;
+    size_t np = (size_t)s->npiece + 1;
+    w->pin = sl_alloc(&s->a, np * sizeof(uint32_t));
+    w->pmark = sl_calloc(&s->a, np, sizeof(uint32_t));
+    if (!w->pin || !w->pmark) {
+        adj_worker_destroy(w);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+    }
+    *out = w;
+    return SL_OK;
+}
+
+void sl_adj_probe_worker_destroy(void *worker) { adj_worker_destroy(worker); }
+
+sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error *err)
+{
+    adj_worker *w = worker;
+    adj_shared *s = w->sh;
+    *visible = false;
+    if (s->nobj == 0)
+        return SL_OK;
+    const sl_viewcell *vc = &sl_viewcells_data(s->cells)[cell];
+    double poly[8];
+    int n;
+    if (vc->shape == SL_CELL_PRISM) {
+        for (int i = 0; i < 3; i++)
+            poly[2 * i] = vc->tri[i].x, poly[2 * i + 1] = vc->tri[i].y;
+        n = 3;
+    } else {
+        const sl_aabb *b = &vc->bounds;
+        double q[8] = {b->min.x, b->min.y, b->max.x, b->min.y, b->max.x, b->max.y, b->min.x, b->max.y};
+        memcpy(poly, q, sizeof q);
+        n = 4;
+    }
+    const sl_aabb *bb = &vc->bounds;
+    int top = 0; /* adj_cell's coarsest level */
+    const double extent = fmax((double)bb->max.x - bb->min.x, (double)bb->max.y - bb->min.y);
+    while (top < (int)s->cfg.levels && s->cfg.eps * ldexp(1.0, top) * M_SQRT2 < extent)
+        top++;
+    /* adj_cell's levels, coarse to fine, the boxes a level cannot hide going on to the next: a box
+     * hidden at one level (by all its disks, which cover the cell) is hidden from the whole cell */
+    uint32_t nc = s->nobj;
+    for (uint32_t o = 0; o < s->nobj; o++)
+        w->cand[o] = o;
+    for (int level = top; level >= 0 && nc > 0; level--) {
+        const double eps = s->cfg.eps * ldexp(1.0, level);
+        if (!level_centres(w, poly, n, bb, eps))
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+        const double(*cen)[2] = w->centres.data;
+        const size_t ncen = w->centres.count;
+        double ox = 0, oy = 0, rc = 0;
+        for (size_t i = 0; i < ncen; i++)
+            ox += cen[i][0], oy += cen[i][1];
+        ox /= (double)ncen, oy /= (double)ncen;
+        for (size_t i = 0; i < ncen; i++)
+            rc = fmax(rc, len2(cen[i][0] - ox, cen[i][1] - oy));
+        rc = rc * (1 + 1e-9) + 1e-9;
+        /* the rectangle of the disks and the boxes, and the pieces of its buckets */
+        double x0 = ox - rc - eps, x1 = ox + rc + eps, y0 = oy - rc - eps, y1 = oy + rc + eps;
+        for (uint32_t q = 0; q < nc; q++) {
+            const sl_aabb *bx = &s->bounds[w->cand[q]];
+            x0 = fmin(x0, bx->min.x), x1 = fmax(x1, bx->max.x);
+            y0 = fmin(y0, bx->min.y), y1 = fmax(y1, bx->max.y);
+        }
+        if (++w->pstamp == 0) {
+            memset(w->pmark, 0, ((size_t)s->npiece + 1) * sizeof(uint32_t));
+            w->pstamp = 1;
+        }
+        uint32_t npin = 0, r[4];
+        probe_range(s, x0, y0, x1, y1, r); /* clamped: the border buckets hold everything beyond */
+        for (uint32_t j = r[1]; j <= r[3]; j++)
+            for (uint32_t i = r[0]; i <= r[2]; i++) {
+                size_t b = (size_t)j * s->gnx + i;
+                for (uint32_t t = s->gstart[b]; t < s->gstart[b + 1]; t++) {
+                    uint32_t k = s->gitems[t];
+                    if (w->pmark[k] != w->pstamp) {
+                        w->pmark[k] = w->pstamp;
+                        w->pin[npin++] = k;
+                    }
+                }
+            }
+        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, w->pin, npin);
+        for (uint32_t q = 0; q < nc; q++)
+            w->visible[w->cand[q]] = 0;
+        for (size_t i = 0; i < ncen; i++) {
+            uint32_t nlive = 0;
+            for (uint32_t q = 0; q < nc; q++)
+                if (!w->visible[w->cand[q]])
+                    w->live[nlive++] = w->cand[q];
+            if (nlive == 0)
+                break;
+            if (!disk(w, cen[i][0], cen[i][1], vc->z_max, eps, nlive, npl))
+                return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+        }
+        uint32_t m = 0;
+        for (uint32_t q = 0; q < nc; q++)
+            if (w->visible[w->cand[q]])
+                w->cand[m++] = w->cand[q];
+        nc = m;
+    }
+    *visible = nc > 0;
     return SL_OK;
 }
 

@@ -55,6 +55,21 @@ sl_status sl_pvs_registry_find(const char *name, const sl_pvs_method **out, sl_e
 sl_status sl_pvs_method_configure(const sl_pvs_method *m, const char *options, const sl_allocator *a, void **config,
                                   char *effective, sl_error *err);
 
+/* ---- the probe of pvs_update.c (method_adjustable.c) ----
+ * adjustable's levels of disks for a cell (the same disks and options, coarse to fine, each level
+ * testing the boxes the coarser one kept), with the pieces of the footprints f with
+ * use_footprint[f] as the only occluders and `boxes` as the only objects: *visible is false when
+ * every box is hidden from the whole cell by those occluders
+ * (conservatively: then no point of the cell sees any of them). options: adjustable's options
+ * (NULL: defaults). The probe is read-only once made; a worker per thread. */
+sl_status sl_adj_probe_create(sl_scene scene, sl_viewcells cells, const char *options, const uint8_t *use_footprint,
+                              const sl_aabb *boxes, uint32_t nbox, const sl_allocator *alloc, void **probe,
+                              sl_error *err);
+void sl_adj_probe_destroy(void *probe);
+sl_status sl_adj_probe_worker_create(void *probe, void **worker, sl_error *err);
+void sl_adj_probe_worker_destroy(void *worker);
+sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error *err);
+
 /* ---- the bake: what the thread and MPI drivers share (pvs_build.c) ----
  * begin configures and prepares the method; on the writing process it also takes the bake lock
  * and reads the checkpoint journal (resuming from it when asked). store records a finished cell
