@@ -5,8 +5,8 @@
 #include <string.h>
 
 static const sl_command commands[] = {
-    {"gen", sl_cmd_gen, "generate a procedural scene (gen city --preset tiny|small|vienna|oldtown|oldtown-small)"},
-    {"import", sl_cmd_import, "import OBJ/glTF/PLY/FBX/... (assimp) or Quake III .bsp/.pk3 into .slscene"},
+    {"gen", sl_cmd_gen, "generate a procedural city (gen city --preset tiny|small|vienna|oldtown|oldtown-small) or edit one (gen edit)"},
+    {"import", sl_cmd_import, "import OBJ/glTF/PLY/FBX/... (assimp), Quake III .bsp/.pk3 or GIS cities (GeoJSON, Shapefile, OSM, CityGML)"},
     {"occluders", sl_cmd_occluders, "synthesise conservative occluders (boxes inside closed meshes) for a scene"},
     {"info", sl_cmd_info, "counts, bounds, memory and per-kind statistics of a scene"},
     {"path", sl_cmd_path, "generate, inspect or validate a camera path"},
@@ -15,7 +15,7 @@ static const sl_command commands[] = {
     {"bench", sl_cmd_bench, "run culling methods over scenes and paths against the oracle; CSV, JSON, plots"},
     {"render", sl_cmd_render, "write id, depth, overdraw (and cull map) images for a camera or a path"},
     {"radar", sl_cmd_radar, "radar echo image of a terrain from a transmitter (occlusion horizon sweep)"},
-    {"pvs", sl_cmd_pvs, "from-region visibility: pvs build | info | query | verify"},
+    {"pvs", sl_cmd_pvs, "from-region visibility: pvs build | update | info | query | verify"},
     {"occlusion", sl_cmd_occlusion, "debugging of the occlusion methods: occlusion replay FILE (a recorded frame)"},
     {"view", sl_cmd_view, "walk or fly through a scene in a window: the renderer, a culler, HUD, freeze, map"},
     {"vis-server", sl_cmd_vis_server, "serve visible sets over TCP to clients sending viewpoints (docs/vis-server.md)"},
