@@ -386,7 +386,8 @@ static uint32_t choose_level(instant_state *s)
 
 static void free_levels(instant_state *s)
 {
-    for (uint32_t l = 0; s->levels && l < s->level_count; l++) {
+    /* without stored levels there is still level 0: the scene's own footprints */
+    for (uint32_t l = 0; s->levels && l < (s->level_count ? s->level_count : 1); l++) {
         sl_culler_destroy(s->levels[l].base);
         sl_scene_destroy(s->levels[l].proxy);
         s->levels[l].base = NULL;
