@@ -274,7 +274,7 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
             xy[2 * i + 1] = (float)(cy + 0.5 * (v.xy[2 * i + 1] - cy));
         }
         float roof = v.base_z + opt->tower * (v.roof_z - v.base_z);
-        uint32_t mesh, id;
+        uint32_t mesh = SL_NONE, id = SL_NONE;
         st = add_prism(a, dst, xy, v.vertex_count, v.base_z, roof, &mesh, err);
         sl_object_view ov = sl_scene_object(scene, o);
         sl_object_desc d = {.mesh = mesh, .color = ov.color, .kind = ov.kind, .flags = ov.flags};
