@@ -2,8 +2,9 @@
 # Build the libFuzzer targets with clang and run each for a bounded time (default 35 s), then run
 # the archive and map readers once more with the command line's limits (SL_FUZZ_CLI_LIMITS=1:
 # 512 MiB entries, 64 Mi triangles) so that the large-allocation paths are fuzzed too (default
-# 30 s each, SL_FUZZ_CLI_SECONDS). Eleven targets x 35 s + 2 x 30 s is about 7.5 minutes, which keeps
-# the fuzz stage of CI near its 10-minute budget with the build.
+# 30 s each, SL_FUZZ_CLI_SECONDS). The targets run SL_FUZZ_JOBS at a time (default: one per core),
+# each for its full time on its own core, and their reports are printed in target order: twelve
+# targets x 35 s + 2 x 30 s take about 4 minutes on two cores.
 # Any finding (crash, sanitizer report including UBSan, leak, OOM, timeout) fails the script after
 # the remaining targets have run; the finding's report is printed, its full log is kept in
 # build-fuzz/logs/ and the input in build-fuzz/artifacts/. A clean target prints libFuzzer's last
@@ -61,24 +62,44 @@ run() { # run NAME SECONDS CORPUS LABEL [libFuzzer flags...]
   report "$log"
   local env="UBSAN_OPTIONS=$UBSAN_OPTIONS${SL_FUZZ_CLI_LIMITS:+ SL_FUZZ_CLI_LIMITS=1}"
   echo "!! reproduce: $env $f ${unit:-$artifacts/$label-*}"
-  failed+=("$label")
+  touch "$logs/$label.failed"
+}
+jobs_max=${SL_FUZZ_JOBS:-$(nproc)}
+order=()
+start() { # start LABEL HEADER run-arguments...: run in the background, its report in LABEL.out
+  local label=$1 header=$2
+  shift 2
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs_max" ]; do wait -n || true; done
+  rm -f "$logs/$label.failed"
+  order+=("$label")
+  { echo "$header"; run "$@"; } >"$logs/$label.out" 2>&1 &
+}
+finish() { # wait for every target, print the reports in order
+  wait
+  local label
+  for label in "${order[@]}"; do
+    cat "$logs/$label.out"
+    [ -e "$logs/$label.failed" ] && failed+=("$label")
+  done
+  order=()
 }
 for f in build-fuzz/fuzz_*; do
   [ -x "$f" ] || continue
   name=$(basename "$f")
-  echo "== $name (${secs}s)"
-  run "$name" "$secs" "build-fuzz/corpus/$name" "$name" -rss_limit_mb=2048 -max_len=1048576
+  start "$name" "== $name (${secs}s)" "$name" "$secs" "build-fuzz/corpus/$name" "$name" -rss_limit_mb=2048 \
+    -max_len=1048576
 done
+finish
 # The CLI's limits: an entry may inflate to 512 MiB (allocated once it passes the size check) and a
 # map may ask for up to 64 Mi triangles (about 1.5 GB of output), so a single allocation may reach
 # 2 GiB and the process, with ASan's overhead, several; 8 GiB of RSS leaves room on a 24 GiB machine.
 # Inputs up to 4 MiB, so that a .bsp can be large enough for the file-size bound to allow big outputs.
 for name in fuzz_pk3 fuzz_q3bsp; do
   [ -x "build-fuzz/$name" ] || continue
-  echo "== $name with the CLI's limits (${cli_secs}s)"
-  SL_FUZZ_CLI_LIMITS=1 run "$name" "$cli_secs" "build-fuzz/corpus/$name-cli" "$name-cli" \
-    -rss_limit_mb=8192 -malloc_limit_mb=2048 -max_len=4194304 -timeout=120
+  SL_FUZZ_CLI_LIMITS=1 start "$name-cli" "== $name with the CLI's limits (${cli_secs}s)" "$name" "$cli_secs" \
+    "build-fuzz/corpus/$name-cli" "$name-cli" -rss_limit_mb=8192 -malloc_limit_mb=2048 -max_len=4194304 -timeout=120
 done
+finish
 if [ "${#failed[@]}" -gt 0 ]; then
   echo "fuzzing FAILED: findings in ${failed[*]} (each reported above with the command that reproduces it)" >&2
   exit 1

@@ -843,13 +843,123 @@ static void test_table_lies(void **state)
     free(f);
 }
 
+/* Motion records (docs/motion.md): the API's checks, a round trip through .slscene 1.3 (MOTN), a
+ * scene without records still written as before, and hostile records refused with the record and
+ * the reason. */
+static void test_motion_records(void **state)
+{
+    fixture *fx = *state;
+    sl_scene s;
+    OK(sl_scene_create(NULL, &s, E));
+    uint32_t box;
+    sl_mesh_desc md = {k_box_p, NULL, 8, k_box_i, 12, NULL};
+    OK(sl_scene_add_mesh(s, &md, &box, E));
+    sl_object_desc still = {box, NULL, 0, SL_KIND_OTHER, 0, 0};
+    sl_affine at = translate(5, 0, 0);
+    sl_object_desc moving = {box, &at, 0, SL_KIND_CAR, SL_OBJECT_DYNAMIC, 0};
+    uint32_t o0, o1, o2;
+    OK(sl_scene_add_object(s, &still, &o0, E));
+    OK(sl_scene_add_object(s, &moving, &o1, E));
+    OK(sl_scene_add_object(s, &moving, &o2, E));
+    sl_error err;
+    sl_object_motion parked = {.max_speed = 0, .region = {{4, -1, -1}, {7, 2, 2}}};
+    sl_object_motion drive = {.max_speed = 10, .region = {{4.9f, -0.1f, -0.1f}, {26.1f, 1.1f, 1.1f}}, .has_path = true,
+                              .path_base = at, .from = {0, 0, 0}, .to = {20, 0, 0}, .speed = 8, .phase = 30};
+    /* the checks */
+    assert_int_equal(sl_scene_set_object_motion(s, o0, &parked, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "DYNAMIC"));
+    sl_object_motion bad = drive;
+    bad.speed = 11;
+    assert_int_equal(sl_scene_set_object_motion(s, o1, &bad, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "speed"));
+    bad = drive;
+    bad.to.x = 30; /* beyond its region */
+    assert_int_equal(sl_scene_set_object_motion(s, o1, &bad, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "leaves its region"));
+    bad = drive;
+    bad.phase = 40;
+    assert_int_equal(sl_scene_set_object_motion(s, o1, &bad, &err), SL_ERROR_INVALID_ARGUMENT);
+    bad = parked;
+    bad.max_speed = NAN;
+    assert_int_equal(sl_scene_set_object_motion(s, o1, &bad, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(sl_scene_motion_count(s), 0);
+    /* out of order: kept ascending */
+    OK(sl_scene_set_object_motion(s, o2, &parked, E));
+    OK(sl_scene_set_object_motion(s, o1, &drive, E));
+    assert_int_equal(sl_scene_motion_count(s), 2);
+    assert_int_equal(sl_scene_path_count(s), 1);
+    /* animation: phase 30 of a 20 m path is 10 m on the way back; t = 1.25 s adds 10 m: at from */
+    OK(sl_scene_animate(s, 1.25, E));
+    sl_aabb b = sl_scene_object_bounds(s, o1);
+    assert_true(fabsf(b.min.x - 5) < 1e-4f && fabsf(b.max.x - 6) < 1e-4f);
+    OK(sl_scene_animate(s, 0, E));
+    b = sl_scene_object_bounds(s, o1);
+    assert_true(fabsf(b.min.x - 15) < 1e-4f && fabsf(b.max.x - 16) < 1e-4f);
+    /* the round trip */
+    char path[256];
+    join(path, sizeof path, fx, "motion.slscene");
+    OK(sl_scene_save(s, path, E));
+    sl_scene t;
+    OK(sl_scene_load(path, NULL, NULL, &t, E));
+    sl_object_motion m;
+    assert_true(sl_scene_object_motion(t, o1, &m));
+    assert_true(m.has_path && m.speed == 8 && m.phase == 30 && m.to.x == 20);
+    assert_memory_equal(&m.path_base, &at, sizeof at);
+    assert_true(sl_scene_object_motion(t, o2, &m) && !m.has_path && m.region.max.x == 7);
+    assert_false(sl_scene_object_motion(t, o0, &m));
+    sl_scene_destroy(t);
+    FILE *fp = fopen(path, "rb");
+    assert_non_null(fp);
+    fseek(fp, 0, SEEK_END);
+    size_t n = (size_t)ftell(fp);
+    rewind(fp);
+    uint8_t *f = malloc(n), *g = malloc(n);
+    assert_int_equal(fread(f, 1, n, fp), n);
+    fclose(fp);
+    assert_int_equal(get32(f + H_MINOR), 3);
+    uint8_t *rec = f + get64(f + entry_of(f, "MOTN") + E_OFFSET);
+    static const struct {
+        size_t at;
+        uint32_t value;
+        const char *want;
+    } lies[] = {
+        {0, 7, "object 7 out of range"},                 /* record 0's object */
+        {128, 1, "not strictly ascending"},              /* record 1's object = record 0's */
+        {0, 0, "is not DYNAMIC"},                        /* object 0 */
+        {4, 4, "unknown flag bits"},
+        {20, 1, "reserved fields must be zero"},
+        {8, 0x7fc00000u, "max_speed"},                   /* NaN */
+        {12, 0x41300000u, "speed must be in"},           /* 11 > max_speed 10 */
+        {60, 0x41f00000u, "leaves its region"},          /* to.x = 30 */
+    };
+    for (size_t k = 0; k < sizeof lies / sizeof lies[0]; k++) {
+        memcpy(g, f, n);
+        uint8_t *r = g + (rec - f);
+        put32(r + lies[k].at, lies[k].value);
+        fix_checksums_n(g, n);
+        expect_fail_ex(fx, g, n, SL_ERROR_FORMAT, lies[k].want, false);
+    }
+    free(f);
+    free(g);
+    /* without records: the version it had before */
+    OK(sl_scene_set_object_motion(s, o1, NULL, E));
+    OK(sl_scene_set_object_motion(s, o2, NULL, E));
+    OK(sl_scene_save(s, path, E));
+    fp = fopen(path, "rb");
+    uint8_t head[16];
+    assert_int_equal(fread(head, 1, 16, fp), 16);
+    fclose(fp);
+    assert_int_equal(get32(head + H_MINOR), 1);
+    sl_scene_destroy(s);
+}
+
 static void test_newer_minor_version(void **state)
 {
     fixture *fx = *state;
     uint8_t *f = copy_of(fx);
     /* a section this reader does not know, from a newer minor version: skipped */
     memcpy(f + entry_of(f, "SEDG"), "XEDG", 4);
-    put32(f + H_MINOR, 3);
+    put32(f + H_MINOR, 4);
     fix_checksums(f);
     sl_scene s;
     OK(sl_scene_load_memory(f, fx->size, "newer", NULL, &s, E));
@@ -1069,6 +1179,7 @@ int main(void)
         cmocka_unit_test(test_header_lies),
         cmocka_unit_test(test_table_lies),
         cmocka_unit_test(test_newer_minor_version),
+        cmocka_unit_test(test_motion_records),
         cmocka_unit_test(test_content_lies),
         cmocka_unit_test(test_metadata_lies),
         cmocka_unit_test(test_hostile_mappings_do_not_leak),

@@ -71,6 +71,8 @@ static void usage(FILE *out)
             "  --detail N            0 prism, 1 roofs and cornices, 2 ledges, 3 recessed windows on street\n"
             "                        façades, 4 sills and courtyard windows too\n"
             "  --cars N              cars per km of street (0: none)\n"
+            "  --traffic-speed V     m/s of the cars in the driving lanes (default 11; 0: parked, no paths);\n"
+            "                        they shuttle along their lanes under sl_scene_animate (docs/motion.md)\n"
             "  --trees N             trees per hectare in parks and courtyards\n"
             "  --street-trees M      tree spacing along avenues and river banks (0: none)\n"
             "  --lamps M             street lamp spacing (0: none)\n"
@@ -120,7 +122,7 @@ static const float_opt float_opts[] = {
     FOPT("height-max", height_max),        FOPT("tower-min", tower_height_min), FOPT("tower-max", tower_height_max),
     FOPT("cars", cars_per_km),             FOPT("trees", trees_per_ha),         FOPT("street-trees", street_tree_spacing),
     FOPT("lamps", lamp_spacing),           FOPT("relief", relief),              FOPT("meander", meander),
-    FOPT("meander-wavelength", meander_wavelength),
+    FOPT("meander-wavelength", meander_wavelength), FOPT("traffic-speed", traffic_speed),
 };
 
 static void print_summary(const char *cmd, const sl_city_options *o, sl_scene s, const char *output, double t_gen,

@@ -103,6 +103,10 @@ typedef struct sl_city_options {
 
     /* props */
     float cars_per_km;              /* expected cars per km of street, 0 .. 400 */
+    float traffic_speed;            /* m/s of the cars in the driving lanes, 0 .. 40 (default 11,
+                                     * about 40 km/h; each car within 25% of it): each gets a motion
+                                     * record with a path up and down its lane (sl_scene_animate);
+                                     * parked cars get one that never moves. 0: no paths */
     float trees_per_ha;             /* in parks and courtyards, 0 .. 400 */
     float street_tree_spacing;      /* along avenues and river banks; 0: none */
     float lamp_spacing;             /* along every street, alternating sides; 0: none */

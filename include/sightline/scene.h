@@ -375,6 +375,49 @@ SL_API sl_occluder_level_view sl_scene_occluder_level(sl_scene scene, uint32_t l
 /* Footprint `index` of a level (a zeroed view beyond the counts); borrowed like sl_scene_footprint. */
 SL_API sl_footprint_view sl_scene_occluder_level_footprint(sl_scene scene, uint32_t level, uint32_t index);
 
+/* --- moving objects (Wonka's thesis §8.5; docs/motion.md) -------------------------------------
+ * A DYNAMIC object may carry a motion record: the fastest it moves and the box it never leaves.
+ * With it, methods that keep a set for a while can bound where the object can be: `instant` tests
+ * the object's box grown by max_speed times the time its set is displayed (clipped to the region),
+ * instead of counting the object visible everywhere. The contract is the caller's: between any two
+ * calls that move the object (sl_scene_set_object_transform, sl_scene_animate), no point of its box
+ * moves farther than max_speed times the time between them, and its world box stays inside region.
+ * A DYNAMIC object without a record may move anywhere at any speed (such objects are always in an
+ * `instant` set, then frustum-tested).
+ *
+ * A record may hold a deterministic path, which sl_scene_animate follows (the city generator's
+ * driving cars): the object shuttles between `from` and `to` at `speed`, turned half a turn about
+ * the vertical axis through its box centre at each end. Its pose at parameter d (metres travelled,
+ * d in [0, 2L), L = |to - from|) is path_base translated by p(d) - from, where p runs from `from` to
+ * `to` for d < L and back for d >= L (then also turned about the box centre of path_base, which
+ * leaves the world box as it is); d = phase + speed * t wrapped to [0, 2L). Records are stored in
+ * .slscene 1.3 (section MOTN). */
+typedef struct sl_object_motion {
+    float max_speed;            /* m/s, finite, >= 0 (0: never moves) */
+    sl_aabb region;             /* the world box the object's box never leaves (finite, min <= max) */
+    bool has_path;
+    sl_affine path_base;        /* the pose at `from`, heading for `to` (has_path only) */
+    sl_vec3 from, to;           /* where the pose's translation runs, |to - from| > 0 */
+    float speed;                /* m/s along the path, in (0, max_speed] */
+    float phase;                /* metres along the path at t = 0, in [0, 2 |to - from|) */
+} sl_object_motion;
+/* Give a DYNAMIC object a motion record (replacing its old one), or remove it (motion NULL).
+ * Checks every field as above and, with a path, that the object's box along the whole path lies in
+ * region; the object's transform is not touched. SL_ERROR_INVALID_ARGUMENT naming the object and the
+ * reason (an object that is not DYNAMIC, a path outside its region, ...). Not thread-safe with any
+ * other call on the scene. */
+SL_API sl_status sl_scene_set_object_motion(sl_scene scene, uint32_t object, const sl_object_motion *motion,
+                                            sl_error *err);
+/* The object's motion record, if it has one (false, *out untouched, otherwise). */
+SL_API bool sl_scene_object_motion(sl_scene scene, uint32_t object, sl_object_motion *out);
+/* Objects with a motion record, and how many of those have a path. */
+SL_API uint32_t sl_scene_motion_count(sl_scene scene);
+SL_API uint32_t sl_scene_path_count(sl_scene scene);
+/* Put every object with a path at its pose at time t (seconds; any finite t, negative too):
+ * sl_scene_set_object_transform for each, so cullers need sl_culler_scene_changed afterwards.
+ * Deterministic: the same t gives the same transforms bit for bit. */
+SL_API sl_status sl_scene_animate(sl_scene scene, double t, sl_error *err);
+
 /* World bounds of all objects. */
 SL_API sl_aabb sl_scene_bounds(sl_scene scene);
 SL_API void sl_scene_get_stats(sl_scene scene, sl_scene_stats *out);

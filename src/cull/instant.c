@@ -37,6 +37,19 @@
  * An update starts on a frame boundary when none is in flight: from the displayed eye, with the
  * level eps = (2 t_vis - t_frame) v_max rounded up to the next stored level (or eps=E fixed).
  *
+ * Moving objects (thesis §8.5; docs/motion.md): a set is displayed for up to W = eps / vmax after
+ * the boxes it was computed from were read (the observer leaves the eps-neighbourhood no sooner at
+ * vmax), so when the scene has DYNAMIC objects a set also holds only for W after it was posted.
+ * Each update reads the current box of every DYNAMIC object in the caller's thread when it is
+ * posted, grows it by max_speed * W (its motion record, sl_scene_set_object_motion; the box stays
+ * inside the record's region, so the grown box is clipped to it) and tests that box: a moving
+ * object visible at some displayed frame has a point visible then from a displayed eye within eps,
+ * and that point lies in the grown box, which the shrunk occluders hide from P only if they hide it
+ * from that eye. A DYNAMIC object without a record (or whose box has left its region) is in every
+ * set. Footprints of DYNAMIC objects (a moving occluder) are not used: the levels were shrunk for
+ * static occluders. sl_culler_scene_changed rebuilds the levels only when a static object moved;
+ * moving DYNAMIC objects keep the sets (they hold by the bound above).
+ *
  * The clock: clock=simulated (default) uses a fixed frame time and visibility time, so an update
  * posted at frame time T arrives at the first frame at or after T + t_vis whatever the real
  * threads do (the caller waits for the thread if it is behind: a simulation wait, not a stall), and
@@ -111,6 +124,7 @@ typedef struct instant_level {
 /* An update: where, with which level, for which near reach; its set. */
 typedef struct instant_set {
     double p[3];
+    double t_post;              /* ms of the frame clock when its boxes were read */
     float eps, eps_z;
     double reach;               /* the near reach it allows (displayed views' near_corner_dist) */
     uint32_t level;
@@ -133,6 +147,14 @@ typedef struct instant_state {
      * or while no update is in flight) */
     uint32_t *face_ids, *stamp, *scratch;
     uint32_t stamp_frame;
+    /* moving objects: ids, motion bounds, the boxes read at posting (grown), the proxy's unit box */
+    uint32_t dyn_n;
+    uint32_t *dyn;              /* ascending ids of the DYNAMIC objects */
+    float *dyn_speed;           /* max_speed, or INFINITY: no record (always in the set) */
+    sl_aabb *dyn_region;
+    sl_aabb *dyn_box;           /* the update's grown boxes (the job's; written while nothing is in flight) */
+    uint8_t *dyn_always;        /* per dynamic object: in every set this update */
+    sl_aabb *static_box;        /* the static objects' boxes the levels were built from */
     /* the sets: the current one (displayed) and the one being computed */
     instant_set cur, job;
     bool in_flight;             /* job posted and not yet adopted */
@@ -155,6 +177,77 @@ typedef struct instant_state {
     uint32_t vis_hist_n;
     sl_instant_stats st;
 } instant_state;
+
+/* ---- moving objects ----------------------------------------------------------------------------- */
+
+/* The display window of a set in ms: W = eps / vmax (0 with eps 0: a set holds at its own frame). */
+static double window_ms(const instant_state *s, float eps) { return 1e3 * (double)eps / (double)s->cfg.vmax; }
+
+/* Read the motion records of the DYNAMIC objects (at creation and after scene_changed). */
+static void read_motion(instant_state *s)
+{
+    for (uint32_t k = 0; k < s->dyn_n; k++) {
+        sl_object_motion m;
+        if (sl_scene_object_motion(s->scene, s->dyn[k], &m)) {
+            s->dyn_speed[k] = m.max_speed;
+            s->dyn_region[k] = m.region;
+        } else {
+            s->dyn_speed[k] = INFINITY;
+        }
+    }
+}
+
+/* The job's grown boxes, from the scene's boxes now (caller's thread, nothing in flight): each
+ * box grown by max_speed * W plus a rounding margin, clipped to its region; an object without a
+ * record or outside its region is marked always-in. */
+static void read_moving(instant_state *s, double w_ms)
+{
+    const sl_aabb *b = sl_scene_object_bounds_array(s->scene);
+    for (uint32_t k = 0; k < s->dyn_n; k++) {
+        const sl_aabb *o = &b[s->dyn[k]], *r = &s->dyn_region[k];
+        bool inside = isfinite(s->dyn_speed[k]) && !sl_aabb_is_empty(o) && o->min.x >= r->min.x &&
+                      o->min.y >= r->min.y && o->min.z >= r->min.z && o->max.x <= r->max.x && o->max.y <= r->max.y &&
+                      o->max.z <= r->max.z;
+        s->dyn_always[k] = !inside;
+        if (!inside)
+            continue;
+        double g = (double)s->dyn_speed[k] * w_ms * 1e-3;
+        const float *lo = &o->min.x, *hi = &o->max.x, *rl = &r->min.x, *rh = &r->max.x;
+        float out[6];
+        for (int a = 0; a < 3; a++) {
+            /* the margin covers the float rounding of a pose turned half about its box centre */
+            double m = 1e-3 + 1e-6 * fmax(fabs((double)lo[a]), fabs((double)hi[a]));
+            out[a] = (float)fmax((double)lo[a] - g - m, (double)rl[a] - m);
+            out[3 + a] = (float)fmin((double)hi[a] + g + m, (double)rh[a] + m);
+        }
+        s->dyn_box[k] = (sl_aabb){{out[0], out[1], out[2]}, {out[3], out[4], out[5]}};
+    }
+}
+
+/* Move the level's proxy boxes of the moving objects to the job's grown boxes (worker's thread:
+ * the proxy is the worker's while an update is in flight). A proxy box is a unit box mesh under
+ * a scale-and-translate transform; the box is widened by a few ulps so that the transformed mesh
+ * box contains the grown box whatever the rounding. */
+static sl_status place_moving(instant_state *s, const instant_level *L, sl_error *err)
+{
+    for (uint32_t k = 0; k < s->dyn_n; k++) {
+        sl_aabb b = s->dyn_box[k];
+        if (s->dyn_always[k]) /* tested by the flag, not the box: anywhere is fine */
+            b = (sl_aabb){{0, 0, 0}, {0, 0, 0}};
+        const float *lo = &b.min.x, *hi = &b.max.x;
+        sl_affine t = {{0}};
+        for (int a = 0; a < 3; a++) {
+            float l = nextafterf(nextafterf(lo[a], -INFINITY), -INFINITY);
+            float h = nextafterf(nextafterf(hi[a], INFINITY), INFINITY);
+            t.m[a * 4 + a] = h - l;
+            t.m[a * 4 + 3] = l;
+        }
+        sl_status st = sl_scene_set_object_transform(L->proxy, s->dyn[k], &t, err);
+        if (st != SL_OK)
+            return st;
+    }
+    return s->dyn_n ? sl_culler_scene_changed(L->base, err) : SL_OK;
+}
 
 /* ---- one update ------------------------------------------------------------------------------- */
 
@@ -217,6 +310,18 @@ static sl_status compute_set(instant_state *s, instant_set *set, sl_error *err)
     }
     const double far = fmax(sqrt(far2) * 1.01 + 1.0, 4.0 * near);
     uint32_t count = 0;
+    if (s->dyn_n) {
+        sl_status st = place_moving(s, L, err);
+        if (st != SL_OK) {
+            sl_error_prefix(err, "instant: moving objects");
+            return st;
+        }
+        for (uint32_t k = 0; k < s->dyn_n; k++)
+            if (s->dyn_always[k]) {
+                s->stamp[s->dyn[k]] = fr;
+                set->ids[count++] = s->dyn[k];
+            }
+    }
     if (s->n) {
         for (int face = 0; face < 6; face++) {
             sl_view fv;
@@ -400,16 +505,26 @@ static sl_status build_level(instant_state *s, uint32_t l, sl_error *err)
 {
     instant_level *L = &s->levels[l];
     sl_status st = sl_scene_create(&s->alloc, &L->proxy, err);
+    /* moving objects: a unit box placed by a transform at each update (place_moving) */
+    uint32_t unit = 0;
+    if (st == SL_OK && s->dyn_n) {
+        static const float up[6] = {0, 0, 0, 1, 1, 1};
+        sl_mesh_desc md = {.positions = up, .vertex_count = 2};
+        st = sl_scene_add_mesh(L->proxy, &md, &unit, err);
+    }
     for (uint32_t o = 0; o < s->n && st == SL_OK; o++) {
-        sl_aabb b = sl_scene_object_bounds(s->scene, o);
-        float pos[6] = {b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z};
-        bool empty = !(b.min.x <= b.max.x && b.min.y <= b.max.y && b.min.z <= b.max.z);
-        sl_mesh_desc md = {.positions = pos, .vertex_count = empty ? 0 : 2};
-        uint32_t mesh;
-        st = sl_scene_add_mesh(L->proxy, &md, &mesh, err);
+        sl_object_view ov = sl_scene_object(s->scene, o);
+        uint32_t mesh = unit;
+        if (!(ov.flags & SL_OBJECT_DYNAMIC)) {
+            sl_aabb b = sl_scene_object_bounds(s->scene, o);
+            float pos[6] = {b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z};
+            bool empty = !(b.min.x <= b.max.x && b.min.y <= b.max.y && b.min.z <= b.max.z);
+            sl_mesh_desc md = {.positions = pos, .vertex_count = empty ? 0 : 2};
+            st = sl_scene_add_mesh(L->proxy, &md, &mesh, err);
+        }
         if (st == SL_OK) {
-            sl_object_view ov = sl_scene_object(s->scene, o);
-            sl_object_desc od = {.mesh = mesh, .kind = ov.kind, .flags = ov.flags & SL_OBJECT_SEE_THROUGH};
+            sl_object_desc od = {.mesh = mesh, .kind = ov.kind,
+                                 .flags = ov.flags & (SL_OBJECT_SEE_THROUGH | SL_OBJECT_DYNAMIC)};
             st = sl_scene_add_object(L->proxy, &od, NULL, err);
         }
     }
@@ -417,6 +532,8 @@ static sl_status build_level(instant_state *s, uint32_t l, sl_error *err)
     for (uint32_t f = 0; f < nf && st == SL_OK; f++) {
         sl_footprint_view v = s->level_count ? sl_scene_occluder_level_footprint(s->scene, l, f)
                                              : sl_scene_footprint(s->scene, f);
+        if (v.object < s->n && (sl_scene_object(s->scene, v.object).flags & SL_OBJECT_DYNAMIC))
+            continue; /* a moving occluder: not shrunk for its motion, so not used */
         sl_footprint_desc d = {.xy = v.xy, .vertex_count = v.vertex_count, .base_z = v.base_z, .roof_z = v.roof_z,
                                .object = v.object};
         st = sl_scene_add_footprint(L->proxy, &d, NULL, err);
@@ -470,6 +587,13 @@ static void instant_destroy(void *state)
     sl_free(a, s->scratch, n * sizeof(uint32_t));
     sl_free(a, s->cur.ids, n * sizeof(uint32_t));
     sl_free(a, s->job.ids, n * sizeof(uint32_t));
+    size_t dn = s->dyn_n ? s->dyn_n : 1;
+    sl_free(a, s->dyn, dn * sizeof(uint32_t));
+    sl_free(a, s->dyn_speed, dn * sizeof(float));
+    sl_free(a, s->dyn_region, dn * sizeof(sl_aabb));
+    sl_free(a, s->dyn_box, dn * sizeof(sl_aabb));
+    sl_free(a, s->dyn_always, dn);
+    sl_free(a, s->static_box, n * sizeof(sl_aabb));
     sl_free(a, s, sizeof *s);
 }
 
@@ -491,11 +615,26 @@ static sl_status instant_create(sl_scene scene, const void *config, const sl_all
     s->scratch = sl_alloc(alloc, n * sizeof(uint32_t));
     s->cur.ids = sl_alloc(alloc, n * sizeof(uint32_t));
     s->job.ids = sl_alloc(alloc, n * sizeof(uint32_t));
-    if (!s->levels || !s->face_ids || !s->stamp || !s->scratch || !s->cur.ids || !s->job.ids) {
+    for (uint32_t o = 0; o < s->n; o++)
+        s->dyn_n += (sl_scene_object(scene, o).flags & SL_OBJECT_DYNAMIC) != 0;
+    size_t dn = s->dyn_n ? s->dyn_n : 1;
+    s->dyn = sl_alloc(alloc, dn * sizeof(uint32_t));
+    s->dyn_speed = sl_alloc(alloc, dn * sizeof(float));
+    s->dyn_region = sl_calloc(alloc, dn, sizeof(sl_aabb));
+    s->dyn_box = sl_calloc(alloc, dn, sizeof(sl_aabb));
+    s->dyn_always = sl_calloc(alloc, dn, 1);
+    s->static_box = sl_alloc(alloc, n * sizeof(sl_aabb));
+    if (!s->levels || !s->face_ids || !s->stamp || !s->scratch || !s->cur.ids || !s->job.ids || !s->dyn ||
+        !s->dyn_speed || !s->dyn_region || !s->dyn_box || !s->dyn_always || !s->static_box) {
         uint32_t nobj = s->n;
         instant_destroy(s);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "instant: out of memory for %u objects", nobj);
     }
+    for (uint32_t o = 0, k = 0; o < s->n; o++)
+        if (sl_scene_object(scene, o).flags & SL_OBJECT_DYNAMIC)
+            s->dyn[k++] = o;
+    read_motion(s);
+    memcpy(s->static_box, sl_scene_object_bounds_array(scene), (size_t)s->n * sizeof(sl_aabb));
     if (s->level_count == 0) {
         /* no stored levels: the scene's own footprints, valid at the eye itself only (every moving
          * frame waits for a new set); bake levels with `sightline occluders --instant-levels` */
@@ -556,19 +695,32 @@ static sl_status instant_create(sl_scene scene, const void *config, const sl_all
 static sl_status instant_scene_changed(void *state, sl_error *err)
 {
     instant_state *s = state;
+    read_motion(s); /* the records may have changed: the next update reads them */
+    /* moving objects keep the sets (they hold for W by the motion bound); a static object that
+     * moved invalidates them and the levels */
+    const sl_aabb *now = sl_scene_object_bounds_array(s->scene);
+    const sl_object_rec *objs = sl_scene_objects(s->scene);
+    bool static_moved = false;
+    for (uint32_t o = 0; o < s->n && !static_moved; o++)
+        static_moved = !(objs[o].flags & SL_OBJECT_DYNAMIC) && memcmp(&now[o], &s->static_box[o], sizeof now[o]) != 0;
+    if (!static_moved)
+        return SL_OK;
     if (s->in_flight)
         wait_job(s);
     s->in_flight = false;
     set_flags(s, false, true);
     s->cur.valid = s->job.valid = false; /* the sets were computed for the old boxes */
+    memcpy(s->static_box, now, (size_t)s->n * sizeof(sl_aabb));
     free_levels(s);
     return build_levels(s, err);
 }
 
-static bool set_holds(const instant_set *c, const sl_view *v)
+static bool set_holds(const instant_state *s, const instant_set *c, const sl_view *v)
 {
     if (!c->valid || v->near_corner_dist > c->reach)
         return false;
+    if (s->dyn_n && s->t - c->t_post > window_ms(s, c->eps) + 1e-9)
+        return false; /* moving objects may have gone beyond the grown boxes */
     double dx = v->eye.x - c->p[0], dy = v->eye.y - c->p[1], dz = v->eye.z - c->p[2];
     return dx * dx + dy * dy <= (double)c->eps * c->eps && fabs(dz) <= c->eps_z;
 }
@@ -581,6 +733,9 @@ static void fill_job(instant_state *s, const sl_view *v)
     s->job.eps_z = s->levels[s->job.level].eps_z;
     s->job.reach = v->near_corner_dist;
     s->job.valid = false;
+    s->job.t_post = s->t;
+    if (s->dyn_n)
+        read_moving(s, window_ms(s, s->job.eps));
 }
 
 /* A set at the displayed eye, now, in the caller's thread (nothing in flight). */
@@ -640,13 +795,13 @@ static sl_status instant_cull(void *state, const sl_view *view, uint32_t *out, u
         if (s->in_flight) {
             st = adopt(s, err);
         }
-        if (st == SL_OK && !set_holds(&s->cur, view)) {
+        if (st == SL_OK && !set_holds(s, &s->cur, view)) {
             double t0 = sl_now();
             st = compute_now(s, view, err);
             vis_ms += sl_cull_ms(t0, sl_now());
         }
         s->st.startups++;
-    } else if (st == SL_OK && !set_holds(&s->cur, view)) {
+    } else if (st == SL_OK && !set_holds(s, &s->cur, view)) {
         if (s->cfg.late == LATE_STALL) {
             /* hold the observer: wait for the update in flight, then, if it does not hold either,
              * compute one here */
@@ -659,14 +814,16 @@ static sl_status instant_cull(void *state, const sl_view *view, uint32_t *out, u
                 }
                 st = adopt(s, err);
             }
-            if (st == SL_OK && !set_holds(&s->cur, view)) {
-                double t1 = sl_now();
-                st = compute_now(s, view, err);
-                vis_ms += sl_cull_ms(t1, sl_now());
+            if (st == SL_OK && !set_holds(s, &s->cur, view)) {
+                /* the frame is held while the set is computed: its clock moves first, so that the
+                 * set's time is the displayed frame's */
                 if (s->cfg.clock == CLOCK_SIMULATED) {
                     s->st.stall_ms += s->cfg.t_vis;
                     s->t += s->cfg.t_vis;
                 }
+                double t1 = sl_now();
+                st = compute_now(s, view, err);
+                vis_ms += sl_cull_ms(t1, sl_now());
             }
             wait_ms = sl_cull_ms(t0, sl_now());
             if (s->cfg.clock == CLOCK_MEASURED)
@@ -696,7 +853,7 @@ static sl_status instant_cull(void *state, const sl_view *view, uint32_t *out, u
             out[k++] = o;
     }
     *count = k;
-    s->st.at_risk_now = !set_holds(&s->cur, view);
+    s->st.at_risk_now = !set_holds(s, &s->cur, view);
     s->st.stalled_now = stalled;
     s->st.eps_displayed = s->cur.eps;
     s->st.clock_ms = s->t;

@@ -63,6 +63,7 @@ sl_city_options sl_city_defaults(sl_city_preset p)
     o.tower_height_min = 40, o.tower_height_max = 70;
     o.detail = 2;
     o.cars_per_km = 20, o.trees_per_ha = 60, o.street_tree_spacing = 12, o.lamp_spacing = 30;
+    o.traffic_speed = 11;
     o.terrain = false, o.relief = 20;
     o.meander_wavelength = 300, o.district = 6;
     if (p == SL_CITY_SMALL || p == SL_CITY_OLDTOWN_SMALL) {
@@ -184,6 +185,7 @@ sl_status sl_city_options_validate(const sl_city_options *o, sl_error *err)
     if (o->detail > 4)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "city option detail = %u: must be between 0 and 4", o->detail);
     CHECK_RANGE(cars_per_km, 0, 400);
+    CHECK_RANGE(traffic_speed, 0, 40);
     CHECK_RANGE(trees_per_ha, 0, 400);
     CHECK_ZERO_OR(street_tree_spacing, 4, 1000);
     CHECK_ZERO_OR(lamp_spacing, 5, 1000);

@@ -165,7 +165,7 @@ typedef struct gc_city {
 
     /* counts for the metadata */
     uint32_t n_blocks, n_buildings, n_towers, n_parks, n_squares, n_bridges, n_plazas;
-    uint32_t n_trees, n_lamps, n_cars;
+    uint32_t n_trees, n_lamps, n_cars, n_driving;
 } gc_city;
 
 static inline sl_dvec2 gc_node(const gc_city *c, int i, int j) { return c->node[(size_t)j * (c->nx + 1) + i]; }
@@ -177,7 +177,8 @@ static inline gc_cell *gc_cellp(gc_city *c, int i, int j) { return &c->cell[(siz
 void gc_rng(const gc_city *c, uint32_t purpose, uint32_t a, uint32_t b, sl_rng *out);
 enum {
     GC_RNG_SPACING = 1, GC_RNG_NODE, GC_RNG_LINE, GC_RNG_REMOVE, GC_RNG_CELL, GC_RNG_BLOCK, GC_RNG_BUILDING,
-    GC_RNG_TREE, GC_RNG_LAMP, GC_RNG_CAR, GC_RNG_TERRAIN, GC_RNG_RIVER, GC_RNG_MEANDER, GC_RNG_DISTRICT
+    GC_RNG_TREE, GC_RNG_LAMP, GC_RNG_CAR, GC_RNG_TERRAIN, GC_RNG_RIVER, GC_RNG_MEANDER, GC_RNG_DISTRICT,
+    GC_RNG_TRAFFIC
 };
 
 /* The edge on side k of cell (i,j), and whether that side lies on the extent border. */

@@ -168,6 +168,55 @@ static sl_dvec2 quad_at(const sl_dvec2 q[4], double s, double f)
     return sl_d2_lerp(sl_d2_lerp(q[0], q[1], s), sl_d2_lerp(q[3], q[2], s), f);
 }
 
+/* A car's motion record. Parked: it never moves (its region is its box). Driving: its box centre
+ * shuttles along its lane between s0 and s1 (metres along the street) at `speed`, starting `phase`
+ * metres from s0 where it was placed; its region holds its box along the whole lane (the lane is
+ * straight: a line of constant across-fraction in the bilinear street quad), with the ground's rise
+ * between the ends, and a margin for rounding. */
+static sl_status car_motion(gc_city *c, uint32_t id, bool driving, const sl_dvec2 q[4], double len, double f,
+                            sl_dvec2 at, double s0, double s1, double phase, double speed, bool on_bridge)
+{
+    sl_aabb b = sl_scene_object_bounds(c->scene, id);
+    const double m = 0.05;
+    sl_object_motion mo;
+    memset(&mo, 0, sizeof mo);
+    if (!driving) {
+        mo.region = (sl_aabb){{b.min.x - (float)m, b.min.y - (float)m, b.min.z - (float)m},
+                              {b.max.x + (float)m, b.max.y + (float)m, b.max.z + (float)m}};
+        return sl_scene_set_object_motion(c->scene, id, &mo, c->err);
+    }
+    sl_dvec2 p0 = quad_at(q, s0 / len, f), p1 = quad_at(q, s1 / len, f);
+    double zat = on_bridge ? 0.15 : gc_ground(c, at.x, at.y);
+    double z0 = on_bridge ? 0.15 : gc_ground(c, p0.x, p0.y), z1 = on_bridge ? 0.15 : gc_ground(c, p1.x, p1.y);
+    /* the pose at p0: the placed pose moved there */
+    sl_object_view ov = sl_scene_object(c->scene, id);
+    sl_affine base = ov.transform;
+    base.m[3] = (float)((double)base.m[3] + p0.x - at.x);
+    base.m[7] = (float)((double)base.m[7] + p0.y - at.y);
+    base.m[11] = (float)((double)base.m[11] + z0 - zat);
+    sl_aabb mb = sl_scene_mesh(c->scene, ov.mesh).bounds;
+    sl_aabb b0 = sl_aabb_transform(&mb, &base);
+    double dx = p1.x - p0.x, dy = p1.y - p0.y, dz = z1 - z0;
+    mo.has_path = true;
+    mo.path_base = base;
+    mo.from = (sl_vec3){base.m[3], base.m[7], base.m[11]};
+    mo.to = (sl_vec3){(float)(base.m[3] + dx), (float)(base.m[7] + dy), (float)(base.m[11] + dz)};
+    mo.speed = (float)speed;
+    mo.max_speed = (float)speed;
+    double L = sqrt(dx * dx + dy * dy + dz * dz);
+    mo.phase = (float)SL_MIN(L * phase / fabs(s1 - s0), L * (1 - 1e-6)); /* on its way out, from s0 */
+    double lo[3] = {b0.min.x, b0.min.y, b0.min.z}, hi[3] = {b0.max.x, b0.max.y, b0.max.z}, d[3] = {dx, dy, dz};
+    float rl[3], rh[3];
+    for (int k = 0; k < 3; k++) {
+        double pad = m + 1e-5 * fmax(fabs(lo[k]), fabs(hi[k]));
+        rl[k] = (float)(fmin(lo[k], lo[k] + d[k]) - pad);
+        rh[k] = (float)(fmax(hi[k], hi[k] + d[k]) + pad);
+    }
+    mo.region = (sl_aabb){{rl[0], rl[1], rl[2]}, {rh[0], rh[1], rh[2]}};
+    c->n_driving++;
+    return sl_scene_set_object_motion(c->scene, id, &mo, c->err);
+}
+
 static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
 {
     const sl_city_options *o = c->opt;
@@ -214,8 +263,9 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
             }
     }
     if (o->cars_per_km > 0 && len > 8 && carriage >= 3.5) {
-        sl_rng r;
+        sl_rng r, traffic;
         gc_rng(c, GC_RNG_CAR, code, (uint32_t)j, &r);
+        gc_rng(c, GC_RNG_TRAFFIC, code, (uint32_t)j, &traffic); /* its own stream: the city is the same */
         /* parking lanes (2 m) along both kerbs where the carriageway allows, driving lanes
          * between; parked cars are about twice as likely per slot as moving ones, and the slot
          * probability is scaled so that a street carries cars_per_km on average whatever its
@@ -258,10 +308,18 @@ static sl_status street_props(gc_city *c, bool horizontal, int i, int j)
                 sl_dvec2 at = quad_at(q, (s + jit) / len, lanes[l].f);
                 double z = on_bridge ? 0.15 : gc_ground(c, at.x, at.y);
                 int dir = lanes[l].dir ? lanes[l].dir : (sl_rng_below(&r, 2) ? 1 : -1);
+                uint32_t id = sl_scene_object_count(c->scene);
                 if ((st = place(c, c->car_mesh[v], SL_KIND_CAR, SL_OBJECT_DYNAMIC | SL_OBJECT_OCCLUDER, color, at, z,
                                 dir > 0 ? yaw : yaw + GC_PI, 1.0)) != SL_OK)
                     return st;
                 c->n_cars++;
+                /* a driving lane (weight 1) when there is traffic: a path up and down the lane */
+                bool driving = lanes[l].weight == 1 && o->traffic_speed > 0;
+                double s_at = s + jit;
+                double s0 = dir > 0 ? 3.5 : len - 3.5, s1 = dir > 0 ? len - 3.5 : 3.5;
+                if ((st = car_motion(c, id, driving, q, len, lanes[l].f, at, s0, s1, fabs(s_at - s0),
+                                     o->traffic_speed * sl_rng_range(&traffic, 0.75f, 1.25f), on_bridge)) != SL_OK)
+                    return st;
             }
     }
     return SL_OK;

@@ -70,6 +70,7 @@ void sl_scene_destroy(sl_scene s)
     sl_array_free(a, &s->mesh_uvs, 1);
     sl_scene_names_free(s);
     sl_scene_levels_free(s);
+    sl_scene_motions_free(s);
     sl_strfree(a, s->base_dir);
     sl_file_unmap(&s->mapping);
     sl_free(a, s, sizeof *s);

@@ -53,6 +53,20 @@ typedef struct sl_occluder_rec {
     uint32_t reserved;
 } sl_occluder_rec;
 
+/* A motion record (sl_object_motion; .slscene 1.3 MOTN, 128 bytes). */
+enum { SL_MOTION_REC_PATH = 1u << 0 };
+typedef struct sl_motion_rec {
+    uint32_t object;
+    uint32_t flags;             /* SL_MOTION_REC_PATH */
+    float max_speed;
+    float speed, phase;
+    uint32_t reserved0;
+    sl_aabb region;
+    float from[3], to[3];
+    sl_affine base;
+    uint32_t reserved[2];
+} sl_motion_rec;
+
 typedef struct sl_polygon_rec {
     uint32_t first_vertex;
     uint32_t vertex_count;
@@ -127,6 +141,9 @@ struct sl_scene_t {
     sl_array olevel_xy;         /* float pairs */
     sl_array olevel_first;      /* uint32 per level: its first footprint (derived, not stored) */
 
+    /* moving objects (motion.c; .slscene 1.3 MOTN) */
+    sl_array motions;           /* sl_motion_rec, ascending object */
+
     /* backing file mapping of a loaded .slscene (NULL when built in memory) */
     sl_mapping mapping;
 };
@@ -171,6 +188,11 @@ sl_status sl_scene_push_polygon(struct sl_scene_t *s, sl_array *xy_arr, const fl
                                 uint32_t *first, uint32_t *count, sl_error *err);
 /* Occluder levels (occluder_levels.c): release; check and index the arrays a reader filled. */
 void sl_scene_levels_free(struct sl_scene_t *s);
+void sl_scene_motions_free(struct sl_scene_t *s);
+/* Check the loaded motion records (objects, order, fields, paths inside regions). */
+sl_status sl_scene_motions_load(struct sl_scene_t *s, sl_error *err);
+/* The record of an object, or NULL. */
+const sl_motion_rec *sl_scene_motion_rec(const struct sl_scene_t *s, uint32_t object);
 sl_status sl_scene_levels_load(struct sl_scene_t *s, sl_error *err);
 
 /* Recompute all mesh bounds and object bounds (after a load). */

@@ -34,7 +34,9 @@
 #endif
 
 #define SLS_MAJOR 1u
-#define SLS_MINOR 2u /* 1.1: materials, object materials, UVs; 1.2: shrunk occluder levels (1.0 files still load) */
+#define SLS_MINOR 3u /* 1.1: materials, object materials, UVs; 1.2: shrunk occluder levels; 1.3: motion records
+                      (1.0 files still load) */
+#define SLS_MINOR_NO_MOTION 2u /* a scene without motion records is written as 1.2 (or 1.1), as before */
 #define SLS_MINOR_NO_LEVELS 1u /* a scene without occluder levels is written as 1.1, byte for byte as before */
 #define SLS_HEADER_SIZE 64u
 #define SLS_ENTRY_SIZE 48u
@@ -83,6 +85,12 @@ SLS_LAYOUT(sl_footprint_rec, 24);
 SLS_FIELD(sl_footprint_rec, base_z, 8);
 SLS_FIELD(sl_footprint_rec, object, 16);
 SLS_FIELD(sl_footprint_rec, reserved, 20);
+SLS_LAYOUT(sl_motion_rec, 128);
+SLS_FIELD(sl_motion_rec, max_speed, 8);
+SLS_FIELD(sl_motion_rec, region, 24);
+SLS_FIELD(sl_motion_rec, from, 48);
+SLS_FIELD(sl_motion_rec, base, 72);
+SLS_FIELD(sl_motion_rec, reserved, 120);
 SLS_LAYOUT(sl_olevel_rec, 16);
 SLS_FIELD(sl_olevel_rec, eps_z, 4);
 SLS_FIELD(sl_olevel_rec, flags, 8);
@@ -188,6 +196,8 @@ static const sec_def k_defs[] = {
     {"OLVL", sizeof(sl_olevel_rec), ARR(olevels), K_ARRAY, N_LEVELS, 4096, "occluder levels", 2},
     {"OLFP", sizeof(sl_footprint_rec), ARR(olevel_fps), K_ARRAY, N_LEVELS, ID_MAX, "occluder level footprints", 2},
     {"OLXY", sizeof(float), ARR(olevel_xy), K_ARRAY, N_LEVELS, XY_MAX, "occluder level footprint vertices", 2},
+    /* 1.3, written only when the scene has motion records */
+    {"MOTN", sizeof(sl_motion_rec), ARR(motions), K_ARRAY, N_OPTIONAL, ID_MAX, "motion records", 3},
 };
 #define SLS_NDEFS SL_COUNTOF(k_defs)
 
@@ -281,7 +291,7 @@ static sl_status save_to(sl_scene s, const char *path, int fd, sl_error *err)
     for (size_t i = 0; i < SLS_NDEFS && st == SL_OK; i++) {
         const sec_def *d = &k_defs[i];
         if ((d->need == N_TERRAIN && !s->has_terrain) || ((d->need == N_BSP || d->need == N_BSP_HEAD) && !s->has_bsp) ||
-            (d->need == N_LEVELS && !s->olevels.count))
+            (d->need == N_LEVELS && !s->olevels.count) || (d->array == ARR(motions) && !s->motions.count))
             continue;
         out_sec *o = &secs[n++];
         o->def = d;
@@ -344,7 +354,7 @@ static sl_status save_to(sl_scene s, const char *path, int fd, sl_error *err)
         cs[i].data = secs[i].data;
         cs[i].size = secs[i].size;
     }
-    uint32_t minor = s->olevels.count ? SLS_MINOR : SLS_MINOR_NO_LEVELS;
+    uint32_t minor = s->motions.count ? SLS_MINOR : s->olevels.count ? SLS_MINOR_NO_MOTION : SLS_MINOR_NO_LEVELS;
     st = sl_container_write(a, path, fd, k_magic, SLS_MAJOR, minor, flags, SLS_HASH_SEED, cs, n, err);
     free_out(a, secs, n);
     return st;
@@ -858,6 +868,8 @@ static sl_status load(reader *r, sl_mapping *map, sl_scene *out)
     if (st == SL_OK && (st = sl_scene_validate(s, r->err)) != SL_OK)
         sl_error_prefix(r->err, "%s", r->name);
     if (st == SL_OK && (st = sl_scene_levels_load(s, r->err)) != SL_OK)
+        sl_error_prefix(r->err, "%s", r->name);
+    if (st == SL_OK && (st = sl_scene_motions_load(s, r->err)) != SL_OK)
         sl_error_prefix(r->err, "%s", r->name);
     if (st == SL_OK)
         st = check_semantics(r, s);
