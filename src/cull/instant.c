@@ -298,6 +298,14 @@ static sl_status compute_set(instant_state *s, instant_set *set, sl_error *err)
         s->stamp_frame = 1;
     }
     const uint32_t fr = s->stamp_frame;
+    if (s->dyn_n) {
+        /* first, so that the far plane below reaches the grown boxes too */
+        sl_status st = place_moving(s, L, err);
+        if (st != SL_OK) {
+            sl_error_prefix(err, "instant: moving objects");
+            return st;
+        }
+    }
     const double g = (double)set->eps + set->reach;
     /* the near plane whose near guard (near / cos of the corner angle, 1/sqrt(3) here) is >= g */
     const double near = near_for_guard(g);
@@ -310,18 +318,11 @@ static sl_status compute_set(instant_state *s, instant_set *set, sl_error *err)
     }
     const double far = fmax(sqrt(far2) * 1.01 + 1.0, 4.0 * near);
     uint32_t count = 0;
-    if (s->dyn_n) {
-        sl_status st = place_moving(s, L, err);
-        if (st != SL_OK) {
-            sl_error_prefix(err, "instant: moving objects");
-            return st;
+    for (uint32_t k = 0; k < s->dyn_n; k++)
+        if (s->dyn_always[k]) {
+            s->stamp[s->dyn[k]] = fr;
+            set->ids[count++] = s->dyn[k];
         }
-        for (uint32_t k = 0; k < s->dyn_n; k++)
-            if (s->dyn_always[k]) {
-                s->stamp[s->dyn[k]] = fr;
-                set->ids[count++] = s->dyn[k];
-            }
-    }
     if (s->n) {
         for (int face = 0; face < 6; face++) {
             sl_view fv;
