@@ -3,7 +3,8 @@
  * Each input is loaded twice: as it is (checksums reject nearly every mutation, which exercises the
  * header and section-table checks), and again with the section, table, header and per-block
  * checksums recomputed, so that mutations reach the record validation, the view-cell checks, the
- * zstd frames and the varint decoder behind them. A loaded PVS is decoded cell by cell. */
+ * zstd frames and the varint decoder behind them. A loaded PVS is decoded cell by cell, and its
+ * motion regions (1.2) walked. */
 #include "core/sl_core.h"
 #include "sightline/pvs.h"
 
@@ -83,6 +84,11 @@ static void exercise(const uint8_t *data, size_t size)
         bool cov;
         (void)sl_viewcells_overlap(sl_pvs_cells(p), NULL, &nb, ids, cap + 1, &cov);
     }
+    /* the motion regions: every node's box walked down against each cell's row */
+    const sl_pvs_region *nodes = sl_pvs_region_nodes(p);
+    for (uint32_t c = 0; c < in.cell_count && c < 64; c++)
+        for (uint32_t k = 0; k < sl_pvs_region_count(p) && k < 256; k++)
+            (void)sl_pvs_region_box_visible(p, sl_pvs_region_row(p, c), &nodes[k].box);
     (void)sl_pvs_verify(p, &err);
     free(ids);
     sl_pvs_destroy(p);

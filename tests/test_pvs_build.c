@@ -354,7 +354,11 @@ static uint32_t check_cell_set(sl_scene s, sl_pvs p, const sl_camera *cam, const
         if (out[id] && !in)
             outside++;
         if (cell == SL_NONE || dyn) {
-            if (in && !out[id])
+            /* a dynamic object may be dropped by the motion regions (dynamic=auto with a file that
+             * has them): then a node holding its box is unmarked even for the eye's own cell (the
+             * culler ORs the rows of the cells near the eye, a superset of it) */
+            bool by_regions = dyn && cell != SL_NONE && !sl_pvs_region_box_visible(p, sl_pvs_region_row(p, cell), &b);
+            if (in && !out[id] && !by_regions)
                 fail_msg("pvs culler: object %u (%s) is inside the frustum but not reported", id,
                          dyn ? "dynamic" : "eye in no cell");
             continue;
@@ -398,7 +402,7 @@ static void test_culler(void **state)
     sl_culler c;
     assert_int_equal(sl_culler_create("pvs", s, opt, NULL, &c, &err), SL_OK);
     assert_int_equal(sl_culler_guarantee(c), SL_CONSERVATIVE);
-    assert_non_null(strstr(sl_culler_options(c), "dynamic=frustum"));
+    assert_non_null(strstr(sl_culler_options(c), "dynamic=auto"));
     sl_oracle o;
     sl_oracle_options oo = sl_oracle_default_options();
     oo.width = 256;

@@ -98,6 +98,9 @@ static void usage_build(FILE *out)
             "                    its cells for --resume. A bake holds the lock F.lock while it runs: a\n"
             "                    second bake of the same output is refused (\"another bake ... (pid N)\")\n"
             "  --keep-checkpoint keep the journal after success\n"
+            "  --no-regions      leave out the motion regions (by default, when the scene's dynamic\n"
+            "                    objects have motion records, a box hierarchy over their regions is\n"
+            "                    marked per cell and stored, .slpvs 1.2; docs/motion.md)\n"
             "  --stop-after N    testing: stop after N newly baked cells (exit 3), leaving the journal\n"
             "  --map NAME        map inside a .pk3\n"
             "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
@@ -299,6 +302,8 @@ static int run_build(int argc, char **argv)
             bo.checkpoint = cli_value(&a, name, val);
         } else if (!strcmp(name, "keep-checkpoint")) {
             bo.keep_checkpoint = true;
+        } else if (!strcmp(name, "no-regions")) {
+            bo.no_regions = true;
         } else if (!strcmp(name, "stop-after")) {
             cli_parse_u32(&a, name, cli_value(&a, name, val), &bo.stop_after);
         } else if (!strcmp(name, "city")) {
@@ -479,6 +484,8 @@ static int run_build(int argc, char **argv)
         cli_json_double(&j, "mean_culled", stats.mean_culled);
         cli_json_uint(&j, "file_bytes", stats.file_bytes);
         cli_json_uint(&j, "occluders_removed", stats.occluders_removed);
+        cli_json_uint(&j, "regions", stats.regions);
+        cli_json_double(&j, "region_seconds", stats.region_seconds);
         cli_json_string(&j, "notice", stats.notice);
         cli_json_end(&j);
     } else {
@@ -490,6 +497,8 @@ static int run_build(int argc, char **argv)
         printf("  mean visible %.1f objects, mean culled %.4f%%, %s on disk, %llu occluders vanished under shrinking\n",
                stats.cells ? (double)stats.visible_total / stats.cells : 0.0, 100.0 * stats.mean_culled,
                cli_bytes(stats.file_bytes, b, sizeof b), (unsigned long long)stats.occluders_removed);
+        if (stats.regions)
+            printf("  motion regions: %u nodes marked per cell in %.2f s\n", stats.regions, stats.region_seconds);
     }
     return 0;
 }
@@ -549,6 +558,8 @@ static int run_info(int argc, char **argv)
         snprintf(key, sizeof key, "%016llx", (unsigned long long)in.scene_key);
         cli_json_string(&j, "scene_key", key);
         cli_json_uint(&j, "scene_key_format", in.scene_key_version);
+        cli_json_uint(&j, "regions", in.region_count);
+        cli_json_double(&j, "mean_regions_visible", in.mean_regions_visible);
         cli_json_object_begin(&j, "meta");
         const char *m = sl_pvs_meta_text(p);
         while (*m) {
@@ -577,6 +588,9 @@ static int run_info(int argc, char **argv)
                cli_bytes(in.raw_bytes, b3, sizeof b3), in.block_count, in.block_cells);
         printf("  scene key %016llx (format %u%s)\n", (unsigned long long)in.scene_key, in.scene_key_version,
                in.scene_key_version < SL_PVS_SCENE_KEY_VERSION ? ", older than this build's: bake it again" : "");
+        if (in.region_count)
+            printf("  motion regions: %u nodes, %.1f marked per cell on average\n", in.region_count,
+                   in.mean_regions_visible);
         const char *m = sl_pvs_meta_text(p);
         while (*m) {
             const char *eol = strchr(m, '\n');

@@ -51,6 +51,9 @@ typedef struct sl_pvs_build_options {
                                    afresh; done under the bake lock, so the journal of a bake that
                                    runs is never touched (that bake is reported instead); not with
                                    resume */
+    bool no_regions;            /* leave the motion regions out (default: when the scene has motion
+                                   records, their box hierarchy is marked per cell and stored, file
+                                   format 1.2; pvs.h, docs/motion.md) */
 } sl_pvs_build_options;
 
 typedef struct sl_pvs_build_stats {
@@ -69,6 +72,8 @@ typedef struct sl_pvs_build_stats {
     char method[32];            /* the method used */
     char options[256];          /* its effective options (truncated if longer) */
     char notice[256];           /* what the method wants the user to know about the options, or "" */
+    uint32_t regions;           /* motion-region nodes stored (0: none) */
+    double region_seconds;      /* wall time of marking them */
 } sl_pvs_build_stats;
 
 /* Bake the PVS of `cells` for `scene` with a method and write it to `output`. stats may be NULL. */

@@ -62,6 +62,8 @@ typedef struct sl_pvs_info {
     uint64_t raw_bytes;         /* the same, delta-coded before compression */
     uint32_t scene_key_version; /* format of scene_key (SL_PVS_SCENE_KEY_VERSION when current;
                                    1 in files of format 1.0) */
+    uint32_t region_count;      /* nodes of the motion-region hierarchy (0: none; below) */
+    double mean_regions_visible;/* mean over cells of the nodes marked visible */
 } sl_pvs_info;
 
 /* Format of sl_pvs_scene_key. 2: everything the methods read (below); 1 (files of format 1.0):
@@ -82,6 +84,37 @@ SL_API uint64_t sl_pvs_scene_key(sl_scene scene);
  * Atomic: written to a temporary file that is renamed over path. Deterministic bytes. */
 SL_API sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
                               const uint64_t *offsets, const uint32_t *ids, const char *meta, sl_error *err);
+
+/* ---- motion regions (format 1.2) ----------------------------------------------------------------
+ * Where dynamic objects (cars) can be: a box hierarchy over the regions of their motion records
+ * (scene.h, sl_object_motion), baked with the sets (sl_pvs_build, bake.h), which marks per cell
+ * the nodes that the static occluders may fail to hide from some point of the cell (Wonka's thesis
+ * section 8.5). At run time a dynamic object is drawn when the deepest node holding its current
+ * box is marked for the eye's cell (sl_pvs_region_box_visible); the object's own record is not
+ * needed. Node 0 is the root; a node's children are consecutive, come after it and lie inside its
+ * box; a node marked visible from a cell has every ancestor marked too. docs/motion.md. */
+typedef struct sl_pvs_region {
+    sl_aabb box;
+    uint32_t first_child;       /* index of the first child (children are consecutive); 0 for a leaf */
+    uint32_t child_count;       /* 0: a leaf */
+    uint32_t parent;            /* SL_NONE for the root */
+} sl_pvs_region;
+
+/* What sl_pvs_write_regions stores: count nodes (at most SL_PVS_MAX_REGIONS) and one row per cell
+ * of (count + 7) / 8 bytes, row c at visible + c * ((count + 7) / 8): node k is marked when bit
+ * (k & 7) of byte (k >> 3) is set; bits past count are zero. */
+typedef struct sl_pvs_regions {
+    const sl_pvs_region *nodes;
+    uint32_t count;
+    const uint8_t *visible;
+} sl_pvs_regions;
+#define SL_PVS_MAX_REGIONS (1u << 20)
+
+/* sl_pvs_write, with motion regions (regions NULL or count 0: none, a file of format 1.1, byte for
+ * byte what sl_pvs_write writes). The hierarchy and rows are checked as the reader checks them. */
+SL_API sl_status sl_pvs_write_regions(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
+                                      const uint64_t *offsets, const uint32_t *ids, const char *meta,
+                                      const sl_pvs_regions *regions, sl_error *err);
 
 /* sl_pvs_open flags. */
 enum {
@@ -143,6 +176,19 @@ SL_API void sl_pvs_cursor_destroy(sl_pvs_cursor cursor);
  * the cursor's first call. */
 SL_API sl_status sl_pvs_cursor_cell_set(sl_pvs_cursor cursor, uint32_t cell, uint32_t *out_ids, uint32_t capacity,
                                         uint32_t *count, sl_error *err);
+/* The motion-region hierarchy (validated and held in memory at load: the calls below are
+ * read-only and thread-safe): its node count (0 when the file has none), the nodes, and cell
+ * `cell`'s row of marks ((count + 7) / 8 bytes as in sl_pvs_regions; NULL when the file has no
+ * regions or the cell is out of range). */
+SL_API uint32_t sl_pvs_region_count(sl_pvs pvs);
+SL_API const sl_pvs_region *sl_pvs_region_nodes(sl_pvs pvs);
+SL_API const uint8_t *sl_pvs_region_row(sl_pvs pvs, uint32_t cell);
+/* May a dynamic object whose world box is `box` be seen, by the marks of `row` (a cell's row, or
+ * the bitwise OR of several cells' rows)? Walks down from the root through the nodes that hold
+ * the box: false as soon as one of them is unmarked (everything inside it is hidden from the
+ * cells); true when the deepest holding node is marked, when no node holds the box, or when the
+ * file has no regions or row is NULL. */
+SL_API bool sl_pvs_region_box_visible(sl_pvs pvs, const uint8_t *row, const sl_aabb *box);
 /* Check every checksum and decode every set (ranges, order, counts). */
 SL_API sl_status sl_pvs_verify(sl_pvs pvs, sl_error *err);
 

@@ -8,7 +8,10 @@
  * outside the frustum. Two cases fall back to plain view-frustum culling of every object, so the
  * guarantee holds everywhere: an eye in no cell (inside a building, above the eye range, off the
  * streets), and dynamic objects (cars), whose baked positions mean nothing once they move
- * (option dynamic=frustum, the default). An eye outside the domain (solid or void space of a map,
+ * (option dynamic=frustum). With motion regions in the file (format 1.2, docs/motion.md), a
+ * dynamic object in the frustum is dropped when a node of the region hierarchy holding its current
+ * box is hidden from every cell the near-plane region meets (dynamic=regions; dynamic=auto, the
+ * default, takes regions when the file has them and frustum otherwise). An eye outside the domain (solid or void space of a map,
  * docs/oracle.md) never reaches this method: the culler interface (culler.c) gives it the frustum
  * set of vfc, flagged in sl_cull_stats.out_of_domain.
  *
@@ -31,7 +34,7 @@
 
 typedef struct pvs_config {
     char file[PATH_MAX_CHARS + 1];
-    uint32_t dynamic;           /* 0: frustum, 1: pvs */
+    uint32_t dynamic;           /* 0: frustum, 1: pvs, 2: regions, 3: auto (regions when the file has them) */
     bool aggressive;            /* accept a file baked by an aggressive method */
 } pvs_config;
 
@@ -54,21 +57,25 @@ typedef struct pvs_state {
     uint32_t *set_cells;        /* cell_count entries: the cells whose union is in `set` */
     uint32_t set_cell_count;    /* 0: `set` holds nothing */
     uint8_t *mark;              /* object_count entries, zero between calls */
+    bool regions;               /* dynamic objects by the motion regions */
+    uint8_t *rrow;              /* the OR of the region rows of set_cells */
+    size_t rrow_size;
 } pvs_state;
 
 static const char g_help[] =
     "file=PATH (required): the .slpvs baked for this scene by `sightline pvs build` (no commas or spaces)\n"
-    "dynamic=frustum|pvs (default frustum): dynamic objects (cars) by frustum only, or from the baked set too\n"
+    "dynamic=auto|frustum|regions|pvs (default auto): dynamic objects (cars) by frustum only, by frustum and the file's "
+    "motion regions (auto: when the file has them, else frustum), or from the baked set too (aggressive)\n"
     "aggressive=BOOL (default false): accept a file baked by an aggressive method (gvs); the culler is then aggressive\n";
 
 static sl_status pvs_configure(sl_opts *o, void *config, sl_cull_guarantee *g, sl_error *err)
 {
     pvs_config *c = config;
     const char *file;
-    static const char *const dyn_names[] = {"frustum", "pvs"};
+    static const char *const dyn_names[] = {"frustum", "pvs", "regions", "auto"};
     sl_status st = sl_opts_string(o, "file", &file, err);
     if (st == SL_OK)
-        st = sl_opts_enum(o, "dynamic", dyn_names, 2, 0, &c->dynamic, err);
+        st = sl_opts_enum(o, "dynamic", dyn_names, 4, 3, &c->dynamic, err);
     if (st == SL_OK)
         st = sl_opts_bool(o, "aggressive", false, &c->aggressive, err);
     if (st != SL_OK)
@@ -105,6 +112,7 @@ static void pvs_destroy(void *state)
     sl_free(a, s->near_cells, cn * sizeof(uint32_t));
     sl_free(a, s->set_cells, cn * sizeof(uint32_t));
     sl_free(a, s->mark, n);
+    sl_free(a, s->rrow, s->rrow_size);
     sl_free(a, s, sizeof *s);
 }
 
@@ -141,6 +149,25 @@ static sl_status pvs_create(sl_scene scene, const void *config, const sl_allocat
         return st;
     }
     s->cells = sl_pvs_cells(s->pvs);
+    const uint32_t nreg = sl_pvs_region_count(s->pvs);
+    if (s->cfg.dynamic == 2 && nreg == 0) {
+        st = sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                     "pvs: dynamic=regions, but %s has no motion regions (bake it from a scene whose dynamic objects "
+                     "have motion records, without --no-regions; or use dynamic=frustum)",
+                     s->cfg.file);
+        pvs_destroy(s);
+        return st;
+    }
+    if (s->cfg.dynamic == 3)
+        s->cfg.dynamic = nreg ? 2 : 0;
+    s->regions = s->cfg.dynamic == 2;
+    if (s->regions) {
+        s->rrow_size = ((size_t)nreg + 7) / 8;
+        if (!(s->rrow = sl_calloc(alloc, s->rrow_size, 1))) {
+            pvs_destroy(s);
+            return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs: out of memory");
+        }
+    }
     size_t n = (size_t)s->object_count + 1;
     s->set = sl_alloc(alloc, n * sizeof(uint32_t));
     s->dyn = sl_alloc(alloc, n * sizeof(uint32_t));
@@ -157,7 +184,7 @@ static sl_status pvs_create(sl_scene scene, const void *config, const sl_allocat
     }
     const sl_object_rec *objs = sl_scene_objects(scene);
     for (uint32_t i = 0; i < s->object_count; i++)
-        if (s->cfg.dynamic == 0 && (objs[i].flags & SL_OBJECT_DYNAMIC))
+        if (s->cfg.dynamic != 1 && (objs[i].flags & SL_OBJECT_DYNAMIC))
             s->dyn[s->dyn_count++] = i;
     *state = s;
     return SL_OK;
@@ -284,7 +311,7 @@ static sl_status pvs_cull(void *state, const sl_view *view, uint32_t *out, uint3
     }
     s->cell = all ? SL_NONE : cell;
     double t1 = sl_now();
-    bool skip_dyn = s->cfg.dynamic == 0;
+    bool skip_dyn = s->cfg.dynamic != 1;
     uint32_t n;
     if (all) {
         /* outside every cell: every object is a candidate (ids are ascending by construction) */
@@ -295,6 +322,24 @@ static sl_status pvs_cull(void *state, const sl_view *view, uint32_t *out, uint3
         n = frustum_filter(s, &fr, s->set, s->set_count, s->tmp, skip_dyn, &stats->objects_tested);
     }
     uint32_t nd = skip_dyn ? frustum_filter(s, &fr, s->dyn, s->dyn_count, s->scratch, false, &stats->objects_tested) : 0;
+    if (s->regions && !all) {
+        /* the dynamic objects in the frustum whose box a hidden node holds, from every cell met */
+        const uint32_t nc = s->set_cell_count;
+        for (uint32_t c = 0; c < nc; c++) {
+            const uint8_t *row = sl_pvs_region_row(s->pvs, s->set_cells[c]);
+            if (c == 0)
+                memcpy(s->rrow, row, s->rrow_size);
+            else
+                for (size_t b = 0; b < s->rrow_size; b++)
+                    s->rrow[b] |= row[b];
+        }
+        const sl_aabb *bounds = sl_scene_object_bounds_array(s->scene);
+        uint32_t kept = 0;
+        for (uint32_t q = 0; q < nd; q++)
+            if (nc == 0 || sl_pvs_region_box_visible(s->pvs, s->rrow, &bounds[s->scratch[q]]))
+                s->scratch[kept++] = s->scratch[q];
+        nd = kept;
+    }
     /* merge the two ascending lists (disjoint: the set's dynamic objects were skipped) */
     uint32_t i = 0, j = 0, k = 0;
     while (i < n || j < nd) {

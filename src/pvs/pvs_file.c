@@ -10,6 +10,8 @@
  *         size, XXH3-64 of the frame
  *   DATA  the zstd frames, back to back
  *   META  "key=value" lines (build method, options, timings)
+ *   MREG  (1.2, optional) the motion-region hierarchy, 48-byte node records
+ *   MVIS  (1.2, with MREG) one zstd frame: per cell a row of node marks, (nodes + 7) / 8 bytes
  * Neighbouring cells see much the same objects, so a block of consecutive cells compresses well,
  * and decoding one cell costs one block (cached).
  *
@@ -38,7 +40,9 @@
 #endif
 
 #define PVS_MAJOR 1u
-#define PVS_MINOR 1u /* 1.1: PVSH holds the scene key format (2); 1.0 files have format 1 */
+#define PVS_MINOR 2u /* 1.1: PVSH holds the scene key format (2); 1.0 files have format 1. 1.2: motion
+                        regions (MREG, MVIS); a file without them is still written as 1.1 */
+#define PVS_MINOR_REGIONS 2u
 #define PVS_HEADER 64u
 #define PVS_ENTRY 48u
 #define PVS_ALIGN 64u
@@ -51,6 +55,7 @@
 #define PVS_HEAD_REC 64u
 #define PVS_SET_REC 8u
 #define PVS_BLOCK_REC 32u
+#define PVS_REGION_REC 48u
 
 _Static_assert(sizeof(sl_viewcell) == 64, "sl_viewcell is the 64-byte CELL record");
 _Static_assert(offsetof(sl_viewcell, tri) == 8 && offsetof(sl_viewcell, z_min) == 32 &&
@@ -68,8 +73,11 @@ enum { P_CELLS = 0, P_OBJECTS = 4, P_BLOCK_CELLS = 8, P_BLOCKS = 12, P_SCENE_KEY
 enum { P_RESERVED_1_0 = 48 }; /* where the reserved bytes began in format 1.0 */
 /* BLKS record */
 enum { B_OFFSET = 0, B_CSIZE = 8, B_RSIZE = 12, B_HASH = 16, B_RESERVED = 24 };
+/* MREG record */
+enum { R_BOX = 0, R_FIRST = 24, R_CHILDREN = 28, R_PARENT = 32, R_RESERVED = 36 };
 
-enum { S_PVSH, S_CELL, S_SETS, S_BLKS, S_DATA, S_META, S_COUNT };
+enum { S_PVSH, S_CELL, S_SETS, S_BLKS, S_DATA, S_META, S_MREG, S_MVIS, S_COUNT };
+enum { S_COUNT_1_1 = S_MREG }; /* the sections of a file without regions */
 static const struct {
     char tag[5];
     uint32_t elem;
@@ -77,7 +85,81 @@ static const struct {
 } k_secs[S_COUNT] = {
     {"PVSH", PVS_HEAD_REC, true}, {"CELL", 64, true},  {"SETS", PVS_SET_REC, true},
     {"BLKS", PVS_BLOCK_REC, true}, {"DATA", 1, true}, {"META", 1, false},
+    {"MREG", PVS_REGION_REC, false}, {"MVIS", 1, false},
 };
+
+/* ---- motion regions: the rules a hierarchy and its rows obey (writer and reader alike) ---- */
+
+static size_t region_row_bytes(uint32_t count) { return ((size_t)count + 7) / 8; }
+
+static bool box_inside(const sl_aabb *in, const sl_aabb *out)
+{
+    return in->min.x >= out->min.x && in->min.y >= out->min.y && in->min.z >= out->min.z && in->max.x <= out->max.x &&
+           in->max.y <= out->max.y && in->max.z <= out->max.z;
+}
+
+/* The hierarchy's rules; false with the node and the reason when one is broken. */
+static bool regions_check(const sl_pvs_region *n, uint32_t count, uint32_t *bad, char *why, size_t wn)
+{
+    for (uint32_t i = 0; i < count; i++) {
+        const sl_aabb *b = &n[i].box;
+        *bad = i;
+        const float *f = &b->min.x;
+        for (int k = 0; k < 6; k++)
+            if (!isfinite(f[k])) {
+                snprintf(why, wn, "its box is not finite");
+                return false;
+            }
+        if (b->min.x > b->max.x || b->min.y > b->max.y || b->min.z > b->max.z) {
+            snprintf(why, wn, "its box is empty (min above max)");
+            return false;
+        }
+        uint32_t p = n[i].parent;
+        if (i == 0 ? p != SL_NONE : p >= i) {
+            snprintf(why, wn, i == 0 ? "the root has a parent (%u)" : "its parent %u does not come before it", p);
+            return false;
+        }
+        if (i > 0 && (i < n[p].first_child || i - n[p].first_child >= n[p].child_count)) {
+            snprintf(why, wn, "its parent %u does not list it among its children", p);
+            return false;
+        }
+        uint32_t f0 = n[i].first_child, c = n[i].child_count;
+        if (c == 0 ? f0 != 0 : (f0 <= i || f0 > count || c > count - f0)) {
+            snprintf(why, wn, "children [%u, +%u) are not after it inside the %u nodes", f0, c, count);
+            return false;
+        }
+        for (uint32_t j = f0; j < f0 + c; j++) {
+            if (n[j].parent != i) {
+                snprintf(why, wn, "its child %u names another parent (%u)", j, n[j].parent);
+                return false;
+            }
+            if (!box_inside(&n[j].box, b)) {
+                snprintf(why, wn, "the box of its child %u is not inside its own", j);
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+/* A row's rules: a marked node's parent is marked, bits past count are zero. */
+static bool region_row_check(const sl_pvs_region *n, uint32_t count, const uint8_t *row, uint32_t *bad, char *why,
+                             size_t wn)
+{
+    for (uint32_t i = 1; i < count; i++)
+        if ((row[i >> 3] >> (i & 7) & 1) && !(row[n[i].parent >> 3] >> (n[i].parent & 7) & 1)) {
+            *bad = i;
+            snprintf(why, wn, "node %u is marked but its parent %u is not", i, n[i].parent);
+            return false;
+        }
+    size_t rb = region_row_bytes(count);
+    if (count % 8 && (row[rb - 1] >> (count % 8)) != 0) {
+        *bad = count;
+        snprintf(why, wn, "bits past the %u nodes are set", count);
+        return false;
+    }
+    return true;
+}
 
 
 /* ---- zstd through the handle's allocator ---- */
@@ -228,10 +310,59 @@ typedef struct wsec {
 sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
                        const uint64_t *offsets, const uint32_t *ids, const char *meta, sl_error *err)
 {
+    return sl_pvs_write_regions(path, cells, object_count, scene_key, offsets, ids, meta, NULL, err);
+}
+
+/* The MREG records and the MVIS frame of the regions (checked first). */
+static sl_status encode_regions(const sl_allocator *a, const sl_pvs_regions *r, uint32_t nc, ZSTD_CCtx *cctx,
+                                uint8_t **recs, uint8_t **frame, size_t *frame_size, size_t *frame_cap, sl_error *err)
+{
+    if (r->count > SL_PVS_MAX_REGIONS)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_pvs_write_regions: %u regions exceed %u", r->count, SL_PVS_MAX_REGIONS);
+    if (!r->nodes || !r->visible)
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write_regions: nodes and visible must not be NULL");
+    uint32_t bad;
+    char why[160];
+    if (!regions_check(r->nodes, r->count, &bad, why, sizeof why))
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write_regions: region %u: %s", bad, why);
+    const size_t rb = region_row_bytes(r->count);
+    if ((uint64_t)nc * rb > PVS_MAX_RAW)
+        return sl_fail(err, SL_ERROR_LIMIT, "sl_pvs_write_regions: %u cells of %u regions make %llu bytes of marks (at most %u)",
+                       nc, r->count, (unsigned long long)nc * rb, PVS_MAX_RAW);
+    for (uint32_t c = 0; c < nc; c++)
+        if (!region_row_check(r->nodes, r->count, r->visible + (size_t)c * rb, &bad, why, sizeof why))
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write_regions: cell %u: %s", c, why);
+    *recs = sl_calloc(a, (size_t)r->count, PVS_REGION_REC);
+    *frame_cap = ZSTD_compressBound((size_t)nc * rb);
+    *frame = sl_alloc(a, *frame_cap);
+    if (!*recs || !*frame)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sl_pvs_write_regions: out of memory for %u regions", r->count);
+    for (uint32_t i = 0; i < r->count; i++) {
+        uint8_t *q = *recs + (size_t)i * PVS_REGION_REC;
+        memcpy(q + R_BOX, &r->nodes[i].box, sizeof(sl_aabb));
+        wr32(q + R_FIRST, r->nodes[i].first_child);
+        wr32(q + R_CHILDREN, r->nodes[i].child_count);
+        wr32(q + R_PARENT, r->nodes[i].parent);
+    }
+    size_t cs = ZSTD_compressCCtx(cctx, *frame, *frame_cap, r->visible, (size_t)nc * rb, PVS_ZSTD_LEVEL);
+    if (ZSTD_isError(cs))
+        return sl_fail(err, SL_ERROR_INTERNAL, "pvs: zstd failed on the region marks: %s", ZSTD_getErrorName(cs));
+    *frame_size = cs;
+    return SL_OK;
+}
+
+sl_status sl_pvs_write_regions(const char *path, sl_viewcells cells, uint32_t object_count, uint64_t scene_key,
+                               const uint64_t *offsets, const uint32_t *ids, const char *meta,
+                               const sl_pvs_regions *regions, sl_error *err)
+{
     if (!path || !cells || !offsets)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write: path, cells and offsets must not be NULL");
     uint32_t nc = sl_viewcells_count(cells);
     const sl_allocator *a = &cells->alloc;
+    if (regions && regions->count == 0)
+        regions = NULL;
+    uint8_t *region_recs = NULL, *region_frame = NULL;
+    size_t region_frame_size = 0, region_frame_cap = 0;
     if (offsets[0] != 0)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write: offsets[0] is %llu, not 0",
                        (unsigned long long)offsets[0]);
@@ -305,6 +436,9 @@ sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_cou
         wr64(br + B_HASH, sl_hash64((uint8_t *)data.data + start, cs, 0));
         max_raw = SL_MAX(max_raw, (uint32_t)at);
     }
+    if (st == SL_OK && regions)
+        st = encode_regions(a, regions, nc, cctx, &region_recs, &region_frame, &region_frame_size, &region_frame_cap,
+                            err);
     if (st != SL_OK)
         goto done;
     memset(head_rec, 0, sizeof head_rec);
@@ -326,17 +460,25 @@ sl_status sl_pvs_write(const char *path, sl_viewcells cells, uint32_t object_cou
         {blks, nb, (uint64_t)nb * PVS_BLOCK_REC},
         {data.data, data.count, data.count},
         {meta, meta_len, meta_len},
+        {region_recs, regions ? regions->count : 0, regions ? (uint64_t)regions->count * PVS_REGION_REC : 0},
+        {region_frame, region_frame_size, region_frame_size},
     };
+    const int nsec = regions ? S_COUNT : S_COUNT_1_1;
     sl_container_section cs[S_COUNT];
-    for (int i = 0; i < S_COUNT; i++) {
+    for (int i = 0; i < nsec; i++) {
         memcpy(cs[i].tag, k_secs[i].tag, 4);
         cs[i].elem = k_secs[i].elem;
         cs[i].count = secs[i].count;
         cs[i].data = secs[i].data;
         cs[i].size = secs[i].size;
     }
-    st = sl_container_write(a, path, -1, k_magic, PVS_MAJOR, PVS_MINOR, 0, 0, cs, S_COUNT, err); /* container.h */
+    st = sl_container_write(a, path, -1, k_magic, PVS_MAJOR, regions ? PVS_MINOR_REGIONS : 1u, 0, 0, cs, (size_t)nsec,
+                            err); /* container.h */
 done:
+    if (regions) {
+        sl_free(a, region_recs, (size_t)regions->count * PVS_REGION_REC);
+        sl_free(a, region_frame, region_frame_cap);
+    }
     ZSTD_freeCCtx(cctx);
     sl_free(a, raw, raw_cap);
     sl_array_free(a, &data, 1);
@@ -359,6 +501,7 @@ struct sl_pvs_t {
     uint64_t size;
     uint32_t minor;
     uint64_t off[S_COUNT], len[S_COUNT], hash[S_COUNT];
+    bool present[S_COUNT];
     uint32_t cell_count, object_count, block_cells, block_count, max_raw;
     uint64_t scene_key, cells_key, visible_total;
     uint32_t key_version;
@@ -372,6 +515,11 @@ struct sl_pvs_t {
     uint8_t *block;             /* max_raw bytes (at least 1) */
     uint32_t cached;            /* block held in `block`, or SL_NONE */
     uint8_t *checked;           /* per block: checksum verified */
+    /* motion regions (1.2): validated copies */
+    uint32_t region_count;
+    sl_pvs_region *regions;
+    uint8_t *region_rows;       /* cell_count rows of region_row_bytes(region_count) */
+    size_t region_rows_size;
 };
 
 /* Format an error naming the file and offset. */
@@ -386,6 +534,8 @@ void sl_pvs_destroy(sl_pvs p)
     ZSTD_freeDCtx(p->dctx);
     sl_free(a, p->block, (size_t)p->max_raw + 1);
     sl_free(a, p->checked, (size_t)p->block_count + 1);
+    sl_free(a, p->regions, (size_t)p->region_count * sizeof(sl_pvs_region));
+    sl_free(a, p->region_rows, p->region_rows_size);
     sl_free(a, p->meta, p->meta_size + 1);
     sl_free(a, p->meta_lines, p->meta_size + 1);
     sl_file_unmap(&p->map);
@@ -447,6 +597,8 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
         for (int s = 0; s < S_COUNT; s++)
             if (memcmp(e + E_TAG, k_secs[s].tag, 4) == 0)
                 k = s;
+        if (k >= S_COUNT_1_1 && minor < PVS_MINOR_REGIONS)
+            k = -1; /* the region sections came with 1.2 */
         if (k < 0) {
             if (minor <= PVS_MINOR)
                 return FAIL_AT(err, p, eo, "unknown section '%s' in a version %u.%u file", tag, major, minor);
@@ -457,6 +609,7 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
                 return FAIL_AT(err, p, eo + E_ELEM, "section '%s' has %u-byte elements, expected %u", tag, elem,
                                k_secs[k].elem);
             seen[k] = true;
+            p->present[k] = true;
             p->off[k] = off;
             p->len[k] = size;
             p->hash[k] = rd64(e + E_HASH);
@@ -479,6 +632,65 @@ static sl_status read_structure(struct sl_pvs_t *p, sl_error *err)
     if (!zero_bytes(b + PVS_HEADER, header_size - PVS_HEADER) && minor <= PVS_MINOR)
         return FAIL_AT(err, p, PVS_HEADER, "header padding is not zero");
     return sl_container_check_layout(spans, nspans, p->size, b, NULL, NULL, p->name, err);
+}
+
+/* MREG and MVIS: the hierarchy and every cell's row, decoded and checked now (they are small
+ * beside the sets: a bit per node and cell). */
+static sl_status read_regions(struct sl_pvs_t *p, sl_error *err)
+{
+    if (!p->present[S_MREG] && !p->present[S_MVIS])
+        return SL_OK;
+    if (!p->present[S_MREG] || !p->present[S_MVIS])
+        return FAIL_AT(err, p, p->present[S_MREG] ? p->off[S_MREG] : p->off[S_MVIS],
+                       "section '%s' comes without '%s'", p->present[S_MREG] ? "MREG" : "MVIS",
+                       p->present[S_MREG] ? "MVIS" : "MREG");
+    uint64_t n = p->len[S_MREG] / PVS_REGION_REC;
+    if (n == 0 || n > SL_PVS_MAX_REGIONS)
+        return FAIL_AT(err, p, p->off[S_MREG], "section 'MREG' holds %llu regions (1..%u)", (unsigned long long)n,
+                       SL_PVS_MAX_REGIONS);
+    const uint8_t *r = p->bytes + p->off[S_MREG];
+    p->regions = sl_calloc(&p->alloc, (size_t)n, sizeof(sl_pvs_region));
+    if (!p->regions)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for %llu regions", p->name, (unsigned long long)n);
+    p->region_count = (uint32_t)n;
+    for (uint32_t i = 0; i < p->region_count; i++) {
+        const uint8_t *q = r + (size_t)i * PVS_REGION_REC;
+        if (!zero_bytes(q + R_RESERVED, PVS_REGION_REC - R_RESERVED))
+            return FAIL_AT(err, p, p->off[S_MREG] + (uint64_t)i * PVS_REGION_REC + R_RESERVED,
+                           "region %u: reserved bytes are not zero", i);
+        memcpy(&p->regions[i].box, q + R_BOX, sizeof(sl_aabb));
+        p->regions[i].first_child = rd32(q + R_FIRST);
+        p->regions[i].child_count = rd32(q + R_CHILDREN);
+        p->regions[i].parent = rd32(q + R_PARENT);
+    }
+    uint32_t bad;
+    char why[160];
+    if (!regions_check(p->regions, p->region_count, &bad, why, sizeof why))
+        return FAIL_AT(err, p, p->off[S_MREG] + (uint64_t)bad * PVS_REGION_REC, "region %u: %s", bad, why);
+    const size_t rb = region_row_bytes(p->region_count);
+    const uint64_t want = (uint64_t)p->cell_count * rb;
+    if (want > PVS_MAX_RAW)
+        return FAIL_AT(err, p, p->off[S_MREG], "%u cells of %u regions make %llu bytes of marks (at most %u)",
+                       p->cell_count, p->region_count, (unsigned long long)want, PVS_MAX_RAW);
+    const uint8_t *f = p->bytes + p->off[S_MVIS];
+    unsigned long long fcs = ZSTD_getFrameContentSize(f, (size_t)p->len[S_MVIS]);
+    if (fcs != want)
+        return FAIL_AT(err, p, p->off[S_MVIS], "section 'MVIS' %s, expected one of %llu bytes",
+                       fcs == ZSTD_CONTENTSIZE_ERROR || fcs == ZSTD_CONTENTSIZE_UNKNOWN ? "is not a zstd frame of stated size"
+                                                                                       : "states another decoded size",
+                       (unsigned long long)want);
+    p->region_rows_size = (size_t)want + 1;
+    p->region_rows = sl_alloc(&p->alloc, p->region_rows_size);
+    if (!p->region_rows)
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory for the region marks", p->name);
+    size_t got = ZSTD_decompressDCtx(p->dctx, p->region_rows, (size_t)want, f, (size_t)p->len[S_MVIS]);
+    if (ZSTD_isError(got) || got != want)
+        return FAIL_AT(err, p, p->off[S_MVIS], "section 'MVIS' does not decode: %s",
+                       ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short frame");
+    for (uint32_t c = 0; c < p->cell_count; c++)
+        if (!region_row_check(p->regions, p->region_count, p->region_rows + (size_t)c * rb, &bad, why, sizeof why))
+            return FAIL_AT(err, p, p->off[S_MVIS], "cell %u's region marks: %s", c, why);
+    return SL_OK;
 }
 
 /* PVSH, CELL, SETS, BLKS, META: counts, ranges and cross references. */
@@ -608,7 +820,7 @@ static sl_status read_tables(struct sl_pvs_t *p, sl_error *err)
     if (!p->checked || !p->dctx)
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "%s: out of memory", p->name);
     p->cached = SL_NONE;
-    return SL_OK;
+    return read_regions(p, err);
 }
 
 static sl_status open_common(struct sl_pvs_t *p, sl_pvs *out, sl_error *err)
@@ -780,6 +992,13 @@ void sl_pvs_get_info(sl_pvs p, sl_pvs_info *info)
     for (uint32_t k = 0; k < p->block_count; k++)
         info->raw_bytes += rd32(p->blks + (uint64_t)k * PVS_BLOCK_REC + B_RSIZE);
     info->mean_visible = p->cell_count ? (double)p->visible_total / p->cell_count : 0;
+    info->region_count = p->region_count;
+    if (p->region_count && p->cell_count) {
+        uint64_t marked = 0;
+        for (size_t i = 0; i < (size_t)p->cell_count * region_row_bytes(p->region_count); i++)
+            marked += (uint64_t)__builtin_popcount(p->region_rows[i]);
+        info->mean_regions_visible = (double)marked / p->cell_count;
+    }
     info->mean_culled = p->cell_count ? culled / p->cell_count : 0;
 }
 
@@ -810,6 +1029,43 @@ sl_status sl_pvs_check_scene(sl_pvs p, sl_scene scene, sl_error *err)
 }
 
 sl_viewcells sl_pvs_cells(sl_pvs p) { return p ? p->cells : NULL; }
+
+uint32_t sl_pvs_region_count(sl_pvs p) { return p ? p->region_count : 0; }
+
+const sl_pvs_region *sl_pvs_region_nodes(sl_pvs p) { return p ? p->regions : NULL; }
+
+const uint8_t *sl_pvs_region_row(sl_pvs p, uint32_t cell)
+{
+    if (!p || !p->region_count || cell >= p->cell_count)
+        return NULL;
+    return p->region_rows + (size_t)cell * region_row_bytes(p->region_count);
+}
+
+bool sl_pvs_region_box_visible(sl_pvs p, const uint8_t *row, const sl_aabb *box)
+{
+    if (!p || !p->region_count || !row || !box)
+        return true;
+    const sl_pvs_region *n = p->regions;
+    if (!box_inside(box, &n[0].box))
+        return true;
+    uint32_t at = 0;
+    for (;;) {
+        if (!(row[at >> 3] >> (at & 7) & 1))
+            return false;
+        /* every child holding the box must be marked; go on in the first */
+        uint32_t next = SL_NONE;
+        for (uint32_t j = n[at].first_child; j < n[at].first_child + n[at].child_count; j++)
+            if (box_inside(box, &n[j].box)) {
+                if (!(row[j >> 3] >> (j & 7) & 1))
+                    return false;
+                if (next == SL_NONE)
+                    next = j;
+            }
+        if (next == SL_NONE)
+            return true;
+        at = next;
+    }
+}
 
 const char *sl_pvs_meta_text(sl_pvs p) { return p ? p->meta : ""; }
 

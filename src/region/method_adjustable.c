@@ -1358,12 +1358,14 @@ sl_status sl_adj_probe_worker_create(void *probe, void **out, sl_error *err)
 
 void sl_adj_probe_worker_destroy(void *worker) { adj_worker_destroy(worker); }
 
-sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error *err)
+/* adj_cell's levels over the boxes subset[0..n) (all boxes when subset is NULL); *left receives
+ * how many no level could hide, their indices in w->cand[0..*left). */
+static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset, uint32_t nbox, uint32_t *left,
+                           sl_error *err)
 {
-    adj_worker *w = worker;
     adj_shared *s = w->sh;
-    *visible = false;
-    if (s->nobj == 0)
+    *left = 0;
+    if (nbox == 0)
         return SL_OK;
     const sl_viewcell *vc = &sl_viewcells_data(s->cells)[cell];
     double poly[8];
@@ -1385,9 +1387,9 @@ sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error
         top++;
     /* adj_cell's levels, coarse to fine, the boxes a level cannot hide going on to the next: a box
      * hidden at one level (by all its disks, which cover the cell) is hidden from the whole cell */
-    uint32_t nc = s->nobj;
-    for (uint32_t o = 0; o < s->nobj; o++)
-        w->cand[o] = o;
+    uint32_t nc = nbox;
+    for (uint32_t o = 0; o < nbox; o++)
+        w->cand[o] = subset ? subset[o] : o;
     for (int level = top; level >= 0 && nc > 0; level--) {
         const double eps = s->cfg.eps * ldexp(1.0, level);
         if (!level_centres(w, poly, n, bb, eps))
@@ -1444,7 +1446,32 @@ sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error
                 w->cand[m++] = w->cand[q];
         nc = m;
     }
-    *visible = nc > 0;
+    *left = nc;
+    return SL_OK;
+}
+
+sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error *err)
+{
+    adj_worker *w = worker;
+    uint32_t left;
+    sl_status st = probe_run(w, cell, NULL, w->sh->nobj, &left, err);
+    *visible = st == SL_OK && left > 0;
+    return st;
+}
+
+sl_status sl_adj_probe_boxes(void *worker, uint32_t cell, const uint32_t *subset, uint32_t n, uint8_t *visible,
+                             sl_error *err)
+{
+    adj_worker *w = worker;
+    for (uint32_t i = 0; i < n; i++)
+        if (subset[i] >= w->sh->nobj)
+            return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "probe: box %u of %u", subset[i], w->sh->nobj);
+    uint32_t left;
+    sl_status st = probe_run(w, cell, subset, n, &left, err);
+    if (st != SL_OK)
+        return st;
+    for (uint32_t i = 0; i < left; i++)
+        visible[w->cand[i]] = 1;
     return SL_OK;
 }
 

@@ -23,6 +23,7 @@
  * the process dies) keeps a second bake off a journal in use: it is told which process runs.
  * Records are written with write(2) (in the kernel once it returns, so a killed process loses
  * nothing finished) and the file is synced every few seconds (power loss costs seconds). */
+#include "motion_regions.h"
 #include "pvs_internal.h"
 #include "core/bytes.h"
 
@@ -572,18 +573,32 @@ sl_status sl_bake_finish(sl_bake *b, const char *output, const sl_pvs_build_opti
             st = sl_fail(err, SL_ERROR_INTERNAL, "pvs bake: cell %u's stored set does not decode", c);
         at += b->counts[c];
     }
+    /* the motion regions: marked here, after every cell, on the writing process (docs/motion.md) */
+    sl_motion_regions mr = {0};
+    if (st == SL_OK && !(opt && opt->no_regions)) {
+        double t0 = sl_now();
+        st = sl_motion_regions_bake(b->scene, b->cells, !strcmp(b->method->name, "adjustable") ? b->effective : NULL,
+                                    opt ? opt->threads : 0, b->a, &mr, err);
+        b->region_seconds = sl_now() - t0;
+        b->regions = mr.count;
+    }
     if (st == SL_OK) {
         offsets[b->cell_count] = at;
         /* metadata: only what determines the sets (no timings, no thread counts), so that the
          * bytes do not depend on how the bake ran */
-        char meta[SL_OPTS_MAX_CHARS + 512];
+        char meta[SL_OPTS_MAX_CHARS + 512], rline[64] = "";
+        if (mr.count)
+            snprintf(rline, sizeof rline, "regions=%u\n", mr.count);
         snprintf(meta, sizeof meta,
                  "generator=sightline %s\nmethod=%s\noptions=%s\nguarantee=%s\ncells=%u\nobjects=%u\n"
-                 "occluders_removed=%llu\n",
+                 "occluders_removed=%llu\n%s",
                  sl_version_string(), b->method->name, b->effective, sl_cull_guarantee_name(b->method->guarantee),
-                 b->cell_count, b->object_count, (unsigned long long)b->removed);
-        st = sl_pvs_write(output, b->cells, b->object_count, sl_pvs_scene_key(b->scene), offsets, ids, meta, err);
+                 b->cell_count, b->object_count, (unsigned long long)b->removed, rline);
+        sl_pvs_regions pr = {mr.nodes, mr.count, mr.rows};
+        st = sl_pvs_write_regions(output, b->cells, b->object_count, sl_pvs_scene_key(b->scene), offsets, ids, meta,
+                                  &pr, err);
     }
+    sl_motion_regions_free(b->a, &mr);
     sl_free(b->a, offsets, ((size_t)b->cell_count + 1) * sizeof *offsets);
     sl_free(b->a, ids, ((size_t)total + 1) * sizeof *ids);
     if (st == SL_OK && b->fd >= 0) {
@@ -612,6 +627,8 @@ void sl_bake_stats(const sl_bake *b, sl_pvs_build_stats *out)
     out->cell_seconds = b->cell_seconds;
     out->max_cell_seconds = b->max_cell_seconds;
     out->occluders_removed = b->removed;
+    out->regions = b->regions;
+    out->region_seconds = b->region_seconds;
     if (b->method) {
         snprintf(out->method, sizeof out->method, "%s", b->method->name);
         size_t n = strlen(b->effective);

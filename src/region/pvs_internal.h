@@ -69,6 +69,10 @@ void sl_adj_probe_destroy(void *probe);
 sl_status sl_adj_probe_worker_create(void *probe, void **worker, sl_error *err);
 void sl_adj_probe_worker_destroy(void *worker);
 sl_status sl_adj_probe_cell(void *worker, uint32_t cell, bool *visible, sl_error *err);
+/* The same levels over the boxes subset[0..n) (distinct indices): visible[k] is set to 1 for each
+ * box k of them that no level hides (the others are left as they are). */
+sl_status sl_adj_probe_boxes(void *worker, uint32_t cell, const uint32_t *subset, uint32_t n, uint8_t *visible,
+                             sl_error *err);
 
 /* ---- the bake: what the thread and MPI drivers share (pvs_build.c) ----
  * begin configures and prepares the method; on the writing process it also takes the bake lock
@@ -103,6 +107,9 @@ typedef struct sl_bake {
     int lock_fd;
     char *lock_path;
     char *output;               /* for messages */
+    /* motion regions, marked by finish (writer only) */
+    uint32_t regions;
+    double region_seconds;
 } sl_bake;
 
 sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const char *output,
