@@ -196,6 +196,40 @@ static void test_lanes(void **state)
     sl_scene_destroy(s);
 }
 
+/* A moving occluder is never baked in: a DYNAMIC wall with a footprint stands between the cell
+ * and a static box. Its footprint stays where it was placed while the wall moves, so every
+ * conservative method that occludes with footprints must keep the box (and does hide it behind
+ * the same wall when static). */
+static void test_moving_wall_not_baked(void **state)
+{
+    (void)state;
+    static const char *const methods[] = {"adjustable", "sample", "extproj", "virtual"};
+    for (int dynamic = 0; dynamic < 2; dynamic++) {
+        sl_error err;
+        sl_scene s;
+        assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+        uint32_t wall = sl_test_add_box(s, (sl_vec3){-80, 10, 0}, (sl_vec3){80, 14, 20}, SL_KIND_BUILDING,
+                                        SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER | (dynamic ? SL_OBJECT_DYNAMIC : 0));
+        float xy[8] = {-80, 10, 80, 10, 80, 14, -80, 14};
+        sl_footprint_desc fd = {xy, 4, 0, 20, wall};
+        assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
+        assert_true(sl_scene_footprint_moves(s, 0) == (dynamic == 1));
+        uint32_t behind = sl_test_add_box(s, (sl_vec3){-2, 30, 0}, (sl_vec3){2, 32, 3}, SL_KIND_BUILDING,
+                                          SL_OBJECT_CLOSED_CONVEX);
+        sl_viewcells vc = box_cell(-2, -2, 2, 2);
+        uint32_t ids[4], cnt;
+        for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
+            assert_int_equal(sl_pvs_bake_cell(s, vc, 0, methods[m], NULL, ids, 4, &cnt, &err), SL_OK);
+            bool kept = has(ids, cnt, behind);
+            if (kept != (dynamic == 1))
+                fail_msg("%s, %s wall: the box behind it is %s", methods[m], dynamic ? "moving" : "static",
+                         kept ? "kept" : "culled");
+        }
+        sl_viewcells_destroy(vc);
+        sl_scene_destroy(s);
+    }
+}
+
 /* The tiny city with its cars driving; the cells within 3 m of a drive's cameras baked. */
 static void test_city_drive(void **state)
 {
@@ -512,6 +546,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_file_rules),
         cmocka_unit_test(test_lanes),
+        cmocka_unit_test(test_moving_wall_not_baked),
         cmocka_unit_test(test_city_drive),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -151,10 +151,13 @@ static bool one_edit(sl_scene olds, sl_viewcells cells, const char *method, cons
             fail_msg("%s, seed %llu (%u removed, %u moved, %u added): the update (%u of %u cells re-baked) differs "
                      "from the full bake",
                      method, (unsigned long long)seed, es.removed, es.moved, es.added, us.cells_affected, us.cells);
+        /* the cars have motion records: the kept cells' region marks are copied, not marked again */
+        assert_true(us.regions > 0);
+        assert_int_equal(us.region_rows_copied, us.cells - us.cells_affected);
         print_message("  %s seed %llu: %u removed, %u moved, %u towers; zone %u footprints; %u of %u cells re-baked "
-                      "(%u by the old sets, %u by the probe)%s\n",
+                      "(%u by the old sets, %u by the probe), %u region rows copied%s\n",
                       method, (unsigned long long)seed, es.removed, es.moved, es.added, us.zone_footprints,
-                      us.cells_affected, us.cells, us.cells_by_set, us.cells_by_probe,
+                      us.cells_affected, us.cells, us.cells_by_set, us.cells_by_probe, us.region_rows_copied,
                       weaken ? (*equal ? ": same bytes" : ": differs") : ": same bytes");
         out->compared++;
         out->affected += us.cells_affected;

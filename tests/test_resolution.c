@@ -48,6 +48,9 @@ static const struct {
     {"lazygrid", NULL},  {"lazygrid-z", NULL}, {"busygrid", NULL}, {"hom", NULL},
     {"hom", "depth=zbuffer"},                 {"frusta", NULL},    {"frusta", "all_objects=true"},
     {"cplp", NULL},
+    /* Instant Visibility judged at the displayed eye, with and without its visibility thread (the
+     * views jump far apart: each is a stall) */
+    {"instant", NULL},   {"instant", "thread=false"},
     /* the tighter mode: conservative at the culling resolution only */
     {"hzb", "res=culling"}, {"hzb", "res=culling,all_objects=true"}, {"lazygrid", "res=culling"},
     {"lazygrid-z", "res=culling"}, {"busygrid", "res=culling"}, {"hom", "res=culling"}, {"cplp", "res=culling"},

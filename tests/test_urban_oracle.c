@@ -205,6 +205,88 @@ typedef struct city_run {
 
 /* count random street views of a city (every fourth pitched and rolled) and, when walk_frames,
  * a walk replayed by dhorizon: every method must keep every visible object. */
+/* A moving occluder with a footprint: an L-shaped DYNAMIC building (a bar across the view and a
+ * stub along it, 10 m tall) turned half a turn about its box centre, which leaves its box as it
+ * was but swaps the bar to the far side. Its footprint is where it was placed: a method that
+ * occluded with it would hide the box behind the old bar, now in plain view. Every conservative
+ * method, created before the turn (then told by scene_changed) or after it: zero misses. */
+static void test_moving_occluder(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene s = new_scene();
+    float p[48];
+    const sl_vec3 lo[2] = {{0, 0, 0}, {2, 0, 0}}, hi[2] = {{2, 10, 10}, {10, 2, 10}};
+    uint32_t idx[72];
+    static const uint32_t box_idx[36] = {0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5, 0, 1, 5, 0, 5, 4,
+                                         2, 6, 7, 2, 7, 3, 0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6};
+    for (int b = 0; b < 2; b++) {
+        for (int i = 0; i < 8; i++) {
+            p[24 * b + 3 * i] = (i & 1) ? hi[b].x : lo[b].x;
+            p[24 * b + 3 * i + 1] = (i & 2) ? hi[b].y : lo[b].y;
+            p[24 * b + 3 * i + 2] = (i & 4) ? hi[b].z : lo[b].z;
+        }
+        for (int k = 0; k < 36; k++)
+            idx[36 * b + k] = box_idx[k] + 8u * (uint32_t)b;
+    }
+    sl_mesh_desc md = {p, NULL, 16, idx, 24, NULL};
+    uint32_t mesh, l;
+    assert_int_equal(sl_scene_add_mesh(s, &md, &mesh, &err), SL_OK);
+    sl_object_desc od = {mesh, NULL, 0xffffffffu, SL_KIND_BUILDING, SL_OBJECT_OCCLUDER | SL_OBJECT_DYNAMIC, 0};
+    assert_int_equal(sl_scene_add_object(s, &od, &l, &err), SL_OK);
+    float xy[12] = {0, 0, 10, 0, 10, 2, 2, 2, 2, 10, 0, 10};
+    sl_footprint_desc fd = {xy, 6, 0.0f, 10, l};
+    assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
+    uint32_t probe = add_box(s, (sl_vec3){4, 4, 0}, (sl_vec3){5, 6, 1}, SL_KIND_CAR);
+    sl_camera cam = street_cam(-20, 5, 0);
+    static const char *const methods[][2] = {{"cullmap", "cell=8"}, {"horizon", "cell=8"}, {"dhorizon", "cell=8"},
+                                             {"cullmap", NULL},     {"hzb", NULL},         {"hom", NULL},
+                                             {"frusta", NULL},      {"lazygrid", NULL},    {"cplp", NULL}};
+    enum { NMETH = sizeof methods / sizeof methods[0] };
+    sl_culler before[NMETH];
+    for (size_t m = 0; m < NMETH; m++)
+        assert_int_equal(sl_culler_create(methods[m][0], s, methods[m][1], NULL, &before[m], &err), SL_OK);
+    uint32_t n = sl_scene_object_count(s), ids[8], cnt;
+    sl_oracle o;
+    assert_int_equal(sl_oracle_create(s, NULL, NULL, &o, &err), SL_OK);
+    for (int turned = 0; turned < 2; turned++) {
+        if (turned) {
+            sl_affine t = sl_affine_identity();
+            t.m[0] = -1, t.m[5] = -1, t.m[3] = 10, t.m[7] = 10;
+            sl_aabb b0 = sl_scene_object_bounds(s, l);
+            assert_int_equal(sl_scene_set_object_transform(s, l, &t, &err), SL_OK);
+            sl_aabb b1 = sl_scene_object_bounds(s, l);
+            assert_memory_equal(&b0, &b1, sizeof b0); /* the box is as it was */
+        }
+        sl_oracle_frame fr;
+        assert_int_equal(sl_oracle_render(o, &cam, &fr, &err), SL_OK);
+        bool seen = false;
+        for (uint32_t k = 0; k < fr.visible_count; k++)
+            seen |= fr.visible[k] == probe;
+        assert_true(seen == (turned == 1)); /* hidden by the bar, then in plain view */
+        for (size_t m = 0; m < NMETH; m++)
+            for (int fresh = 0; fresh < 2; fresh++) {
+                sl_culler c = before[m];
+                if (fresh)
+                    assert_int_equal(sl_culler_create(methods[m][0], s, methods[m][1], NULL, &c, &err), SL_OK);
+                else if (turned)
+                    assert_int_equal(sl_culler_scene_changed(c, &err), SL_OK);
+                assert_int_equal(sl_culler_cull(c, &cam, ids, n, &cnt, &err), SL_OK);
+                sl_cull_metrics mt;
+                assert_int_equal(sl_metrics_compare(s, &fr, ids, cnt, &mt, NULL, NULL, 0, &err), SL_OK);
+                if (mt.missed_count)
+                    fail_msg("%s %s (%s, %s the turn): %u missed", methods[m][0], methods[m][1] ? methods[m][1] : "",
+                             fresh ? "created" : "told", turned ? "after" : "before", mt.missed_count);
+                if (fresh)
+                    sl_culler_destroy(c);
+            }
+    }
+    for (size_t m = 0; m < NMETH; m++)
+        sl_culler_destroy(before[m]);
+    sl_oracle_destroy(o);
+    sl_scene_destroy(s);
+}
+
 static void run_city(sl_city_preset preset, uint32_t count, uint32_t walk_frames, city_run out[3])
 {
     sl_city_options co = sl_city_defaults(preset);
@@ -311,6 +393,7 @@ int main(void)
         cmocka_unit_test(test_fusion_overlapping),
         cmocka_unit_test(test_fusion_gap_segment),
         cmocka_unit_test(test_gap_one_cell),
+        cmocka_unit_test(test_moving_occluder),
         cmocka_unit_test(test_cities),
         cmocka_unit_test(test_long),
     };

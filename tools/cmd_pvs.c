@@ -1227,6 +1227,8 @@ static int run_update(int argc, char **argv)
         cli_json_double(&j, "cpu_seconds", us.cpu_seconds);
         cli_json_double(&j, "probe_seconds", us.probe_seconds);
         cli_json_double(&j, "bake_seconds", us.bake_seconds);
+        cli_json_uint(&j, "regions", us.regions);
+        cli_json_uint(&j, "region_rows_copied", us.region_rows_copied);
         cli_json_end(&j);
     } else {
         printf("%s: %u of %u cells re-baked (%.2f%%), method %s (%s)\n", output, us.cells_affected, us.cells,
@@ -1238,6 +1240,9 @@ static int run_update(int argc, char **argv)
                us.cells_by_set, us.cells_by_probe);
         printf("  %.2f s (%.2f s CPU): probe %.2f s, method preparation %.2f s, re-bake %.2f s\n", us.seconds,
                us.cpu_seconds, us.probe_seconds, us.prepare_seconds, us.bake_seconds);
+        if (us.regions)
+            printf("  motion regions: %u nodes; the marks of %u kept cells copied, the others marked again\n", us.regions,
+                   us.region_rows_copied);
     }
     return 0;
 }

@@ -187,6 +187,10 @@ typedef struct sl_pvs_update_stats {
     double probe_cpu_seconds, prepare_cpu_seconds, bake_cpu_seconds; /* the three phases' process CPU time */
     char method[32];
     char options[256];
+    uint32_t regions;           /* motion-region nodes in the output (0: none) */
+    uint32_t region_rows_copied;/* cells whose region marks were copied from the old file (the cells
+                                   kept, when both files hold the same hierarchy); the others are
+                                   marked again */
 } sl_pvs_update_stats;
 
 /* Update the bake `old` of old_scene for new_scene (same view cells) into output: the cells the

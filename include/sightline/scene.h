@@ -281,6 +281,11 @@ SL_API sl_aabb sl_scene_object_bounds(sl_scene scene, uint32_t object);
 /* Contiguous array of all world bounds, object_count entries. */
 SL_API const sl_aabb *sl_scene_object_bounds_array(sl_scene scene);
 SL_API sl_footprint_view sl_scene_footprint(sl_scene scene, uint32_t index);
+/* Does footprint `index` belong to a DYNAMIC object? A footprint stays where it was placed while
+ * its object moves (sl_scene_set_object_transform does not carry it along), so no method occludes
+ * with such a footprint: the online methods use the object's mesh at its current transform
+ * instead, the bakers and `instant` leave it out (docs/motion.md). False for an index out of range. */
+SL_API bool sl_scene_footprint_moves(sl_scene scene, uint32_t index);
 /* The façade of edge `edge` of a footprint as a quad: base a, base b, roof b, roof a
  * (outward normal by the right-hand rule, i.e. CCW seen from outside). */
 SL_API void sl_footprint_facade(const sl_footprint_view *fp, uint32_t edge, sl_vec3 quad[4]);

@@ -210,9 +210,13 @@ void sl_urban_add_outside(const sl_urban_scene *u, const sl_urban_view *v, uint3
     }
 }
 
-/* Footprint validity against the current object boxes. */
+/* Footprint validity against the current object boxes. The footprint of a DYNAMIC object is never
+ * used: footprints stay where they were placed while their object moves, and a motion that keeps
+ * the object's box (a half turn about its centre) would leave a stale prism inside the box
+ * (tests/test_urban_oracle.c, test_moving_occluder; docs/motion.md). */
 static void validate_footprints(sl_urban_scene *u)
 {
+    const sl_object_rec *objs = sl_scene_objects(u->scene);
     for (uint32_t f = 0; f < u->fp_count; f++) {
         sl_urban_fp *fp = &u->fps[f];
         sl_footprint_view v = sl_scene_footprint(u->scene, f);
@@ -221,7 +225,7 @@ static void validate_footprints(sl_urban_scene *u)
             sl_aabb_grow(&prism, (sl_vec3){v.xy[2 * k], v.xy[2 * k + 1], v.base_z});
         prism.max.z = v.roof_z;
         const sl_aabb *ob = fp->object < u->object_count ? &u->boxes[fp->object] : NULL;
-        fp->valid = footprint_valid(fp, &prism, ob);
+        fp->valid = footprint_valid(fp, &prism, ob) && !(ob && (objs[fp->object].flags & SL_OBJECT_DYNAMIC));
         fp->box = prism;
         if (ob)
             sl_aabb_merge(&fp->box, ob);

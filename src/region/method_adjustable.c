@@ -266,6 +266,8 @@ static bool collect_tri(void *user, const GEOSGeometry *poly)
 /* Convex pieces of one footprint appended to s (Hertel-Mehlhorn over GEOS's triangulation). */
 static sl_status decompose(adj_shared *s, sl_geos *g, uint32_t f, sl_array *pieces, sl_array *xy, sl_error *err)
 {
+    if (sl_scene_footprint_moves(s->scene, f)) /* a moving object's footprint: never an occluder */
+        return SL_OK;
     sl_footprint_view fp = sl_scene_footprint(s->scene, f);
     double *ring = sl_alloc(&s->a, 2 * (size_t)fp.vertex_count * sizeof(double));
     if (!ring)

@@ -411,6 +411,8 @@ static sl_status add_merged(xp_shared *s, sl_geos *g, sl_array *pieces, sl_array
 
 static sl_status add_footprint(xp_shared *s, sl_geos *g, uint32_t f, sl_array *pieces, sl_array *xy, sl_error *err)
 {
+    if (sl_scene_footprint_moves(s->scene, f)) /* a moving object's footprint: never an occluder */
+        return SL_OK;
     sl_footprint_view fp = sl_scene_footprint(s->scene, f);
     xp_build b = {.s = s, .pieces = pieces, .xy = xy, .base = fp.base_z, .roof = fp.roof_z, .g = g};
     double *ring = sl_alloc(&s->a, 2 * (size_t)fp.vertex_count * sizeof(double));

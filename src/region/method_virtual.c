@@ -213,8 +213,8 @@ static sl_status decompose(virt_shared *s, uint32_t f, sl_array *pieces, sl_arra
 {
     sl_footprint_view fp = sl_scene_footprint(s->scene, f);
     uint32_t n = fp.vertex_count;
-    if (n < 3 || !(fp.roof_z > fp.base_z))
-        return SL_OK;
+    if (n < 3 || !(fp.roof_z > fp.base_z) || sl_scene_footprint_moves(s->scene, f))
+        return SL_OK; /* (a moving object's footprint is never an occluder) */
     size_t nn = (size_t)n;
     sl_dvec2 *q = sl_alloc(&s->a, nn * sizeof *q);
     uint32_t *work = sl_alloc(&s->a, nn * sizeof *work);

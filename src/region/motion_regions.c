@@ -167,10 +167,32 @@ static sl_status mark_cell(void *w, uint32_t cell, const sl_pvs_region *n, uint3
     return SL_OK;
 }
 
+/* Does old hold exactly these nodes? */
+static bool same_tree(sl_pvs old, const sl_pvs_region *n, uint32_t count)
+{
+    if (!old || sl_pvs_region_count(old) != count)
+        return false;
+    const sl_pvs_region *o = sl_pvs_region_nodes(old);
+    for (uint32_t i = 0; i < count; i++)
+        if (memcmp(&o[i].box, &n[i].box, sizeof n[i].box) || o[i].first_child != n[i].first_child ||
+            o[i].child_count != n[i].child_count || o[i].parent != n[i].parent)
+            return false;
+    return true;
+}
+
 sl_status sl_motion_regions_bake(sl_scene scene, sl_viewcells cells, const char *probe_options, uint32_t threads,
                                  const sl_allocator *a, sl_motion_regions *out, sl_error *err)
 {
+    uint32_t copied;
+    return sl_motion_regions_update(scene, cells, probe_options, threads, NULL, NULL, a, out, &copied, err);
+}
+
+sl_status sl_motion_regions_update(sl_scene scene, sl_viewcells cells, const char *probe_options, uint32_t threads,
+                                   sl_pvs old, const uint8_t *keep, const sl_allocator *a, sl_motion_regions *out,
+                                   uint32_t *copied, sl_error *err)
+{
     memset(out, 0, sizeof *out);
+    *copied = 0;
     sl_status st = build_tree(scene, a, &out->nodes, &out->count, err);
     if (st != SL_OK || out->count == 0)
         return st;
@@ -178,6 +200,14 @@ sl_status sl_motion_regions_bake(sl_scene scene, sl_viewcells cells, const char 
     const size_t rb = ((size_t)nn + 7) / 8;
     out->rows_size = (size_t)nc * rb + 1;
     out->rows = sl_calloc(a, out->rows_size, 1);
+    if (!keep || !same_tree(old, out->nodes, nn) || sl_viewcells_count(sl_pvs_cells(old)) != nc)
+        keep = NULL;
+    if (keep && out->rows)
+        for (uint32_t c = 0; c < nc; c++)
+            if (keep[c]) {
+                memcpy(out->rows + (size_t)c * rb, sl_pvs_region_row(old, c), rb);
+                (*copied)++;
+            }
     const uint32_t nf = sl_scene_footprint_count(scene);
     uint8_t *use = sl_alloc(a, (size_t)nf + 1);
     sl_aabb *boxes = sl_alloc(a, (size_t)nn * sizeof *boxes);
@@ -212,7 +242,7 @@ sl_status sl_motion_regions_bake(sl_scene scene, sl_viewcells cells, const char 
                                              : sl_fail(&terr, SL_ERROR_OUT_OF_MEMORY, "motion regions: out of memory");
 #pragma omp for schedule(dynamic, 4)
         for (uint32_t cell = 0; cell < nc; cell++) {
-            if (stop || ts != SL_OK)
+            if (stop || ts != SL_OK || (keep && keep[cell]))
                 continue;
             ts = mark_cell(w, cell, out->nodes, nn, front, seen, out->rows + (size_t)cell * rb, &terr);
         }

@@ -18,6 +18,13 @@ typedef struct sl_motion_regions {
  * without motion records gives count 0 and no allocation. Free with sl_motion_regions_free. */
 sl_status sl_motion_regions_bake(sl_scene scene, sl_viewcells cells, const char *probe_options, uint32_t threads,
                                  const sl_allocator *a, sl_motion_regions *out, sl_error *err);
+/* The same, taking the row of each cell c with keep[c] set from `old` (a file of the same cells)
+ * when old holds exactly the hierarchy built now; otherwise every cell is marked. *copied receives
+ * the cells whose rows were taken (pvs_update.c: the cells whose every sight line into the edit
+ * is blocked see the regions as before). */
+sl_status sl_motion_regions_update(sl_scene scene, sl_viewcells cells, const char *probe_options, uint32_t threads,
+                                   sl_pvs old, const uint8_t *keep, const sl_allocator *a, sl_motion_regions *out,
+                                   uint32_t *copied, sl_error *err);
 void sl_motion_regions_free(const sl_allocator *a, sl_motion_regions *r);
 
 #endif

@@ -577,8 +577,9 @@ sl_status sl_bake_finish(sl_bake *b, const char *output, const sl_pvs_build_opti
     sl_motion_regions mr = {0};
     if (st == SL_OK && !(opt && opt->no_regions)) {
         double t0 = sl_now();
-        st = sl_motion_regions_bake(b->scene, b->cells, !strcmp(b->method->name, "adjustable") ? b->effective : NULL,
-                                    opt ? opt->threads : 0, b->a, &mr, err);
+        st = sl_motion_regions_update(b->scene, b->cells, !strcmp(b->method->name, "adjustable") ? b->effective : NULL,
+                                      opt ? opt->threads : 0, b->region_old, b->region_keep, b->a, &mr,
+                                      &b->region_copied, err);
         b->region_seconds = sl_now() - t0;
         b->regions = mr.count;
     }

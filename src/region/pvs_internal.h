@@ -110,6 +110,11 @@ typedef struct sl_bake {
     /* motion regions, marked by finish (writer only) */
     uint32_t regions;
     double region_seconds;
+    /* set by an update before finish: the rows of the cells with region_keep[c] come from
+     * region_old (when it holds the same hierarchy); region_copied receives how many did */
+    sl_pvs region_old;
+    const uint8_t *region_keep;
+    uint32_t region_copied;
 } sl_bake;
 
 sl_status sl_bake_begin(sl_bake *b, sl_scene scene, sl_viewcells cells, const char *output,

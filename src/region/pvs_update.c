@@ -625,12 +625,25 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
         st.bake_seconds = sl_now() - tr;
         st.bake_cpu_seconds = cpu_now() - trc;
         st.cell_seconds = cell_seconds;
-        if (s == SL_OK)
+        /* the motion regions: a kept cell keeps its row too, by the same argument (every sight line
+         * from it into the zone is blocked by occluders that did not change) */
+        uint8_t *keep = s == SL_OK ? sl_alloc(a, (size_t)nc + 1) : NULL;
+        if (s == SL_OK && !keep)
+            s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+        if (s == SL_OK) {
+            for (uint32_t cell = 0; cell < nc; cell++)
+                keep[cell] = !affected[cell];
+            b.region_old = old;
+            b.region_keep = keep;
             s = sl_bake_finish(&b, output, &bo, err);
-        else if (b.writer)
+            st.regions = b.regions;
+            st.region_rows_copied = b.region_copied;
+        } else if (b.writer)
             sl_bake_note_kept(&b, err);
         if (todo)
             sl_free(a, todo, ((size_t)nc + 1) * sizeof *todo);
+        if (keep)
+            sl_free(a, keep, (size_t)nc + 1);
         sl_bake_end(&b);
     }
     sl_free(a, affected, (size_t)nc + 1);

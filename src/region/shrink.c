@@ -273,6 +273,10 @@ sl_status sl_shrink_footprints(sl_scene scene, float eps, sl_shrink_mode mode, b
         info[f].id = f;
         info[f].x0 = info[f].y0 = INFINITY;
         info[f].x1 = info[f].y1 = -INFINITY;
+        /* a moving object's footprint is left out: no geometry, an empty box (it meets no other
+         * footprint in the sweep), no group of its own below */
+        if (sl_scene_footprint_moves(scene, f))
+            continue;
         for (uint32_t i = 0; i < fp.vertex_count; i++) {
             double x = fp.xy[2 * i], y = fp.xy[2 * i + 1];
             info[f].x0 = fmin(info[f].x0, x), info[f].x1 = fmax(info[f].x1, x);
@@ -316,7 +320,7 @@ sl_status sl_shrink_footprints(sl_scene scene, float eps, sl_shrink_mode mode, b
     /* each group, in the order of its lowest footprint: one layer per distinct roof height, the
      * union of the members at least that high, eroded (the level sets of the height-field erosion) */
     for (uint32_t root = 0; root < nf && st == SL_OK; root++) {
-        if (uf_find(parent, root) != root)
+        if (uf_find(parent, root) != root || !geo[root])
             continue;
         uint32_t nm = 0;
         for (uint32_t f = root; f < nf; f++)
@@ -386,6 +390,8 @@ sl_status sl_shrink_footprints(sl_scene scene, float eps, sl_shrink_mode mode, b
             GEOSGeom_destroy_r(g.h, acc);
     }
     for (uint32_t f = 0; f < nf && st == SL_OK; f++) {
+        if (sl_scene_footprint_moves(scene, f))
+            continue; /* left out, neither kept nor vanished */
         if (alive[f]) {
             s->stats.kept++;
         } else {

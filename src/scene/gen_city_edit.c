@@ -229,6 +229,10 @@ sl_status sl_city_edit(sl_scene scene, const sl_city_edit_options *opt, const sl
         const char *name = sl_scene_object_name(scene, o);
         if (st == SL_OK && name && name[0])
             st = sl_scene_set_object_name(dst, new_id[o], name, err);
+        /* an untouched object keeps its motion record (the cars: docs/motion.md) */
+        sl_object_motion m;
+        if (st == SL_OK && what[o] == 0 && sl_scene_object_motion(scene, o, &m))
+            st = sl_scene_set_object_motion(dst, new_id[o], &m, err);
     }
     for (uint32_t f = 0; st == SL_OK && f < nf; f++) {
         sl_footprint_view v = sl_scene_footprint(scene, f);

@@ -839,6 +839,14 @@ sl_footprint_view sl_scene_footprint(sl_scene s, uint32_t index)
     return v;
 }
 
+bool sl_scene_footprint_moves(sl_scene s, uint32_t index)
+{
+    if (!s || index >= s->footprints.count)
+        return false;
+    uint32_t o = SL_AT(s->footprints, sl_footprint_rec, index).object;
+    return o < s->objects.count && (SL_AT(s->objects, sl_object_rec, o).flags & SL_OBJECT_DYNAMIC) != 0;
+}
+
 void sl_footprint_facade(const sl_footprint_view *fp, uint32_t edge, sl_vec3 quad[4])
 {
     uint32_t i = edge % fp->vertex_count, j = (i + 1) % fp->vertex_count;

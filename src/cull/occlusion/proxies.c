@@ -56,6 +56,10 @@ static sl_status add_prism(sl_occ_set *s, build_ctx *b, uint32_t fi, sl_dvec2 *w
         return SL_OK;
     if (fp.object != SL_NONE && fp.object >= s->object_count)
         return SL_OK;
+    /* a DYNAMIC object's footprint stays where it was placed while the object moves: never a
+     * prism (the object occludes by its own mesh, at its current transform) */
+    if (fp.object != SL_NONE && (sl_scene_objects(s->scene)[fp.object].flags & SL_OBJECT_DYNAMIC))
+        return SL_OK;
     for (uint32_t i = 0; i < n; i++)
         work_p[i] = (sl_dvec2){fp.xy[2 * i], fp.xy[2 * i + 1]};
     /* the largest inset up to the option that can be certified, halving down to 1 cm */
