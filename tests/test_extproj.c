@@ -18,6 +18,7 @@
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
+#include "support/box_cell.h"
 #include "support/box_mesh.h"
 
 static char g_dir[256];
@@ -40,22 +41,6 @@ static uint32_t add_building(sl_scene s, float x0, float y0, float x1, float y1,
     sl_footprint_desc fd = {xy, 4, 0, h, obj};
     assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
     return obj;
-}
-
-/* The view cell: x, y in [-1, 1], eyes 1 to 2 m up. */
-static sl_viewcells one_cell(void)
-{
-    sl_viewcell c;
-    memset(&c, 0, sizeof c);
-    c.shape = SL_CELL_BOX;
-    c.cluster = -1;
-    c.z_min = 1;
-    c.z_max = 2;
-    c.bounds = (sl_aabb){{-1, -1, 1}, {1, 1, 2}};
-    sl_viewcells vc;
-    sl_error err;
-    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
-    return vc;
 }
 
 static bool in_set(const uint32_t *ids, uint32_t n, uint32_t id)
@@ -112,7 +97,7 @@ static sl_scene new_scene(void)
 static void test_wall(void **state)
 {
     (void)state;
-    sl_viewcells vc = one_cell();
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     bool seen;
     sl_scene s = new_scene();
     add_building(s, -40, 10, 40, 12, 20);
@@ -161,7 +146,7 @@ static void test_wall(void **state)
 static void test_fusion(void **state)
 {
     (void)state;
-    sl_viewcells vc = one_cell();
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     bool seen;
     sl_scene s = new_scene();
     add_building(s, -40, 10, 1, 12, 20);
@@ -205,7 +190,7 @@ static void test_fusion(void **state)
 static void test_union_is_wrong_for_occluders(void **state)
 {
     (void)state;
-    sl_viewcells vc = one_cell();
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     bool seen;
     sl_scene s = new_scene();
     add_building(s, -0.4f, 10, 0.4f, 11, 20);
@@ -319,7 +304,7 @@ static void test_refusal(void **state)
     (void)state;
     sl_scene s = new_scene();
     add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
-    sl_viewcells vc = one_cell();
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     uint32_t ids[4], count;
     sl_error err;
     assert_int_equal(sl_pvs_bake_cell(s, vc, 0, "extproj", NULL, ids, 4, &count, &err), SL_ERROR_UNSUPPORTED);

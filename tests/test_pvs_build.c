@@ -23,6 +23,7 @@
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
+#include "support/box_cell.h"
 #include "support/box_mesh.h"
 #include "support/counting_alloc.h"
 
@@ -47,21 +48,6 @@ static uint32_t add_building(sl_scene s, float x0, float y0, float x1, float y1,
     sl_footprint_desc fd = {xy, 4, 0, h, obj};
     assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
     return obj;
-}
-
-static sl_viewcells one_box_cell(float x0, float y0, float x1, float y1)
-{
-    sl_viewcell c;
-    memset(&c, 0, sizeof c);
-    c.shape = SL_CELL_BOX;
-    c.cluster = -1;
-    c.z_min = 1;
-    c.z_max = 2;
-    c.bounds = (sl_aabb){{x0, y0, 1}, {x1, y1, 2}};
-    sl_viewcells vc;
-    sl_error err;
-    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
-    return vc;
 }
 
 static bool in_set(const uint32_t *ids, uint32_t n, uint32_t id)
@@ -116,7 +102,7 @@ static void test_fusion(void **state)
     /* prefilter off: the cases test the cull maps' fusion, not the adjustable method's */
     const char *opts = "eps=0.5,cell=0.5,map=64,prefilter=false";
     sl_error err;
-    sl_viewcells vc = one_box_cell(-1, -1, 1, 1);
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
 
     /* (a) connected occluders: two buildings sharing a wall at x = 0; the target behind the joint is
      * hidden by neither alone, by their union yes (merge=true shrinks them as one block) */
@@ -608,7 +594,7 @@ static void test_adjustable_horizon(void **state)
 {
     (void)state;
     sl_error err;
-    sl_viewcells vc = one_box_cell(-1, -1, 1, 1);
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     sl_scene s;
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     add_building(s, -40, 10, 0, 12, 20);

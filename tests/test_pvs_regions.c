@@ -27,6 +27,7 @@
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
+#include "support/box_cell.h"
 #include "support/box_mesh.h"
 #include "support/counting_alloc.h"
 
@@ -56,7 +57,7 @@ static uint32_t add_car(sl_scene s, float x0, float y0, float run, float speed)
                                    SL_OBJECT_DYNAMIC | SL_OBJECT_CLOSED_CONVEX);
     assert_int_not_equal(car, SL_NONE);
     sl_object_motion m = {.max_speed = speed,
-                          .region = {{x0 - 0.5f, y0 - 0.5f, -0.5f}, {x0 + 4 + run + 0.5f, y0 + 2.5f, 2}},
+                          .region = {{x0 - 0.5f, y0 - 0.5f, 0}, {x0 + 4 + run + 0.5f, y0 + 2.5f, 2}},
                           .has_path = true,
                           .path_base = sl_affine_identity(),
                           .from = {0, 0, 0},
@@ -65,21 +66,6 @@ static uint32_t add_car(sl_scene s, float x0, float y0, float run, float speed)
                           .phase = 0};
     assert_int_equal(sl_scene_set_object_motion(s, car, &m, &err), SL_OK);
     return car;
-}
-
-static sl_viewcells box_cell(float x0, float y0, float x1, float y1)
-{
-    sl_viewcell c;
-    memset(&c, 0, sizeof c);
-    c.shape = SL_CELL_BOX;
-    c.cluster = -1;
-    c.z_min = 1;
-    c.z_max = 2;
-    c.bounds = (sl_aabb){{x0, y0, 1}, {x1, y1, 2}};
-    sl_viewcells vc;
-    sl_error err;
-    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
-    return vc;
 }
 
 static bool has(const uint32_t *ids, uint32_t n, uint32_t id)
@@ -101,7 +87,7 @@ static void test_lanes(void **state)
     add_building(s, -80, 10, 80, 14, 20);
     uint32_t hidden = add_car(s, -30, 30, 50, 10);
     uint32_t open = add_car(s, -30, 5, 50, 10);
-    sl_viewcells vc = box_cell(-2, -2, 2, 2);
+    sl_viewcells vc = sl_test_box_cell(-2, -2, 2, 2);
     char file[300];
     path_of(file, sizeof file, "lanes.slpvs");
     sl_pvs_build_options bo;
@@ -216,7 +202,7 @@ static void test_moving_wall_not_baked(void **state)
         assert_true(sl_scene_footprint_moves(s, 0) == (dynamic == 1));
         uint32_t behind = sl_test_add_box(s, (sl_vec3){-2, 30, 0}, (sl_vec3){2, 32, 3}, SL_KIND_BUILDING,
                                           SL_OBJECT_CLOSED_CONVEX);
-        sl_viewcells vc = box_cell(-2, -2, 2, 2);
+        sl_viewcells vc = sl_test_box_cell(-2, -2, 2, 2);
         uint32_t ids[4], cnt;
         for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
             assert_int_equal(sl_pvs_bake_cell(s, vc, 0, methods[m], NULL, ids, 4, &cnt, &err), SL_OK);

@@ -21,6 +21,7 @@
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 #include "sightline/truth.h"
+#include "support/box_cell.h"
 #include "support/box_mesh.h"
 
 static char g_dir[256];
@@ -43,21 +44,6 @@ static uint32_t add_building(sl_scene s, float x0, float y0, float x1, float y1,
     sl_footprint_desc fd = {xy, 4, 0, h, obj};
     assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
     return obj;
-}
-
-static sl_viewcells one_box_cell(float x0, float y0, float x1, float y1)
-{
-    sl_viewcell c;
-    memset(&c, 0, sizeof c);
-    c.shape = SL_CELL_BOX;
-    c.cluster = -1;
-    c.z_min = 1;
-    c.z_max = 2;
-    c.bounds = (sl_aabb){{x0, y0, 1}, {x1, y1, 2}};
-    sl_viewcells vc;
-    sl_error err;
-    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
-    return vc;
 }
 
 static bool in_set(const uint32_t *ids, uint32_t n, uint32_t id)
@@ -124,7 +110,7 @@ static void test_fusion(void **state)
 {
     (void)state;
     sl_error err;
-    sl_viewcells vc = one_box_cell(-1, -1, 1, 1);
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     sl_scene s;
     bool seen;
     /* each alone: kept (and seen) */
@@ -173,7 +159,7 @@ static void test_refusal(void **state)
     assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
     add_box(s, -40, 10, 0, 40, 12, 20, SL_KIND_OTHER);
     add_box(s, -3, 30, 0, 3, 31, 3, SL_KIND_OTHER);
-    sl_viewcells vc = one_box_cell(-1, -1, 1, 1);
+    sl_viewcells vc = sl_test_box_cell(-1, -1, 1, 1);
     uint32_t ids[2], count;
     assert_int_equal(sl_pvs_bake_cell(s, vc, 0, "virtual", NULL, ids, 2, &count, &err), SL_ERROR_UNSUPPORTED);
     assert_non_null(strstr(err.message, "no building footprints"));

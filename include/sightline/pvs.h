@@ -109,6 +109,8 @@ typedef struct sl_pvs_regions {
     const uint8_t *visible;
 } sl_pvs_regions;
 #define SL_PVS_MAX_REGIONS (1u << 20)
+/* At most this many bytes of marks (cells x ((count + 7) / 8)): the reader's bound on one decoded block. */
+#define SL_PVS_MAX_REGION_MARK_BYTES (1u << 28)
 
 /* sl_pvs_write, with motion regions (regions NULL or count 0: none, a file of format 1.1, byte for
  * byte what sl_pvs_write writes). The hierarchy and rows are checked as the reader checks them. */

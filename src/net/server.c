@@ -77,6 +77,12 @@ typedef struct client {
     outmsg *writing;
     uv_write_t wreq;
     bool closing, closed;
+    /* a refusal (client_refuse): the error queued, then a shutdown, the client's bytes read and
+     * dropped until it closes or the linger timer fires */
+    bool refusing, counted, linger_open;
+    uv_timer_t linger;
+    uv_shutdown_t sreq;
+    int handles; /* open libuv handles (tcp, linger): freed when the last one has closed */
     size_t mem, mem_peak;
 } client;
 
@@ -120,6 +126,7 @@ struct sl_vis_server_t {
     uint16_t port;
     client *clients;
     uint32_t client_count;
+    uint32_t lingering; /* refused clients not yet closed (client_refuse) */
     /* jobs: loop -> workers */
     pthread_mutex_t mu;
     pthread_cond_t cv;
@@ -421,11 +428,18 @@ static void *worker_main(void *arg)
 /* ---- the loop: clients ---- */
 
 static void client_close(client *c);
+static void uncount(client *c);
+static void drop_queue(client *c);
+static void on_alloc(uv_handle_t *h, size_t suggested, uv_buf_t *buf);
+static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf);
+static void pump(client *c);
 
 static void on_closed(uv_handle_t *h)
 {
     client *c = h->data;
     server *s = c->srv;
+    if (--c->handles > 0)
+        return;
     c->closed = true;
     if (c->busy)
         return; /* freed when its job comes back */
@@ -446,11 +460,31 @@ static void client_close(client *c)
         s->clients = c->next;
     if (c->next)
         c->next->prev = c->prev;
+    if (c->counted)
+        uncount(c);
+    s->lingering -= c->refusing;
+    drop_queue(c);
+    if (c->linger_open) {
+        uv_timer_stop(&c->linger);
+        uv_close((uv_handle_t *)&c->linger, on_closed);
+    }
+    uv_close((uv_handle_t *)&c->tcp, on_closed);
+}
+
+/* The client no longer counts among the clients (closed, or refused and lingering). */
+static void uncount(client *c)
+{
+    server *s = c->srv;
+    c->counted = false;
     s->client_count--;
     pthread_mutex_lock(&s->stats_mu);
     s->stats.clients = s->client_count;
     pthread_mutex_unlock(&s->stats_mu);
-    /* unsent messages go now; the one being written goes in its callback (ECANCELED) */
+}
+
+/* Unsent messages go now; the one being written goes in its callback (ECANCELED, or written). */
+static void drop_queue(client *c)
+{
     while (c->q_head) {
         outmsg *m = c->q_head;
         c->q_head = m->next;
@@ -458,23 +492,68 @@ static void client_close(client *c)
     }
     c->q_tail = NULL;
     c->q_sets = 0;
-    uv_close((uv_handle_t *)&c->tcp, on_closed);
 }
 
-/* Say why (best effort: what fits into the socket now) and close. */
+static void on_linger(uv_timer_t *t) { client_close(t->data); }
+
+/* The refusal is written and the sending side shut: wait for the client's end (on_read). */
+static void on_shutdown(uv_shutdown_t *req, int status)
+{
+    client *c = req->data;
+    if (status < 0 && !c->closing)
+        client_close(c);
+}
+
+/* Say why and close, so that the reason arrives: closing a socket with the client's bytes still
+ * unread makes the kernel reset the connection, and the client may see the reset before the
+ * error. So the error is queued behind the message being written (whatever else was queued is
+ * dropped), the sending side is shut once it is out (on_written), and the client's bytes are
+ * read and dropped until it closes, at most SL_NET_LINGER_MS. A refused client no longer counts
+ * among the clients; past SL_NET_LINGERING_MAX lingering ones (a flood of bad clients), the
+ * refusal is a plain close. */
+#define SL_NET_LINGER_MS 2000
+#define SL_NET_LINGERING_MAX 64u
 static void client_refuse(client *c, uint16_t code, const char *text)
 {
-    uint8_t buf[SLVP_LEN_BYTES + 5 + SLVP_ERROR_TEXT_MAX];
-    size_t n = slvp_write_error(buf, code, text);
-    if (!c->writing) {
-        uv_buf_t b = uv_buf_init((char *)buf, (unsigned)n);
-        if (uv_try_write((uv_stream_t *)&c->tcp, &b, 1) > 0)
-            stat_add(c->srv, &c->srv->stats.bytes_out, n);
+    server *s = c->srv;
+    if (c->closing || c->refusing)
+        return;
+    drop_queue(c);
+    c->has_pending = false;
+    c->rlen = 0; /* what was read is dropped (on_read stops at the refusing message) */
+    outmsg *m = s->lingering < SL_NET_LINGERING_MAX ? msg_new(c, NULL) : NULL;
+    if (!m || uv_timer_init(&s->loop, &c->linger) != 0) {
+        if (m)
+            msg_free(c, m);
+        client_close(c);
+        return;
     }
-    client_close(c);
+    c->linger.data = c;
+    c->linger_open = true;
+    c->handles++;
+    c->refusing = true;
+    s->lingering++;
+    uncount(c);
+    m->head_len = slvp_write_error(m->head, code, text);
+    uv_timer_start(&c->linger, on_linger, SL_NET_LINGER_MS, 0);
+    int rc = uv_read_start((uv_stream_t *)&c->tcp, on_alloc, on_read);
+    if (rc != 0 && rc != UV_EALREADY) {
+        msg_free(c, m);
+        client_close(c);
+        return;
+    }
+    c->q_head = c->q_tail = m;
+    pump(c);
 }
 
-static void pump(client *c);
+/* After the last write of a refusal: shut the sending side. */
+static void refusal_sent(client *c)
+{
+    c->sreq.data = c;
+    if (uv_shutdown(&c->sreq, (uv_stream_t *)&c->tcp, on_shutdown) != 0)
+        client_close(c);
+}
+
 
 static void on_written(uv_write_t *req, int status)
 {
@@ -494,6 +573,10 @@ static void on_written(uv_write_t *req, int status)
     }
     if (status < 0) {
         client_close(c);
+        return;
+    }
+    if (c->refusing && !c->q_head) {
+        refusal_sent(c);
         return;
     }
     pump(c);
@@ -554,7 +637,7 @@ static void enqueue(client *c, outmsg *m)
 static void submit(client *c)
 {
     server *s = c->srv;
-    if (c->busy || !c->has_pending || c->closing)
+    if (c->busy || !c->has_pending || c->closing || c->refusing)
         return;
     c->busy = true;
     c->has_pending = false;
@@ -580,7 +663,7 @@ static void job_done(client *c)
         net_free(s->alloc, c, sizeof *c);
         return;
     }
-    if (c->closing) {
+    if (c->closing || c->refusing) {
         blob_release(s, c->job_result);
         return;
     }
@@ -738,6 +821,10 @@ static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf)
         client_close(c); /* EOF or error; a partial message in rbuf goes with it */
         return;
     }
+    if (c->refusing) { /* read and dropped (client_refuse) */
+        c->rlen = 0;
+        return;
+    }
     stat_add(c->srv, &c->srv->stats.bytes_in, (uint64_t)nread);
     c->rlen += (size_t)nread;
     size_t off = 0;
@@ -771,6 +858,7 @@ static void on_connection(uv_stream_t *l, int status)
     c->srv = s;
     uv_tcp_init(&s->loop, &c->tcp);
     c->tcp.data = c;
+    c->handles = 1;
     client_mem(c, (ptrdiff_t)sizeof *c);
     if (uv_accept(l, (uv_stream_t *)&c->tcp) != 0) {
         c->closing = true;
@@ -787,6 +875,7 @@ static void on_connection(uv_stream_t *l, int status)
         s->clients->prev = c;
     s->clients = c;
     s->client_count++;
+    c->counted = true;
     c->tokens = s->max_rate_hz;
     c->token_time = net_now();
     pthread_mutex_lock(&s->stats_mu);

@@ -326,9 +326,9 @@ static sl_status encode_regions(const sl_allocator *a, const sl_pvs_regions *r, 
     if (!regions_check(r->nodes, r->count, &bad, why, sizeof why))
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write_regions: region %u: %s", bad, why);
     const size_t rb = region_row_bytes(r->count);
-    if ((uint64_t)nc * rb > PVS_MAX_RAW)
+    if ((uint64_t)nc * rb > SL_PVS_MAX_REGION_MARK_BYTES)
         return sl_fail(err, SL_ERROR_LIMIT, "sl_pvs_write_regions: %u cells of %u regions make %llu bytes of marks (at most %u)",
-                       nc, r->count, (unsigned long long)nc * rb, PVS_MAX_RAW);
+                       nc, r->count, (unsigned long long)nc * rb, SL_PVS_MAX_REGION_MARK_BYTES);
     for (uint32_t c = 0; c < nc; c++)
         if (!region_row_check(r->nodes, r->count, r->visible + (size_t)c * rb, &bad, why, sizeof why))
             return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_pvs_write_regions: cell %u: %s", c, why);

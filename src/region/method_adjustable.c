@@ -64,6 +64,7 @@ typedef struct adj_config {
 typedef struct piece {
     uint32_t first, count; /* vertices in xy, counter-clockwise, convex */
     double roof;
+    double base;           /* the footprint's base_z (see cell_floor) */
 } piece;
 
 /* Two pieces whose boundaries share the stretch s (x0, y0, x1, y1). */
@@ -88,6 +89,8 @@ typedef struct adj_shared {
     touch *touches;        /* sorted by (from, to) */
     size_t touch_cap;
     double *edge_sc;   /* sin, cos of every bin edge's azimuth (bins + 1 pairs) */
+    double *bases;     /* the distinct piece bases, ascending (nbase of them; cell_floor) */
+    uint32_t nbase;
     double log_split;  /* log(cfg.split) */
     /* the probe only (sl_adj_probe_*): the boxes tested, and a bucket grid of the pieces */
     sl_aabb *probe_boxes;
@@ -179,6 +182,7 @@ static void adj_release(void *p)
     sl_free(&s->a, s->touch_start, s->touch_start ? ((size_t)s->npiece + 1) * sizeof(uint32_t) : 0);
     sl_free(&s->a, s->touches, s->touch_cap * sizeof(touch));
     sl_free(&s->a, s->edge_sc, s->edge_sc ? 2 * ((size_t)s->cfg.bins + 1) * sizeof(double) : 0);
+    sl_free(&s->a, s->bases, s->bases ? ((size_t)s->npiece + 1) * sizeof(double) : 0);
     sl_free(&s->a, s->xy, (s->nxy + 1) * sizeof(double));
     sl_free(&s->a, s->probe_boxes, s->probe_boxes ? ((size_t)s->nobj + 1) * sizeof(sl_aabb) : 0);
     sl_free(&s->a, s->gstart, s->gstart ? ((size_t)s->gnx * s->gny + 1) * sizeof(uint32_t) : 0);
@@ -276,7 +280,7 @@ static sl_status decompose(adj_shared *s, sl_geos *g, uint32_t f, sl_array *piec
         ring[i] = fp.xy[i];
     sl_status st = SL_OK;
     if (convex_ccw(ring, fp.vertex_count)) {
-        piece pc = {(uint32_t)(xy->count / 2), fp.vertex_count, fp.roof_z};
+        piece pc = {(uint32_t)(xy->count / 2), fp.vertex_count, fp.roof_z, fp.base_z};
         if (!sl_array_push(&s->a, xy, sizeof(double), ring, 2 * (size_t)fp.vertex_count) ||
             !sl_array_push(&s->a, pieces, sizeof pc, &pc, 1))
             st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
@@ -332,7 +336,7 @@ static sl_status decompose(adj_shared *s, sl_geos *g, uint32_t f, sl_array *piec
         for (uint32_t t = 0; t < nt && st == SL_OK; t++) {
             if (!cnt[t])
                 continue;
-            piece pc = {(uint32_t)(xy->count / 2), cnt[t], fp.roof_z};
+            piece pc = {(uint32_t)(xy->count / 2), cnt[t], fp.roof_z, fp.base_z};
             if (!sl_array_push(&s->a, xy, sizeof(double), slot + (size_t)t * maxv * 2, 2 * (size_t)cnt[t]) ||
                 !sl_array_push(&s->a, pieces, sizeof pc, &pc, 1))
                 st = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
@@ -502,6 +506,36 @@ oom:
 }
 
 /* The method's preparation over the footprints f with use[f] (all when use is NULL). */
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Footprints that do not reach down to the ground. The horizon treats a piece as a wall from the
+ * ground up to its roof (and the eyes at the cell's top as the ones that see most), which holds
+ * only for sight lines that pass it above its base. Every sight line from an eye at height zE to
+ * a point at height zX runs at or above min(zE, zX), so a piece of base B is safe for every line
+ * from the cell to an object when B <= the cell's lowest eye and B <= the object's lowest point.
+ * Per cell: zfloor, the lowest eye; the pieces used are those of base <= zfloor (a piece above
+ * it, a bridge or an overhang the eye may pass under, hides nothing), and tb, the highest base
+ * among them: an object whose box goes below tb is never tested (kept), every other object lies
+ * wholly above every piece's base. In a city on flat ground every base is 0 and tb = 0. */
+static double cell_floor(const adj_shared *s, const sl_viewcell *vc, double *tb)
+{
+    const double zfloor = fmin((double)vc->z_min, (double)vc->bounds.min.z);
+    uint32_t lo = 0, hi = s->nbase; /* the first base above zfloor */
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (s->bases[mid] <= zfloor)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    *tb = lo ? s->bases[lo - 1] : -INFINITY;
+    return zfloor;
+}
+
 static sl_status adj_prepare_some(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
                                   const uint8_t *use, void **shared, uint64_t *removed, sl_error *err)
 {
@@ -563,6 +597,16 @@ static sl_status adj_prepare_some(sl_scene scene, sl_viewcells cells, const void
         double az = b * (TWO_PI / s->cfg.bins);
         s->edge_sc[2 * b] = sin(az), s->edge_sc[2 * b + 1] = cos(az);
     }
+    if (!(s->bases = sl_alloc(alloc, ((size_t)s->npiece + 1) * sizeof(double)))) {
+        adj_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
+    }
+    for (uint32_t k = 0; k < s->npiece; k++)
+        s->bases[k] = s->pieces[k].base;
+    qsort(s->bases, s->npiece, sizeof(double), cmp_double);
+    for (uint32_t k = 0; k < s->npiece; k++)
+        if (s->nbase == 0 || s->bases[k] != s->bases[s->nbase - 1])
+            s->bases[s->nbase++] = s->bases[k];
     if ((st = find_touching(s, err)) != SL_OK) {
         adj_release(s);
         return st;
@@ -1077,7 +1121,7 @@ static void need_mark(double *need, double lo, double hi, double v)
  * (asin(rc / distance)), distances are moved by rc. This is a speed filter only: a piece left out
  * lowers the horizon, which can only make a disk's set larger, never smaller. */
 static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, double eps, uint32_t nc,
-                              const uint32_t *pin, uint32_t npin)
+                              const uint32_t *pin, uint32_t npin, double zfloor)
 {
     adj_shared *s = w->sh;
     double *need = w->need, all = -INFINITY;
@@ -1102,6 +1146,8 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
     for (uint32_t q = 0; q < nk; q++) {
         const uint32_t k = pin ? pin[q] : q;
         const piece *pc = &s->pieces[k];
+        if (!(pc->base <= zfloor)) /* an eye may pass under it (cell_floor) */
+            continue;
         const double *v = s->xy + 2 * (size_t)pc->first;
         double near = INFINITY;
         for (uint32_t i = 0; i < pc->count; i++)
@@ -1175,9 +1221,15 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
         n = 4;
     }
     const sl_aabb *bb = &vc->bounds;
-    uint32_t nc = s->nobj;
+    double tb;
+    const double zfloor = cell_floor(s, vc, &tb);
+    /* objects reaching below a used piece's base are kept untested, in out->ids (cell_floor) */
+    uint32_t nc = 0, nkept = 0;
     for (uint32_t o = 0; o < s->nobj; o++)
-        w->cand[o] = o;
+        if (s->bounds[o].min.z >= tb)
+            w->cand[nc++] = o;
+        else
+            out->ids[nkept++] = o;
     uint64_t work = 0;
     /* the coarsest level: the first whose single grid square covers the cell's box (a coarser one
      * would only repeat a full pass with a looser disk), at most cfg.levels */
@@ -1199,7 +1251,7 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
         for (size_t i = 0; i < ncen; i++)
             rc = fmax(rc, len2(cen[i][0] - ox, cen[i][1] - oy));
         rc = rc * (1 + 1e-9) + 1e-9;
-        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, NULL, 0);
+        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, NULL, 0, zfloor);
         for (uint32_t i = 0; i < nc; i++)
             w->visible[w->cand[i]] = 0;
         for (size_t i = 0; i < ncen; i++) {
@@ -1220,8 +1272,14 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
                 w->cand[m++] = w->cand[q];
         nc = m;
     }
-    memcpy(out->ids, w->cand, (size_t)nc * sizeof(uint32_t));
-    out->count = nc;
+    /* merge the kept objects (in front, ascending) with the candidates left, from the back */
+    for (uint32_t i = nkept, j = nc, at = nkept + nc; j > 0;) {
+        if (i > 0 && out->ids[i - 1] > w->cand[j - 1])
+            out->ids[--at] = out->ids[--i];
+        else
+            out->ids[--at] = w->cand[--j];
+    }
+    out->count = nkept + nc;
     out->work = work;
     return SL_OK;
 }
@@ -1389,9 +1447,18 @@ static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset,
         top++;
     /* adj_cell's levels, coarse to fine, the boxes a level cannot hide going on to the next: a box
      * hidden at one level (by all its disks, which cover the cell) is hidden from the whole cell */
-    uint32_t nc = nbox;
-    for (uint32_t o = 0; o < nbox; o++)
-        w->cand[o] = subset ? subset[o] : o;
+    /* boxes reaching below a used piece's base are visible untested (cell_floor); they wait at
+     * the end of cand, past what the levels touch */
+    double tb;
+    const double zfloor = cell_floor(s, vc, &tb);
+    uint32_t nc = 0, nkept = 0;
+    for (uint32_t o = 0; o < nbox; o++) {
+        uint32_t id = subset ? subset[o] : o;
+        if (s->bounds[id].min.z >= tb)
+            w->cand[nc++] = id;
+        else
+            w->cand[nbox - ++nkept] = id;
+    }
     for (int level = top; level >= 0 && nc > 0; level--) {
         const double eps = s->cfg.eps * ldexp(1.0, level);
         if (!level_centres(w, poly, n, bb, eps))
@@ -1429,7 +1496,7 @@ static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset,
                     }
                 }
             }
-        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, w->pin, npin);
+        uint32_t npl = filter_pieces(w, ox, oy, rc, eps, nc, w->pin, npin, zfloor);
         for (uint32_t q = 0; q < nc; q++)
             w->visible[w->cand[q]] = 0;
         for (size_t i = 0; i < ncen; i++) {
@@ -1448,7 +1515,8 @@ static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset,
                 w->cand[m++] = w->cand[q];
         nc = m;
     }
-    *left = nc;
+    memmove(w->cand + nc, w->cand + (nbox - nkept), (size_t)nkept * sizeof(uint32_t));
+    *left = nc + nkept;
     return SL_OK;
 }
 

@@ -15,7 +15,10 @@
  * the whole cell). Testing top down, a frontier at a time, gave the same marks but took 2.6 times
  * as long on the small city (105 s against 41 s for 14843 cells and 555 nodes): a pass of the
  * probe costs more than the boxes it could skip. The occluders are the footprints of the
- * objects that do not move (a footprint of a DYNAMIC object is left out: it may be elsewhere).
+ * objects that do not move (a footprint of a DYNAMIC object is left out: it may be elsewhere),
+ * and only those the probe may use for the cell: a footprint above the cell's lowest eye hides
+ * nothing, and a node reaching below a used footprint's base is marked (method_adjustable.c,
+ * cell_floor).
  * Whatever method baked the sets, the marks are conservative: an unmarked node's box is hidden
  * from every point of the cell, so a dynamic object whose current box lies inside it is too.
  * A scene without footprints marks every node (the objects are then drawn as by frustum alone).
@@ -193,11 +196,26 @@ sl_status sl_motion_regions_update(sl_scene scene, sl_viewcells cells, const cha
 {
     memset(out, 0, sizeof *out);
     *copied = 0;
+    /* the probe needs prism or box cells: a bake of BSP cluster cells has no regions (its moving
+     * objects are drawn as by frustum alone) */
+    const sl_viewcell *vc = sl_viewcells_data(cells);
+    for (uint32_t c = 0; c < sl_viewcells_count(cells); c++)
+        if (vc[c].shape != SL_CELL_PRISM && vc[c].shape != SL_CELL_BOX)
+            return SL_OK;
     sl_status st = build_tree(scene, a, &out->nodes, &out->count, err);
     if (st != SL_OK || out->count == 0)
         return st;
     const uint32_t nn = out->count, nc = sl_viewcells_count(cells);
     const size_t rb = ((size_t)nn + 7) / 8;
+    /* what the file can hold, before the marking time is spent */
+    if (nn > SL_PVS_MAX_REGIONS || (uint64_t)nc * rb > SL_PVS_MAX_REGION_MARK_BYTES) {
+        st = sl_fail(err, SL_ERROR_LIMIT,
+                     "motion regions: %u cells of %u region nodes exceed what a .slpvs holds (%u nodes, %u bytes of "
+                     "marks); bake with --no-regions (no_regions), or fewer distinct regions",
+                     nc, nn, SL_PVS_MAX_REGIONS, SL_PVS_MAX_REGION_MARK_BYTES);
+        sl_motion_regions_free(a, out);
+        return st;
+    }
     out->rows_size = (size_t)nc * rb + 1;
     out->rows = sl_calloc(a, out->rows_size, 1);
     if (!keep || !same_tree(old, out->nodes, nn) || sl_viewcells_count(sl_pvs_cells(old)) != nc)

@@ -172,7 +172,7 @@ static sl_dvec2 quad_at(const sl_dvec2 q[4], double s, double f)
  * shuttles along its lane between s0 and s1 (metres along the street) at `speed`, starting `phase`
  * metres from s0 where it was placed; its region holds its box along the whole lane (the lane is
  * straight: a line of constant across-fraction in the bilinear street quad), with the ground's rise
- * between the ends, and a margin for rounding. */
+ * between the ends, and a margin for rounding (none below a level lane, where the lowest z is exact). */
 static sl_status car_motion(gc_city *c, uint32_t id, bool driving, const sl_dvec2 q[4], double len, double f,
                             sl_dvec2 at, double s0, double s1, double phase, double speed, bool on_bridge)
 {
@@ -181,7 +181,7 @@ static sl_status car_motion(gc_city *c, uint32_t id, bool driving, const sl_dvec
     sl_object_motion mo;
     memset(&mo, 0, sizeof mo);
     if (!driving) {
-        mo.region = (sl_aabb){{b.min.x - (float)m, b.min.y - (float)m, b.min.z - (float)m},
+        mo.region = (sl_aabb){{b.min.x - (float)m, b.min.y - (float)m, b.min.z},
                               {b.max.x + (float)m, b.max.y + (float)m, b.max.z + (float)m}};
         return sl_scene_set_object_motion(c->scene, id, &mo, c->err);
     }
@@ -209,7 +209,10 @@ static sl_status car_motion(gc_city *c, uint32_t id, bool driving, const sl_dvec
     float rl[3], rh[3];
     for (int k = 0; k < 3; k++) {
         double pad = m + 1e-5 * fmax(fabs(lo[k]), fabs(hi[k]));
-        rl[k] = (float)(fmin(lo[k], lo[k] + d[k]) - pad);
+        /* on a level lane every pose's box has exactly b0's lowest z (the poses differ by a turn
+         * about z and a move in x, y): no margin below, so the region does not reach under the
+         * buildings' bases (the bake then cannot hide it: method_adjustable.c, cell_floor) */
+        rl[k] = (float)(fmin(lo[k], lo[k] + d[k]) - (k == 2 && d[k] == 0 ? 0 : pad));
         rh[k] = (float)(fmax(hi[k], hi[k] + d[k]) + pad);
     }
     mo.region = (sl_aabb){{rl[0], rl[1], rl[2]}, {rh[0], rh[1], rh[2]}};
