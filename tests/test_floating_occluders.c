@@ -7,7 +7,11 @@
  * The scene: a slab 160 m wide across y in [10, 14], either floating (z in [6, 30]) or grounded
  * (z in [0, 30]); a 4 x 2 x 3 m box behind it at y in [30, 32]; the eye (or the view cell) at
  * x, y in [-2, 2], z in [1, 2]. Under the floating slab the box is in plain view: every sight line
- * from the cell to it runs below z = 3 where it crosses the slab. */
+ * from the cell to it runs below z = 3 where it crosses the slab.
+ *
+ * And an object below the ground, a 4 x 5 x 2 m pit at y in [15, 20], z in [-3, -1], just behind
+ * the grounded slab (in the scene without a street): seen from the cell under the slab's base
+ * (the line from (0, 0, 2) to (0, 15, -3) passes y = 10 at z = -1.3), so kept by every method. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -22,7 +26,7 @@
 
 typedef struct slab_scene {
     sl_scene scene;
-    uint32_t slab, behind;
+    uint32_t slab, behind, pit;
 } slab_scene;
 
 static slab_scene make_scene(float base, bool with_ground)
@@ -43,6 +47,12 @@ static slab_scene make_scene(float base, bool with_ground)
     r.behind = sl_test_add_box(r.scene, (sl_vec3){-2, 30, 0}, (sl_vec3){2, 32, 3}, SL_KIND_BUILDING,
                                SL_OBJECT_CLOSED_CONVEX);
     assert_int_not_equal(r.behind, SL_NONE);
+    r.pit = SL_NONE;
+    if (!with_ground) {
+        r.pit = sl_test_add_box(r.scene, (sl_vec3){-2, 15, -3}, (sl_vec3){2, 20, -1}, SL_KIND_OTHER,
+                                SL_OBJECT_CLOSED_CONVEX);
+        assert_int_not_equal(r.pit, SL_NONE);
+    }
     return r;
 }
 
@@ -85,6 +95,10 @@ static void test_pvs_methods(void **state)
             }
             assert_int_equal(sl_pvs_bake_cell(gr.scene, vc, 0, d.name, NULL, ids, 8, &n, &err), SL_OK);
             hidden_grounded += !has(ids, n, gr.behind);
+            if (gr.pit != SL_NONE && !has(ids, n, gr.pit)) {
+                print_error("%s: the pit seen under the slab's base was culled\n", d.name);
+                misses++;
+            }
         }
         assert_int_equal(misses, 0);
         /* the footprint methods do hide it behind the grounded slab */
@@ -93,6 +107,57 @@ static void test_pvs_methods(void **state)
         sl_scene_destroy(fl.scene);
         sl_scene_destroy(gr.scene);
     }
+}
+
+/* Cases found by review, with a cell of eyes from 0.5 to 3 m (x, y in [-2, 2]) and the slab of
+ * roof 30 at y in [10, 14]: seen only from eyes below the cell's top, so a method that samples
+ * the top alone culled them. A: base 1.5, a box at z in [0.5, 1] behind it, seen under it from
+ * (0, 2, 0.5). B: base 6 (a bridge), a box at z in [16, 16.5], seen under it from (0, 2, 0.5)
+ * (at y = 14 the line runs at z 5.4). C: base 0, a pit at z in [-1, -0.9]. */
+static void test_low_eyes(void **state)
+{
+    (void)state;
+    static const struct {
+        float base, y0, y1, z0, z1;
+    } cases[] = {{1.5f, 40, 40.5f, 0.5f, 1}, {6, 40, 40.5f, 16, 16.5f}, {0, 20, 20.5f, -1, -0.9f}};
+    sl_viewcell c;
+    memset(&c, 0, sizeof c);
+    c.shape = SL_CELL_BOX;
+    c.cluster = -1;
+    c.z_min = 0.5f;
+    c.z_max = 3;
+    c.bounds = (sl_aabb){{-2, -2, 0.5f}, {2, 2, 3}};
+    sl_viewcells vc;
+    sl_error err;
+    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
+    uint32_t misses = 0;
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        sl_scene s;
+        assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+        uint32_t slab = sl_test_add_box(s, (sl_vec3){-80, 10, cases[k].base}, (sl_vec3){80, 14, 30}, SL_KIND_BUILDING,
+                                        SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+        float xy[8] = {-80, 10, 80, 10, 80, 14, -80, 14};
+        sl_footprint_desc fd = {xy, 4, cases[k].base, 30, slab};
+        assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
+        uint32_t obj = sl_test_add_box(s, (sl_vec3){-0.25f, cases[k].y0, cases[k].z0},
+                                       (sl_vec3){0.25f, cases[k].y1, cases[k].z1}, SL_KIND_OTHER, SL_OBJECT_CLOSED_CONVEX);
+        for (uint32_t i = 0; i < sl_pvs_method_count(); i++) {
+            sl_pvs_method_desc d;
+            assert_int_equal(sl_pvs_method_info(i, &d, &err), SL_OK);
+            if (d.guarantee == SL_AGGRESSIVE || !bakes_box_cells(d.name))
+                continue;
+            uint32_t ids[8], n;
+            if (sl_pvs_bake_cell(s, vc, 0, d.name, NULL, ids, 8, &n, &err) != SL_OK)
+                fail_msg("%s: %s", d.name, err.message);
+            if (!has(ids, n, obj)) {
+                print_error("case %c, %s: the box seen from low eyes was culled\n", (char)('A' + k), d.name);
+                misses++;
+            }
+        }
+        sl_scene_destroy(s);
+    }
+    sl_viewcells_destroy(vc);
+    assert_int_equal(misses, 0);
 }
 
 static void test_cullers(void **state)
@@ -130,6 +195,9 @@ static void test_cullers(void **state)
                     uint32_t ids[8], n;
                     assert_int_equal(sl_culler_cull(c, &cam, ids, 8, &n, &err), SL_OK);
                     bool kept = has(ids, n, sc->behind);
+                    if (g && sc->pit != SL_NONE && e < 3 && !has(ids, n, sc->pit))
+                        fail_msg("%s: the pit seen under the slab's base was culled from (%g, %g, %g)", d.name,
+                                 eyes[e][0], eyes[e][1], eyes[e][2]);
                     if (!g && !kept)
                         fail_msg("%s%s: the box seen under a floating slab was culled from (%g, %g, %g)", d.name,
                                  ground ? " (with a street below)" : "", eyes[e][0], eyes[e][1], eyes[e][2]);
@@ -149,6 +217,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_pvs_methods),
+        cmocka_unit_test(test_low_eyes),
         cmocka_unit_test(test_cullers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "core/sl_core.h"
+#include "region/motion_regions.h"
 #include "sightline/bake.h"
 #include "sightline/cull.h"
 #include "sightline/gen.h"
@@ -527,6 +528,40 @@ static int teardown(void **state)
     return system(cmd) == 0 ? 0 : -1;
 }
 
+/* A bake of BSP cluster cells has no regions (the probe needs prism or box cells): the bake of
+ * the cars' regions yields none instead of failing the whole bake after its cells. */
+static void test_cluster_cells(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene s;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    add_building(s, -80, 10, 80, 14, 20);
+    add_car(s, -20, 5, 40, 10); /* in front of the wall: in plain view */
+    sl_viewcell c[2];
+    memset(c, 0, sizeof c);
+    c[0].shape = SL_CELL_BOX;
+    c[0].cluster = -1;
+    c[0].z_min = 1, c[0].z_max = 2;
+    c[0].bounds = (sl_aabb){{-2, -2, 1}, {2, 2, 2}};
+    c[1].shape = SL_CELL_CLUSTER;
+    c[1].cluster = 0;
+    c[1].z_min = 0, c[1].z_max = 3;
+    c[1].bounds = (sl_aabb){{-2, -2, 0}, {2, 2, 3}};
+    for (uint32_t n = 1; n <= 2; n++) {
+        sl_viewcells vc;
+        assert_int_equal(sl_viewcells_create(c, n, NULL, &vc, &err), SL_OK);
+        sl_motion_regions mr;
+        assert_int_equal(sl_motion_regions_bake(s, vc, NULL, 1, sl_default_allocator(), &mr, &err), SL_OK);
+        assert_int_equal(mr.count, n == 1 ? 1 : 0); /* box cells only: one region, marked */
+        if (n == 1)
+            assert_int_equal(mr.rows[0] & 1, 1);
+        sl_motion_regions_free(sl_default_allocator(), &mr);
+        sl_viewcells_destroy(vc);
+    }
+    sl_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -534,6 +569,7 @@ int main(void)
         cmocka_unit_test(test_lanes),
         cmocka_unit_test(test_moving_wall_not_baked),
         cmocka_unit_test(test_city_drive),
+        cmocka_unit_test(test_cluster_cells),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

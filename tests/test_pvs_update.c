@@ -22,6 +22,7 @@
 #include "sightline/gen.h"
 #include "sightline/pvs.h"
 #include "sightline/region.h"
+#include "support/box_mesh.h"
 
 static char g_dir[256];
 
@@ -196,6 +197,79 @@ static void run_edits(sl_city_preset preset, uint32_t k, const char *method, uin
     sl_scene_destroy(olds);
 }
 
+/* Rule (c): an edit far from every cell that brings a new footprint base at or below the cells'
+ * lowest eye (a raised plaza, base 0.7, 500 m away) changes which objects the methods test
+ * through stand-ins (docs/pvs.md, "Footprints above the ground"): the box behind the wall is
+ * hidden before and seen after (its stand-in reaches in front of the wall). The update must
+ * re-bake those cells and write the full bake's bytes. */
+static sl_scene plaza_scene(bool raised)
+{
+    sl_error err;
+    sl_scene s;
+    assert_int_equal(sl_scene_create(NULL, &s, &err), SL_OK);
+    uint32_t wall = sl_test_add_box(s, (sl_vec3){-80, 10, 0}, (sl_vec3){80, 14, 20}, SL_KIND_BUILDING,
+                                    SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+    float xy[8] = {-80, 10, 80, 10, 80, 14, -80, 14};
+    sl_footprint_desc fd = {xy, 4, 0, 20, wall};
+    assert_int_equal(sl_scene_add_footprint(s, &fd, NULL, &err), SL_OK);
+    assert_int_not_equal(sl_test_add_box(s, (sl_vec3){-2, 30, 0}, (sl_vec3){2, 32, 3}, SL_KIND_BUILDING,
+                                         SL_OBJECT_CLOSED_CONVEX),
+                         SL_NONE);
+    if (raised) {
+        uint32_t plaza = sl_test_add_box(s, (sl_vec3){500, 0, 0.7f}, (sl_vec3){520, 20, 1.2f}, SL_KIND_GROUND,
+                                         SL_OBJECT_CLOSED_CONVEX | SL_OBJECT_OCCLUDER);
+        float pxy[8] = {500, 0, 520, 0, 520, 20, 500, 20};
+        sl_footprint_desc pd = {pxy, 4, 0.7f, 1.2f, plaza};
+        assert_int_equal(sl_scene_add_footprint(s, &pd, NULL, &err), SL_OK);
+    }
+    return s;
+}
+
+static void test_new_base(void **state)
+{
+    (void)state;
+    sl_error err;
+    sl_scene olds = plaza_scene(false), news = plaza_scene(true);
+    sl_viewcell c[2];
+    for (int i = 0; i < 2; i++) {
+        memset(&c[i], 0, sizeof c[i]);
+        c[i].shape = SL_CELL_BOX;
+        c[i].cluster = -1;
+        c[i].z_min = 1, c[i].z_max = 2;
+        c[i].bounds = (sl_aabb){{-2 + 6.0f * i, -2, 1}, {2 + 6.0f * i, 2, 2}};
+    }
+    sl_viewcells cells;
+    assert_int_equal(sl_viewcells_create(c, 2, NULL, &cells, &err), SL_OK);
+    for (int m = 0; m < 2; m++) {
+        const char *method = m ? "sample" : "adjustable";
+        char old_path[300], upd[300], full[300];
+        path_of(old_path, sizeof old_path, "plaza_old.slpvs");
+        path_of(upd, sizeof upd, "plaza_upd.slpvs");
+        path_of(full, sizeof full, "plaza_full.slpvs");
+        bake(olds, cells, method, old_path);
+        bake(news, cells, method, full);
+        assert_false(same_files(old_path, full)); /* the box behind the wall: hidden, then seen */
+        sl_pvs old = NULL;
+        assert_int_equal(sl_pvs_load(old_path, NULL, &old, &err), SL_OK);
+        sl_pvs_update_options uo;
+        memset(&uo, 0, sizeof uo);
+        uo.threads = 1;
+        sl_pvs_update_stats us;
+        if (sl_pvs_update(old, olds, news, cells, upd, &uo, &us, &err) != SL_OK)
+            fail_msg("%s: %s", method, err.message);
+        assert_int_equal(us.cells_by_base, 2);
+        if (!same_files(upd, full))
+            fail_msg("%s: the update differs from the full bake", method);
+        sl_pvs_destroy(old);
+        unlink(old_path);
+        unlink(upd);
+        unlink(full);
+    }
+    sl_viewcells_destroy(cells);
+    sl_scene_destroy(olds);
+    sl_scene_destroy(news);
+}
+
 static void test_tiny_adjustable(void **state)
 {
     (void)state;
@@ -363,6 +437,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_city_edit),
         cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_new_base),
         cmocka_unit_test(test_tiny_adjustable),
         cmocka_unit_test(test_weakened),
         cmocka_unit_test(test_tiny_sample),

@@ -1218,6 +1218,7 @@ static int run_update(int argc, char **argv)
         cli_json_uint(&j, "cells_affected", us.cells_affected);
         cli_json_uint(&j, "cells_by_set", us.cells_by_set);
         cli_json_uint(&j, "cells_by_probe", us.cells_by_probe);
+        cli_json_uint(&j, "cells_by_base", us.cells_by_base);
         cli_json_uint(&j, "objects_removed", us.objects_removed);
         cli_json_uint(&j, "objects_added", us.objects_added);
         cli_json_uint(&j, "footprints_changed", us.footprints_changed);
@@ -1238,6 +1239,9 @@ static int run_update(int argc, char **argv)
                us.objects_removed, us.objects_added, us.footprints_changed, us.zone_footprints);
         printf("  re-baked because the old set held a changed object: %u; because the zone may be seen: %u\n",
                us.cells_by_set, us.cells_by_probe);
+        if (us.cells_by_base)
+            printf("  re-baked because the edit changed the highest footprint base below the cell's eyes: %u\n",
+                   us.cells_by_base);
         printf("  %.2f s (%.2f s CPU): probe %.2f s, method preparation %.2f s, re-bake %.2f s\n", us.seconds,
                us.cpu_seconds, us.probe_seconds, us.prepare_seconds, us.bake_seconds);
         if (us.regions)

@@ -191,6 +191,9 @@ typedef struct sl_pvs_update_stats {
     uint32_t region_rows_copied;/* cells whose region marks were copied from the old file (the cells
                                    kept, when both files hold the same hierarchy); the others are
                                    marked again */
+    uint32_t cells_by_base;     /* rule (c): the edit changed the highest footprint base at or below
+                                   the cell's lowest eye (docs/pvs.md, "Footprints above the
+                                   ground"); appended */
 } sl_pvs_update_stats;
 
 /* Update the bake `old` of old_scene for new_scene (same view cells) into output: the cells the

@@ -58,7 +58,7 @@ typedef struct pvs_state {
     uint32_t set_cell_count;    /* 0: `set` holds nothing */
     uint8_t *mark;              /* object_count entries, zero between calls */
     bool regions;               /* dynamic objects by the motion regions */
-    uint8_t *rrow;              /* the OR of the region rows of set_cells */
+    uint8_t *rrow;              /* the OR of the region rows of set_cells (made with the union) */
     size_t rrow_size;
 } pvs_state;
 
@@ -280,6 +280,15 @@ static sl_status load_union(pvs_state *s, const uint32_t *cells, uint32_t n, sl_
     }
     memcpy(s->set_cells, cells, n * sizeof *cells);
     s->set_cell_count = n;
+    if (s->regions)
+        for (uint32_t c = 0; c < n; c++) {
+            const uint8_t *row = sl_pvs_region_row(s->pvs, cells[c]);
+            if (c == 0)
+                memcpy(s->rrow, row, s->rrow_size);
+            else
+                for (size_t b = 0; b < s->rrow_size; b++)
+                    s->rrow[b] |= row[b];
+        }
     return SL_OK;
 }
 
@@ -323,16 +332,9 @@ static sl_status pvs_cull(void *state, const sl_view *view, uint32_t *out, uint3
     }
     uint32_t nd = skip_dyn ? frustum_filter(s, &fr, s->dyn, s->dyn_count, s->scratch, false, &stats->objects_tested) : 0;
     if (s->regions && !all) {
-        /* the dynamic objects in the frustum whose box a hidden node holds, from every cell met */
+        /* the dynamic objects in the frustum whose box a hidden node holds, from every cell met
+         * (their rows' union is made with the set's, only when the cells change: load_union) */
         const uint32_t nc = s->set_cell_count;
-        for (uint32_t c = 0; c < nc; c++) {
-            const uint8_t *row = sl_pvs_region_row(s->pvs, s->set_cells[c]);
-            if (c == 0)
-                memcpy(s->rrow, row, s->rrow_size);
-            else
-                for (size_t b = 0; b < s->rrow_size; b++)
-                    s->rrow[b] |= row[b];
-        }
         const sl_aabb *bounds = sl_scene_object_bounds_array(s->scene);
         uint32_t kept = 0;
         for (uint32_t q = 0; q < nd; q++)

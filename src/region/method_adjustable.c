@@ -10,7 +10,8 @@
  * horizon of section 3.1.2). The visible set is valid for the whole disk; a view cell is covered
  * by disks (centres on a square grid of spacing eps*sqrt(2), whose squares the disks
  * circumscribe) and its set is the union over them. Eyes are at the cell's highest point (in 2.5D
- * what a lower eye sees a higher one sees too).
+ * what a lower eye sees a higher one sees too, for occluders standing on the ground: footprints
+ * above it: "Footprints that do not reach down to the ground" below).
  *
  * The bounds used, per occluder piece P (convex, roof H) and disk (C, eps, eye height h), with A, B
  * the silhouette vertices of P from C and the chord AB inside P:
@@ -64,7 +65,7 @@ typedef struct adj_config {
 typedef struct piece {
     uint32_t first, count; /* vertices in xy, counter-clockwise, convex */
     double roof;
-    double base;           /* the footprint's base_z (see cell_floor) */
+    double base;           /* the footprint's base_z (see sl_cell_floor) */
 } piece;
 
 /* Two pieces whose boundaries share the stretch s (x0, y0, x1, y1). */
@@ -89,8 +90,9 @@ typedef struct adj_shared {
     touch *touches;        /* sorted by (from, to) */
     size_t touch_cap;
     double *edge_sc;   /* sin, cos of every bin edge's azimuth (bins + 1 pairs) */
-    double *bases;     /* the distinct piece bases, ascending (nbase of them; cell_floor) */
-    uint32_t nbase;
+    sl_base_levels bases; /* the scene's distinct footprint bases (sl_cell_floor) */
+    uint32_t *low;     /* the objects whose box reaches below the highest base (lower_boxes) */
+    uint32_t nlow;
     double log_split;  /* log(cfg.split) */
     /* the probe only (sl_adj_probe_*): the boxes tested, and a bucket grid of the pieces */
     sl_aabb *probe_boxes;
@@ -142,6 +144,8 @@ typedef struct adj_worker {
     double segw[2 * MAX_RUN];  /* run_chunks: per segment, the band's azimuth slack */
     uint32_t *pin, *pmark;     /* the probe (sl_adj_probe_*): gathered pieces, their marks */
     uint32_t pstamp;
+    const sl_aabb *bounds;     /* the boxes tested: the objects', with lower_boxes' stand-ins */
+    sl_aabb *wb;               /* the copy holding the stand-ins (when the shared low list is not empty) */
 } adj_worker;
 
 static const char g_help[] =
@@ -182,7 +186,8 @@ static void adj_release(void *p)
     sl_free(&s->a, s->touch_start, s->touch_start ? ((size_t)s->npiece + 1) * sizeof(uint32_t) : 0);
     sl_free(&s->a, s->touches, s->touch_cap * sizeof(touch));
     sl_free(&s->a, s->edge_sc, s->edge_sc ? 2 * ((size_t)s->cfg.bins + 1) * sizeof(double) : 0);
-    sl_free(&s->a, s->bases, s->bases ? ((size_t)s->npiece + 1) * sizeof(double) : 0);
+    sl_base_levels_free(&s->bases, &s->a);
+    sl_free(&s->a, s->low, s->low ? ((size_t)s->nobj + 1) * sizeof(uint32_t) : 0);
     sl_free(&s->a, s->xy, (s->nxy + 1) * sizeof(double));
     sl_free(&s->a, s->probe_boxes, s->probe_boxes ? ((size_t)s->nobj + 1) * sizeof(sl_aabb) : 0);
     sl_free(&s->a, s->gstart, s->gstart ? ((size_t)s->gnx * s->gny + 1) * sizeof(uint32_t) : 0);
@@ -505,13 +510,6 @@ oom:
     return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
 }
 
-/* The method's preparation over the footprints f with use[f] (all when use is NULL). */
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* Footprints that do not reach down to the ground. The horizon treats a piece as a wall from the
  * ground up to its roof (and the eyes at the cell's top as the ones that see most), which holds
  * only for sight lines that pass it above its base. Every sight line from an eye at height zE to
@@ -519,23 +517,60 @@ static int cmp_double(const void *a, const void *b)
  * from the cell to an object when B <= the cell's lowest eye and B <= the object's lowest point.
  * Per cell: zfloor, the lowest eye; the pieces used are those of base <= zfloor (a piece above
  * it, a bridge or an overhang the eye may pass under, hides nothing), and tb, the highest base
- * among them: an object whose box goes below tb is never tested (kept), every other object lies
- * wholly above every piece's base. In a city on flat ground every base is 0 and tb = 0. */
-static double cell_floor(const adj_shared *s, const sl_viewcell *vc, double *tb)
+ * among them. An object whose box lies wholly above tb is tested as it is; one that reaches below
+ * tb (a river in its bed) is tested through a stand-in box above tb (lower_boxes). In a city on
+ * flat ground every base is 0 and tb = 0 (sl_cell_floor, base_levels.c). */
+/* The objects whose box reaches below the highest piece base: the only ones lower_boxes may
+ * replace. Called once the shared boxes are final. */
+static bool find_low(adj_shared *s)
 {
-    const double zfloor = fmin((double)vc->z_min, (double)vc->bounds.min.z);
-    uint32_t lo = 0, hi = s->nbase; /* the first base above zfloor */
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2;
-        if (s->bases[mid] <= zfloor)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    *tb = lo ? s->bases[lo - 1] : -INFINITY;
-    return zfloor;
+    sl_free(&s->a, s->low, s->low ? ((size_t)s->nobj + 1) * sizeof(uint32_t) : 0);
+    s->low = NULL;
+    s->nlow = 0;
+    if (s->bases.n == 0)
+        return true;
+    const double top = sl_base_levels_top(&s->bases);
+    if (!(s->low = sl_alloc(&s->a, ((size_t)s->nobj + 1) * sizeof(uint32_t))))
+        return false;
+    for (uint32_t o = 0; o < s->nobj; o++)
+        if (s->bounds[o].min.z < top)
+            s->low[s->nlow++] = o;
+    return true;
 }
 
+/* Stand-ins for the objects reaching below tb, for one cell (zfloor, tb: sl_cell_floor). A point P
+ * of the object below tb seen from an eye E of the cell (zE >= zfloor >= tb) is seen along a line
+ * that crosses the plane z = tb at Q = E + t (P - E), t = (zE - tb) / (zE - zP), with the part
+ * E -> Q free; t grows with zE and with zP, so t >= t0 = (zfloor - tb) / (zfloor - zmin).
+ * Q lies in the box between the cell's box and the object's at some t in [t0, 1], hence in the
+ * hull of those at t0 and at 1 (linear in t), at height tb. If P is seen, so is Q, and so is
+ * the stand-in: that hull in x, y, from tb up to the object's top (which holds the part above tb
+ * too). Every point of it lies at or above every used base, where the horizon's argument holds;
+ * hiding it hides the object. With zfloor = tb, t0 = 0 and the stand-in holds the cell: seen. */
+static void lower_boxes(adj_worker *w, const sl_viewcell *vc, double zfloor, double tb)
+{
+    const adj_shared *s = w->sh;
+    for (uint32_t i = 0; i < s->nlow; i++) {
+        const uint32_t o = s->low[i];
+        const sl_aabb *b = &s->bounds[o];
+        sl_aabb *q = &w->wb[o];
+        if (!(b->min.z < tb)) {
+            *q = *b;
+            continue;
+        }
+        const double t0 = (zfloor - tb) / (zfloor - (double)b->min.z);
+        const double c[4] = {vc->bounds.min.x, vc->bounds.min.y, vc->bounds.max.x, vc->bounds.max.y};
+        const double x[4] = {b->min.x, b->min.y, b->max.x, b->max.y};
+        float r[4];
+        for (int k = 0; k < 4; k++) {
+            double m = c[k] + t0 * (x[k] - c[k]); /* rounded outward below */
+            r[k] = k < 2 ? (float)fmin(x[k], m - 1e-6 * (1 + fabs(m))) : (float)fmax(x[k], m + 1e-6 * (1 + fabs(m)));
+        }
+        *q = (sl_aabb){{r[0], r[1], (float)tb}, {r[2], r[3], fmaxf(b->max.z, (float)tb)}};
+    }
+}
+
+/* The method's preparation over the footprints f with use[f] (all when use is NULL). */
 static sl_status adj_prepare_some(sl_scene scene, sl_viewcells cells, const void *config, const sl_allocator *alloc,
                                   const uint8_t *use, void **shared, uint64_t *removed, sl_error *err)
 {
@@ -597,19 +632,17 @@ static sl_status adj_prepare_some(sl_scene scene, sl_viewcells cells, const void
         double az = b * (TWO_PI / s->cfg.bins);
         s->edge_sc[2 * b] = sin(az), s->edge_sc[2 * b + 1] = cos(az);
     }
-    if (!(s->bases = sl_alloc(alloc, ((size_t)s->npiece + 1) * sizeof(double)))) {
+    if (!sl_base_levels_of_scene(&s->bases, scene, alloc)) {
         adj_release(s);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
     }
-    for (uint32_t k = 0; k < s->npiece; k++)
-        s->bases[k] = s->pieces[k].base;
-    qsort(s->bases, s->npiece, sizeof(double), cmp_double);
-    for (uint32_t k = 0; k < s->npiece; k++)
-        if (s->nbase == 0 || s->bases[k] != s->bases[s->nbase - 1])
-            s->bases[s->nbase++] = s->bases[k];
     if ((st = find_touching(s, err)) != SL_OK) {
         adj_release(s);
         return st;
+    }
+    if (!find_low(s)) {
+        adj_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
     }
     *shared = s;
     return SL_OK;
@@ -694,6 +727,7 @@ static void adj_worker_destroy(void *p)
     sl_array_free(a, &w->centres, 2 * sizeof(double));
     sl_free(a, w->pin, w->pin ? np * sizeof(uint32_t) : 0);
     sl_free(a, w->pmark, w->pmark ? np * sizeof(uint32_t) : 0);
+    sl_free(a, w->wb, w->wb ? no * sizeof(sl_aabb) : 0);
     sl_free(a, w, sizeof *w);
 }
 
@@ -713,8 +747,11 @@ static sl_status adj_worker_create(void *shared, void **out, sl_error *err)
     w->plist = sl_alloc(&s->a, np * sizeof(uint32_t));
     w->need = sl_alloc(&s->a, NEED_BINS * sizeof(double));
     w->view = sl_calloc(&s->a, np, sizeof(pview));
+    if (s->nlow && (w->wb = sl_alloc(&s->a, no * sizeof(sl_aabb))))
+        memcpy(w->wb, s->bounds, (size_t)s->nobj * sizeof(sl_aabb));
+    w->bounds = w->wb ? w->wb : s->bounds;
     if (!w->horizon || !w->visible || !w->okey || !w->live || !w->cand || !w->plist ||
-        !w->need || !w->view) {
+        !w->need || !w->view || (s->nlow && !w->wb)) {
         adj_worker_destroy(w);
         return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "adjustable: out of memory");
     }
@@ -1032,7 +1069,7 @@ static bool disk(adj_worker *w, double cx, double cy, double h, double eps, uint
     sort_keyed(ckey, np);
     /* live objects sorted by their nearest distance */
     for (uint32_t i = 0; i < nlive; i++) {
-        const sl_aabb *b = &s->bounds[w->live[i]];
+        const sl_aabb *b = &w->bounds[w->live[i]];
         double dx = fmax(0.0, fmax(b->min.x - cx, cx - b->max.x)), dy = fmax(0.0, fmax(b->min.y - cy, cy - b->max.y));
         okey[i].k = len2(dx, dy);
         okey[i].id = w->live[i];
@@ -1053,7 +1090,7 @@ static bool disk(adj_worker *w, double cx, double cy, double h, double eps, uint
                 raise_bins(w->horizon, c->b0 > (int64_t)nb ? c->b0 - nb : 0, c->b1 - nb, c->tb);
             next++;
         }
-        const sl_aabb *b = &s->bounds[o];
+        const sl_aabb *b = &w->bounds[o];
         double corners[8] = {b->min.x, b->min.y, b->max.x, b->min.y, b->max.x, b->max.y, b->min.x, b->max.y};
         double lo, hi;
         uint32_t ia, ib;
@@ -1128,7 +1165,7 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
     for (uint32_t b = 0; b < NEED_BINS; b++)
         need[b] = -INFINITY;
     for (uint32_t i = 0; i < nc; i++) {
-        const sl_aabb *b = &s->bounds[w->cand[i]];
+        const sl_aabb *b = &w->bounds[w->cand[i]];
         double dx = fmax(0.0, fmax(b->min.x - ox, ox - b->max.x)), dy = fmax(0.0, fmax(b->min.y - oy, oy - b->max.y));
         double d = len2(dx, dy), reach = d + rc;
         double corners[8] = {b->min.x, b->min.y, b->max.x, b->min.y, b->max.x, b->max.y, b->min.x, b->max.y};
@@ -1146,7 +1183,7 @@ static uint32_t filter_pieces(adj_worker *w, double ox, double oy, double rc, do
     for (uint32_t q = 0; q < nk; q++) {
         const uint32_t k = pin ? pin[q] : q;
         const piece *pc = &s->pieces[k];
-        if (!(pc->base <= zfloor)) /* an eye may pass under it (cell_floor) */
+        if (!(pc->base <= zfloor)) /* an eye may pass under it (sl_cell_floor) */
             continue;
         const double *v = s->xy + 2 * (size_t)pc->first;
         double near = INFINITY;
@@ -1222,14 +1259,12 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
     }
     const sl_aabb *bb = &vc->bounds;
     double tb;
-    const double zfloor = cell_floor(s, vc, &tb);
-    /* objects reaching below a used piece's base are kept untested, in out->ids (cell_floor) */
-    uint32_t nc = 0, nkept = 0;
+    const double zfloor = sl_cell_floor(&s->bases, vc, &tb);
+    if (w->wb)
+        lower_boxes(w, vc, zfloor, tb);
+    uint32_t nc = s->nobj;
     for (uint32_t o = 0; o < s->nobj; o++)
-        if (s->bounds[o].min.z >= tb)
-            w->cand[nc++] = o;
-        else
-            out->ids[nkept++] = o;
+        w->cand[o] = o;
     uint64_t work = 0;
     /* the coarsest level: the first whose single grid square covers the cell's box (a coarser one
      * would only repeat a full pass with a looser disk), at most cfg.levels */
@@ -1272,14 +1307,8 @@ static sl_status adj_cell(void *worker, uint32_t cell, sl_pvs_cell_result *out, 
                 w->cand[m++] = w->cand[q];
         nc = m;
     }
-    /* merge the kept objects (in front, ascending) with the candidates left, from the back */
-    for (uint32_t i = nkept, j = nc, at = nkept + nc; j > 0;) {
-        if (i > 0 && out->ids[i - 1] > w->cand[j - 1])
-            out->ids[--at] = out->ids[--i];
-        else
-            out->ids[--at] = w->cand[--j];
-    }
-    out->count = nkept + nc;
+    memcpy(out->ids, w->cand, (size_t)nc * sizeof(uint32_t));
+    out->count = nc;
     out->work = work;
     return SL_OK;
 }
@@ -1384,8 +1413,14 @@ sl_status sl_adj_probe_create(sl_scene scene, sl_viewcells cells, const char *op
     }
     if (nbox)
         memcpy(s->probe_boxes, boxes, (size_t)nbox * sizeof(sl_aabb));
+    sl_free(alloc, s->low, s->low ? ((size_t)s->nobj + 1) * sizeof(uint32_t) : 0);
+    s->low = NULL;
     s->bounds = s->probe_boxes;
     s->nobj = nbox;
+    if (!find_low(s)) {
+        adj_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+    }
     if ((st = probe_grid(s, err)) != SL_OK) {
         adj_release(s);
         return st;
@@ -1447,18 +1482,14 @@ static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset,
         top++;
     /* adj_cell's levels, coarse to fine, the boxes a level cannot hide going on to the next: a box
      * hidden at one level (by all its disks, which cover the cell) is hidden from the whole cell */
-    /* boxes reaching below a used piece's base are visible untested (cell_floor); they wait at
-     * the end of cand, past what the levels touch */
+    /* boxes reaching below a used piece's base are tested through their stand-ins (sl_cell_floor) */
     double tb;
-    const double zfloor = cell_floor(s, vc, &tb);
-    uint32_t nc = 0, nkept = 0;
-    for (uint32_t o = 0; o < nbox; o++) {
-        uint32_t id = subset ? subset[o] : o;
-        if (s->bounds[id].min.z >= tb)
-            w->cand[nc++] = id;
-        else
-            w->cand[nbox - ++nkept] = id;
-    }
+    const double zfloor = sl_cell_floor(&s->bases, vc, &tb);
+    if (w->wb)
+        lower_boxes(w, vc, zfloor, tb);
+    uint32_t nc = nbox;
+    for (uint32_t o = 0; o < nbox; o++)
+        w->cand[o] = subset ? subset[o] : o;
     for (int level = top; level >= 0 && nc > 0; level--) {
         const double eps = s->cfg.eps * ldexp(1.0, level);
         if (!level_centres(w, poly, n, bb, eps))
@@ -1475,7 +1506,7 @@ static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset,
         /* the rectangle of the disks and the boxes, and the pieces of its buckets */
         double x0 = ox - rc - eps, x1 = ox + rc + eps, y0 = oy - rc - eps, y1 = oy + rc + eps;
         for (uint32_t q = 0; q < nc; q++) {
-            const sl_aabb *bx = &s->bounds[w->cand[q]];
+            const sl_aabb *bx = &w->bounds[w->cand[q]];
             x0 = fmin(x0, bx->min.x), x1 = fmax(x1, bx->max.x);
             y0 = fmin(y0, bx->min.y), y1 = fmax(y1, bx->max.y);
         }
@@ -1515,8 +1546,7 @@ static sl_status probe_run(adj_worker *w, uint32_t cell, const uint32_t *subset,
                 w->cand[m++] = w->cand[q];
         nc = m;
     }
-    memmove(w->cand + nc, w->cand + (nbox - nkept), (size_t)nkept * sizeof(uint32_t));
-    *left = nc + nkept;
+    *left = nc;
     return SL_OK;
 }
 

@@ -91,6 +91,7 @@ typedef struct sample_shared {
     uint32_t gnx, gny;
     const sl_aabb *obj_bounds;
     uint32_t nobj;
+    sl_base_levels bases; /* the scene's distinct footprint bases (sl_cell_floor) */
     /* prefilter: the adjustable method, prepared alongside (NULL when off) */
     const sl_pvs_method *pre;
     void *pre_config, *pre_shared;
@@ -158,6 +159,7 @@ static void sample_release(void *p)
         s->pre->release(s->pre_shared);
     if (s->pre_config)
         sl_free(a, s->pre_config, s->pre->config_size ? s->pre->config_size : 1);
+    sl_base_levels_free(&s->bases, a);
     sl_free(a, s->polys, ((size_t)s->npoly + 1) * sizeof(spoly));
     sl_free(a, s->pxy, (s->pxy_count + 1) * sizeof(double));
     sl_free(a, s->rings, (s->ring_total + 1) * sizeof(uint32_t));
@@ -302,6 +304,12 @@ static sl_status sample_prepare(sl_scene scene, sl_viewcells cells, const void *
         sl_aabb_grow(&world, (sl_vec3){(float)q->x1, (float)q->y1, (float)q->roof});
     }
     sl_shrunk_destroy(sh);
+    /* the scene's footprint bases: each occluder's base is one of them (a merged group takes its
+     * highest member's), so every occluder drawn for a cell lies at or below its tb */
+    if (!sl_base_levels_of_scene(&s->bases, scene, alloc)) {
+        sample_release(s);
+        return sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "sample: out of memory for %u occluders", s->npoly);
+    }
     if (sl_aabb_is_empty(&world)) {
         sample_release(s);
         return sl_fail(err, SL_ERROR_UNSUPPORTED, "sample: the scene is empty");
@@ -904,6 +912,19 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
             w->state[pr.ids[q]] = 0;
         undecided = pr.count;
     }
+    /* Footprints above the ground (docs/pvs.md): the samples at the cell's top see most only
+     * with occluders standing on the ground, as every one of base <= the lowest eye does for the
+     * sight lines between points at or above its base. So occluders above the lowest eye are not
+     * drawn, and an object reaching below the highest base drawn (tb) is kept (the prefilter,
+     * when on, tests it through its stand-in: the cell's set is the intersection). */
+    double tb;
+    const double zfloor = sl_cell_floor(&s->bases, vc, &tb);
+    if (tb > -INFINITY)
+        for (uint32_t o = 0; o < s->nobj; o++)
+            if (w->state[o] == 0 && s->obj_bounds[o].min.z < tb) {
+                w->state[o] = 1;
+                undecided--;
+            }
     const double cx = 0.5 * ((double)vc->bounds.min.x + vc->bounds.max.x);
     const double cy = 0.5 * ((double)vc->bounds.min.y + vc->bounds.max.y);
     uint64_t written = 0;
@@ -955,7 +976,7 @@ static sl_status sample_cell(void *worker, uint32_t cell, sl_pvs_cell_result *ou
                         continue;
                     w->poly_stamp[id] = w->stamp;
                     const spoly *p = &s->polys[id];
-                    if (p->x1 < cx0 || p->x0 > cx1 || p->y1 < cy0 || p->y0 > cy1)
+                    if (p->x1 < cx0 || p->x0 > cx1 || p->y1 < cy0 || p->y0 > cy1 || !(p->base <= zfloor))
                         continue;
                     /* an occluder missing every view channel shades none of the cells read */
                     if (channels && !box_in_clip(&win, k, &clip, p))

@@ -17,8 +17,8 @@
  * probe costs more than the boxes it could skip. The occluders are the footprints of the
  * objects that do not move (a footprint of a DYNAMIC object is left out: it may be elsewhere),
  * and only those the probe may use for the cell: a footprint above the cell's lowest eye hides
- * nothing, and a node reaching below a used footprint's base is marked (method_adjustable.c,
- * cell_floor).
+ * nothing, and a node reaching below a used footprint's base is tested through a larger
+ * stand-in (method_adjustable.c, lower_boxes; base_levels.c).
  * Whatever method baked the sets, the marks are conservative: an unmarked node's box is hidden
  * from every point of the cell, so a dynamic object whose current box lies inside it is too.
  * A scene without footprints marks every node (the objects are then drawn as by frustum alone).

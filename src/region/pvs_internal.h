@@ -137,4 +137,22 @@ sl_status sl_bake_journal_check(const uint8_t *data, size_t size, uint32_t cell_
                                 uint64_t key, const sl_allocator *alloc, size_t *valid, uint32_t *resumed,
                                 sl_error *err);
 
+/* Footprints above the ground (base_levels.c; docs/pvs.md): distinct bases, ascending. Per cell,
+ * sl_cell_floor returns the lowest eye (zfloor) and sets *tb to the highest base <= zfloor
+ * (-INFINITY if none): the occluders usable for the cell are those of base <= zfloor, and an
+ * object wholly at or above tb is tested as it is. The methods take the bases of every footprint
+ * of the scene (sl_base_levels_of_scene: a superset of their occluders' bases, which only raises
+ * tb, and depends on the scene's bases alone: pvs update re-bakes a cell whose tb an edit
+ * changes). */
+typedef struct sl_base_levels {
+    double *v;
+    uint32_t n;
+    size_t cap;
+} sl_base_levels;
+bool sl_base_levels_init(sl_base_levels *b, const double *bases, uint32_t n, const sl_allocator *a);
+bool sl_base_levels_of_scene(sl_base_levels *b, sl_scene scene, const sl_allocator *a);
+void sl_base_levels_free(sl_base_levels *b, const sl_allocator *a);
+double sl_base_levels_top(const sl_base_levels *b); /* the highest base, -INFINITY if none */
+double sl_cell_floor(const sl_base_levels *b, const sl_viewcell *vc, double *tb);
+
 #endif

@@ -18,6 +18,8 @@
  *     the zone only: sl_adj_probe_cell) cannot hide every box of the zone. Otherwise every point of
  *     the cell has every sight line into the zone blocked by occluders that did not change: what
  *     the cell sees is the same in both scenes, and its old set, with the ids renumbered, is copied.
+ *     And (c): a cell whose highest footprint base at or below its lowest eye the edit changed
+ *     (sl_cell_floor: which footprints occlude and which objects get stand-ins depends on it).
  *
  * Methods: `adjustable` and `sample` (their sets depend on the footprints, the boxes and the cells
  * only); the file's method and effective options are re-used, so the metadata is the full bake's. */
@@ -456,6 +458,28 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
             }
         }
         sl_free(a, ids, ((size_t)c.nold + 1) * sizeof *ids);
+    }
+    /* rule (c): the methods treat footprints above a cell's lowest eye apart, and objects below
+     * the highest base at or below it (sl_cell_floor): an edit that changes that base for a cell
+     * changes its set wherever the edit is */
+    if (s == SL_OK) {
+        sl_base_levels bo = {0}, bn = {0};
+        if (!sl_base_levels_of_scene(&bo, old_scene, a) || !sl_base_levels_of_scene(&bn, new_scene, a))
+            s = sl_fail(err, SL_ERROR_OUT_OF_MEMORY, "pvs update: out of memory");
+        else if (bo.n != bn.n || memcmp(bo.v, bn.v, (size_t)bo.n * sizeof(double)) != 0) {
+            const sl_viewcell *vd = sl_viewcells_data(cells);
+            for (uint32_t cell = 0; cell < nc; cell++) {
+                double to, tn;
+                sl_cell_floor(&bo, &vd[cell], &to);
+                sl_cell_floor(&bn, &vd[cell], &tn);
+                if (to != tn && !affected[cell]) {
+                    affected[cell] = 1;
+                    st.cells_by_base++;
+                }
+            }
+        }
+        sl_base_levels_free(&bo, a);
+        sl_base_levels_free(&bn, a);
     }
     /* rule (b): the probe, on the cells (a) left */
     int threads = opt && opt->threads ? (int)opt->threads : omp_get_max_threads();

@@ -211,7 +211,8 @@ static sl_status car_motion(gc_city *c, uint32_t id, bool driving, const sl_dvec
         double pad = m + 1e-5 * fmax(fabs(lo[k]), fabs(hi[k]));
         /* on a level lane every pose's box has exactly b0's lowest z (the poses differ by a turn
          * about z and a move in x, y): no margin below, so the region does not reach under the
-         * buildings' bases (the bake then cannot hide it: method_adjustable.c, cell_floor) */
+         * buildings' bases (the bake would test it through a larger stand-in: method_adjustable.c,
+         * lower_boxes) */
         rl[k] = (float)(fmin(lo[k], lo[k] + d[k]) - (k == 2 && d[k] == 0 ? 0 : pad));
         rh[k] = (float)(fmax(hi[k], hi[k] + d[k]) + pad);
     }
