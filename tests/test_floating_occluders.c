@@ -120,16 +120,8 @@ static void test_low_eyes(void **state)
     static const struct {
         float base, y0, y1, z0, z1;
     } cases[] = {{1.5f, 40, 40.5f, 0.5f, 1}, {6, 40, 40.5f, 16, 16.5f}, {0, 20, 20.5f, -1, -0.9f}};
-    sl_viewcell c;
-    memset(&c, 0, sizeof c);
-    c.shape = SL_CELL_BOX;
-    c.cluster = -1;
-    c.z_min = 0.5f;
-    c.z_max = 3;
-    c.bounds = (sl_aabb){{-2, -2, 0.5f}, {2, 2, 3}};
-    sl_viewcells vc;
+    sl_viewcells vc = sl_test_box_cell_z(-2, -2, 2, 2, 0.5f, 3);
     sl_error err;
-    assert_int_equal(sl_viewcells_create(&c, 1, NULL, &vc, &err), SL_OK);
     uint32_t misses = 0;
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         sl_scene s;
