@@ -68,8 +68,9 @@ static void usage_build(FILE *out)
             "  --method NAME[:key=value...]  baking method (with its options, as --options takes them);\n"
             "                    default: the one that suits the scene, named on stderr\n"
             "                    (portal for Quake III cluster cells, adjustable for scenes with building\n"
-            "                    footprints; for other scenes none is conservative: give --method gvs for\n"
-            "                    an aggressive PVS); available:\n");
+            "                    footprints all at one base height, extproj when their bases differ, as over\n"
+            "                    terrain; for other scenes none is conservative: give --method gvs for an\n"
+            "                    aggressive PVS); available:\n");
     for (uint32_t i = 0; i < sl_pvs_method_count(); i++) {
         sl_pvs_method_desc d;
         if (sl_pvs_method_info(i, &d, NULL) != SL_OK)
@@ -394,9 +395,22 @@ static int run_build(int argc, char **argv)
             bo.method = "portal";
             why = "the conservative method for Quake III cluster cells";
         } else if (sl_scene_footprint_count(scene) > 0) {
-            bo.method = "adjustable";
-            why = "the conservative method for scenes with building footprints: sample culls about 0.6% more "
-                  "objects in about 6 times the time, BENCHMARKS.md";
+            /* footprints at different heights (terrain, bridges): adjustable and sample use for a
+             * cell only those at or below its lowest eye, and keep little there */
+            bool level = true;
+            const float b0 = sl_scene_footprint(scene, 0).base_z;
+            for (uint32_t f = 1; f < sl_scene_footprint_count(scene) && level; f++)
+                level = sl_scene_footprint(scene, f).base_z == b0;
+            if (level) {
+                bo.method = "adjustable";
+                why = "the conservative method for scenes with building footprints: sample culls about 0.6% more "
+                      "objects in about 6 times the time, BENCHMARKS.md";
+            } else {
+                bo.method = "extproj";
+                why = "the conservative method for building footprints at different heights (terrain, bridges): "
+                      "adjustable and sample occlude only with footprints at or below a cell's lowest eye, which "
+                      "over relief leaves little culled (docs/pvs.md, \"Footprints above the ground\")";
+            }
         } else {
             sl_scene_destroy(scene);
             cli_error(a.cmd, "no conservative from-region method applies to this scene: it has no building "
