@@ -572,8 +572,21 @@ uint64_t cli_peak_rss(void)
 bool cli_output_not_input(const char *cmd, const char *output, const char *const *inputs, size_t count)
 {
     struct stat so;
-    if (!output || stat(output, &so) != 0)
+    if (!output)
         return true;
+    /* a folder (or socket) is refused now, before any long work, not when the file is written */
+    size_t len = strlen(output);
+    if (len && output[len - 1] == '/') {
+        cli_error(cmd, "%s: cannot write: it names a directory (give a file name)", output);
+        return false;
+    }
+    if (stat(output, &so) != 0)
+        return true;
+    if (S_ISDIR(so.st_mode) || S_ISSOCK(so.st_mode)) {
+        cli_error(cmd, "%s: cannot write: it is a %s (give a file name)", output,
+                  S_ISDIR(so.st_mode) ? "directory" : "socket");
+        return false;
+    }
     for (size_t i = 0; i < count; i++) {
         struct stat si;
         if (inputs[i] && stat(inputs[i], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino) {

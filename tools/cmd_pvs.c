@@ -115,7 +115,7 @@ static void usage_build(FILE *out)
             "  sightline pvs build --city tiny -o tiny.slpvs --cell-size 8 --options eps=1,cell=1\n"
             "  mpiexec -n 2 sightline pvs build city.slscene -o city.slpvs --threads 1\n"
             "  sightline pvs build --city small --along walk.txt --method adjustable -o walk.slpvs\n"
-            "  sightline pvs build oa_dm1.pk3 --map oa_dm1 --cells bsp --method adjustable -o dm1.slpvs\n",
+            "  sightline pvs build oa_dm1.pk3 --map oa_dm1 --cells bsp --method portal -o dm1.slpvs\n",
             SL_MAX_THREADS, CLI_PVS_LEASE_DEFAULT);
 }
 
@@ -409,7 +409,8 @@ static int run_build(int argc, char **argv)
                 bo.method = "extproj";
                 why = "the conservative method for building footprints at different heights (terrain, bridges): "
                       "adjustable and sample occlude only with footprints at or below a cell's lowest eye, which "
-                      "over relief leaves little culled (docs/pvs.md, \"Footprints above the ground\")";
+                      "over relief leaves little culled (docs/pvs.md, \"Footprints above the ground\"); pvs update "
+                      "cannot update an extproj bake: give --method adjustable for that";
             }
         } else {
             sl_scene_destroy(scene);
@@ -512,7 +513,7 @@ static int run_build(int argc, char **argv)
                stats.cells ? (double)stats.visible_total / stats.cells : 0.0, 100.0 * stats.mean_culled,
                cli_bytes(stats.file_bytes, b, sizeof b), (unsigned long long)stats.occluders_removed);
         if (stats.regions)
-            printf("  motion regions: %u nodes marked per cell in %.2f s\n", stats.regions, stats.region_seconds);
+            printf("  motion regions: %u nodes, marked for every cell in %.2f s\n", stats.regions, stats.region_seconds);
     }
     return 0;
 }

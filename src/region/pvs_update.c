@@ -402,7 +402,8 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
                        "pvs update: the edited scene's view cells differ from the file's (%u cells in the file, %u "
                        "now%s): the edit changed the streets or put footprints over them, or the cell options are "
-                       "not those of the bake; every cell's set may change: bake the edited scene with pvs build",
+                       "not those of the bake (a bake made with --along cannot be updated: its cells are those along "
+                       "the path); every cell's set may change: bake the edited scene with pvs build",
                        info.cell_count, sl_viewcells_count(cells),
                        info.cell_count == sl_viewcells_count(cells) ? ", other shapes" : "");
     static const char *const parts[] = {"the terrain", "the streets", "the BSP", "the mesh occluders"};

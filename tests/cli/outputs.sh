@@ -57,11 +57,16 @@ ln -s real/new.slscene "$tmp/dangling.slscene"
 expect 0 "$SL" gen city --preset tiny -o "$tmp/dangling.slscene" --quiet
 [ -L "$tmp/dangling.slscene" ] || fail "the dangling link was replaced"
 cmp -s "$tmp/real/new.slscene" "$tmp/city.slscene" || fail "the dangling link's target was not created"
-# a directory is refused, by name
+# a directory is refused, by name, before any work (a pvs bake leaves no checkpoint beside it)
 mkdir "$tmp/adir"
-expect 1 "$SL" path gen "$tmp/city.slscene" --kind walk --frames 4 -o "$tmp/adir" --quiet
+expect 2 "$SL" path gen "$tmp/city.slscene" --kind walk --frames 4 -o "$tmp/adir" --quiet
 has "adir: cannot write: it is a directory" "$tmp/err"
 [ -d "$tmp/adir" ] || fail "the directory output was touched"
+expect 2 "$SL" pvs build "$tmp/city.slscene" -o "$tmp/adir" --quiet
+has "adir: cannot write: it is a directory" "$tmp/err"
+[ -e "$tmp/adir.ckpt" ] && fail "a checkpoint was left beside the directory output"
+expect 2 "$SL" pvs build "$tmp/city.slscene" -o "$tmp/nodir/" --quiet
+has "nodir/: cannot write: it names a directory" "$tmp/err"
 
 # ---- an output that is an input: refused, whatever its spelling ----
 cp "$tmp/city.slscene" "$tmp/keep.slscene"

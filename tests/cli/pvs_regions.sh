@@ -13,7 +13,7 @@ expect 0 "$SL" pvs build --help
 has "--no-regions" "$tmp/out"
 expect 0 "$SL" path gen city:tiny --kind drive --frames 30 --fps 10 --seed 3 -o "$tmp/drive.txt"
 expect 0 "$SL" pvs build city:tiny --along "$tmp/drive.txt" --method adjustable --threads 2 --quiet -o "$tmp/r2.slpvs"
-has "motion regions: [0-9]* nodes marked per cell" "$tmp/out"
+has "motion regions: [0-9]* nodes, marked for every cell" "$tmp/out"
 expect 0 "$SL" pvs build city:tiny --along "$tmp/drive.txt" --method adjustable --threads 1 --quiet --json -o "$tmp/r1.slpvs"
 has '"regions":[1-9][0-9]*' "$tmp/out"
 cmp -s "$tmp/r1.slpvs" "$tmp/r2.slpvs" || fail "the regions differ between 1 and 2 threads"
