@@ -512,6 +512,10 @@ static sl_status q3_check_leaves(q3_ctx *c, uint32_t *cluster_count)
         if (cluster < -1 || (c->vis_clusters >= 0 && cluster >= c->vis_clusters))
             return q3_bad(c, Q3_LEAVES, "leaf %u: cluster %d out of range (%d clusters in the vis data)", i, cluster,
                           c->vis_clusters >= 0 ? c->vis_clusters : 0);
+        /* without vis data a cluster is a leaf's group: there cannot be more than leaves */
+        if (c->vis_clusters < 0 && cluster >= 0 && (uint32_t)cluster >= c->count[Q3_LEAVES])
+            return q3_bad(c, Q3_LEAVES, "leaf %u: cluster %d out of range (no vis data, %u leaves)", i, cluster,
+                          c->count[Q3_LEAVES]);
         if (!range_ok(f0, fn, c->count[Q3_LEAFFACES]))
             return q3_bad(c, Q3_LEAVES, "leaf %u: leafface range %d+%d outside the %u leaffaces", i, f0, fn,
                           c->count[Q3_LEAFFACES]);
@@ -527,7 +531,7 @@ static sl_status q3_check_leaves(q3_ctx *c, uint32_t *cluster_count)
                           c->count[Q3_LEAFFACES]);
     }
     /* without vis data the clusters still exist; there is just no PVS to go with them */
-    *cluster_count = c->vis_clusters >= 0 ? (uint32_t)c->vis_clusters : (uint32_t)(max_cluster + 1);
+    *cluster_count = c->vis_clusters >= 0 ? (uint32_t)c->vis_clusters : (uint32_t)max_cluster + 1u;
     return SL_OK;
 }
 
