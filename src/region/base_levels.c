@@ -1,6 +1,7 @@
 /* Footprints above the ground (docs/pvs.md, "Footprints above the ground"): the distinct bases of
- * the scene's footprints, and per view cell the lowest eye and the highest base at or below it. The methods that take their eyes at the cell's top (adjustable, sample) treat an occluder as
- * a wall from the ground up; that holds for the sight lines that pass it above its base, which
+ * the scene's footprints, and per view cell the lowest eye and the highest base at or below it.
+ * The methods that take their eyes at the cell's top (adjustable, sample) treat an occluder as a
+ * wall from the ground up; that holds for the sight lines that pass it above its base, which
  * every line between points at or above the base does. */
 #include "pvs_internal.h"
 
@@ -15,32 +16,20 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-bool sl_base_levels_init(sl_base_levels *b, const double *bases, uint32_t n, const sl_allocator *a)
-{
-    b->n = 0;
-    b->cap = (size_t)n + 1;
-    if (!(b->v = sl_alloc(a, b->cap * sizeof(double))))
-        return false;
-    if (n)
-        memcpy(b->v, bases, (size_t)n * sizeof(double));
-    qsort(b->v, n, sizeof(double), cmp_double);
-    for (uint32_t k = 0; k < n; k++)
-        if (b->n == 0 || b->v[k] != b->v[b->n - 1])
-            b->v[b->n++] = b->v[k];
-    return true;
-}
-
 bool sl_base_levels_of_scene(sl_base_levels *b, sl_scene scene, const sl_allocator *a)
 {
     const uint32_t nf = sl_scene_footprint_count(scene);
-    double *v = sl_alloc(a, ((size_t)nf + 1) * sizeof(double));
-    if (!v)
+    b->n = 0;
+    b->cap = (size_t)nf + 1;
+    if (!(b->v = sl_alloc(a, b->cap * sizeof(double))))
         return false;
     for (uint32_t f = 0; f < nf; f++)
-        v[f] = sl_scene_footprint(scene, f).base_z;
-    bool ok = sl_base_levels_init(b, v, nf, a);
-    sl_free(a, v, ((size_t)nf + 1) * sizeof(double));
-    return ok;
+        b->v[f] = sl_scene_footprint(scene, f).base_z;
+    qsort(b->v, nf, sizeof(double), cmp_double);
+    for (uint32_t k = 0; k < nf; k++)
+        if (b->n == 0 || b->v[k] != b->v[b->n - 1])
+            b->v[b->n++] = b->v[k];
+    return true;
 }
 
 void sl_base_levels_free(sl_base_levels *b, const sl_allocator *a)

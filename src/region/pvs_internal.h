@@ -149,7 +149,6 @@ typedef struct sl_base_levels {
     uint32_t n;
     size_t cap;
 } sl_base_levels;
-bool sl_base_levels_init(sl_base_levels *b, const double *bases, uint32_t n, const sl_allocator *a);
 bool sl_base_levels_of_scene(sl_base_levels *b, sl_scene scene, const sl_allocator *a);
 void sl_base_levels_free(sl_base_levels *b, const sl_allocator *a);
 double sl_base_levels_top(const sl_base_levels *b); /* the highest base, -INFINITY if none */
