@@ -38,9 +38,12 @@
 
 /* The command's choice of the cells near the path (tools/cmd_pvs.c) is not under test here: the
  * first cell keeps every bake to one cell. */
-sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, sl_error *err)
+sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, uint32_t *far_cameras,
+                              sl_error *err)
 {
     (void)path, (void)radius;
+    if (far_cameras)
+        *far_cameras = 0;
     return sl_viewcells_create(sl_viewcells_data(cells), 1, NULL, out, err);
 }
 

@@ -30,7 +30,13 @@ void cli_error(const char *cmd, const char *fmt, ...)
 
 int cli_fail(const char *cmd, const sl_error *err)
 {
-    cli_error(cmd, "%s (%s)", err->message[0] ? err->message : "failed", sl_status_string(err->status));
+    /* a library message that names the command already ("pvs update: ...") is not prefixed twice;
+     * only a command of two words, which a file name given as an argument is not likely to be */
+    const char *m = err->message[0] ? err->message : "failed";
+    size_t n = strlen(cmd);
+    if (strchr(cmd, ' ') && !strncmp(m, cmd, n) && m[n] == ':' && m[n + 1] == ' ')
+        m += n + 2;
+    cli_error(cmd, "%s (%s)", m, sl_status_string(err->status));
     return 1;
 }
 

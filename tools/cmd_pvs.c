@@ -131,7 +131,8 @@ static void usage_info(FILE *out)
 static void usage_query(FILE *out)
 {
     fprintf(out, "usage: sightline pvs query FILE.slpvs (--point X,Y,Z | --cell N) [options]\n\n"
-                 "Find the view cell holding a point (or take a cell by number) and print its visible set.\n\n"
+                 "Find the view cell holding a point (or take a cell by number) and print its visible set\n"
+                 "and, for a file with motion regions, how many of them the cell marks visible.\n\n"
                  "options:\n"
                  "  --point X,Y,Z  a position (metres)\n"
                  "  --cell N       a cell number, 0..cells-1 (others are refused)\n"
@@ -141,7 +142,7 @@ static void usage_query(FILE *out)
                  "  --map NAME     map inside a .pk3\n"
                  "  --allow-external PATH  an assimp model's references may resolve inside PATH too\n"
                  "  --import-timeout S  stop reading an assimp model after S seconds\n"
-                 "  --ids          print the object ids too\n"
+                 "  --ids          print the object ids (and the marked region nodes) too\n"
                  "  --json         machine-readable output\n"
                  "  --help         this text\n\n"
                  "examples:\n  sightline pvs query city.slpvs --point 10,-4,1.7 --ids\n"
@@ -227,30 +228,35 @@ static double box_gap(const sl_aabb *a, const sl_aabb *b)
 
 /* ---- build ---- */
 
-sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, sl_error *err)
+/* --along PATH --radius R of build and update: *cells becomes the cells near the path's cameras
+ * (destroyed and NULL on failure); far / cameras: the cameras no cell comes near, of how many. */
+static sl_status keep_cells_along(sl_viewcells *cells, const char *along, float radius, uint32_t *far,
+                                  uint32_t *cameras, sl_error *err)
 {
-    *out = NULL;
-    uint32_t nc = sl_viewcells_count(cells), np = sl_path_count(path);
-    const sl_viewcell *vc = sl_viewcells_data(cells);
-    const sl_pose *poses = sl_path_poses(path);
-    sl_viewcell *keep = malloc(((size_t)nc + 1) * sizeof *keep);
-    if (!keep)
-        return tool_fail(err, SL_ERROR_OUT_OF_MEMORY, "cells along the path: out of memory");
-    uint32_t n = 0;
-    for (uint32_t c = 0; c < nc; c++)
-        for (uint32_t i = 0; i < np; i++) {
-            sl_aabb eye = {poses[i].position, poses[i].position};
-            if (box_gap(&vc[c].bounds, &eye) <= radius) {
-                keep[n++] = vc[c];
-                break;
-            }
-        }
-    sl_status st = n ? sl_viewcells_create(keep, n, NULL, out, err)
-                     : tool_fail(err, SL_ERROR_INVALID_ARGUMENT,
-                               "no view cell lies within %g m of the path's %u cameras (a path of another scene?)",
-                               (double)radius, np);
-    free(keep);
+    sl_path path = NULL;
+    sl_viewcells near = NULL;
+    sl_status st = sl_path_load(along, NULL, &path, err);
+    if (st != SL_OK)
+        tool_error_prefix(err, "--along");
+    if (st == SL_OK)
+        st = cli_viewcells_along(*cells, path, radius, &near, far, err);
+    *cameras = path ? sl_path_count(path) : 0;
+    sl_path_destroy(path);
+    sl_viewcells_destroy(*cells);
+    *cells = near;
     return st;
+}
+
+/* Said before the bake, not after it: cameras of --along that no cell comes near (a path of the
+ * wrong scene, or above the streets). */
+static void warn_far_cameras(const char *cmd, uint32_t far, uint32_t cameras, const char *along, float radius)
+{
+    if (far && cameras)
+        fprintf(stderr,
+                "sightline %s: WARNING: %u of the %u cameras of %s are farther than %g m from every view cell "
+                "(%.1f%%): the PVS holds no set for them, and the pvs culler falls back to frustum culling there "
+                "(a path above the streets, or of another scene? --radius widens the reach)\n",
+                cmd, far, cameras, along, (double)radius, 100.0 * far / cameras);
 }
 
 static int run_build(int argc, char **argv)
@@ -425,7 +431,7 @@ static int run_build(int argc, char **argv)
             return 2;
         }
         const char *pmi_rank = getenv("PMI_RANK");
-        if (!quiet && !json && (!pmi_rank || atoi(pmi_rank) == 0))
+        if (!json && (!pmi_rank || atoi(pmi_rank) == 0)) /* --quiet removes the progress only */
             fprintf(stderr, "sightline pvs build: method %s (%s; --method NAME to choose)\n", bo.method, why);
     }
     if (!strcmp(cells_kind, "streets"))
@@ -438,23 +444,17 @@ static int run_build(int argc, char **argv)
         sl_aabb box = {{volume[0], volume[1], volume[2]}, {volume[3], volume[4], volume[5]}};
         st = sl_viewcells_adaptive(scene, &box, SL_NONE, &vo, &cells, &err);
     }
-    if (st == SL_OK && along) {
-        sl_path path = NULL;
-        sl_viewcells near = NULL;
-        st = sl_path_load(along, NULL, &path, &err);
-        if (st != SL_OK)
-            tool_error_prefix(&err, "--along");
-        if (st == SL_OK)
-            st = cli_viewcells_along(cells, path, radius, &near, &err);
-        sl_path_destroy(path);
-        sl_viewcells_destroy(cells);
-        cells = near;
-    }
+    uint32_t far_cameras = 0, path_cameras = 0;
+    if (st == SL_OK && along)
+        st = keep_cells_along(&cells, along, radius, &far_cameras, &path_cameras, &err);
     if (st != SL_OK) {
         sl_viewcells_destroy(cells);
         sl_scene_destroy(scene);
         return cli_fail(a.cmd, &err);
     }
+    const char *rank0 = getenv("PMI_RANK");
+    if (!rank0 || atoi(rank0) == 0)
+        warn_far_cameras(a.cmd, far_cameras, path_cameras, along, radius);
     cli_progress_state ps;
     sl_pvs_build_stats stats;
     int rank = 0;
@@ -520,6 +520,26 @@ static int run_build(int argc, char **argv)
 
 /* ---- info ---- */
 
+/* The motion-region hierarchy's leaves (the distinct regions) and, for `row` (a cell's marks;
+ * NULL: none), how many nodes and leaves it marks visible. */
+typedef struct region_counts {
+    uint32_t leaves, marked, leaves_marked;
+} region_counts;
+
+static region_counts count_regions(sl_pvs p, const uint8_t *row)
+{
+    region_counts rc = {0, 0, 0};
+    const sl_pvs_region *nodes = sl_pvs_region_nodes(p);
+    uint32_t n = sl_pvs_region_count(p);
+    for (uint32_t k = 0; nodes && k < n; k++) {
+        bool leaf = nodes[k].child_count == 0, mark = row && (row[k >> 3] >> (k & 7) & 1u);
+        rc.leaves += leaf;
+        rc.marked += mark;
+        rc.leaves_marked += leaf && mark;
+    }
+    return rc;
+}
+
 static int run_info(int argc, char **argv)
 {
     cli_args a;
@@ -547,6 +567,10 @@ static int run_info(int argc, char **argv)
     sl_pvs_get_info(p, &in);
     sl_viewcells_stats cs;
     sl_viewcells_get_stats(sl_pvs_cells(p), &cs);
+    /* the hierarchy and every cell's row of marks, as the open handle holds them */
+    region_counts rcount = count_regions(p, NULL);
+    uint64_t region_bytes = (uint64_t)in.region_count * sizeof(sl_pvs_region) +
+                            (uint64_t)in.cell_count * ((in.region_count + 7) / 8);
     if (json) {
         cli_json j;
         cli_json_begin(&j, stdout);
@@ -574,7 +598,9 @@ static int run_info(int argc, char **argv)
         cli_json_string(&j, "scene_key", key);
         cli_json_uint(&j, "scene_key_format", in.scene_key_version);
         cli_json_uint(&j, "regions", in.region_count);
+        cli_json_uint(&j, "region_leaves", rcount.leaves);
         cli_json_double(&j, "mean_regions_visible", in.mean_regions_visible);
+        cli_json_uint(&j, "region_memory_bytes", region_bytes);
         cli_json_object_begin(&j, "meta");
         const char *m = sl_pvs_meta_text(p);
         while (*m) {
@@ -604,8 +630,11 @@ static int run_info(int argc, char **argv)
         printf("  scene key %016llx (format %u%s)\n", (unsigned long long)in.scene_key, in.scene_key_version,
                in.scene_key_version < SL_PVS_SCENE_KEY_VERSION ? ", older than this build's: bake it again" : "");
         if (in.region_count)
-            printf("  motion regions: %u nodes, %.1f marked per cell on average\n", in.region_count,
-                   in.mean_regions_visible);
+            printf("  motion regions (where dynamic objects can be): %u nodes over %u regions, %.1f nodes marked "
+                   "visible per cell on average; %s in memory once open\n",
+                   in.region_count, rcount.leaves, in.mean_regions_visible, cli_bytes(region_bytes, b1, sizeof b1));
+        else
+            printf("  motion regions: none (with this file the pvs culler frustum-culls dynamic objects)\n");
         const char *m = sl_pvs_meta_text(p);
         while (*m) {
             const char *eol = strchr(m, '\n');
@@ -742,6 +771,23 @@ static int run_query(int argc, char **argv)
                 cli_json_uint(&j, NULL, set[i]);
             cli_json_array_end(&j);
         }
+        if (in.region_count) {
+            const uint8_t *row = cell != SL_NONE ? sl_pvs_region_row(p, cell) : NULL;
+            region_counts rq = count_regions(p, row);
+            cli_json_uint(&j, "regions", in.region_count);
+            cli_json_uint(&j, "region_leaves", rq.leaves);
+            if (row) {
+                cli_json_uint(&j, "regions_marked", rq.marked);
+                cli_json_uint(&j, "region_leaves_marked", rq.leaves_marked);
+                if (ids) {
+                    cli_json_array_begin(&j, "region_ids");
+                    for (uint32_t k = 0; k < in.region_count; k++)
+                        if (row[k >> 3] >> (k & 7) & 1u)
+                            cli_json_uint(&j, NULL, k);
+                    cli_json_array_end(&j);
+                }
+            }
+        }
         cli_json_end(&j);
     } else if (cell == SL_NONE) {
         bool outside = scene && !sl_oracle_in_domain(scene, (sl_vec3){point[0], point[1], point[2]}, NULL);
@@ -768,6 +814,21 @@ static int run_query(int argc, char **argv)
                 printf("%s%u", i ? " " : "  ", set[i]);
             if (n)
                 printf("\n");
+        }
+        const uint8_t *row = sl_pvs_region_row(p, cell);
+        if (row) {
+            region_counts rq = count_regions(p, row);
+            printf("  motion regions: %u of %u nodes marked visible, %u of %u regions (a dynamic object is drawn "
+                   "when the deepest node holding its box is marked)\n",
+                   rq.marked, in.region_count, rq.leaves_marked, rq.leaves);
+            if (ids) {
+                uint32_t shown = 0;
+                for (uint32_t k = 0; k < in.region_count; k++)
+                    if (row[k >> 3] >> (k & 7) & 1u)
+                        printf("%s%u", shown++ ? " " : "  nodes: ", k);
+                if (shown)
+                    printf("\n");
+            }
         }
     }
     free(set);
@@ -1135,6 +1196,8 @@ static void usage_update(FILE *out)
             "  --scene EDITED    the edited scene (a .slscene or city:PRESET[:SEED] as for build)\n"
             "  --cells KIND      streets (default) or grid: the view cells of EDITED, as pvs build makes them\n"
             "  --cell-size M, --eye-min H, --eye-max H   as for pvs build (they must be the bake's)\n"
+            "  --along PATH, --radius M   for a bake made with --along: the same path and radius (the\n"
+            "                    cells near the path's cameras; they must be the bake's)\n"
             "  --threads N       OpenMP threads (default: all cores)\n"
             "  --checkpoint F    journal of the re-baked cells (default OUT.slpvs.ckpt)\n"
             "  --json            machine-readable summary on stdout\n"
@@ -1150,7 +1213,9 @@ static int run_update(int argc, char **argv)
     cli_args a;
     cli_args_init(&a, argc, argv);
     a.cmd = "pvs update";
-    const char *name, *val, *old_path = NULL, *new_path = NULL, *cells_kind = "streets";
+    const char *name, *val, *old_path = NULL, *new_path = NULL, *cells_kind = "streets", *along = NULL;
+    float radius = 2.0f;
+    bool has_radius = false;
     cli_common com = {0};
     sl_viewcell_options vo;
     memset(&vo, 0, sizeof vo);
@@ -1176,7 +1241,12 @@ static int run_update(int argc, char **argv)
             cli_parse_threads(&a, name, cli_value(&a, name, val), true, &uo.threads);
         else if (!strcmp(name, "checkpoint"))
             uo.checkpoint = cli_value(&a, name, val);
-        else
+        else if (!strcmp(name, "along"))
+            along = cli_value(&a, name, val);
+        else if (!strcmp(name, "radius")) {
+            cli_parse_float(&a, name, cli_value(&a, name, val), &radius);
+            has_radius = true;
+        } else
             cli_unknown(&a, name);
     }
     int parsed = cli_parse_done(&a, &com, usage_update);
@@ -1192,8 +1262,16 @@ static int run_update(int argc, char **argv)
         cli_error(a.cmd, "--cells: '%s' is not streets or grid (an update handles 2.5D street scenes)", cells_kind);
         return 2;
     }
-    const char *inputs[] = {old_path, new_path};
-    if (!cli_output_not_input(a.cmd, output, inputs, 2))
+    if (has_radius && !along) {
+        cli_error(a.cmd, "--radius needs --along PATH");
+        return 2;
+    }
+    if (!(radius >= 0) || !isfinite(radius)) {
+        cli_error(a.cmd, "--radius must be a finite distance >= 0");
+        return 2;
+    }
+    const char *inputs[] = {old_path, new_path, along};
+    if (!cli_output_not_input(a.cmd, output, inputs, along ? 3 : 2))
         return 2;
     sl_error err;
     sl_pvs old = NULL;
@@ -1209,6 +1287,11 @@ static int run_update(int argc, char **argv)
     if (st == SL_OK)
         st = !strcmp(cells_kind, "grid") ? sl_viewcells_grid(news, &vo, &cells, &err)
                                          : sl_viewcells_from_streets(news, &vo, &cells, &err);
+    uint32_t far_cameras = 0, path_cameras = 0;
+    if (st == SL_OK && along) /* a bake made with --along: the same cells along the same path */
+        st = keep_cells_along(&cells, along, radius, &far_cameras, &path_cameras, &err);
+    if (st == SL_OK && along)
+        warn_far_cameras(a.cmd, far_cameras, path_cameras, along, radius);
     cli_progress_state ps;
     sl_pvs_update_stats us;
     memset(&us, 0, sizeof us);

@@ -60,7 +60,7 @@ sl_status cli_pvs_bake_along(sl_scene scene, sl_path path, uint32_t first, uint3
         st = sl_viewcells_from_streets(scene, NULL, &all, err);
     if (st == SL_OK) {
         sl_error e;
-        st = cli_viewcells_along(all, run, CLI_PVS_ALONG_RADIUS, &near, &e);
+        st = cli_viewcells_along(all, run, CLI_PVS_ALONG_RADIUS, &near, NULL, &e);
         if (st == SL_ERROR_INVALID_ARGUMENT) {
             /* no cell near the cameras (views above the streets): nothing to bake, not a failure */
             snprintf(out->why, sizeof out->why,

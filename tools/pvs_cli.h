@@ -1,5 +1,5 @@
 /* PVS helpers of the commands: the MPI bake driver of `sightline pvs build` (tools/pvs_mpi.c), the
- * choice of the view cells along a camera path (tools/cmd_pvs.c), and the bake along a path with
+ * choice of the view cells along a camera path (tools/cells_along.c), and the bake along a path with
  * which `sightline demo` and `sightline bench` give the pvs culler a file (tools/pvs_along.c). The MPI driver lives in the command, not in libsightline, so that the library never needs
  * MPI: a program that links Sightline bakes on its own cores with sl_pvs_build; only the command,
  * run under mpiexec, spans processes. */
@@ -27,8 +27,10 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
 /* The cells whose bounds come within `radius` metres of a camera position of `path`, as a new cell
  * set (ids renumbered, order kept). A PVS baked for them covers the path: an eye outside them
  * finds no cell, and the pvs culler falls back to frustum culling there, as for any eye in no
- * cell, so a cell left out is never taken for an empty one. Fails when no cell is that near. */
-sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, sl_error *err);
+ * cell, so a cell left out is never taken for an empty one. Fails when no cell is that near.
+ * far_cameras (may be NULL): how many of the path's cameras no cell comes that near. */
+sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, uint32_t *far_cameras,
+                              sl_error *err);
 
 /* How the demo and the bench bake for the pvs culler: the street cells within this many metres of
  * a camera (as `pvs build --along PATH --radius R`), with this conservative method. */

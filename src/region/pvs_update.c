@@ -380,12 +380,28 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
     if (ts0 != SL_OK)
         return ts0;
     /* the file must be the old scene's bake, by a method the update knows */
-    sl_status s = sl_pvs_check_scene(old, old_scene, err);
-    if (s != SL_OK) {
-        sl_error_prefix(err, "pvs update: the old scene is not the one the file was baked for");
-        return s;
-    }
+    sl_pvs_info info;
+    sl_pvs_get_info(old, &info);
     const char *method = sl_pvs_meta(old, "method"), *options = sl_pvs_meta(old, "options");
+    sl_status s = SL_OK;
+    if (info.scene_key_version != SL_PVS_SCENE_KEY_VERSION) {
+        s = sl_pvs_check_scene(old, old_scene, err); /* an older or newer key format: bake again */
+        if (s != SL_OK) {
+            sl_error_prefix(err, "pvs update");
+            return s;
+        }
+    }
+    const uint64_t old_key = sl_pvs_scene_key(old_scene);
+    if (info.object_count != sl_scene_object_count(old_scene) || info.scene_key != old_key)
+        /* sl_pvs_check_scene's advice (bake the file again for this scene) would replace a good
+         * bake with one of the wrong scene: here the old scene is what was given wrongly */
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
+                       "pvs update: the old scene is not the one the file was baked for (the file: %u objects, "
+                       "scene key %016llx; the old scene given: %u objects, key %016llx): give as the old scene "
+                       "the scene the file was baked for, unedited, or check that the file is the bake you meant "
+                       "(no re-bake is needed)",
+                       info.object_count, (unsigned long long)info.scene_key, sl_scene_object_count(old_scene),
+                       (unsigned long long)old_key);
     bool known = false;
     for (size_t i = 0; method && i < sizeof g_methods / sizeof *g_methods; i++)
         known = known || !strcmp(method, g_methods[i]);
@@ -396,14 +412,12 @@ sl_status sl_pvs_update(sl_pvs old, sl_scene old_scene, sl_scene new_scene, sl_v
                        "with pvs build",
                        method ? method : "(none recorded)");
     /* the cells: the full bake of the edited scene would use these; they must be the file's */
-    sl_pvs_info info;
-    sl_pvs_get_info(old, &info);
     if (sl_viewcells_key(cells) != info.cells_key || sl_viewcells_count(cells) != info.cell_count)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT,
                        "pvs update: the edited scene's view cells differ from the file's (%u cells in the file, %u "
                        "now%s): the edit changed the streets or put footprints over them, or the cell options are "
-                       "not those of the bake (a bake made with --along cannot be updated: its cells are those along "
-                       "the path); every cell's set may change: bake the edited scene with pvs build",
+                       "not those of the bake (a bake made with --along is updated with the same --along and --radius); "
+                       "every cell's set may change: bake the edited scene with pvs build",
                        info.cell_count, sl_viewcells_count(cells),
                        info.cell_count == sl_viewcells_count(cells) ? ", other shapes" : "");
     static const char *const parts[] = {"the terrain", "the streets", "the BSP", "the mesh occluders"};

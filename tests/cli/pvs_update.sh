@@ -36,6 +36,29 @@ expect 0 "$SL" pvs build "$tmp/edited.slscene" --method adjustable --cell-size 4
 cmp -s "$tmp/updated.slpvs" "$tmp/full.slpvs" || fail "the update differs from the full bake"
 [ ! -e "$tmp/updated.slpvs.ckpt" ] || fail "the update left its checkpoint"
 
+# a partial bake (--along) is updated with the same --along and --radius, byte for byte the partial
+# bake of the edited scene; without them the cells are the whole city's, not the file's
+expect 0 "$SL" path gen "$tmp/city.slscene" --kind walk --frames 90 --fps 10 --seed 4 -o "$tmp/walk.txt"
+expect 0 "$SL" pvs build "$tmp/city.slscene" --along "$tmp/walk.txt" --radius 3 --method adjustable --cell-size 40 \
+    --quiet -o "$tmp/old_along.slpvs"
+expect 0 "$SL" pvs update "$tmp/old_along.slpvs" --old-scene "$tmp/city.slscene" --scene "$tmp/edited.slscene" \
+    --along "$tmp/walk.txt" --radius 3 --cell-size 40 --quiet --json -o "$tmp/upd_along.slpvs"
+has '"cells_affected":[1-9]' "$tmp/out"
+expect 0 "$SL" pvs build "$tmp/edited.slscene" --along "$tmp/walk.txt" --radius 3 --method adjustable --cell-size 40 \
+    --quiet -o "$tmp/full_along.slpvs"
+cmp -s "$tmp/upd_along.slpvs" "$tmp/full_along.slpvs" || fail "the update of a partial bake differs from its bake"
+expect 1 "$SL" pvs update "$tmp/old_along.slpvs" --old-scene "$tmp/city.slscene" --scene "$tmp/edited.slscene" \
+    --cell-size 40 --quiet -o "$tmp/bad.slpvs"
+has "view cells differ" "$tmp/err"
+has "the same --along and --radius" "$tmp/err"
+[ ! -e "$tmp/bad.slpvs" ] || fail "a refused update wrote its output"
+expect 2 "$SL" pvs update "$tmp/old_along.slpvs" --old-scene "$tmp/city.slscene" --scene "$tmp/edited.slscene" \
+    --radius 3 -o "$tmp/bad.slpvs"
+has "needs --along" "$tmp/err"
+expect 2 "$SL" pvs update "$tmp/old_along.slpvs" --old-scene "$tmp/city.slscene" --scene "$tmp/edited.slscene" \
+    --along "$tmp/walk.txt" -o "$tmp/walk.txt"
+has "input" "$tmp/err"
+
 # in place, with --json
 cp "$tmp/old.slpvs" "$tmp/inplace.slpvs"
 expect 0 "$SL" pvs update "$tmp/inplace.slpvs" --old-scene "$tmp/city.slscene" --scene "$tmp/edited.slscene" \
@@ -48,6 +71,11 @@ cmp -s "$tmp/inplace.slpvs" "$tmp/full.slpvs" || fail "the update in place diffe
 expect 1 "$SL" pvs update "$tmp/old.slpvs" --old-scene "$tmp/edited.slscene" --scene "$tmp/edited.slscene" \
     --cell-size 40 -o "$tmp/bad.slpvs"
 has "not the one the file was baked for" "$tmp/err"
+# the advice is to give the right old scene, not to re-bake over the (good) file; the command's
+# name is not said twice
+has "give as the old scene the scene the file was baked for" "$tmp/err"
+hasnt "bake it again" "$tmp/err"
+hasnt "pvs update: pvs update" "$tmp/err"
 [ ! -e "$tmp/bad.slpvs" ] || fail "a refused update wrote its output"
 # buildings moved over the streets: the view cells change
 expect 0 "$SL" gen edit "$tmp/city.slscene" --region -1000,-1000,1000,1000 --remove 0 --add 0 --move 1 --shift 30 \
@@ -56,6 +84,7 @@ expect 1 "$SL" pvs update "$tmp/old.slpvs" --old-scene "$tmp/city.slscene" --sce
     --cell-size 40 -o "$tmp/bad.slpvs"
 has "view cells differ" "$tmp/err"
 has "pvs build" "$tmp/err"
+has "^sightline pvs update: the edited scene's view cells" "$tmp/err"
 [ ! -e "$tmp/bad.slpvs" ] || fail "a refused update wrote its output"
 # other cell options than the bake's
 expect 1 "$SL" pvs update "$tmp/old.slpvs" --old-scene "$tmp/city.slscene" --scene "$tmp/edited.slscene" \
