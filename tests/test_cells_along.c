@@ -77,7 +77,7 @@ static uint32_t brute(sl_viewcells cells, const sl_vec3 *at, uint32_t np, float 
         bool keep = false;
         for (uint32_t i = 0; i < np; i++) {
             sl_aabb eye = {at[i], at[i]};
-            if (box_gap(&vc[c].bounds, &eye) <= radius)
+            if (cli_box_gap(&vc[c].bounds, &eye) <= radius)
                 keep = true, near[i] = 1;
         }
         if (keep)

@@ -9,8 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The distance between two boxes (0 when they touch or overlap). */
-static double box_gap(const sl_aabb *a, const sl_aabb *b)
+double cli_box_gap(const sl_aabb *a, const sl_aabb *b)
 {
     double d2 = 0;
     for (int k = 0; k < 3; k++) {
@@ -102,7 +101,7 @@ sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl
             for (uint32_t k = g.start[sy * ALONG_GRID + sx0]; k < g.start[sy * ALONG_GRID + sx1 + 1]; k++) {
                 uint32_t i = g.order[k];
                 sl_aabb eye = {poses[i].position, poses[i].position};
-                if (box_gap(b, &eye) <= radius) {
+                if (cli_box_gap(b, &eye) <= radius) {
                     kept = true, near[i] = 1;
                     if (!far_cameras) /* only the cells are asked for: the first camera decides */
                         break;

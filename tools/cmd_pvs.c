@@ -214,18 +214,6 @@ static bool parse_floats(cli_args *a, const char *name, const char *text, float 
     return true;
 }
 
-/* Distance between two boxes (0 when they meet). */
-static double box_gap(const sl_aabb *a, const sl_aabb *b)
-{
-    double d2 = 0;
-    for (int k = 0; k < 3; k++) {
-        double lo = fmax((&a->min.x)[k], (&b->min.x)[k]), hi = fmin((&a->max.x)[k], (&b->max.x)[k]);
-        if (lo > hi)
-            d2 += (lo - hi) * (lo - hi);
-    }
-    return sqrt(d2);
-}
-
 /* ---- build ---- */
 
 /* --along PATH --radius R of build and update: *cells becomes the cells near the path's cameras
@@ -1067,7 +1055,7 @@ static int run_verify(int argc, char **argv)
             bool beyond = false;
             if ((!in_set || !in_bsp) && far_plane > 0) {
                 sl_aabb ob = sl_scene_object_bounds(scene, id);
-                beyond = box_gap(&sl_viewcells_data(cells)[c].bounds, &ob) > far_plane;
+                beyond = cli_box_gap(&sl_viewcells_data(cells)[c].bounds, &ob) > far_plane;
             }
             if (!in_set) {
                 misses++;

@@ -29,6 +29,9 @@ sl_status cli_pvs_build_mpi(sl_scene scene, sl_viewcells cells, const char *outp
  * finds no cell, and the pvs culler falls back to frustum culling there, as for any eye in no
  * cell, so a cell left out is never taken for an empty one. Fails when no cell is that near.
  * far_cameras (may be NULL): how many of the path's cameras no cell comes that near. */
+/* The distance between two boxes (0 when they touch or overlap), in doubles. */
+double cli_box_gap(const sl_aabb *a, const sl_aabb *b);
+
 sl_status cli_viewcells_along(sl_viewcells cells, sl_path path, float radius, sl_viewcells *out, uint32_t *far_cameras,
                               sl_error *err);
 
