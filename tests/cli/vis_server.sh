@@ -9,30 +9,32 @@
 #  - SIGTERM stops the server, which reports its statistics and exits 0; a client with no server
 #    gives up after --timeout with exit 1.
 # Skipped (77) when the command was built without the network layer. Every step is bounded by
-# `timeout`. $1 is the sightline binary.
+# `timeout` (every command, so that a hang fails naming its step instead of running into CTest's
+# limit with no output, as one sanitizer run on a loaded machine did, 2026-12-04). $1 is the
+# sightline binary.
 set -u
 SL="$1"
 . "$(dirname "$0")/lib/common.sh"
 
-if "$SL" vis-server 2>&1 | grep -q "without the network layer"; then
+if timeout 60 "$SL" vis-server 2>&1 | grep -q "without the network layer"; then
     echo "built without the network layer (SL_NET): skipped"
     exit 77
 fi
 
-expect 0 "$SL" vis-server --help --no-such-option
+expect 0 timeout 60 "$SL" vis-server --help --no-such-option
 has "--method SPEC" "$tmp/out"
-expect 0 "$SL" vis-client -h
+expect 0 timeout 60 "$SL" vis-client -h
 has "--stall" "$tmp/out"
-expect 2 "$SL" vis-server --no-such-option
+expect 2 timeout 60 "$SL" vis-server --no-such-option
 has "unknown option --no-such-option" "$tmp/err"
-expect 2 "$SL" vis-client --stal
+expect 2 timeout 60 "$SL" vis-client --stal
 has "did you mean --stall" "$tmp/err"
-expect 2 "$SL" vis-server city:tiny --port 0
+expect 2 timeout 60 "$SL" vis-server city:tiny --port 0
 has "needs SCENE, --method SPEC and --port N" "$tmp/err"
-expect 2 "$SL" vis-client --walk 10
-expect 2 "$SL" vis-client --port 1 city:tiny
+expect 2 timeout 60 "$SL" vis-client --walk 10
+expect 2 timeout 60 "$SL" vis-client --port 1 city:tiny
 has "exactly one of --path FILE, --walk N, --drive N" "$tmp/err"
-expect 1 "$SL" vis-server city:tiny --method nosuchmethod --port 0
+expect 1 timeout 60 "$SL" vis-server city:tiny --method nosuchmethod --port 0
 has "nosuchmethod" "$tmp/err"
 
 # start_server LOG ARGS...: a server in the background on a free port; sets $pid and $port
@@ -79,8 +81,8 @@ stop_server "$tmp/server1.log"
 has "0 protocol errors" "$tmp/server1.log"
 
 # pvs: cell sets from one cache
-expect 0 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
-expect 0 "$SL" pvs build city:tiny --along "$tmp/walk.txt" --threads 1 -o "$tmp/walk.slpvs"
+expect 0 timeout 60 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
+expect 0 timeout 60 "$SL" pvs build city:tiny --along "$tmp/walk.txt" --threads 1 -o "$tmp/walk.slpvs"
 start_server "$tmp/server2.log" city:tiny --method "pvs:file=$tmp/walk.slpvs"
 for s in 1 2; do
     timeout 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/walk.txt" --stall --check --json >"$tmp/p$s.out" 2>&1 &
