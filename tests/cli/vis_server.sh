@@ -8,33 +8,39 @@
 #    each a superset of the local pvs set (--check);
 #  - SIGTERM stops the server, which reports its statistics and exits 0; a client with no server
 #    gives up after --timeout with exit 1.
-# Skipped (77) when the command was built without the network layer. Every step is bounded by
-# `timeout` (every command, so that a hang fails naming its step instead of running into CTest's
-# limit with no output, as one sanitizer run on a loaded machine did, 2026-12-04). $1 is the
-# sightline binary.
+# Skipped (77) when the command was built without the network layer. Every command is bounded by
+# `timeout -k 5` (SIGTERM, then SIGKILL 5 s later: a process that cannot take SIGTERM, such as one
+# whose threads a sanitizer holds stopped, still ends), so that a hang fails naming its step instead
+# of running into CTest's limit with no output, as two sanitizer runs in CI did (2026-12-04, -06;
+# never reproduced here, alone, under load or in the whole suite). Under ASan the leak check at
+# exit is off for this script's processes: LeakSanitizer stops every thread with ptrace at exit,
+# which is known to crash or hang now and then in CI (seen here in another test, "Tracer caught
+# signal 11"), and these processes are the ones signalled mid-run; the server and the client are
+# leak-checked in process by tests/test_net.c, with counting allocators. $1 is the sightline binary.
 set -u
 SL="$1"
 . "$(dirname "$0")/lib/common.sh"
+[ -n "${ASAN_OPTIONS:-}" ] && export ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0"
 
-if timeout 60 "$SL" vis-server 2>&1 | grep -q "without the network layer"; then
+if timeout -k 5 60 "$SL" vis-server 2>&1 | grep -q "without the network layer"; then
     echo "built without the network layer (SL_NET): skipped"
     exit 77
 fi
 
-expect 0 timeout 60 "$SL" vis-server --help --no-such-option
+expect 0 timeout -k 5 60 "$SL" vis-server --help --no-such-option
 has "--method SPEC" "$tmp/out"
-expect 0 timeout 60 "$SL" vis-client -h
+expect 0 timeout -k 5 60 "$SL" vis-client -h
 has "--stall" "$tmp/out"
-expect 2 timeout 60 "$SL" vis-server --no-such-option
+expect 2 timeout -k 5 60 "$SL" vis-server --no-such-option
 has "unknown option --no-such-option" "$tmp/err"
-expect 2 timeout 60 "$SL" vis-client --stal
+expect 2 timeout -k 5 60 "$SL" vis-client --stal
 has "did you mean --stall" "$tmp/err"
-expect 2 timeout 60 "$SL" vis-server city:tiny --port 0
+expect 2 timeout -k 5 60 "$SL" vis-server city:tiny --port 0
 has "needs SCENE, --method SPEC and --port N" "$tmp/err"
-expect 2 timeout 60 "$SL" vis-client --walk 10
-expect 2 timeout 60 "$SL" vis-client --port 1 city:tiny
+expect 2 timeout -k 5 60 "$SL" vis-client --walk 10
+expect 2 timeout -k 5 60 "$SL" vis-client --port 1 city:tiny
 has "exactly one of --path FILE, --walk N, --drive N" "$tmp/err"
-expect 1 timeout 60 "$SL" vis-server city:tiny --method nosuchmethod --port 0
+expect 1 timeout -k 5 60 "$SL" vis-server city:tiny --method nosuchmethod --port 0
 has "nosuchmethod" "$tmp/err"
 
 # start_server LOG ARGS...: a server in the background on a free port; sets $pid and $port
@@ -42,7 +48,7 @@ start_server() {
     local log=$1
     shift
     rm -f "$tmp/port"
-    timeout 120 "$SL" vis-server "$@" --port 0 --port-file "$tmp/port" >"$log" 2>&1 &
+    timeout -k 60 120 "$SL" vis-server "$@" --port 0 --port-file "$tmp/port" >"$log" 2>&1 &
     pid=$!
     for _ in $(seq 200); do
         [ -s "$tmp/port" ] && break
@@ -53,24 +59,43 @@ start_server() {
     [ -n "$port" ] && [ "$port" -gt 0 ] || fail "no port in $tmp/port"
 }
 
-stop_server() { # stop_server LOG: SIGTERM, exit 0, statistics printed
+stop_server() { # stop_server LOG: SIGTERM, exit 0 within 30 s, statistics printed
     kill -TERM "$pid"
+    for _ in $(seq 300); do
+        kill -0 "$pid" 2>/dev/null || break
+        sleep 0.1
+    done
+    if kill -0 "$pid" 2>/dev/null; then
+        # what the server's threads wait on, for the log, then the step fails
+        for p in $(pgrep -P "$pid"); do
+            echo "vis-server $p still running 30 s after SIGTERM: $(tr '\0' ' ' <"/proc/$p/cmdline")"
+            for t in /proc/"$p"/task/*; do
+                echo "  thread ${t##*/}: state $(cut -d' ' -f3 "$t/stat"), waits in $(cat "$t/wchan" 2>/dev/null)"
+            done
+            pgrep -P "$p" -a | sed 's/^/  child /'
+            command -v gdb >/dev/null &&
+                timeout -k 5 60 gdb -p "$p" -batch -ex "thread apply all bt" 2>&1 | grep '^#\|^Thread' | head -100
+        done
+        kill -KILL "$pid" $(pgrep -P "$pid") 2>/dev/null
+        cat "$1"
+        fail "vis-server did not exit within 30 s of SIGTERM"
+    fi
     wait "$pid" || { cat "$1"; fail "vis-server did not exit 0 on SIGTERM"; }
     has "^vis-server: .* clients" "$1"
 }
 
 start_server "$tmp/server1.log" city:tiny --method cullmap
 has "listening on 127.0.0.1 port $port" "$tmp/server1.log"
-expect 0 timeout 60 "$SL" vis-client city:tiny --port "$port" --walk 45 --check
+expect 0 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 45 --check
 has "45 frames" "$tmp/out"
 has "0 mismatches" "$tmp/out"
-expect 0 timeout 60 "$SL" vis-client city:tiny --port "$port" --drive 60 --stall --check --json
+expect 0 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --drive 60 --stall --check --json
 has '"mismatches":0' "$tmp/out"
 has '"frames_with_invalid_set":0' "$tmp/out"
 has '"sets_checked":60' "$tmp/out"
 # four clients at once, each on its own walk
 for s in 1 2 3 4; do
-    timeout 60 "$SL" vis-client city:tiny --port "$port" --walk 40 --seed "$s" --stall --check >"$tmp/c$s.out" 2>&1 &
+    timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 40 --seed "$s" --stall --check >"$tmp/c$s.out" 2>&1 &
     cpids[$s]=$!
 done
 for s in 1 2 3 4; do
@@ -81,11 +106,11 @@ stop_server "$tmp/server1.log"
 has "0 protocol errors" "$tmp/server1.log"
 
 # pvs: cell sets from one cache
-expect 0 timeout 60 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
-expect 0 timeout 60 "$SL" pvs build city:tiny --along "$tmp/walk.txt" --threads 1 -o "$tmp/walk.slpvs"
+expect 0 timeout -k 5 60 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
+expect 0 timeout -k 5 60 "$SL" pvs build city:tiny --along "$tmp/walk.txt" --threads 1 -o "$tmp/walk.slpvs"
 start_server "$tmp/server2.log" city:tiny --method "pvs:file=$tmp/walk.slpvs"
 for s in 1 2; do
-    timeout 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/walk.txt" --stall --check --json >"$tmp/p$s.out" 2>&1 &
+    timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/walk.txt" --stall --check --json >"$tmp/p$s.out" 2>&1 &
     cpids[$s]=$!
 done
 for s in 1 2; do
@@ -97,6 +122,6 @@ hits=$(sed -n 's/.*cache \([0-9]*\) hits.*/\1/p' "$tmp/server2.log")
 [ -n "$hits" ] && [ "$hits" -gt 0 ] || fail "no cache hits with two clients on one walk: $(cat "$tmp/server2.log")"
 
 # no server: the client gives up after --timeout
-expect 1 timeout 30 "$SL" vis-client city:tiny --port "$port" --walk 5 --timeout 1
+expect 1 timeout -k 5 30 "$SL" vis-client city:tiny --port "$port" --walk 5 --timeout 1
 has "no server at 127.0.0.1 port $port" "$tmp/err"
 echo "vis_server: ok"
