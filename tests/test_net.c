@@ -16,9 +16,11 @@
 #include <cmocka.h>
 
 #include <arpa/inet.h>
+#include <dirent.h>
 #include <math.h>
 #include <netinet/in.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -759,6 +761,80 @@ static void test_faults(void **state)
     sl_vis_server_destroy(s);
 }
 
+/* Threads of this process whose mask blocks SIGPIPE (/proc/self/task/N/status, SigBlk: a hex
+ * mask, bit SIGPIPE-1). */
+static int threads_blocking_sigpipe(void)
+{
+    int n = 0;
+    char line[256];
+    DIR *d = opendir("/proc/self/task");
+    if (!d)
+        return -1;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (e->d_name[0] == '.')
+            continue;
+        char sp[320];
+        snprintf(sp, sizeof sp, "/proc/self/task/%s/status", e->d_name);
+        FILE *f = fopen(sp, "r");
+        if (!f)
+            continue;
+        while (fgets(line, sizeof line, f))
+            if (!strncmp(line, "SigBlk:", 7)) {
+                unsigned long long m = strtoull(line + 7, NULL, 16);
+                n += (m >> (SIGPIPE - 1)) & 1u;
+            }
+        fclose(f);
+    }
+    closedir(d);
+    return n;
+}
+
+/* A peer gone before its set: a write meets a closed socket (EPIPE), which raises SIGPIPE in the
+ * writing thread; its default action would end this whole process. The network threads block it
+ * (net_internal.h net_thread_create), checked directly, and then the server is made to write to
+ * hundreds of clients that sent a viewpoint and left without reading (one in a few hundred such
+ * writes meets EPIPE here: that loop alone killed the command's server in 7 of 8 tries before). */
+static void test_peer_gone(void **state)
+{
+    (void)state;
+    signal(SIGPIPE, SIG_DFL);
+    sl_error err;
+    int before = threads_blocking_sigpipe();
+    assert_true(before >= 0);
+    sl_vis_server s = NULL;
+    sl_vis_server_options o = {.method = "cullmap", .workers = 2, .max_rate_hz = 10000, .max_clients = 64};
+    if (sl_vis_server_create(g_scene, &o, &s, &err) != SL_OK)
+        fail_msg("%s", err.message);
+    uint16_t port = sl_vis_server_port(s);
+    int with_server = threads_blocking_sigpipe();
+    assert_true(with_server >= before + 3); /* the loop thread and two workers */
+    sl_path p = walk(2, 5, SL_PATH_WALK);
+    sl_vis_client_options co = {.port = port, .intrinsics = sl_path_intrinsics(p), .reconnect_ms = 20};
+    sl_vis_client c;
+    assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_OK);
+    assert_true(threads_blocking_sigpipe() >= with_server + 1); /* the client's thread */
+    sl_vis_client_destroy(c);
+    sl_path_destroy(p);
+    /* the calling thread's mask is as it was */
+    sigset_t now;
+    pthread_sigmask(SIG_SETMASK, NULL, &now);
+    assert_false(sigismember(&now, SIGPIPE));
+
+    uint8_t b[64];
+    for (uint32_t i = 0; i < 600; i++) {
+        int fd = raw_connect(port, 0);
+        raw_hello(fd);
+        slvp_view v = {.seq = 1, .eye = {10.0f + 0.05f * (float)(i % 40), 10, 1.7f}, .speed = 1};
+        size_t n = slvp_write_view(b, &v);
+        assert_int_equal(write(fd, b, n), (ssize_t)n);
+        close(fd);
+    }
+    wait_clients(s, 0);
+    assert_true(server_serves(port));
+    sl_vis_server_destroy(s);
+}
+
 static void test_restart(void **state)
 {
     (void)state;
@@ -831,6 +907,7 @@ int main(void)
         cmocka_unit_test(test_server_clients),
         cmocka_unit_test(test_server_pvs_reuse),
         cmocka_unit_test(test_faults),
+        cmocka_unit_test(test_peer_gone),
         cmocka_unit_test(test_restart),
     };
     return cmocka_run_group_tests(tests, setup_scene, teardown_scene);

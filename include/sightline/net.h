@@ -25,6 +25,10 @@
  * sl_vis_client_acquire returns stay valid until the next sl_vis_client_acquire or destroy.
  * sl_vis_reference is used by one thread at a time (one per thread). The scene must outlive the
  * server and every reference made for it, and must not change while they live.
+ *
+ * Signals: the threads the server and the client start block SIGPIPE, so that a peer gone in the
+ * middle of a write ends that connection (EPIPE) and never the process; the process's signal
+ * dispositions and the calling threads' masks are left as they are.
  */
 #ifndef SIGHTLINE_NET_H
 #define SIGHTLINE_NET_H

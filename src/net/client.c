@@ -445,7 +445,7 @@ sl_status sl_vis_client_create(const sl_vis_client_options *o, sl_vis_client *ou
     uv_timer_init(&c->loop, &c->retry);
     c->retry.data = c;
     c->dctx = ZSTD_createDCtx();
-    if (!c->dctx || pthread_create(&c->thread, NULL, client_main, c) != 0) {
+    if (!c->dctx || net_thread_create(&c->thread, client_main, c) != 0) {
         uv_close((uv_handle_t *)&c->retry, NULL);
         uv_close((uv_handle_t *)&c->wake, NULL);
         uv_run(&c->loop, UV_RUN_DEFAULT);

@@ -9,10 +9,29 @@
 #include "sightline/pvs.h"
 #include "sightline/region.h"
 
+#include <pthread.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+/* The network threads (the server's loop, the client's) are created with SIGPIPE blocked: a
+ * write to a peer that has gone (EPIPE) then fails on that connection instead of raising SIGPIPE,
+ * whose default action ends the whole process. A SIGPIPE the kernel raises for a blocked thread
+ * stays pending on that thread and is never delivered. The process's disposition is left alone
+ * (no global state), and the creating thread's mask is restored. The workers, which never write
+ * to a socket, are created with it blocked as well. */
+static inline int net_thread_create(pthread_t *t, void *(*fn)(void *), void *arg)
+{
+    sigset_t pipe_only, old;
+    sigemptyset(&pipe_only);
+    sigaddset(&pipe_only, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_only, &old);
+    int rc = pthread_create(t, NULL, fn, arg);
+    pthread_sigmask(SIG_SETMASK, &old, NULL);
+    return rc;
+}
 
 static inline void *net_alloc(const sl_allocator *a, size_t size)
 {

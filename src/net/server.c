@@ -1096,13 +1096,13 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
     s->wake.data = s;
     s->wake_open = true;
     for (uint32_t i = 0; i < workers; i++) {
-        if (pthread_create(&s->workers[i].thread, NULL, worker_main, &s->workers[i]) != 0) {
+        if (net_thread_create(&s->workers[i].thread, worker_main, &s->workers[i]) != 0) {
             st = net_fail(err, SL_ERROR_INTERNAL, "vis server: cannot start worker thread %u", i);
             goto fail;
         }
         s->workers[i].started = true;
     }
-    if (pthread_create(&s->loop_thread, NULL, loop_main, s) != 0) {
+    if (net_thread_create(&s->loop_thread, loop_main, s) != 0) {
         st = net_fail(err, SL_ERROR_INTERNAL, "vis server: cannot start the loop thread");
         goto fail;
     }
