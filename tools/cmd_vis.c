@@ -63,7 +63,12 @@ static void client_usage(FILE *out)
             "  --method SPEC      the method to check with (default: the server's)\n"
             "  --timeout S        seconds to wait for a set or the server (default 10)\n"
             "  --json             the report as JSON\n"
-            "  --help             this text\n");
+            "  --help             this text\n\n"
+            "Exit status 0; 1 when a displayed set differs from the local method's (--check), a\n"
+            "viewpoint got no set within --timeout (--stall), no set came at all, --check had\n"
+            "nothing to check, or a viewpoint could not be sent (the frame and the reason are\n"
+            "named); 2 for a usage error. Refusals by the server (its ERROR text) are reported\n"
+            "on stderr; the client reconnects after each.\n");
 }
 
 #ifndef SL_HAVE_NET
@@ -398,14 +403,19 @@ int sl_cmd_vis_client(int argc, char **argv)
     double *lat = tool_alloc(NULL, ((size_t)frames + 1) * sizeof *lat);
     double *sent = tool_alloc(NULL, ((size_t)frames + 1) * sizeof *sent);
     uint32_t nlat = 0, checked = 0, mismatches = 0, invalid = 0, timeouts = 0, displayed = 0;
-    uint32_t first_seq = 0, last_seen = 0;
+    uint32_t first_seq = 0, last_seen = 0, views_sent = 0;
     char first_problem[300] = "";
     double start = tool_now();
     for (uint32_t f = 0; f < frames; f++) {
         sl_camera cam = sl_path_camera(path, f);
         uint32_t seq;
         float v = (float)(ps.speed_mean > 0 ? ps.speed_mean : 0);
-        sl_vis_client_send_view(c, &cam, v, &seq, &err);
+        if (sl_vis_client_send_view(c, &cam, v, &seq, &err) != SL_OK) {
+            snprintf(first_problem, sizeof first_problem, "frame %u: %.250s", f, err.message);
+            rc = 1;
+            break;
+        }
+        views_sent++;
         if (f == 0)
             first_seq = seq;
         sent[f] = mono_now();
@@ -498,6 +508,16 @@ int sl_cmd_vis_client(int argc, char **argv)
     }
     if (first_problem[0])
         cli_error(a.cmd, "%s", first_problem);
+    if (cs.errors)
+        cli_error(a.cmd, "the server refused %llu time(s) (the client reconnected); the last: %s",
+                  (unsigned long long)cs.errors, cs.last_error);
+    if (views_sent && !cs.sets_received) {
+        cli_error(a.cmd, "no set received for %u viewpoint(s)", views_sent);
+        rc = 1;
+    } else if (ref && views_sent && !checked) {
+        cli_error(a.cmd, "--check: no set was displayed, none checked");
+        rc = 1;
+    }
     if (mismatches || timeouts || (stall && invalid))
         rc = 1;
     tool_free(NULL, lat, ((size_t)frames + 1) * sizeof *lat);

@@ -117,6 +117,15 @@ for s in 1 2; do
     wait "${cpids[$s]}" || { cat "$tmp/p$s.out"; fail "pvs client $s failed"; }
     has '"mismatches":0' "$tmp/p$s.out"
 done
+# a viewpoint the server refuses (beyond +-1e7 m): exit 1 with the server's reason, not a pass
+printf '# sightline-path 1\n0 2e7 21.3 1.7 90 0 0\n0.1 2e7 21.4 1.7 90 0 0\n' >"$tmp/far.txt"
+expect 1 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/far.txt" --check
+has "the server refused .* eye.x 2e+07: beyond" "$tmp/err"
+has "no set received for 2 viewpoint(s)" "$tmp/err"
+# a speed the client may not send (100 m a millisecond): exit 1 naming the frame
+printf '# sightline-path 1\n0 82.8 21.3 1.7 90 0 0\n0.001 182.8 21.3 1.7 90 0 0\n' >"$tmp/fast.txt"
+expect 1 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/fast.txt" --stall --check
+has "frame 0: .*speed 100000 outside" "$tmp/err"
 stop_server "$tmp/server2.log"
 hits=$(sed -n 's/.*cache \([0-9]*\) hits.*/\1/p' "$tmp/server2.log")
 [ -n "$hits" ] && [ "$hits" -gt 0 ] || fail "no cache hits with two clients on one walk: $(cat "$tmp/server2.log")"
