@@ -580,14 +580,16 @@ static int raw_connect(uint16_t port, int rcvbuf)
     return fd;
 }
 
-static void raw_hello(int fd)
+static void raw_hello_size(int fd, uint32_t width, uint32_t height)
 {
     uint8_t b[64];
     slvp_hello h = {.version = SLVP_VERSION, .fov_y = 1.0f, .ortho_height = 1, .near_plane = 0.1f, .far_plane = 2000,
-                    .width = 320, .height = 240};
+                    .width = width, .height = height};
     size_t n = slvp_write_hello(b, &h);
     assert_int_equal(write(fd, b, n), (ssize_t)n);
 }
+
+static void raw_hello(int fd) { raw_hello_size(fd, 320, 240); }
 
 /* Read frames until an ERROR (its code) or the end of the stream (0) or a timeout (-1). */
 static bool g_clean_end; /* raw_until_error: the stream ended cleanly (not reset) */
@@ -832,6 +834,23 @@ static void test_peer_gone(void **state)
     }
     wait_clients(s, 0);
     assert_true(server_serves(port));
+
+    /* a resolution above max_pixels (default 3840 x 2160): refused with ERROR code 3 (16384 x
+     * 16384 for a method culling at the client's resolution held 2 GB); a 4K frame is taken */
+    sl_vis_server_stats st0, st1;
+    sl_vis_server_get_stats(s, &st0);
+    int fd = raw_connect(port, 0);
+    raw_hello_size(fd, 16384, 16384);
+    assert_int_equal(raw_until_error(fd), SLVP_ERR_LIMIT);
+    close(fd);
+    fd = raw_connect(port, 0);
+    raw_hello_size(fd, 3840, 2160);
+    wait_clients(s, 1);
+    usleep(100000);
+    sl_vis_server_get_stats(s, &st1);
+    assert_int_equal(st1.protocol_errors, st0.protocol_errors + 1);
+    close(fd);
+    wait_clients(s, 0);
     sl_vis_server_destroy(s);
 }
 
@@ -892,6 +911,9 @@ static void test_bad_options(void **state)
     o = (sl_vis_server_options){.method = "cullmap:nosuchkey=1"};
     assert_int_equal(sl_vis_server_create(g_scene, &o, &s, &err), SL_ERROR_INVALID_ARGUMENT);
     assert_non_null(strstr(err.message, "nosuchkey"));
+    o = (sl_vis_server_options){.method = "cullmap", .max_pixels = (1u << 28) + 1};
+    assert_int_equal(sl_vis_server_create(g_scene, &o, &s, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "max_pixels"));
     sl_vis_client c = NULL;
     sl_vis_client_options co = {.port = 0};
     assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_ERROR_INVALID_ARGUMENT);

@@ -33,6 +33,7 @@ static void server_usage(FILE *out)
             "  --workers N        culling threads (default 2)\n"
             "  --rate HZ          most viewpoints a second per client (default 240)\n"
             "  --queue N          unsent sets kept per client, older dropped for newer (default 1)\n"
+            "  --max-pixels N     largest width x height a client may cull at (default 8294400, 4K)\n"
             "  --no-reuse         never answer from a cached view-cell set (pvs)\n"
             "  --cache-mb N       size of the view-cell set cache (default 64)\n"
             "  --duration S       stop after S seconds (default: until a signal)\n"
@@ -117,7 +118,8 @@ int sl_cmd_vis_server(int argc, char **argv)
     cli_args_init(&a, argc, argv);
     cli_common com = {0};
     const char *name, *val, *method = NULL, *host = NULL, *port_file = NULL;
-    uint32_t port = UINT32_MAX, max_clients = 0, workers = 0, rate = 0, queue = 0, cache_mb = 0, duration = 0;
+    uint32_t port = UINT32_MAX, max_clients = 0, workers = 0, rate = 0, queue = 0, cache_mb = 0, duration = 0,
+             max_pixels = 0;
     bool no_reuse = false;
     while (cli_next(&a, &name, &val)) {
         if (cli_common_option(&a, name, val, CLI_INPUT | CLI_JSON | CLI_QUIET, &com)) {
@@ -132,12 +134,14 @@ int sl_cmd_vis_server(int argc, char **argv)
         } else if (!strcmp(name, "port-file")) {
             port_file = cli_value(&a, name, val);
         } else if (!strcmp(name, "max-clients") || !strcmp(name, "workers") || !strcmp(name, "rate") ||
-                   !strcmp(name, "queue") || !strcmp(name, "cache-mb") || !strcmp(name, "duration")) {
+                   !strcmp(name, "queue") || !strcmp(name, "cache-mb") || !strcmp(name, "duration") ||
+                   !strcmp(name, "max-pixels")) {
             const char *v = cli_value(&a, name, val);
             uint32_t *dst = !strcmp(name, "max-clients") ? &max_clients
                             : !strcmp(name, "workers")   ? &workers
                             : !strcmp(name, "rate")      ? &rate
                             : !strcmp(name, "queue")     ? &queue
+                            : !strcmp(name, "max-pixels") ? &max_pixels
                             : !strcmp(name, "cache-mb")  ? &cache_mb
                                                          : &duration;
             if (v && cli_parse_u32(&a, name, v, dst) && *dst == 0 && strcmp(name, "duration") != 0) {
@@ -168,7 +172,8 @@ int sl_cmd_vis_server(int argc, char **argv)
         return cli_fail(a.cmd, &err);
     sl_vis_server_options o = {.method = method, .host = host, .port = (uint16_t)port, .max_clients = max_clients,
                                .workers = workers, .max_rate_hz = rate, .queue_sets = queue, .no_reuse = no_reuse,
-                               .cache_bytes = (uint64_t)cache_mb << 20};
+                               .cache_bytes = (uint64_t)cache_mb << 20,
+                               .max_pixels = max_pixels};
     sl_vis_server s = NULL;
     if (sl_vis_server_create(scene, &o, &s, &err) != SL_OK) {
         sl_scene_destroy(scene);

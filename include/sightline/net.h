@@ -101,6 +101,10 @@ typedef struct sl_vis_server_options {
     uint32_t socket_buffer;      /* bytes of each client socket's kernel send buffer (SO_SNDBUF;
                                     0: the system's; at most 2^30): less kernel queueing in front
                                     of a slow reader, so it gets fresher sets */
+    uint32_t max_pixels;         /* width x height a client's HELLO may ask for, 1..2^28 (default
+                                    3840 x 2160 = 8,294,400, a 4K frame): the methods that cull at
+                                    the client's resolution hold buffers of that size per worker;
+                                    more: ERROR code 3 and the connection closes */
     uint64_t cache_bytes;        /* region-set cache, bytes (default 64 MiB) */
     sl_scene_accel accel;        /* shared acceleration (NULL: the server makes one) */
     const sl_allocator *alloc;   /* NULL: the default allocator */

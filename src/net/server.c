@@ -114,7 +114,7 @@ struct sl_vis_server_t {
     char method[SLVP_METHOD_MAX + 1];
     uint32_t object_count;
     uint64_t scene_key;
-    uint32_t max_clients, worker_count, max_rate_hz, queue_sets, socket_buffer;
+    uint32_t max_clients, worker_count, max_rate_hz, queue_sets, socket_buffer, max_pixels;
     uint64_t cache_limit;
     uint32_t set_body_max;
     /* loop */
@@ -755,6 +755,13 @@ static bool handle_message(client *c, const uint8_t *body, uint32_t len)
             snprintf(why, sizeof why, "HELLO: camera: %.200s", err.message);
             goto bad;
         }
+        if ((uint64_t)h.width * h.height > s->max_pixels) {
+            stat_add(s, &s->stats.protocol_errors, 1);
+            snprintf(why, sizeof why, "HELLO offset 24: width x height %u x %u: more than this server's %u pixels",
+                     h.width, h.height, s->max_pixels);
+            client_refuse(c, SLVP_ERR_LIMIT, why);
+            return false;
+        }
         c->intrinsics = cam;
         c->hello = true;
         outmsg *m = msg_new(c, NULL);
@@ -993,6 +1000,10 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_rate_hz %u: at most 10000", rate);
     if (queue > 64)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: queue_sets %u: at most 64", queue);
+    uint32_t max_pixels = o->max_pixels ? o->max_pixels : 3840u * 2160u;
+    if (max_pixels > (1u << 28))
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_pixels %u: at most 2^28 (16384 x 16384)",
+                        max_pixels);
     if (o->socket_buffer > (1u << 30))
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: socket_buffer %u: at most 2^30 bytes",
                         o->socket_buffer);
@@ -1017,6 +1028,7 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
     s->max_rate_hz = rate;
     s->queue_sets = queue;
     s->socket_buffer = o->socket_buffer;
+    s->max_pixels = max_pixels;
     s->cache_limit = o->cache_bytes ? o->cache_bytes : 64ull << 20;
     s->set_body_max = slvp_set_body_max(s->object_count);
     sl_status st = SL_OK;

@@ -40,6 +40,8 @@ has "needs SCENE, --method SPEC and --port N" "$tmp/err"
 expect 2 timeout -k 5 60 "$SL" vis-client --walk 10
 expect 2 timeout -k 5 60 "$SL" vis-client --port 1 city:tiny
 has "exactly one of --path FILE, --walk N, --drive N" "$tmp/err"
+expect 2 timeout -k 5 60 "$SL" vis-server city:tiny --method cullmap --port 0 --max-pixels 0
+has "max-pixels 0: must be at least 1" "$tmp/err"
 expect 1 timeout -k 5 60 "$SL" vis-server city:tiny --method nosuchmethod --port 0
 has "nosuchmethod" "$tmp/err"
 
