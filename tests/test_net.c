@@ -669,6 +669,27 @@ static void test_faults(void **state)
     close(fd);
     wait_clients(s, 0);
     assert_true(server_serves(port));
+    /* the same, but its side shut (it still reads): an ERROR says the stream ended inside a message */
+    fd = raw_connect(port, 0);
+    raw_hello(fd);
+    assert_int_equal(write(fd, b, n / 2), (ssize_t)(n / 2));
+    shutdown(fd, SHUT_WR);
+    assert_int_equal(raw_until_error(fd), SLVP_ERR_PROTOCOL);
+    close(fd);
+    wait_clients(s, 0);
+    /* a HELLO with a wrong magic is a protocol error (code 1), whatever its version field says */
+    fd = raw_connect(port, 0);
+    {
+        uint8_t hb[64];
+        slvp_hello h = {.version = SLVP_VERSION + 1, .fov_y = 1.0f, .ortho_height = 1, .near_plane = 0.1f,
+                        .far_plane = 2000, .width = 320, .height = 240};
+        size_t hn = slvp_write_hello(hb, &h);
+        hb[SLVP_LEN_BYTES + 1] ^= 0xff;
+        assert_int_equal(write(fd, hb, hn), (ssize_t)hn);
+    }
+    assert_int_equal(raw_until_error(fd), SLVP_ERR_PROTOCOL);
+    close(fd);
+    wait_clients(s, 0);
 
     /* garbage: an oversized length, a message before HELLO */
     fd = raw_connect(port, 0);

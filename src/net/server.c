@@ -738,7 +738,10 @@ static bool handle_message(client *c, const uint8_t *body, uint32_t len)
         }
         if (!slvp_read_hello(body, len, &h, why, sizeof why)) {
             stat_add(s, &s->stats.protocol_errors, 1);
-            bool version = len == SLVP_HELLO_BODY && body[5] + 256 * body[6] != SLVP_VERSION;
+            /* code 2 only for a HELLO of another version: right size and magic, other version */
+            uint32_t magic = (uint32_t)body[1] | (uint32_t)body[2] << 8 | (uint32_t)body[3] << 16 |
+                             (uint32_t)body[4] << 24;
+            bool version = len == SLVP_HELLO_BODY && magic == SLVP_MAGIC && body[5] + 256 * body[6] != SLVP_VERSION;
             client_refuse(c, version ? SLVP_ERR_VERSION : SLVP_ERR_PROTOCOL, why);
             return false;
         }
@@ -825,7 +828,24 @@ static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf)
     if (c->closing)
         return;
     if (nread < 0) {
-        client_close(c); /* EOF or error; a partial message in rbuf goes with it */
+        if (nread == UV_EOF && c->rlen > 0 && !c->refusing) {
+            /* the stream ended inside a message: say so (the client may still read after
+             * shutting its side); the refusal's next read meets the end again and closes */
+            char why[160];
+            if (c->rlen < SLVP_LEN_BYTES)
+                snprintf(why, sizeof why, "offset 0: the stream ended inside a length prefix (%zu of %u bytes)",
+                         c->rlen, (unsigned)SLVP_LEN_BYTES);
+            else {
+                uint32_t len = (uint32_t)c->rbuf[0] | (uint32_t)c->rbuf[1] << 8 | (uint32_t)c->rbuf[2] << 16 |
+                               (uint32_t)c->rbuf[3] << 24;
+                snprintf(why, sizeof why, "offset %zu: the stream ended inside a message of %u bytes (%zu received)",
+                         c->rlen, len, c->rlen - SLVP_LEN_BYTES);
+            }
+            stat_add(c->srv, &c->srv->stats.protocol_errors, 1);
+            client_refuse(c, SLVP_ERR_PROTOCOL, why);
+            return;
+        }
+        client_close(c); /* EOF or error */
         return;
     }
     if (c->refusing) { /* read and dropped (client_refuse) */
