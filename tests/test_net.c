@@ -26,6 +26,7 @@
 #include <string.h>
 #include <sys/socket.h>
 #include <sys/time.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "net/visproto.h"
@@ -627,6 +628,13 @@ static int raw_until_error(int fd)
     return code;
 }
 
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 static bool server_serves(uint16_t port)
 {
     walker w = {.port = port, .spec = "cullmap", .reuse = true, .seed = 7, .frames = 3};
@@ -872,6 +880,25 @@ static void test_peer_gone(void **state)
     assert_int_equal(st1.protocol_errors, st0.protocol_errors + 1);
     close(fd);
     wait_clients(s, 0);
+    sl_vis_server_destroy(s);
+
+    /* silent connections (no HELLO) hold the places only until hello_timeout_ms */
+    o = (sl_vis_server_options){.method = "cullmap", .max_clients = 2, .hello_timeout_ms = 300};
+    if (sl_vis_server_create(g_scene, &o, &s, &err) != SL_OK)
+        fail_msg("%s", err.message);
+    port = sl_vis_server_port(s);
+    int f1 = raw_connect(port, 0), f2 = raw_connect(port, 0);
+    wait_clients(s, 2);
+    int f3 = raw_connect(port, 0);
+    assert_int_equal(raw_until_error(f3), SLVP_ERR_FULL);
+    close(f3);
+    double t0 = now_s();
+    assert_int_equal(raw_until_error(f1), SLVP_ERR_PROTOCOL); /* "no HELLO within 300 ms" */
+    assert_true(now_s() - t0 < 5.0);
+    assert_int_equal(raw_until_error(f2), SLVP_ERR_PROTOCOL);
+    close(f1);
+    close(f2);
+    assert_true(server_serves(port)); /* a walker that says HELLO at once is not cut off */
     sl_vis_server_destroy(s);
 }
 

@@ -105,6 +105,9 @@ typedef struct sl_vis_server_options {
                                     3840 x 2160 = 8,294,400, a 4K frame): the methods that cull at
                                     the client's resolution hold buffers of that size per worker;
                                     more: ERROR code 3 and the connection closes */
+    uint32_t hello_timeout_ms;   /* a connection that sends no HELLO within this is refused
+                                    (ERROR code 1), so that silent ones cannot hold the
+                                    max_clients places; 1..3600000 (default 10000) */
     uint64_t cache_bytes;        /* region-set cache, bytes (default 64 MiB) */
     sl_scene_accel accel;        /* shared acceleration (NULL: the server makes one) */
     const sl_allocator *alloc;   /* NULL: the default allocator */

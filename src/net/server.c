@@ -114,7 +114,7 @@ struct sl_vis_server_t {
     char method[SLVP_METHOD_MAX + 1];
     uint32_t object_count;
     uint64_t scene_key;
-    uint32_t max_clients, worker_count, max_rate_hz, queue_sets, socket_buffer, max_pixels;
+    uint32_t max_clients, worker_count, max_rate_hz, queue_sets, socket_buffer, max_pixels, hello_timeout_ms;
     uint64_t cache_limit;
     uint32_t set_body_max;
     /* loop */
@@ -495,6 +495,17 @@ static void drop_queue(client *c)
 }
 
 static void on_linger(uv_timer_t *t) { client_close(t->data); }
+static void client_refuse(client *c, uint16_t code, const char *text);
+/* No HELLO within hello_timeout_ms of connecting: refused, so that silent connections cannot
+ * hold the max_clients places. The timer is the linger one, started at the connection. */
+static void on_hello_timeout(uv_timer_t *t)
+{
+    client *c = t->data;
+    char why[96];
+    snprintf(why, sizeof why, "no HELLO within %u ms of connecting", c->srv->hello_timeout_ms);
+    stat_add(c->srv, &c->srv->stats.protocol_errors, 1);
+    client_refuse(c, SLVP_ERR_PROTOCOL, why);
+}
 
 /* The refusal is written and the sending side shut: wait for the client's end (on_read). */
 static void on_shutdown(uv_shutdown_t *req, int status)
@@ -522,15 +533,17 @@ static void client_refuse(client *c, uint16_t code, const char *text)
     c->has_pending = false;
     c->rlen = 0; /* what was read is dropped (on_read stops at the refusing message) */
     outmsg *m = s->lingering < SL_NET_LINGERING_MAX ? msg_new(c, NULL) : NULL;
-    if (!m || uv_timer_init(&s->loop, &c->linger) != 0) {
+    if (!m || (!c->linger_open && uv_timer_init(&s->loop, &c->linger) != 0)) {
         if (m)
             msg_free(c, m);
         client_close(c);
         return;
     }
-    c->linger.data = c;
-    c->linger_open = true;
-    c->handles++;
+    if (!c->linger_open) { /* else the HELLO timer's handle, reused */
+        c->linger.data = c;
+        c->linger_open = true;
+        c->handles++;
+    }
     c->refusing = true;
     s->lingering++;
     uncount(c);
@@ -767,6 +780,8 @@ static bool handle_message(client *c, const uint8_t *body, uint32_t len)
         }
         c->intrinsics = cam;
         c->hello = true;
+        if (c->linger_open)
+            uv_timer_stop(&c->linger);
         outmsg *m = msg_new(c, NULL);
         if (!m) {
             client_refuse(c, SLVP_ERR_INTERNAL, "server out of memory");
@@ -916,6 +931,12 @@ static void on_connection(uv_stream_t *l, int status)
         client_refuse(c, SLVP_ERR_FULL, why);
         return;
     }
+    if (uv_timer_init(&s->loop, &c->linger) == 0) {
+        c->linger.data = c;
+        c->linger_open = true;
+        c->handles++;
+        uv_timer_start(&c->linger, on_hello_timeout, s->hello_timeout_ms, 0);
+    }
     uv_read_start((uv_stream_t *)&c->tcp, on_alloc, on_read);
 }
 
@@ -1021,6 +1042,9 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
     if (queue > 64)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: queue_sets %u: at most 64", queue);
     uint32_t max_pixels = o->max_pixels ? o->max_pixels : 3840u * 2160u;
+    if (o->hello_timeout_ms > 3600000)
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: hello_timeout_ms %u: at most 3600000 (an hour)",
+                        o->hello_timeout_ms);
     if (max_pixels > (1u << 28))
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_pixels %u: at most 2^28 (16384 x 16384)",
                         max_pixels);
@@ -1049,6 +1073,7 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
     s->queue_sets = queue;
     s->socket_buffer = o->socket_buffer;
     s->max_pixels = max_pixels;
+    s->hello_timeout_ms = o->hello_timeout_ms ? o->hello_timeout_ms : 10000;
     s->cache_limit = o->cache_bytes ? o->cache_bytes : 64ull << 20;
     s->set_body_max = slvp_set_body_max(s->object_count);
     sl_status st = SL_OK;
