@@ -902,6 +902,124 @@ static void test_peer_gone(void **state)
     sl_vis_server_destroy(s);
 }
 
+/* A server that lies: it welcomes, then answers each VIEW with a SET of a seq never sent (mode 0)
+ * or with the right seq followed by an older one (mode 1). */
+typedef struct fake_server {
+    int lfd;
+    int mode;
+} fake_server;
+
+static bool read_frame(int fd, uint8_t *buf, size_t cap, uint32_t *len)
+{
+    size_t have = 0;
+    for (;;) {
+        char why[128];
+        int r = slvp_frame(buf, have, (uint32_t)(cap - 4), len, why, sizeof why);
+        if (r < 0)
+            return false;
+        if (r == 1)
+            return true;
+        ssize_t n = read(fd, buf + have, cap - have);
+        if (n <= 0)
+            return false;
+        have += (size_t)n;
+    }
+}
+
+static void send_set(int fd, uint32_t seq)
+{
+    uint8_t b[64];
+    slvp_set h = {.seq = seq, .validity = 0, .encoding = SLVP_ENC_VARINT, .cell = UINT32_MAX, .count = 0,
+                  .payload_size = 0};
+    size_t n = slvp_write_set_header(b, &h);
+    if (write(fd, b, n) != (ssize_t)n)
+        return;
+}
+
+static void *fake_main(void *arg)
+{
+    fake_server *f = arg;
+    for (;;) {
+        int fd = accept(f->lfd, NULL, NULL);
+        if (fd < 0)
+            return NULL;
+        uint8_t buf[256], out[512];
+        uint32_t len;
+        while (read_frame(fd, buf, sizeof buf, &len)) {
+            uint8_t type = slvp_type_of(buf + 4, len);
+            if (type == SLVP_HELLO) {
+                slvp_welcome w = {.version = SLVP_VERSION, .object_count = sl_scene_object_count(g_scene),
+                                  .scene_key = sl_pvs_scene_key(g_scene), .max_rate_hz = 1000,
+                                  .max_body = slvp_set_body_max(sl_scene_object_count(g_scene))};
+                snprintf(w.method, sizeof w.method, "cullmap");
+                size_t n = slvp_write_welcome(out, &w);
+                if (write(fd, out, n) != (ssize_t)n)
+                    break;
+            } else if (type == SLVP_VIEW) {
+                slvp_view v;
+                char why[128];
+                if (!slvp_read_view(buf + 4, len, 0, &v, why, sizeof why))
+                    break;
+                if (f->mode == 0) {
+                    send_set(fd, v.seq + 1000);
+                } else {
+                    send_set(fd, v.seq);
+                    if (v.seq > 1)
+                        send_set(fd, v.seq - 1);
+                }
+            }
+        }
+        close(fd);
+    }
+}
+
+static void test_client_checks_sets(void **state)
+{
+    (void)state;
+    static const char *const expect[2] = {"answers no viewpoint sent", "increasing seq"};
+    for (int mode = 0; mode < 2; mode++) {
+        fake_server f = {.lfd = socket(AF_INET, SOCK_STREAM, 0), .mode = mode};
+        struct sockaddr_in a = {.sin_family = AF_INET};
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        assert_int_equal(bind(f.lfd, (struct sockaddr *)&a, sizeof a), 0);
+        assert_int_equal(listen(f.lfd, 8), 0);
+        socklen_t al = sizeof a;
+        getsockname(f.lfd, (struct sockaddr *)&a, &al);
+        pthread_t t;
+        assert_int_equal(pthread_create(&t, NULL, fake_main, &f), 0);
+        sl_path p = walk(4, 5, SL_PATH_WALK);
+        sl_vis_client_options co = {.port = ntohs(a.sin_port), .intrinsics = sl_path_intrinsics(p), .reconnect_ms = 20};
+        sl_vis_client c;
+        sl_error err;
+        assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_OK);
+        sl_vis_client_stats cs = {0};
+        for (uint32_t fr = 0; fr < 4; fr++) {
+            sl_camera cam = sl_path_camera(p, fr);
+            uint32_t seq;
+            assert_int_equal(sl_vis_client_send_view(c, &cam, 1, &seq, &err), SL_OK);
+            for (int i = 0; i < 200; i++) {
+                sl_vis_client_get_stats(c, &cs);
+                if (cs.errors > fr)
+                    break;
+                usleep(10000);
+            }
+        }
+        sl_vis_client_get_stats(c, &cs);
+        assert_true(cs.errors >= 1);
+        if (!strstr(cs.last_error, expect[mode]))
+            fail_msg("mode %d: last error '%s', expected '%s'", mode, cs.last_error, expect[mode]);
+        sl_vis_set set;
+        sl_vis_client_acquire(c, &set);
+        if (mode == 0)
+            assert_int_equal(set.seq, 0); /* no set of a viewpoint never sent is displayed */
+        sl_vis_client_destroy(c);
+        sl_path_destroy(p);
+        shutdown(f.lfd, SHUT_RDWR);
+        close(f.lfd);
+        pthread_join(t, NULL);
+    }
+}
+
 static void test_restart(void **state)
 {
     (void)state;
@@ -978,6 +1096,7 @@ int main(void)
         cmocka_unit_test(test_server_pvs_reuse),
         cmocka_unit_test(test_faults),
         cmocka_unit_test(test_peer_gone),
+        cmocka_unit_test(test_client_checks_sets),
         cmocka_unit_test(test_restart),
     };
     return cmocka_run_group_tests(tests, setup_scene, teardown_scene);

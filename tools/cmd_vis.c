@@ -68,8 +68,9 @@ static void client_usage(FILE *out)
             "Exit status 0; 1 when a displayed set differs from the local method's (--check), a\n"
             "viewpoint got no set within --timeout (--stall), no set came at all, --check had\n"
             "nothing to check, or a viewpoint could not be sent (the frame and the reason are\n"
-            "named); 2 for a usage error. Refusals by the server (its ERROR text) are reported\n"
-            "on stderr; the client reconnects after each.\n");
+            "named); 2 for a usage error. A connection ended by an error (a refusal by the\n"
+            "server, with its text, or a bad message from it) is reported on stderr; the client\n"
+            "reconnects after each.\n");
 }
 
 #ifndef SL_HAVE_NET
@@ -514,7 +515,9 @@ int sl_cmd_vis_client(int argc, char **argv)
     if (first_problem[0])
         cli_error(a.cmd, "%s", first_problem);
     if (cs.errors)
-        cli_error(a.cmd, "the server refused %llu time(s) (the client reconnected); the last: %s",
+        cli_error(a.cmd,
+                  "%llu connection(s) ended by an error (a refusal by the server or a bad message from it; "
+                  "the client reconnected after each); the last: %s",
                   (unsigned long long)cs.errors, cs.last_error);
     if (views_sent && !cs.sets_received) {
         cli_error(a.cmd, "no set received for %u viewpoint(s)", views_sent);

@@ -34,6 +34,8 @@ typedef struct conn {
     size_t rlen, rcap;
     uint8_t wbuf[64];
     bool writing, hello_sent, connected, closing;
+    uint32_t view_sent; /* the newest seq written on this connection */
+    uint32_t set_seq;   /* the seq of the last set received on it */
 } conn;
 
 struct sl_vis_client_t {
@@ -140,6 +142,7 @@ static void pump(sl_vis_client c)
         pthread_mutex_lock(&c->mu);
         if (c->latest_unsent) {
             n = slvp_write_view(k->wbuf, &c->latest);
+            k->view_sent = c->latest.seq;
             c->latest_unsent = false;
             c->stats.views_sent++;
         }
@@ -230,6 +233,20 @@ static bool handle(sl_vis_client c, const uint8_t *body, uint32_t len)
             set_error(c, "%s", why);
             return false;
         }
+        /* a set answers a viewpoint sent on this connection, and sets arrive in increasing seq */
+        conn *k = c->cn;
+        if (!k)
+            return false;
+        if (m.seq > k->view_sent) {
+            set_error(c, "SET seq %u answers no viewpoint sent on this connection (the newest is %u)", m.seq,
+                      k->view_sent);
+            return false;
+        }
+        if (m.seq <= k->set_seq) {
+            set_error(c, "SET seq %u after seq %u: sets arrive in increasing seq", m.seq, k->set_seq);
+            return false;
+        }
+        k->set_seq = m.seq;
         d->count = m.count;
         d->seq = m.seq;
         d->validity = m.validity ? SL_VIS_CELL : SL_VIS_POINT;

@@ -122,7 +122,7 @@ done
 # a viewpoint the server refuses (beyond +-1e7 m): exit 1 with the server's reason, not a pass
 printf '# sightline-path 1\n0 2e7 21.3 1.7 90 0 0\n0.1 2e7 21.4 1.7 90 0 0\n' >"$tmp/far.txt"
 expect 1 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/far.txt" --check
-has "the server refused .* eye.x 2e+07: beyond" "$tmp/err"
+has "ended by an error .* eye.x 2e+07: beyond" "$tmp/err"
 has "no set received for 2 viewpoint(s)" "$tmp/err"
 # a speed the client may not send (100 m a millisecond): exit 1 naming the frame
 printf '# sightline-path 1\n0 82.8 21.3 1.7 90 0 0\n0.001 182.8 21.3 1.7 90 0 0\n' >"$tmp/fast.txt"
