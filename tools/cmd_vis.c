@@ -57,7 +57,8 @@ static void client_usage(FILE *out)
             "  --drive N          a generated drive of N frames (default 30 m/s)\n"
             "  --speed M          walk or drive speed in m/s\n"
             "  --seed N           path seed (default 1)\n"
-            "  --rate HZ          viewpoints a second (default 30; 0: as fast as sets come with --stall)\n"
+            "  --rate HZ          viewpoints a second (default 30, --stall too; 0: as fast as sets come\n"
+            "                     with --stall); never above the server's max_rate_hz\n"
             "  --stall            wait for each viewpoint's set before the next (always a valid set)\n"
             "  --check            compare each displayed set with the local method's; count sets\n"
             "                     displayed at a viewpoint they do not hold for\n"
@@ -411,6 +412,9 @@ int sl_cmd_vis_client(int argc, char **argv)
     uint32_t nlat = 0, checked = 0, mismatches = 0, invalid = 0, timeouts = 0, displayed = 0;
     uint32_t first_seq = 0, last_seen = 0, views_sent = 0;
     char first_problem[300] = "";
+    double pace = rate;
+    if (cs.max_rate_hz && (pace == 0 || pace > cs.max_rate_hz))
+        pace = cs.max_rate_hz;
     double start = tool_now();
     for (uint32_t f = 0; f < frames; f++) {
         sl_camera cam = sl_path_camera(path, f);
@@ -431,8 +435,11 @@ int sl_cmd_vis_client(int argc, char **argv)
                 if (!first_problem[0])
                     snprintf(first_problem, sizeof first_problem, "frame %u: no set within %u s", f, timeout);
             }
-        } else {
-            double next = start + (double)(f + 1) / rate;
+        }
+        /* --rate, and never faster than the server takes (its WELCOME's max_rate_hz), with
+         * --stall too: as fast as sets come is still at most that */
+        if (pace > 0) {
+            double next = start + (double)(f + 1) / pace;
             double wait = next - tool_now();
             if (wait > 0) {
                 struct timespec ts = {(time_t)wait, (long)((wait - floor(wait)) * 1e9)};

@@ -172,6 +172,8 @@ typedef struct sl_vis_client_stats {
     uint64_t scene_key;          /* sl_pvs_scene_key of the server's scene */
     bool regions;                /* the server answers with cell sets */
     char method[256];            /* the server's method spec */
+    uint32_t max_rate_hz;        /* viewpoints a second the server takes from this client (its
+                                    WELCOME; 0 before the first): send no faster */
     uint64_t connects;           /* successful connections (reconnects: connects - 1) */
     uint64_t views_sent, sets_received, bytes_in, bytes_out;
     uint64_t errors;             /* connections lost to a bad message or an error from the server */

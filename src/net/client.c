@@ -217,6 +217,7 @@ static bool handle(sl_vis_client c, const uint8_t *body, uint32_t len)
         c->stats.scene_key = w.scene_key;
         c->stats.regions = w.flags & 1;
         snprintf(c->stats.method, sizeof c->stats.method, "%s", w.method);
+        c->stats.max_rate_hz = w.max_rate_hz;
         c->stats.connected = true;
         pthread_mutex_unlock(&c->mu);
         return true;

@@ -107,12 +107,20 @@ done
 stop_server "$tmp/server1.log"
 has "0 protocol errors" "$tmp/server1.log"
 
+# a server taking 20 viewpoints a second: the client keeps to it (WELCOME max_rate_hz) even
+# with --stall --rate 0, so it is never rate-limited (30 viewpoints: past the 1-second burst)
+start_server "$tmp/server3.log" city:tiny --method cullmap --rate 20
+expect 0 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 30 --stall --rate 0 --check
+hasnt "ended by an error" "$tmp/err"
+stop_server "$tmp/server3.log"
+has "0 rate-limited" "$tmp/server3.log"
+
 # pvs: cell sets from one cache
 expect 0 timeout -k 5 60 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
 expect 0 timeout -k 5 60 "$SL" pvs build city:tiny --along "$tmp/walk.txt" --threads 1 -o "$tmp/walk.slpvs"
 start_server "$tmp/server2.log" city:tiny --method "pvs:file=$tmp/walk.slpvs"
 for s in 1 2; do
-    timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/walk.txt" --stall --check --json >"$tmp/p$s.out" 2>&1 &
+    timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --path "$tmp/walk.txt" --stall --rate 0 --check --json >"$tmp/p$s.out" 2>&1 &
     cpids[$s]=$!
 done
 for s in 1 2; do
