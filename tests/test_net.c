@@ -1083,6 +1083,12 @@ static void test_bad_options(void **state)
     sl_vis_client c = NULL;
     sl_vis_client_options co = {.port = 0};
     assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    /* a camera the protocol cannot carry (far above 1e8) is refused at once, not on every connection */
+    co = (sl_vis_client_options){.port = 9, .intrinsics = sl_camera_default()};
+    co.intrinsics.far_plane = 1e9f;
+    assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "cannot be sent"));
+    assert_null(c);
 }
 
 int main(void)

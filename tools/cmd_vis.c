@@ -181,6 +181,11 @@ int sl_cmd_vis_server(int argc, char **argv)
         sl_scene_destroy(scene);
         return cli_fail(a.cmd, &err);
     }
+    /* before the port file: opening a FIFO blocks until its reader comes, and a signal meanwhile
+     * interrupts the open (an error, exit 1) instead of killing the server without a word */
+    struct sigaction sa = {.sa_handler = on_signal};
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
     if (port_file) {
         sl_output out;
         if (sl_output_open(port_file, NULL, &out, &err) != SL_OK) {
@@ -199,9 +204,6 @@ int sl_cmd_vis_server(int argc, char **argv)
         printf("vis-server: %s, method %s, listening on %s port %u\n", label, method, host ? host : "127.0.0.1",
                sl_vis_server_port(s));
     fflush(stdout);
-    struct sigaction sa = {.sa_handler = on_signal};
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
     double t0 = tool_now();
     while (!g_stop && (duration == 0 || tool_now() - t0 < duration)) {
         struct timespec ts = {0, 50 * 1000 * 1000};
@@ -386,8 +388,16 @@ int sl_cmd_vis_client(int argc, char **argv)
         nanosleep(&ts, NULL);
     }
     if (!cs.connected) {
-        cli_error(a.cmd, "no server at %s port %u within %u s%s%s", host ? host : "127.0.0.1", port, timeout,
-                  cs.last_error[0] ? ": " : "", cs.last_error);
+        const char *h = host ? host : "127.0.0.1";
+        if (cs.errors)
+            cli_error(a.cmd, "the server at %s port %u refused the client for %u s (%llu tries): %s", h, port, timeout,
+                      (unsigned long long)cs.errors, cs.last_error);
+        else if (cs.connects)
+            cli_error(a.cmd, "the server at %s port %u did not welcome the client within %u s (%llu connections)", h,
+                      port, timeout, (unsigned long long)cs.connects);
+        else
+            cli_error(a.cmd, "no server at %s port %u within %u s%s%s", h, port, timeout,
+                      cs.last_error[0] ? ": " : "", cs.last_error);
         rc = 1;
         goto done;
     }

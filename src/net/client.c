@@ -121,6 +121,18 @@ static void on_written(uv_write_t *req, int status)
     pump(k->cl);
 }
 
+static slvp_hello hello_of(const sl_camera *cam)
+{
+    return (slvp_hello){.version = SLVP_VERSION,
+                        .projection = cam->projection == SL_ORTHOGRAPHIC,
+                        .fov_y = cam->fov_y,
+                        .ortho_height = cam->ortho_height,
+                        .near_plane = cam->near_plane,
+                        .far_plane = cam->far_plane,
+                        .width = cam->width,
+                        .height = cam->height};
+}
+
 static void pump(sl_vis_client c)
 {
     conn *k = c->cn;
@@ -128,14 +140,7 @@ static void pump(sl_vis_client c)
         return;
     size_t n = 0;
     if (!k->hello_sent) {
-        slvp_hello h = {.version = SLVP_VERSION,
-                        .projection = c->intrinsics.projection == SL_ORTHOGRAPHIC,
-                        .fov_y = c->intrinsics.fov_y,
-                        .ortho_height = c->intrinsics.ortho_height,
-                        .near_plane = c->intrinsics.near_plane,
-                        .far_plane = c->intrinsics.far_plane,
-                        .width = c->intrinsics.width,
-                        .height = c->intrinsics.height};
+        slvp_hello h = hello_of(&c->intrinsics);
         n = slvp_write_hello(k->wbuf, &h);
         k->hello_sent = true;
     } else {
@@ -443,6 +448,14 @@ sl_status sl_vis_client_create(const sl_vis_client_options *o, sl_vis_client *ou
     sl_status st = sl_camera_validate(&cam, err);
     if (st != SL_OK)
         return st;
+    { /* what the protocol can carry (a server would refuse the HELLO on every connection) */
+        uint8_t hb[64];
+        slvp_hello h = hello_of(&cam);
+        size_t hn = slvp_write_hello(hb, &h);
+        char why[192];
+        if (!slvp_read_hello(hb + SLVP_LEN_BYTES, hn - SLVP_LEN_BYTES, &h, why, sizeof why))
+            return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis client: the camera cannot be sent: %s", why);
+    }
     const sl_allocator *a = o->alloc ? o->alloc : sl_default_allocator();
     sl_vis_client c = net_calloc(a, sizeof *c);
     if (!c)

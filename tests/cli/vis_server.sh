@@ -114,6 +114,16 @@ expect 0 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 30 --s
 hasnt "ended by an error" "$tmp/err"
 stop_server "$tmp/server3.log"
 has "0 rate-limited" "$tmp/server3.log"
+# a server refusing every HELLO (the client's 1024x768 is above --max-pixels 100): the client says
+# the server refused it and why, not that there is no server
+start_server "$tmp/server4.log" city:tiny --method cullmap --max-pixels 100
+expect 1 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 3 --timeout 1
+has "the server at 127.0.0.1 port $port refused the client for 1 s .*more than this server's 100 pixels" "$tmp/err"
+stop_server "$tmp/server4.log"
+# a camera the protocol cannot carry fails at once
+printf '# sightline-path 1\ncamera far=1e9\n0 82.8 21.3 1.7 90 0 0\n' >"$tmp/far9.txt"
+expect 1 timeout -k 5 60 "$SL" vis-client --port "$port" --path "$tmp/far9.txt"
+has "the camera cannot be sent: .*far 1e+09" "$tmp/err"
 
 # pvs: cell sets from one cache
 expect 0 timeout -k 5 60 "$SL" path gen city:tiny --kind walk --frames 300 --seed 3 -o "$tmp/walk.txt"
