@@ -976,9 +976,10 @@ static void *fake_main(void *arg)
 static void test_client_checks_sets(void **state)
 {
     (void)state;
-    static const char *const expect[2] = {"answers no viewpoint sent", "increasing seq"};
-    for (int mode = 0; mode < 2; mode++) {
-        fake_server f = {.lfd = socket(AF_INET, SOCK_STREAM, 0), .mode = mode};
+    /* mode 2: the first server, but the client expects another object count (its scene) */
+    static const char *const expect[3] = {"answers no viewpoint sent", "increasing seq", "this client expects"};
+    for (int mode = 0; mode < 3; mode++) {
+        fake_server f = {.lfd = socket(AF_INET, SOCK_STREAM, 0), .mode = mode == 2 ? 0 : mode};
         struct sockaddr_in a = {.sin_family = AF_INET};
         a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
         assert_int_equal(bind(f.lfd, (struct sockaddr *)&a, sizeof a), 0);
@@ -988,7 +989,8 @@ static void test_client_checks_sets(void **state)
         pthread_t t;
         assert_int_equal(pthread_create(&t, NULL, fake_main, &f), 0);
         sl_path p = walk(4, 5, SL_PATH_WALK);
-        sl_vis_client_options co = {.port = ntohs(a.sin_port), .intrinsics = sl_path_intrinsics(p), .reconnect_ms = 20};
+        sl_vis_client_options co = {.port = ntohs(a.sin_port), .intrinsics = sl_path_intrinsics(p), .reconnect_ms = 20,
+                                    .object_count = mode == 2 ? sl_scene_object_count(g_scene) + 1 : 0};
         sl_vis_client c;
         sl_error err;
         assert_int_equal(sl_vis_client_create(&co, &c, &err), SL_OK);
@@ -1010,8 +1012,10 @@ static void test_client_checks_sets(void **state)
             fail_msg("mode %d: last error '%s', expected '%s'", mode, cs.last_error, expect[mode]);
         sl_vis_set set;
         sl_vis_client_acquire(c, &set);
-        if (mode == 0)
-            assert_int_equal(set.seq, 0); /* no set of a viewpoint never sent is displayed */
+        if (mode != 1)
+            assert_int_equal(set.seq, 0); /* no set of a viewpoint never sent, or of another scene */
+        if (mode == 2)
+            assert_int_equal(cs.object_count, 0); /* refused before its buffers */
         sl_vis_client_destroy(c);
         sl_path_destroy(p);
         shutdown(f.lfd, SHUT_RDWR);

@@ -366,7 +366,8 @@ int sl_cmd_vis_client(int argc, char **argv)
     }
     sl_path_stats ps;
     sl_path_get_stats(path, &ps);
-    sl_vis_client_options co = {.host = host, .port = (uint16_t)port, .intrinsics = sl_path_intrinsics(path)};
+    sl_vis_client_options co = {.host = host, .port = (uint16_t)port, .intrinsics = sl_path_intrinsics(path),
+                                .object_count = scene ? sl_scene_object_count(scene) : 0};
     sl_vis_client c = NULL;
     if (sl_vis_client_create(&co, &c, &err) != SL_OK) {
         sl_path_destroy(path);
@@ -390,8 +391,8 @@ int sl_cmd_vis_client(int argc, char **argv)
     if (!cs.connected) {
         const char *h = host ? host : "127.0.0.1";
         if (cs.errors)
-            cli_error(a.cmd, "the server at %s port %u refused the client for %u s (%llu tries): %s", h, port, timeout,
-                      (unsigned long long)cs.errors, cs.last_error);
+            cli_error(a.cmd, "could not start with the server at %s port %u within %u s (%llu tries): %s", h, port,
+                      timeout, (unsigned long long)cs.errors, cs.last_error);
         else if (cs.connects)
             cli_error(a.cmd, "the server at %s port %u did not welcome the client within %u s (%llu connections)", h,
                       port, timeout, (unsigned long long)cs.connects);

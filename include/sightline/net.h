@@ -153,6 +153,9 @@ typedef struct sl_vis_client_options {
     sl_camera intrinsics;        /* projection, fov, near, far, viewport (position and angles ignored);
                                     all zero: sl_camera_default() */
     uint32_t reconnect_ms;       /* wait between connection attempts (default 100) */
+    uint32_t object_count;       /* 0: any; else the scene's object count the client expects: a
+                                    WELCOME with another is refused before the client reserves
+                                    its id buffers (three of object_count ids) */
     const sl_allocator *alloc;
 } sl_vis_client_options;
 

@@ -39,6 +39,7 @@ typedef struct conn {
 } conn;
 
 struct sl_vis_client_t {
+    uint32_t expect_objects; /* sl_vis_client_options.object_count (0: any) */
     const sl_allocator *alloc;
     char host[64];
     uint16_t port;
@@ -184,6 +185,10 @@ static bool handle(sl_vis_client c, const uint8_t *body, uint32_t len)
         slvp_welcome w;
         if (!slvp_read_welcome(body, len, &w, why, sizeof why)) {
             set_error(c, "%s", why);
+            return false;
+        }
+        if (c->expect_objects && w.object_count != c->expect_objects) {
+            set_error(c, "server's scene has %u objects, this client expects %u", w.object_count, c->expect_objects);
             return false;
         }
         if (c->capacity && w.object_count != c->capacity) {
@@ -465,6 +470,7 @@ sl_status sl_vis_client_create(const sl_vis_client_options *o, sl_vis_client *ou
     c->port = o->port;
     c->intrinsics = cam;
     c->reconnect_ms = o->reconnect_ms ? o->reconnect_ms : 100;
+    c->expect_objects = o->object_count;
     c->front = 0;
     c->ready = 1;
     c->decode = 2;

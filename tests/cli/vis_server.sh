@@ -115,10 +115,15 @@ hasnt "ended by an error" "$tmp/err"
 stop_server "$tmp/server3.log"
 has "0 rate-limited" "$tmp/server3.log"
 # a server refusing every HELLO (the client's 1024x768 is above --max-pixels 100): the client says
-# the server refused it and why, not that there is no server
+# why, not that there is no server; and a server of another scene (city:tiny's seed 2 has another
+# object count): refused by the client at its WELCOME
 start_server "$tmp/server4.log" city:tiny --method cullmap --max-pixels 100
 expect 1 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 3 --timeout 1
-has "the server at 127.0.0.1 port $port refused the client for 1 s .*more than this server's 100 pixels" "$tmp/err"
+has "could not start with the server at 127.0.0.1 port $port within 1 s .*more than this server's 100 pixels" "$tmp/err"
+stop_server "$tmp/server4.log"
+start_server "$tmp/server4.log" city:tiny:2 --method cullmap
+expect 1 timeout -k 5 60 "$SL" vis-client city:tiny --port "$port" --walk 3 --timeout 1
+has "could not start with the server .*server's scene has [0-9]* objects, this client expects" "$tmp/err"
 stop_server "$tmp/server4.log"
 # a camera the protocol cannot carry fails at once
 printf '# sightline-path 1\ncamera far=1e9\n0 82.8 21.3 1.7 90 0 0\n' >"$tmp/far9.txt"
