@@ -167,6 +167,17 @@ int sl_cmd_vis_server(int argc, char **argv)
         cli_error(a.cmd, "--cache-mb %u: at most 1048576", cache_mb);
         return 2;
     }
+    /* the library's limits (net.h), named as options */
+    const struct {
+        const char *name;
+        uint32_t value, max;
+    } limits[] = {{"max-clients", max_clients, 65536}, {"rate", rate, 10000}, {"queue", queue, 64},
+                  {"max-pixels", max_pixels, 1u << 28}};
+    for (size_t i = 0; i < sizeof limits / sizeof limits[0]; i++)
+        if (limits[i].value > limits[i].max) {
+            cli_error(a.cmd, "--%s %u: at most %u", limits[i].name, limits[i].value, limits[i].max);
+            return 2;
+        }
     sl_error err;
     sl_scene scene = NULL;
     char label[128];
@@ -337,10 +348,19 @@ int sl_cmd_vis_client(int argc, char **argv)
         cli_error(a.cmd, "--walk, --drive and --check need the SCENE");
         return 2;
     }
-    if (rate > 1000 || (rate == 0 && !stall) || timeout < 1 || timeout > 3600 || walk_frames > 1000000 ||
-        drive_frames > 1000000 || !(speed >= 0 && speed <= 1000)) {
-        cli_error(a.cmd, "--rate 1..1000 (0 only with --stall), --timeout 1..3600, --walk/--drive up to 1000000 "
-                         "frames, --speed 0..1000");
+    /* each limit named with the value given */
+    char bad[96] = "";
+    if (rate > 1000 || (rate == 0 && !stall))
+        snprintf(bad, sizeof bad, "--rate %u: 1..1000 (0 only with --stall)", rate);
+    else if (timeout < 1 || timeout > 3600)
+        snprintf(bad, sizeof bad, "--timeout %u: 1..3600 seconds", timeout);
+    else if (walk_frames > 1000000 || drive_frames > 1000000)
+        snprintf(bad, sizeof bad, "--%s %u: at most 1000000 frames", walk_frames ? "walk" : "drive",
+                 walk_frames ? walk_frames : drive_frames);
+    else if (!(speed >= 0 && speed <= 1000))
+        snprintf(bad, sizeof bad, "--speed %g: 0..1000 m/s", (double)speed);
+    if (bad[0]) {
+        cli_error(a.cmd, "%s", bad);
         return 2;
     }
     sl_error err;

@@ -42,6 +42,10 @@ expect 2 timeout -k 5 60 "$SL" vis-client --port 1 city:tiny
 has "exactly one of --path FILE, --walk N, --drive N" "$tmp/err"
 expect 2 timeout -k 5 60 "$SL" vis-server city:tiny --method cullmap --port 0 --max-pixels 0
 has "max-pixels 0: must be at least 1" "$tmp/err"
+expect 2 timeout -k 5 60 "$SL" vis-server city:tiny --method cullmap --port 0 --rate 10001
+has "^sightline vis-server: --rate 10001: at most 10000" "$tmp/err"
+expect 2 timeout -k 5 60 "$SL" vis-client city:tiny --port 5 --walk 3 --timeout 0
+has "^sightline vis-client: --timeout 0: 1..3600 seconds" "$tmp/err"
 expect 1 timeout -k 5 60 "$SL" vis-server city:tiny --method nosuchmethod --port 0
 has "nosuchmethod" "$tmp/err"
 
