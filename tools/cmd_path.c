@@ -270,6 +270,7 @@ static void print_stats(const char *file, sl_path p, bool json, const char *what
         cli_json_double(&j, "speed_min_mps", s.speed_min);
         cli_json_double(&j, "speed_mean_mps", s.speed_mean);
         cli_json_double(&j, "speed_max_mps", s.speed_max);
+        cli_json_uint(&j, "jumps", s.jumps);
         cli_json_object_begin(&j, "camera");
         cli_json_string(&j, "projection", ortho ? "orthographic" : "perspective");
         cli_json_double(&j, "fov_deg", tidy_deg(c.fov_y));
@@ -290,6 +291,8 @@ static void print_stats(const char *file, sl_path p, bool json, const char *what
         printf("  bounds     (%.2f, %.2f, %.2f) .. (%.2f, %.2f, %.2f) m\n", s.bounds.min.x, s.bounds.min.y, s.bounds.min.z,
                s.bounds.max.x, s.bounds.max.y, s.bounds.max.z);
     printf("  speed      min %.3f, mean %.3f, max %.3f m/s\n", s.speed_min, s.speed_mean, s.speed_max);
+    if (s.jumps)
+        printf("  jumps      %u (moves between poses of the same time: in the length, not the speeds)\n", s.jumps);
     if (ortho)
         printf("  camera     orthographic, %g m high, %ux%u, near %g m, far %g m\n", tidy(c.ortho_height), c.width,
                c.height, tidy(c.near_plane), tidy(c.far_plane));

@@ -72,7 +72,10 @@ typedef struct sl_path_stats {
     double duration;            /* last time - first time, seconds */
     double length;              /* sum of distances between consecutive positions, metres */
     sl_aabb bounds;             /* of the positions (empty for an empty path) */
-    double speed_min, speed_mean, speed_max; /* m/s; mean = length / duration; 0 when undefined */
+    double speed_min, speed_mean, speed_max; /* m/s; mean = the length of the timed steps / duration;
+                                                0 when undefined */
+    uint32_t jumps;             /* steps that move with no time between their poses (a cut or a
+                                   teleport): in length, not in the speeds */
 } sl_path_stats;
 
 /* Defaults for a kind (see sl_path_options), intrinsics from sl_camera_default(). */

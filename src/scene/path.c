@@ -177,6 +177,7 @@ void sl_path_get_stats(sl_path p, sl_path_stats *s)
     const sl_pose *q = poses_of(p);
     s->duration = (double)q[n - 1].time - q[0].time;
     bool any_speed = false;
+    double timed = 0;
     for (size_t i = 0; i < n; i++) {
         sl_aabb_grow(&s->bounds, q[i].position);
         if (i == 0)
@@ -185,14 +186,17 @@ void sl_path_get_stats(sl_path p, sl_path_stats *s)
                dz = (double)q[i].position.z - q[i - 1].position.z;
         double d = sqrt(dx * dx + dy * dy + dz * dz), dt = (double)q[i].time - q[i - 1].time;
         s->length += d;
+        if (dt <= 0 && d > 0)
+            s->jumps++;
         if (dt > 0) {
+            timed += d;
             double v = d / dt;
             s->speed_min = any_speed ? fmin(s->speed_min, v) : v;
             s->speed_max = any_speed ? fmax(s->speed_max, v) : v;
             any_speed = true;
         }
     }
-    s->speed_mean = s->duration > 0 ? s->length / s->duration : 0;
+    s->speed_mean = s->duration > 0 ? timed / s->duration : 0;
 }
 
 /* ---- options ---- */
