@@ -404,6 +404,9 @@ static void test_public_output(void **state)
     write_file(file, "old");
     sl_error err;
     sl_output o;
+    /* an empty path is named as such (it was "': write failed: No such file or directory") */
+    assert_int_equal(sl_output_open("", NULL, &o, &err), SL_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(err.message, "empty output path"));
     assert_int_equal(sl_output_open(file, NULL, &o, &err), SL_OK);
     assert_int_equal(fprintf(sl_output_stream(o), "# %s\n", "new"), 6);
     assert_content(file, "old"); /* nothing in place before the commit */

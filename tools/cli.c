@@ -280,7 +280,8 @@ void cli_unknown(cli_args *a, const char *name)
             snprintf(a->unknown, sizeof a->unknown, "%s", name);
     }
     else
-        cli_error(a->cmd, "unexpected argument (see sightline %s --help)", a->cmd);
+        cli_error(a->cmd, "unexpected argument '%s' (see sightline %s --help)", a->i > 0 ? a->argv[a->i - 1] : "",
+                  a->cmd);
     a->error = true;
 }
 

@@ -11,6 +11,8 @@ sl_status sl_output_open(const char *path, const sl_allocator *alloc, sl_output 
 {
     if (!path || !out)
         return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "sl_output_open: path and out must not be NULL");
+    if (!path[0])
+        return sl_fail(err, SL_ERROR_INVALID_ARGUMENT, "an empty output path");
     *out = NULL;
     alloc = sl_alloc_or_default(alloc);
     sl_output o = sl_calloc(alloc, 1, sizeof *o);

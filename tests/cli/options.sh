@@ -26,7 +26,7 @@ done
 for c in "import" "info" "render" "view" "path info" "path check" "pvs info" "pvs query" "pvs verify" "pvs build"; do
     # shellcheck disable=SC2086
     expect 2 "$SL" $c a.slscene b.slscene
-    has "unexpected argument" "$tmp/err"
+    has "unexpected argument 'b.slscene'" "$tmp/err"
 done
 # actions
 for c in path pvs occlusion; do
