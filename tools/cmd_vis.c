@@ -171,8 +171,8 @@ int sl_cmd_vis_server(int argc, char **argv)
     const struct {
         const char *name;
         uint32_t value, max;
-    } limits[] = {{"max-clients", max_clients, 65536}, {"rate", rate, 10000}, {"queue", queue, 64},
-                  {"max-pixels", max_pixels, 1u << 28}};
+    } limits[] = {{"max-clients", max_clients, SL_VIS_MAX_CLIENTS}, {"rate", rate, SL_VIS_MAX_RATE_HZ},
+                  {"queue", queue, SL_VIS_MAX_QUEUE_SETS}, {"max-pixels", max_pixels, SL_VIS_MAX_PIXELS}};
     for (size_t i = 0; i < sizeof limits / sizeof limits[0]; i++)
         if (limits[i].value > limits[i].max) {
             cli_error(a.cmd, "--%s %u: at most %u", limits[i].name, limits[i].value, limits[i].max);

@@ -84,6 +84,12 @@ SL_API uint32_t sl_vis_reference_cell(sl_vis_reference ref, const sl_camera *cam
 
 typedef struct sl_vis_server_t *sl_vis_server;
 
+/* The largest values sl_vis_server_options takes (sl_vis_server_create refuses more). */
+#define SL_VIS_MAX_CLIENTS 65536u
+#define SL_VIS_MAX_RATE_HZ 10000u
+#define SL_VIS_MAX_QUEUE_SETS 64u
+#define SL_VIS_MAX_PIXELS (1u << 28)
+
 /* A zeroed struct gives the defaults. */
 typedef struct sl_vis_server_options {
     const char *method;          /* method spec (required): "cullmap", "pvs:file=X.slpvs" */

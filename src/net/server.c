@@ -752,9 +752,8 @@ static bool handle_message(client *c, const uint8_t *body, uint32_t len)
         if (!slvp_read_hello(body, len, &h, why, sizeof why)) {
             stat_add(s, &s->stats.protocol_errors, 1);
             /* code 2 only for a HELLO of another version: right size and magic, other version */
-            uint32_t magic = (uint32_t)body[1] | (uint32_t)body[2] << 8 | (uint32_t)body[3] << 16 |
-                             (uint32_t)body[4] << 24;
-            bool version = len == SLVP_HELLO_BODY && magic == SLVP_MAGIC && body[5] + 256 * body[6] != SLVP_VERSION;
+            bool version = len == SLVP_HELLO_BODY && slvp_u32(body + 1) == SLVP_MAGIC &&
+                           body[5] + 256 * body[6] != SLVP_VERSION;
             client_refuse(c, version ? SLVP_ERR_VERSION : SLVP_ERR_PROTOCOL, why);
             return false;
         }
@@ -851,10 +850,8 @@ static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf)
                 snprintf(why, sizeof why, "offset 0: the stream ended inside a length prefix (%zu of %u bytes)",
                          c->rlen, (unsigned)SLVP_LEN_BYTES);
             else {
-                uint32_t len = (uint32_t)c->rbuf[0] | (uint32_t)c->rbuf[1] << 8 | (uint32_t)c->rbuf[2] << 16 |
-                               (uint32_t)c->rbuf[3] << 24;
                 snprintf(why, sizeof why, "offset %zu: the stream ended inside a message of %u bytes (%zu received)",
-                         c->rlen, len, c->rlen - SLVP_LEN_BYTES);
+                         c->rlen, slvp_u32(c->rbuf), c->rlen - SLVP_LEN_BYTES);
             }
             stat_add(c->srv, &c->srv->stats.protocol_errors, 1);
             client_refuse(c, SLVP_ERR_PROTOCOL, why);
@@ -1033,19 +1030,22 @@ sl_status sl_vis_server_create(sl_scene scene, const sl_vis_server_options *o, s
     uint32_t workers = o->workers ? o->workers : 2;
     uint32_t rate = o->max_rate_hz ? o->max_rate_hz : 240;
     uint32_t queue = o->queue_sets ? o->queue_sets : 1;
-    if (max_clients > 65536)
-        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_clients %u: at most 65536", max_clients);
+    if (max_clients > SL_VIS_MAX_CLIENTS)
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_clients %u: at most %u", max_clients,
+                        SL_VIS_MAX_CLIENTS);
     if (workers > SL_MAX_THREADS)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: workers %u: at most %u", workers, SL_MAX_THREADS);
-    if (rate > 10000)
-        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_rate_hz %u: at most 10000", rate);
-    if (queue > 64)
-        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: queue_sets %u: at most 64", queue);
+    if (rate > SL_VIS_MAX_RATE_HZ)
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_rate_hz %u: at most %u", rate,
+                        SL_VIS_MAX_RATE_HZ);
+    if (queue > SL_VIS_MAX_QUEUE_SETS)
+        return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: queue_sets %u: at most %u", queue,
+                        SL_VIS_MAX_QUEUE_SETS);
     uint32_t max_pixels = o->max_pixels ? o->max_pixels : 3840u * 2160u;
     if (o->hello_timeout_ms > 3600000)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: hello_timeout_ms %u: at most 3600000 (an hour)",
                         o->hello_timeout_ms);
-    if (max_pixels > (1u << 28))
+    if (max_pixels > SL_VIS_MAX_PIXELS)
         return net_fail(err, SL_ERROR_INVALID_ARGUMENT, "vis server: max_pixels %u: at most 2^28 (16384 x 16384)",
                         max_pixels);
     if (o->socket_buffer > (1u << 30))

@@ -39,10 +39,7 @@ static void put_f32(uint8_t *p, float f)
     put_u32(p, v);
 }
 static uint16_t get_u16(const uint8_t *p) { return (uint16_t)(p[0] | (p[1] << 8)); }
-static uint32_t get_u32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
-}
+static uint32_t get_u32(const uint8_t *p) { return slvp_u32(p); }
 static uint64_t get_u64(const uint8_t *p)
 {
     uint64_t v = 0;

@@ -82,6 +82,12 @@ typedef struct slvp_errmsg {
     char text[SLVP_ERROR_TEXT_MAX + 1];
 } slvp_errmsg;
 
+/* A little-endian u32 at p (the length prefix, fields). */
+static inline uint32_t slvp_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
+}
+
 /* The frame at buf[0..avail): 1 with *body_len when complete, 0 when more bytes are needed, -1
  * (why filled) when its length is 0 or above max_body. */
 int slvp_frame(const uint8_t *buf, size_t avail, uint32_t max_body, uint32_t *body_len, char *why, size_t why_size);
